@@ -1,0 +1,165 @@
+"""Build the project's FMUs reproducibly.
+
+Each FMU ships the Python sources it runs inside a package whose name carries a
+hash of those sources (``dronefly_lateral_<hash>``). pythonfmu runs every FMU
+of a process in one interpreter and reuses modules by name, so a fixed name
+would let one FMU (or the host) shadow another's code; a content-addressed
+name cannot collide with a different version. The GUID is derived from the
+same hash, and the zip has fixed timestamps, so two builds from the same
+sources are byte-identical.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import sys
+import tempfile
+import uuid
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["FMUS", "BuildError", "build_all", "build_fmu", "fmu_sources"]
+
+_PKG_ROOT = Path(__file__).resolve().parent
+_NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+
+class BuildError(RuntimeError):
+    """An FMU could not be built."""
+
+
+@dataclass(frozen=True)
+class _Spec:
+    module: str  # slave module, relative to the dronefly package
+    cls: str
+    files: tuple[str, ...]  # modules shipped, relative to the dronefly package
+    readme: str
+    reference: str
+
+
+FMUS: dict[str, _Spec] = {
+    "DroneFlyLateral": _Spec(
+        module="plant.slave", cls="DroneFlyLateral",
+        files=("fmi.py", "plant/model.py", "plant/slave.py"),
+        readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
+}
+
+
+_ENTRY = """\
+# Entry module named in resources/slavemodule.txt; the pythonfmu wrapper imports it and then
+# evaluates this file once more in the module's namespace on every fmi2Instantiate.
+# pythonfmu 0.7.0's findClass releases one reference to this module's globals per load that it
+# never took (Py_DECREF of the borrowed PyModule_GetDict result). Each evaluation pins one more,
+# so the namespace survives any number of instantiations in one process.
+globals().setdefault("_pins", []).append(globals())
+from {pkg}.{module} import {cls}  # noqa: E402,F401
+"""
+
+
+def _source_path(rel: str) -> Path:
+    """Where a module of the dronefly package lives (subpackages are mapped)."""
+    head, _, tail = rel.partition("/")
+    if not tail:
+        return _PKG_ROOT / rel
+    sub = importlib.import_module(f"dronefly.{head}")
+    return Path(sub.__file__).resolve().parent / tail  # type: ignore[arg-type]
+
+
+def _wrapper_files() -> dict[str, bytes]:
+    """pythonfmu's binaries and its Python package, as the FMU ships them."""
+    import pythonfmu
+
+    root = Path(pythonfmu.__file__).resolve().parent
+    out: dict[str, bytes] = {}
+    for f in sorted(root.glob("*.py")):
+        out[f"resources/pythonfmu/{f.name}"] = f.read_bytes()
+    for f in sorted((root / "resources" / "binaries").rglob("*")):
+        if f.suffix in (".so", ".dll", ".dylib"):
+            out[f"binaries/{f.parent.name}/{{model}}{f.suffix}"] = f.read_bytes()
+    return out
+
+
+def fmu_sources(name: str) -> tuple[str, dict[str, bytes]]:
+    """Package name and ``{path in FMU: content}`` of one FMU (no model description)."""
+    spec = FMUS[name]
+    sources = {rel: _source_path(rel).read_bytes() for rel in spec.files}
+    wrapper = _wrapper_files()
+    h = hashlib.sha256(name.encode() + _ENTRY.encode())
+    for rel, data in sorted({**sources, **wrapper}.items()):
+        h.update(rel.encode() + b"\0" + hashlib.sha256(data).digest())
+    pkg = f"dronefly_{name.lower()}_{h.hexdigest()[:16]}"
+    files: dict[str, bytes] = {}
+    for rel, data in sources.items():
+        files[f"resources/{pkg}/{rel}"] = data
+        parts = rel.split("/")[:-1]
+        for i in range(len(parts) + 1):
+            files.setdefault(f"resources/{pkg}/{'/'.join(parts[:i] + ['__init__.py'])}", b"")
+    entry = f"{pkg}_slave"
+    files[f"resources/{entry}.py"] = _ENTRY.format(pkg=pkg, module=spec.module, cls=spec.cls).encode()
+    files["resources/slavemodule.txt"] = entry.encode()
+    for rel, data in wrapper.items():
+        files[rel.replace("{model}", name)] = data
+    files["documentation/README.md"] = _source_path(spec.readme).read_bytes()
+    return pkg, files
+
+
+def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str) -> bytes:
+    """Generate the XML from the code the FMU ships, imported under its own name."""
+    from .fmi import model_description_bytes
+
+    spec = FMUS[name]
+    with tempfile.TemporaryDirectory(prefix="dronefly_build_") as tmp:
+        for rel, data in files.items():
+            if rel.startswith(f"resources/{pkg}/"):
+                path = Path(tmp, rel)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
+        resources = str(Path(tmp, "resources"))
+        sys.path.insert(0, resources)
+        try:
+            module = importlib.import_module(f"{pkg}.{spec.module}")
+            cls = getattr(module, spec.cls)
+            return model_description_bytes(cls, guid)
+        finally:
+            sys.path.remove(resources)
+            for mod in [m for m in sys.modules if m == pkg or m.startswith(pkg + ".")]:
+                del sys.modules[mod]
+
+
+def build_fmu(name: str, out_dir: str | Path = "build") -> Path:
+    """Build one FMU into ``out_dir`` and return its path.
+
+    Raises
+    ------
+    BuildError
+        Unknown FMU name, or the sources cannot be read or imported.
+    """
+    if name not in FMUS:
+        raise BuildError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
+    out = Path(out_dir)
+    try:
+        pkg, files = fmu_sources(name)
+        digest = pkg.rsplit("_", 1)[-1]
+        guid = "{" + str(uuid.uuid5(_NAMESPACE, f"{name}:{digest}")) + "}"
+        files["modelDescription.xml"] = _model_description(name, pkg, files, guid)
+    except (OSError, ImportError) as e:
+        raise BuildError(f"cannot build {name}: {e}") from e
+    out.mkdir(parents=True, exist_ok=True)
+    target = out / f"{name}.fmu"
+    tmp = target.with_suffix(".fmu.part")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        for rel in sorted(files):
+            info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
+            info.external_attr = 0o644 << 16
+            info.compress_type = zipfile.ZIP_DEFLATED
+            z.writestr(info, files[rel])
+    tmp.replace(target)  # atomic: never a half-written FMU under the final name
+    return target
+
+
+def build_all(out_dir: str | Path = "build") -> list[Path]:
+    """Build every FMU of the project into ``out_dir``."""
+    return [build_fmu(name, out_dir) for name in FMUS]

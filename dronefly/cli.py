@@ -1,0 +1,110 @@
+"""The ``dronefly`` command line.
+
+Each subcommand maps onto one Python function; imports are lazy so that
+``dronefly --help`` is instant. Exit codes: 0 success, 1 a check failed,
+2 bad input (one-line message on stderr, no traceback, no partial files).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Callable, Sequence
+
+__all__ = ["main"]
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(ValueError):
+    """Bad command-line input; reported in one line with exit code 2."""
+
+
+def _cmd_build(args: argparse.Namespace) -> int:
+    from .build import build_all
+
+    for path in build_all(args.out):
+        print(path)
+    return EXIT_OK
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .simulate import simulate_plant
+
+    result = simulate_plant(stop_wingbeats=args.stop, step_wingbeats=args.step,
+                            gamma0=args.gamma0, out_dir=args.out)
+    print(result.summary())
+    return EXIT_OK
+
+
+_EPILOG = {
+    "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
+    "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50",
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="dronefly",
+        description="FMUs and analysis of the lateral stabilization control of a hovering "
+                    "model drone fly (Zhang & Sun).",
+        epilog="examples:\n  dronefly build\n  dronefly simulate --stop 100",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def add(name: str, helptext: str, fn: Callable[[argparse.Namespace], int]) -> argparse.ArgumentParser:
+        sp = sub.add_parser(name, help=helptext, description=helptext, epilog=_EPILOG.get(name),
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
+        sp.set_defaults(func=fn)
+        return sp
+
+    b = add("build", "build every FMU of the project", _cmd_build)
+    b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
+
+    s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance",
+            _cmd_simulate)
+    s.add_argument("--stop", type=_positive, default=30.0, help="stop time in wing beats (default 30)")
+    s.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
+    s.add_argument("--gamma0", type=_finite, default=0.1, help="initial roll angle in rad (default 0.1)")
+    s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
+    return p
+
+
+def _finite(text: str) -> float:
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+    return value
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the exit code (also used by ``python -m dronefly``)."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse already printed its one-line error or the help
+        return int(e.code or 0)
+    try:
+        return int(args.func(args))
+    except (UsageError, ValueError, OSError) as e:
+        print(f"dronefly {args.command}: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"dronefly {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,98 @@
+"""Open-loop simulation of the plant FMU with fmpy, checked against the exact solution."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .plant.model import N_HZ, STATE_NAMES, U_M_PER_S, LateralModel, default_parameters
+
+__all__ = ["PlantRun", "exact_open_loop", "simulate_plant", "write_csv_atomic"]
+
+
+@dataclass(frozen=True)
+class PlantRun:
+    """Result of :func:`simulate_plant`."""
+
+    time: np.ndarray  # s
+    states: np.ndarray  # (N, 4) dimensional outputs
+    max_rel_error: float  # against the exact solution, relative to max |x|
+    csv: Path
+
+    def summary(self) -> str:
+        wb = self.time[-1] * N_HZ
+        final = ", ".join(f"{n} = {v:.6g}" for n, v in zip(STATE_NAMES, self.states[-1]))
+        return (f"DroneFlyLateral open loop, {len(self.time) - 1} steps to {wb:.6g} wing beats: "
+                f"{final}\nmax relative deviation from the exact solution: "
+                f"{self.max_rel_error:.2e}\nresult: {self.csv}")
+
+
+def exact_open_loop(x0_dim: np.ndarray, t: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+    """Exact solution of Eq. (9) for a constant control at times ``t`` [s].
+
+    Independent of the FMU's matrix-exponential stepping: uses the eigen-
+    decomposition A1 = V diag(lam) V^-1, x(t) = e^(A t) x0 + A^-1 (e^(A t) - I) B u
+    (A1 has no zero eigenvalue).
+    """
+    model = LateralModel(default_parameters())
+    A, B = model.A, model.B
+    lam, V = np.linalg.eig(A)
+    Vinv = np.linalg.inv(V)
+    scale = np.array([U_M_PER_S, N_HZ, N_HZ, 1.0])
+    x0 = np.asarray(x0_dim, dtype=float) / scale
+    u = np.zeros(3) if u is None else np.asarray(u, dtype=float)
+    a0 = Vinv @ x0
+    b = Vinv @ (B @ u)
+    tp = np.asarray(t, dtype=float)[:, None] * N_HZ
+    e = np.exp(lam[None, :] * tp)
+    modal = e * a0[None, :] + (e - 1.0) / lam[None, :] * b[None, :]
+    return np.real(modal @ V.T) * scale
+
+
+def write_csv_atomic(path: Path, header: list[str], rows: np.ndarray) -> None:
+    """Write a CSV next to its final name, then rename: never a half-written file."""
+    tmp = path.with_name(path.name + ".part")
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(",".join(header) + "\n")
+        for row in rows:
+            f.write(",".join(repr(float(v)) for v in row) + "\n")
+    os.replace(tmp, path)
+
+
+def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, gamma0: float = 0.1,
+                   out_dir: str | Path = "build") -> PlantRun:
+    """Build the plant FMU if needed, simulate it with fmpy and write a CSV.
+
+    Parameters
+    ----------
+    stop_wingbeats, step_wingbeats : float
+        Stop time and communication step in wing beats (t_w = 1/n).
+    gamma0 : float
+        Initial roll angle [rad].
+    """
+    import fmpy
+
+    from .build import build_fmu
+
+    for name, v in (("stop", stop_wingbeats), ("step", step_wingbeats), ("gamma0", gamma0)):
+        if not math.isfinite(v):
+            raise ValueError(f"{name} = {v!r} is not finite")
+    if step_wingbeats <= 0 or stop_wingbeats < step_wingbeats:
+        raise ValueError(f"need 0 < step ({step_wingbeats!r}) <= stop ({stop_wingbeats!r})")
+    out = Path(out_dir)
+    fmu = build_fmu("DroneFlyLateral", out)
+    res = fmpy.simulate_fmu(str(fmu), stop_time=stop_wingbeats / N_HZ,
+                            output_interval=step_wingbeats / N_HZ,
+                            start_values={"delta_gamma_start": gamma0},
+                            output=list(STATE_NAMES))
+    t = np.asarray(res["time"], dtype=float)
+    x = np.column_stack([res[n] for n in STATE_NAMES])
+    ref = exact_open_loop(np.array([0.0, 0.0, 0.0, gamma0]), t)
+    err = float(np.max(np.abs(x - ref)) / max(np.max(np.abs(ref)), 1e-300))
+    csv = out / "DroneFlyLateral_open_loop.csv"
+    write_csv_atomic(csv, ["time", *STATE_NAMES], np.column_stack([t, x]))
+    return PlantRun(t, x, err, csv)

@@ -1,0 +1,333 @@
+"""Linearized lateral dynamics of the hovering model drone fly (Zhang & Sun).
+
+This module is the single home of the model's numbers and equations. The plant
+FMU, the controller FMU, the harness and the analysis all import it; nothing
+else writes a coefficient of the paper.
+
+Non-dimensionalisation (end of Sect. 2.1): reference length c (mean chord),
+velocity U = 2 Phi n r2, time t_w = 1/n. The state is
+x+ = (dv+, dp+, dr+, dgamma) = (dv/U, dp t_w, dr t_w, dgamma) and the control is
+c1 = (dPhi_a, dalpha_1a, dalpha_2a) in rad. Time t+ = t / t_w (wing beats).
+
+The stability derivatives are not printed in the paper. They are recovered from
+the printed system matrix, Eq. (12), and the printed inertias by inverting
+Eq. (10): rows 2 and 3 of A1 are M^-1 [L; N] with M = [[Ix, -Ixz], [-Ixz, Iz]]
+(Eqs. 2-3), so [L; N] = M [A1 row 2; A1 row 3]; row 1 is Y/m. With these values
+Eq. (10) gives back Eq. (12) exactly, up to floating-point rounding.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg import expm
+
+__all__ = [
+    "A1_EQ12",
+    "CONTROL_DERIVATIVES_TABLE1",
+    "CONTROL_NAMES",
+    "FLIGHT_DATA",
+    "INERTIAS_SECT21",
+    "LateralModel",
+    "LateralParameters",
+    "ModelParameterError",
+    "N_HZ",
+    "STATE_NAMES",
+    "U_M_PER_S",
+    "default_parameters",
+    "derive_stability_derivatives",
+    "discretize_zoh",
+    "reference_scales",
+    "system_matrices",
+    "to_dimensional",
+    "to_nondimensional",
+]
+
+Array = NDArray[np.float64]
+
+STATE_NAMES: tuple[str, ...] = ("delta_v", "delta_p", "delta_r", "delta_gamma")
+CONTROL_NAMES: tuple[str, ...] = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
+
+#: Eq. (12): the system matrix A1 as printed (non-dimensional, per wing beat).
+A1_EQ12: tuple[tuple[float, ...], ...] = (
+    (-0.0094, -0.0011, 0.0, 0.0158),
+    (0.1741, -0.2496, 0.2930, 0.0),
+    (-0.1117, 0.1551, -0.3500, 0.0),
+    (0.0, 1.0, 0.0, 0.0),
+)
+
+#: End of Sect. 2.1: non-dimensional mass, inertias and gravity (from Ref. [8]).
+INERTIAS_SECT21: dict[str, float] = {
+    "m_plus": 92.7,
+    "Ix_plus": 10.00,
+    "Iz_plus": 12.69,
+    "Ixz_plus": -8.36,
+    "g_plus": 0.0158,
+}
+
+#: Table 1: non-dimensional lateral control derivatives (per rad).
+CONTROL_DERIVATIVES_TABLE1: dict[str, float] = {
+    "Y_Phi_a_plus": -0.049,
+    "L_Phi_a_plus": 2.236,
+    "N_Phi_a_plus": -0.007,
+    "Y_alpha_1a_plus": 0.511,
+    "L_alpha_1a_plus": 3.456,
+    "N_alpha_1a_plus": 0.121,
+    "Y_alpha_2a_plus": 0.066,
+    "L_alpha_2a_plus": 0.014,
+    "N_alpha_2a_plus": -4.922,
+}
+
+#: Sect. 2.4: flight data of the model drone fly, SI units.
+FLIGHT_DATA: dict[str, float] = {
+    "m_body": 87.76e-6,  # kg
+    "m_wing": 0.56e-6,  # kg, one wing
+    "R": 11.2e-3,  # m, wing length
+    "c": 2.98e-3,  # m, mean chord
+    "r2_over_R": 0.55,
+    "S_wing": 33.34e-6,  # m^2, one wing
+    "Ix": 657.7e-12,  # kg m^2 (657.7 mg mm^2)
+    "Iz": 834.6e-12,
+    "Ixz": -550.0e-12,
+    "Phi_deg": 107.1,  # stroke amplitude
+    "n": 164.0,  # Hz
+    "rho": 1.25,  # kg/m^3
+    "g": 9.81,  # m/s^2
+}
+
+
+class ModelParameterError(ValueError):
+    """A model parameter is not finite or not physical."""
+
+
+def reference_scales(data: Mapping[str, float] = FLIGHT_DATA) -> dict[str, float]:
+    """Reference scales and non-dimensional mass properties from flight data.
+
+    Parameters
+    ----------
+    data : mapping
+        Flight data as in :data:`FLIGHT_DATA` (SI units).
+
+    Returns
+    -------
+    dict
+        ``n`` [Hz], ``t_w`` [s], ``U`` [m/s] (U = 2 Phi n r2), and the
+        non-dimensional ``m_plus``, ``Ix_plus``, ``Iz_plus``, ``Ixz_plus``,
+        ``g_plus`` as defined at the end of Sect. 2.1.
+    """
+    n = data["n"]
+    t_w = 1.0 / n
+    U = 2.0 * math.radians(data["Phi_deg"]) * n * data["r2_over_R"] * data["R"]
+    S_t = 2.0 * data["S_wing"]
+    m = data["m_body"] + 2.0 * data["m_wing"]
+    q_force = 0.5 * data["rho"] * U * S_t * t_w
+    q_inertia = 0.5 * data["rho"] * U**2 * S_t * data["c"] * t_w**2
+    return {
+        "n": n,
+        "t_w": t_w,
+        "U": U,
+        "m_plus": m / q_force,
+        "Ix_plus": data["Ix"] / q_inertia,
+        "Iz_plus": data["Iz"] / q_inertia,
+        "Ixz_plus": data["Ixz"] / q_inertia,
+        "g_plus": data["g"] * t_w / U,
+    }
+
+
+N_HZ: float = FLIGHT_DATA["n"]
+U_M_PER_S: float = reference_scales()["U"]
+
+
+def derive_stability_derivatives(
+    A1: Array | tuple[tuple[float, ...], ...] = A1_EQ12,
+    inertias: Mapping[str, float] = INERTIAS_SECT21,
+) -> dict[str, float]:
+    """Invert Eq. (10): the nine stability derivatives behind a system matrix.
+
+    Parameters
+    ----------
+    A1 : (4, 4) array_like
+        Non-dimensional system matrix (default: Eq. 12 as printed).
+    inertias : mapping
+        ``m_plus``, ``Ix_plus``, ``Iz_plus``, ``Ixz_plus`` (non-dimensional).
+
+    Returns
+    -------
+    dict
+        ``Yv_plus`` ... ``Nr_plus`` (non-dimensional).
+    """
+    a = np.asarray(A1, dtype=float)
+    m, Ix, Iz, Ixz = (inertias[k] for k in ("m_plus", "Ix_plus", "Iz_plus", "Ixz_plus"))
+    inertia_matrix = np.array([[Ix, -Ixz], [-Ixz, Iz]])
+    LN = inertia_matrix @ a[1:3, 0:3]
+    out: dict[str, float] = {}
+    for j, s in enumerate("vpr"):
+        out[f"Y{s}_plus"] = float(m * a[0, j])
+        out[f"L{s}_plus"] = float(LN[0, j])
+        out[f"N{s}_plus"] = float(LN[1, j])
+    return out
+
+
+@dataclass(frozen=True)
+class LateralParameters:
+    """Non-dimensional parameters of Eq. (9) (all unit 1)."""
+
+    m_plus: float
+    Ix_plus: float
+    Iz_plus: float
+    Ixz_plus: float
+    g_plus: float
+    Yv_plus: float
+    Yp_plus: float
+    Yr_plus: float
+    Lv_plus: float
+    Lp_plus: float
+    Lr_plus: float
+    Nv_plus: float
+    Np_plus: float
+    Nr_plus: float
+    Y_Phi_a_plus: float
+    L_Phi_a_plus: float
+    N_Phi_a_plus: float
+    Y_alpha_1a_plus: float
+    L_alpha_1a_plus: float
+    N_alpha_1a_plus: float
+    Y_alpha_2a_plus: float
+    L_alpha_2a_plus: float
+    N_alpha_2a_plus: float
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    def validate(self) -> None:
+        """Raise :class:`ModelParameterError` naming the first bad value."""
+        for name in self.names():
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise ModelParameterError(f"{name} = {value!r} is not finite")
+        if self.m_plus <= 0.0:
+            raise ModelParameterError(f"m_plus = {self.m_plus!r} must be > 0")
+        if self.Ix_plus <= 0.0 or self.Iz_plus <= 0.0:
+            raise ModelParameterError(
+                f"Ix_plus = {self.Ix_plus!r}, Iz_plus = {self.Iz_plus!r} must be > 0"
+            )
+        det = self.Ix_plus * self.Iz_plus - self.Ixz_plus**2
+        if det <= 0.0:
+            raise ModelParameterError(
+                f"Ix_plus*Iz_plus = {self.Ix_plus * self.Iz_plus!r} must exceed "
+                f"Ixz_plus^2 = {self.Ixz_plus**2!r} (Ixz_plus = {self.Ixz_plus!r})"
+            )
+
+    def with_values(self, **changes: float) -> "LateralParameters":
+        return replace(self, **changes)
+
+
+def default_parameters() -> LateralParameters:
+    """The paper's model: Sect. 2.1 inertias, Eq. (12) derivatives, Table 1."""
+    return LateralParameters(
+        **INERTIAS_SECT21,
+        **derive_stability_derivatives(),
+        **CONTROL_DERIVATIVES_TABLE1,
+    )
+
+
+def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
+    """A1 and B1 of Eq. (9) by Eqs. (10)-(11).
+
+    Returns
+    -------
+    A1 : (4, 4) ndarray
+        Non-dimensional system matrix, per wing beat.
+    B1 : (4, 3) ndarray
+        Non-dimensional control matrix, per wing beat per rad.
+    """
+    p.validate()
+    det = p.Ix_plus * p.Iz_plus - p.Ixz_plus**2
+
+    def _rows(Y: float, L: float, N: float) -> tuple[float, float, float]:
+        return (
+            Y / p.m_plus,
+            (p.Iz_plus * L + p.Ixz_plus * N) / det,
+            (p.Ixz_plus * L + p.Ix_plus * N) / det,
+        )
+
+    A = np.zeros((4, 4))
+    for j, s in enumerate("vpr"):
+        A[0:3, j] = _rows(*(getattr(p, f"{F}{s}_plus") for F in "YLN"))
+    A[0, 3] = p.g_plus
+    A[3, 1] = 1.0
+    B = np.zeros((4, 3))
+    for j, c in enumerate(("Phi_a", "alpha_1a", "alpha_2a")):
+        B[0:3, j] = _rows(*(getattr(p, f"{F}_{c}_plus") for F in "YLN"))
+    return A, B
+
+
+def discretize_zoh(A: Array, B: Array, h: float) -> tuple[Array, Array]:
+    """Exact zero-order-hold discretisation over a step ``h`` (same time unit as A).
+
+    Returns ``(Phi, Gamma)`` with x[k+1] = Phi x[k] + Gamma u[k], from the
+    matrix exponential of the augmented matrix [[A, B], [0, 0]] h.
+    """
+    n, m = B.shape
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = A * h
+    aug[:n, n:] = B * h
+    e = expm(aug)
+    return e[:n, :n].copy(), e[:n, n:].copy()
+
+
+class LateralModel:
+    """Eq. (9) with exact stepping for piecewise-constant controls.
+
+    Parameters
+    ----------
+    params : LateralParameters
+        Validated on construction (raises :class:`ModelParameterError`).
+
+    Notes
+    -----
+    The (Phi, Gamma) pair is cached per step size, so a fixed communication
+    step costs one matrix exponential in total.
+    """
+
+    _CACHE_SIZE = 16
+
+    def __init__(self, params: LateralParameters) -> None:
+        self.params = params
+        self.A, self.B = system_matrices(params)
+        self._cache: dict[float, tuple[Array, Array]] = {}
+
+    def transition(self, h_plus: float) -> tuple[Array, Array]:
+        """(Phi, Gamma) for a step of ``h_plus`` wing beats (cached)."""
+        hit = self._cache.get(h_plus)
+        if hit is None:
+            if len(self._cache) >= self._CACHE_SIZE:
+                self._cache.pop(next(iter(self._cache)))
+            hit = self._cache[h_plus] = discretize_zoh(self.A, self.B, h_plus)
+        return hit
+
+    def step(self, x: Array, u: Array, h_plus: float) -> Array:
+        """State after ``h_plus`` wing beats with the control held at ``u``."""
+        Phi, Gamma = self.transition(h_plus)
+        return Phi @ x + Gamma @ u
+
+    def eigenvalues(self) -> Array:
+        """Eigenvalues of A1 per wing beat, sorted by descending real part."""
+        ev = np.linalg.eigvals(self.A)
+        return ev[np.lexsort((-ev.imag, -ev.real))]
+
+
+def to_nondimensional(x: Array, U: float, n: float) -> Array:
+    """(dv [m/s], dp [rad/s], dr [rad/s], dgamma [rad]) -> x+."""
+    t_w = 1.0 / n
+    return np.array([x[0] / U, x[1] * t_w, x[2] * t_w, x[3]], dtype=float)
+
+
+def to_dimensional(x_plus: Array, U: float, n: float) -> Array:
+    """x+ -> (dv [m/s], dp [rad/s], dr [rad/s], dgamma [rad])."""
+    return np.array([x_plus[0] * U, x_plus[1] * n, x_plus[2] * n, x_plus[3]], dtype=float)

@@ -1,0 +1,16 @@
+"""Shared fixtures: the project's FMUs, built once per test session into a temporary folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """``{model name: path}`` of every FMU of the project, freshly built."""
+    from dronefly.build import build_all
+
+    out = tmp_path_factory.mktemp("fmus")
+    return {p.stem: p for p in build_all(out)}

@@ -37,7 +37,25 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_analyze(args: argparse.Namespace) -> int:
+    from .harness.reproduction import run_analyze
+
+    text = run_analyze(as_json=args.json, markdown=args.markdown, targets=args.targets,
+                       design_input=args.input)
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        print(args.out)
+    else:
+        print(text, end="" if text.endswith("\n") else "\n")
+    return EXIT_OK
+
+
 _EPILOG = {
+    "analyze": "examples:\n  dronefly analyze\n  dronefly analyze --json\n"
+               "  dronefly analyze --markdown --out docs/reproduction.md\n"
+               "  dronefly analyze --targets '-0.2,-0.089+0.057j,-0.089-0.057j,-0.51' "
+               "--input delta_Phi_a",
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
     "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50",
 }
@@ -67,6 +85,18 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
     s.add_argument("--gamma0", type=_finite, default=0.1, help="initial roll angle in rad (default 0.1)")
     s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
+
+    a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model",
+            _cmd_analyze)
+    a.add_argument("--json", action="store_true", help="print JSON (table, matrices, eigenvalues, gains)")
+    a.add_argument("--markdown", action="store_true", help="print the Markdown report (docs/reproduction.md)")
+    a.add_argument("--targets", default=None, metavar="LIST",
+                   help="comma-separated closed-loop eigenvalues per wing beat for an extra "
+                        "gain design, e.g. '-0.2,-0.089+0.057j,-0.089-0.057j,-0.51'")
+    a.add_argument("--input", default="delta_Phi_a", metavar="NAME",
+                   help="control input of that design: delta_Phi_a (default), delta_alpha_1a, "
+                        "delta_alpha_2a")
+    a.add_argument("--out", default=None, metavar="FILE", help="write to FILE instead of stdout")
     return p
 
 

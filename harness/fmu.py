@@ -1,0 +1,158 @@
+"""Thin, safe access to FMI 2.0 co-simulation FMUs through fmpy's FMU2Slave API.
+
+An :class:`FMU` is read and extracted once; :meth:`FMU.instantiate` gives
+:class:`Instance` objects whose log messages are captured in
+``Instance.messages`` and which are freed on every exit path (use them as
+context managers).
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import zipfile
+from ctypes import byref
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+__all__ = ["FMU", "FMUError", "Instance", "LogMessage"]
+
+
+class FMUError(ValueError):
+    """An FMU file is missing, corrupt, or not an FMI 2.0 co-simulation FMU."""
+
+
+@dataclass(frozen=True)
+class LogMessage:
+    instance: str
+    status: int
+    category: str
+    message: str
+
+
+class FMU:
+    """An FMI 2.0 CS FMU, read and extracted once.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.fmu`` file.
+
+    Raises
+    ------
+    FMUError
+        Missing file, not a zip, no valid modelDescription.xml, no co-simulation.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        import fmpy
+
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FMUError(f"FMU file {str(self.path)!r} does not exist")
+        try:
+            self.model_description = fmpy.read_model_description(str(self.path))
+        except (zipfile.BadZipFile, OSError, KeyError, Exception) as e:
+            raise FMUError(f"{str(self.path)!r} is not a readable FMU: {e}") from e
+        md = self.model_description
+        if md.fmiVersion != "2.0" or md.coSimulation is None:
+            raise FMUError(f"{str(self.path)!r} is not an FMI 2.0 co-simulation FMU")
+        self.name = md.modelName
+        self.variables = {v.name: v for v in md.modelVariables}
+        self._unzipdir: str | None = tempfile.mkdtemp(prefix=f"dronefly_{self.name}_")
+        try:
+            fmpy.extract(str(self.path), self._unzipdir)
+        except Exception as e:
+            self.close()
+            raise FMUError(f"cannot extract {str(self.path)!r}: {e}") from e
+
+    def vr(self, name: str) -> int:
+        """Value reference of a variable (raises :class:`FMUError` naming it)."""
+        try:
+            return self.variables[name].valueReference
+        except KeyError:
+            raise FMUError(f"FMU {self.name!r} ({self.path}) has no variable {name!r}") from None
+
+    def names(self, causality: str) -> list[str]:
+        return [v.name for v in self.model_description.modelVariables if v.causality == causality]
+
+    def instantiate(self, instance_name: str | None = None, logging: bool = True) -> "Instance":
+        if self._unzipdir is None:
+            raise FMUError(f"FMU {self.name!r} is closed")
+        return Instance(self, instance_name or self.name, logging)
+
+    def close(self) -> None:
+        """Delete the extracted files."""
+        if self._unzipdir is not None:
+            shutil.rmtree(self._unzipdir, ignore_errors=True)
+            self._unzipdir = None
+
+    def __enter__(self) -> "FMU":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+@dataclass
+class Instance:
+    """One instantiated slave; ``slave`` is the fmpy ``FMU2Slave``."""
+
+    fmu: FMU
+    name: str
+    logging: bool = True
+    messages: list[LogMessage] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+        from fmpy.fmi1 import calloc, free
+
+        md = self.fmu.model_description
+        self.slave = FMU2Slave(guid=md.guid, unzipDirectory=self.fmu._unzipdir,
+                               modelIdentifier=md.coSimulation.modelIdentifier,
+                               instanceName=self.name)
+        cb = fmi2CallbackFunctions()
+        # keep the ctypes callbacks alive as long as the instance
+        self._logger = fmi2CallbackLoggerTYPE(self._log)
+        cb.logger = self._logger
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+
+            addLoggerProxy(byref(cb))
+        except Exception:  # pragma: no cover - fmpy without the proxy
+            pass
+        self._callbacks = cb
+        self._freed = False
+        try:
+            self.slave.instantiate(callbacks=cb, loggingOn=self.logging)
+        except Exception as e:
+            self._freed = True
+            raise FMUError(f"cannot instantiate {self.fmu.name!r}: {e}") from e
+
+    def _log(self, env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+        def _s(b: bytes | None) -> str:
+            return b.decode("utf-8", "replace") if b else ""
+
+        self.messages.append(LogMessage(_s(instance), int(status), _s(category), _s(message)))
+
+    def vrs(self, names: Sequence[str]) -> list[int]:
+        return [self.fmu.vr(n) for n in names]
+
+    def free(self) -> None:
+        """Terminate (if possible) and free; safe to call twice."""
+        if not self._freed:
+            self._freed = True
+            try:
+                self.slave.fmi2FreeInstance(self.slave.component)
+            finally:
+                self.slave.freeLibrary()
+
+    def __enter__(self) -> "Instance":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.free()

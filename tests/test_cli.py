@@ -1,0 +1,50 @@
+"""The CLI, tested in-process: exit codes, one-line errors, no partial files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from dronefly.cli import main
+
+REF = Path(__file__).resolve().parents[1] / "fmu_src" / "DroneFlyLateral_ref.csv"
+
+
+def test_help_lists_subcommands(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "build" in out and "examples:" in out
+
+
+@pytest.mark.integration
+def test_build_and_simulate_reproduce_reference(tmp_path, capsys):
+    assert main(["build", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "DroneFlyLateral.fmu").is_file()
+    assert main(["simulate", "--stop", "30", "--step", "0.1", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "max relative deviation from the exact solution" in out
+    new = np.loadtxt(tmp_path / "DroneFlyLateral_open_loop.csv", delimiter=",", skiprows=1)
+    ref = np.loadtxt(REF, delimiter=",", skiprows=1)
+    assert_allclose(new, ref, rtol=1e-12, atol=1e-15, err_msg="fmu_src/DroneFlyLateral_ref.csv")
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["simulate", "--step", "-1"], "'-1' must be > 0"),
+    (["simulate", "--stop", "nan"], "'nan' is not finite"),
+    (["simulate", "--gamma0", "abc"], "'abc' is not a number"),
+    (["frobnicate"], "invalid choice"),
+])
+def test_bad_arguments_exit_2_with_one_line(argv, fragment, capsys, tmp_path):
+    assert main([*argv, *(["--out", str(tmp_path)] if argv[0] == "simulate" else [])]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert fragment in err[-1] and "Traceback" not in "\n".join(err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_step_longer_than_stop_is_refused(capsys, tmp_path):
+    assert main(["simulate", "--stop", "0.05", "--step", "0.1", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "step (0.1)" in err[0]

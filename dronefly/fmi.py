@@ -76,6 +76,9 @@ class SlaveBase(Fmi2Slave):
     :meth:`_refresh` (validate and rebuild after parameters or inputs
     changed; raise ``ValueError`` naming the bad value) and :meth:`_advance`
     (one communication step; validates the inputs, which change every step).
+    An FMU with direct feedthrough also implements :meth:`_update_outputs`,
+    which fmi2GetReal/fmi2GetBoolean call after any value was set.
+    Boolean variables are stored in the same value-reference table.
     """
 
     MODEL_NAME: ClassVar[str]
@@ -100,7 +103,9 @@ class SlaveBase(Fmi2Slave):
         self._stop_time: float | None = None
         self._pending: list[str] = []
         self._dirty = True
+        self._stale = True  # a value was set since the last _update_outputs
         self._initialized = False
+        self._types = tuple(v.type for v in vars_)
         self._settable = {
             mode: frozenset(i for i, v in enumerate(vars_) if self._may_set(v, mode))
             for mode in _MODES
@@ -117,6 +122,15 @@ class SlaveBase(Fmi2Slave):
     def _initialize(self) -> None:
         """Compute initial unknowns on leaving initialization mode."""
         self._refresh()
+
+    def _update_outputs(self) -> None:
+        """Recompute direct-feedthrough outputs from the current inputs and parameters.
+
+        Called lazily by fmi2GetReal/fmi2GetBoolean when a value was set since
+        the last call. Raise ``ValueError`` naming the bad value to keep the
+        last outputs; the message is logged with status fmi2Error. The default
+        does nothing: outputs change only in doStep.
+        """
 
     def _extra_state(self) -> dict[str, Any]:
         return {}
@@ -153,6 +167,13 @@ class SlaveBase(Fmi2Slave):
     def _refuse(self, msg: str) -> bool:
         self._report(msg, Fmi2Status.discard)
         return False
+
+    def _update_if_stale(self) -> None:
+        self._stale = False
+        try:
+            self._update_outputs()
+        except Exception as e:  # getters cannot fail: keep the outputs, say why
+            self._report(f"outputs keep their last valid values: {e}", Fmi2Status.error)
 
     def _reject(self, vr: int, value: Any, why: str) -> None:
         name = self.VARIABLES[vr].name if 0 <= vr < len(self.VARIABLES) else f"valueReference {vr}"
@@ -218,6 +239,8 @@ class SlaveBase(Fmi2Slave):
             return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
 
     def get_real(self, vrs: list[int]) -> list[float]:
+        if self._stale:
+            self._update_if_stale()
         r = self._real
         try:
             return [float(r[i]) for i in vrs]
@@ -225,25 +248,33 @@ class SlaveBase(Fmi2Slave):
             return [float(r[i]) if 0 <= i < len(r) else math.nan for i in vrs]
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
+        if self._stale:
+            self._update_if_stale()
         r = self._real
         return [bool(r[i]) if 0 <= i < len(r) else False for i in vrs]
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self._set(vrs, values, "Real")
+
+    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
+        self._set(vrs, [bool(x) for x in values], "Boolean")
+
+    def _set(self, vrs: list[int], values: list[Any], kind: str) -> None:
         try:
             ok = self._settable[self._mode]
-            r = self._real
+            r, types = self._real, self._types
             for i, x in zip(vrs, values):
-                if i in ok:
+                if i in ok and types[i] == kind:
                     r[i] = x
+                elif i in ok:
+                    self._reject(i, x, f"is a {types[i]} variable, not {kind}")
                 else:
                     self._reject(i, x, f"not settable in mode {self._mode!r}")
+            self._stale = True
             if not self._dirty and not self._param_vrs.isdisjoint(vrs):
                 self._dirty = True
         except Exception as e:
-            self._pending.append(f"setReal failed: {e!r}")
-
-    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
-        self.set_real(vrs, [bool(x) for x in values])
+            self._pending.append(f"set{kind} failed: {e!r}")
 
     def get_integer(self, vrs: list[int]) -> list[int]:
         for i in vrs:
@@ -280,8 +311,10 @@ class SlaveBase(Fmi2Slave):
             self._restore_extra_state(state["extra"])
             self._initialized = state["initialized"]
             self._dirty = True  # the next doStep rebuilds from the restored values
+            self._stale = True
         except Exception as e:
             self._dirty = True
+            self._stale = True
             self._pending.append(f"fmi2SetFMUstate: {e!r}")
 
     @staticmethod

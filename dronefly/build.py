@@ -45,6 +45,10 @@ FMUS: dict[str, _Spec] = {
         module="plant.slave", cls="DroneFlyLateral",
         files=("fmi.py", "plant/model.py", "plant/slave.py"),
         readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
+    "StateFeedback": _Spec(
+        module="controller.slave", cls="StateFeedback",
+        files=("fmi.py", "plant/model.py", "controller/law.py", "controller/slave.py"),
+        readme="controller/README.md", reference="controller/StateFeedback_ref.csv"),
 }
 
 

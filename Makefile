@@ -17,6 +17,7 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/dronefly build --out build
 	$(BIN)/dronefly simulate --out build
+	$(BIN)/dronefly demo --out build/cosim
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 -q

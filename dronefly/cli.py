@@ -37,6 +37,28 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_cosim(args: argparse.Namespace) -> int:
+    import json
+
+    from .harness.cosim import cosimulate
+
+    result = cosimulate(args.plant, args.controller, gains=args.gains, x0=args.x0,
+                        step_wingbeats=args.step, stop_wingbeats=args.stop, master=args.master,
+                        out_dir=args.out, plot=not args.no_plot)
+    print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
+    if not result.run.complete:
+        print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from .harness.demo import verdict_table
+
+    print(verdict_table(out_dir=args.out))
+    return EXIT_OK
+
+
 def _cmd_analyze(args: argparse.Namespace) -> int:
     from .harness.reproduction import run_analyze
 
@@ -52,6 +74,11 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 
 
 _EPILOG = {
+    "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
+             "  dronefly cosim --gains -0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
+             "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
+             "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input",
+    "demo": "examples:\n  dronefly demo",
     "analyze": "examples:\n  dronefly analyze\n  dronefly analyze --json\n"
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
                "  dronefly analyze --targets '-0.2,-0.089+0.057j,-0.089-0.057j,-0.51' "
@@ -85,6 +112,28 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
     s.add_argument("--gamma0", type=_finite, default=0.1, help="initial roll angle in rad (default 0.1)")
     s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
+
+    c = add("cosim", "co-simulate plant and controller FMUs with fmpy and check neutral stability",
+            _cmd_cosim)
+    c.add_argument("--plant", default=None, metavar="FMU",
+                   help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
+    c.add_argument("--controller", default=None, metavar="FMU",
+                   help="controller FMU (default: build/StateFeedback.fmu, built on demand)")
+    c.add_argument("--gains", default="paper", metavar="paper|open|k1,k2,k3,k4",
+                   help="Eq. (27) gains, no control, or four gains on delta_Phi_a (default paper)")
+    c.add_argument("--x0", default="0,0,0,0.1", metavar="dv,dp,dr,dgamma",
+                   help="non-dimensional initial state (default 0,0,0,0.1: a 0.1 rad roll)")
+    c.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
+    c.add_argument("--stop", type=_positive, default=300.0, help="stop time in wing beats (default 300)")
+    c.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
+                   help="ordering of the FMU calls (default gauss-seidel)")
+    c.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSV, PNG and JSON")
+    c.add_argument("--json", action="store_true", help="print a machine-readable summary")
+    c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
+
+    d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
+            _cmd_demo)
+    d.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSVs and plots")
 
     a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model",
             _cmd_analyze)

@@ -13,7 +13,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.plant import model as M
 from dronefly.simulate import exact_open_loop
-from harness.fmu import FMU
+from dronefly.harness.fmu import FMU
 
 pytestmark = pytest.mark.integration
 

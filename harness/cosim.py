@@ -1,0 +1,294 @@
+"""``dronefly cosim``: co-simulate plant and controller FMUs and check neutral stability.
+
+:func:`cosimulate` is the Python API of the command: one call returns a
+:class:`CosimResult` with the time series, the eigenvalues identified from the
+co-simulation, the verdict and the cross-checks.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..controller.law import default_gains, gain_name
+from ..plant.model import STATE_NAMES, discretize_zoh
+from .fmu import FMU
+from .master import MASTERS, CoSimError, Loop, LoopRun
+from .stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
+    sort_eigenvalues
+
+__all__ = ["CosimResult", "cosimulate", "parse_gains", "parse_x0"]
+
+_ID_STEPS = 20  # steps per identification run
+
+
+def parse_gains(text: str) -> np.ndarray:
+    """``paper`` | ``open`` | ``k1,k2,k3,k4`` -> 3x4 gain matrix (rows 2-3 zero unless paper)."""
+    t = text.strip().lower()
+    if t == "paper":
+        return np.array(default_gains(), dtype=float)
+    if t == "open":
+        return np.zeros((3, 4))
+    parts = text.split(",")
+    try:
+        k = [float(p) for p in parts]
+    except ValueError:
+        raise CoSimError(f"gains = {text!r}: expected paper, open or k1,k2,k3,k4") from None
+    if len(k) != 4 or not all(math.isfinite(v) for v in k):
+        raise CoSimError(f"gains = {text!r}: expected four finite numbers k1,k2,k3,k4")
+    K = np.zeros((3, 4))
+    K[0] = k
+    return K
+
+
+def parse_x0(text: str | Sequence[float]) -> np.ndarray:
+    """Non-dimensional initial state (dv+, dp+, dr+, dgamma) from ``a,b,c,d``."""
+    try:
+        x = [float(p) for p in (text.split(",") if isinstance(text, str) else text)]
+    except ValueError:
+        raise CoSimError(f"x0 = {text!r}: expected four numbers dv+,dp+,dr+,dgamma") from None
+    if len(x) != 4 or not all(math.isfinite(v) for v in x):
+        raise CoSimError(f"x0 = {text!r}: expected four finite numbers dv+,dp+,dr+,dgamma")
+    return np.array(x)
+
+
+@dataclass
+class CosimResult:
+    """Everything one co-simulation established."""
+
+    run: LoopRun
+    gains: np.ndarray  # 3x4
+    master: str
+    step_wingbeats: float
+    stop_wingbeats: float
+    identification: Identification
+    continuous_eigenvalues: np.ndarray  # eig(A1 + B1 K) per wing beat
+    sampled_eigenvalues: np.ndarray  # exact ZOH closed loop at the same step
+    trajectory_error: float  # max relative deviation from the exact sampled-data solution
+    csv: Path | None = None
+    plot: Path | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def verdict(self) -> str:
+        return self.identification.verdict
+
+    def to_json(self) -> dict[str, Any]:
+        ev = self.identification.eigenvalues
+        return {
+            "verdict": self.verdict,
+            "complete": self.run.complete,
+            "failure": None if self.run.complete else str(self.run.failure),
+            "master": self.master,
+            "gains": self.gains.tolist(),
+            "eigenvalues_per_wingbeat": [[float(e.real), float(e.imag)] for e in ev],
+            "dominant_growth_rate_per_wingbeat": self.identification.dominant_growth_rate,
+            "tolerance_per_wingbeat": TOL_PER_WINGBEAT,
+            "continuous_eigenvalues_per_wingbeat":
+                [[float(e.real), float(e.imag)] for e in self.continuous_eigenvalues],
+            "sampled_data_eigenvalues_per_wingbeat":
+                [[float(e.real), float(e.imag)] for e in self.sampled_eigenvalues],
+            "identification_fit_residual": self.identification.fit_residual,
+            "trajectory_max_rel_error": self.trajectory_error,
+            "step_wingbeats": self.step_wingbeats,
+            "stop_wingbeats": self.stop_wingbeats,
+            "csv": None if self.csv is None else str(self.csv),
+            "plot": None if self.plot is None else str(self.plot),
+        }
+
+    def summary(self) -> str:
+        ev = ", ".join(_fmt_complex(e) for e in self.identification.eigenvalues)
+        lines = [
+            f"verdict: {self.verdict} (dominant rate "
+            f"{self.identification.dominant_growth_rate:+.5f} per wing beat, tolerance "
+            f"{TOL_PER_WINGBEAT:g})",
+            f"identified eigenvalues per wing beat: {ev}",
+            f"eig(A1 + B1 K): {', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
+            f"{self.master} master, step {self.step_wingbeats:g} wing beats, "
+            f"{len(self.run.time) - 1} steps; max deviation from the exact sampled-data "
+            f"solution {self.trajectory_error:.1e}",
+        ]
+        if not self.run.complete:
+            lines.append(f"INCOMPLETE: {self.run.failure}")
+        if self.csv:
+            lines.append(f"csv: {self.csv}")
+        if self.plot:
+            lines.append(f"plot: {self.plot}")
+        return "\n".join(lines)
+
+
+def _fmt_complex(z: complex) -> str:
+    return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
+
+
+def _start_value(fmu: FMU, name: str) -> float:
+    return float(fmu.variables[name].start)
+
+
+def _read_plant_matrices(loop: Loop) -> tuple[np.ndarray, np.ndarray]:
+    """A1 and B1 as the plant FMU computes them (calculated parameters)."""
+    p = loop.plant
+    ns, nu = len(loop.states), len(loop.controls)
+    with p.instantiate(logging=False) as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        A = s.getReal(inst.vrs([f"A[{i + 1},{j + 1}]" for i in range(ns) for j in range(ns)]))
+        B = s.getReal(inst.vrs([f"B[{i + 1},{j + 1}]" for i in range(ns) for j in range(nu)]))
+    return np.reshape(A, (ns, ns)), np.reshape(B, (ns, nu))
+
+
+def _sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: float,
+                         jacobi: bool) -> np.ndarray:
+    Phi, Gamma = discretize_zoh(A, B, h)
+    if not jacobi:
+        return Phi + Gamma @ K
+    n = len(A)
+    F = np.zeros((2 * n, 2 * n))
+    F[:n, :n], F[:n, n:], F[n:, :n] = Phi, Gamma @ K, np.eye(n)
+    return F
+
+
+def cosimulate(plant: str | Path | None = None, controller: str | Path | None = None, *,
+               gains: str | np.ndarray = "paper", x0: str | Sequence[float] = (0, 0, 0, 0.1),
+               step_wingbeats: float = 0.1, stop_wingbeats: float = 300.0,
+               master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
+               plot: bool = True, name: str | None = None) -> CosimResult:
+    """Co-simulate the loop, identify its eigenvalues and classify its stability.
+
+    Parameters
+    ----------
+    plant, controller : path, optional
+        FMUs with the DroneFlyLateral / StateFeedback interface (default: the
+        project's, built into ``build/`` on demand).
+    gains : str or (3, 4) array
+        ``paper`` (Eq. 27), ``open`` (no control) or ``k1,k2,k3,k4`` (first row).
+    x0 : str or sequence
+        Non-dimensional initial state (dv+, dp+, dr+, dgamma).
+    step_wingbeats, stop_wingbeats : float
+        Communication step and stop time in wing beats.
+    master : {'gauss-seidel', 'jacobi'}
+    out_dir : path or None
+        Where the CSV (and PNG) go; None writes nothing.
+    """
+    K = gains if isinstance(gains, np.ndarray) else parse_gains(gains)
+    x0v = parse_x0(x0)
+    for label, v in (("step", step_wingbeats), ("stop", stop_wingbeats)):
+        if not math.isfinite(v) or v <= 0:
+            raise CoSimError(f"{label} = {v!r} wing beats must be finite and > 0")
+    if stop_wingbeats < step_wingbeats:
+        raise CoSimError(f"stop = {stop_wingbeats!r} is shorter than one step ({step_wingbeats!r})")
+    if master not in MASTERS:
+        raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
+    for label, path in (("plant", plant), ("controller", controller)):
+        if path is not None and not Path(path).is_file():
+            raise CoSimError(f"{label} FMU {str(path)!r} does not exist")
+    if plant is None or controller is None:
+        from ..build import build_fmu
+
+        plant = plant or build_fmu("DroneFlyLateral", "build")
+        controller = controller or build_fmu("StateFeedback", "build")
+    with FMU(plant) as pf, FMU(controller) as cf:
+        loop = Loop(pf, cf)
+        return _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir, plot,
+                           name)
+
+
+def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
+                master: str, out_dir: str | Path | None, plot: bool,
+                name: str | None) -> CosimResult:
+    pf, cf = loop.plant, loop.controller
+    n, U = _start_value(pf, "n"), _start_value(pf, "U")
+    scale = np.array([U, n, n, 1.0])
+    h = step_wb / n
+    n_steps = int(round(stop_wb / step_wb))
+    gains = {gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}
+    jacobi = master == "jacobi"
+
+    def start(x: np.ndarray) -> dict[str, float]:
+        return {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x * scale)}
+
+    with pf.instantiate() as p, cf.instantiate() as c:
+        run = loop.run(h, n_steps, master=master, plant_start=start(x0),
+                       controller_params=gains, instances=(p, c))
+        id_runs = []
+        units = [(e, e) for e in np.eye(4)]
+        if jacobi:
+            units = [(e, e) for e in np.eye(4)] + [(np.zeros(4), e) for e in np.eye(4)]
+        for x_now, x_prev in units:
+            r = loop.run(h, min(_ID_STEPS, n_steps), master=master, plant_start=start(x_now),
+                         controller_params=gains, u_source0=list(x_prev * scale),
+                         instances=(p, c))
+            if not r.complete:
+                raise CoSimError(f"identification run failed: {r.failure}")
+            xs = np.column_stack([r.column(s) for s in STATE_NAMES]) / scale
+            id_runs.append(np.vstack([x_prev, xs]) if jacobi else xs)
+        open_run = None
+        if plot and out_dir is not None and K.any():  # the open loop, for comparison
+            zero = {g: 0.0 for g in gains}
+            open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
+                                controller_params=zero, instances=(p, c))
+    ident = identify(id_runs, step_wb, delay=jacobi)
+    A, B = _read_plant_matrices(loop)
+    cont = sort_eigenvalues(np.linalg.eigvals(A + B @ K))
+    F = _sampled_closed_loop(A, B, K, step_wb, jacobi)
+    sampled = rates_from_transition(F, step_wb)
+    # exact sampled-data trajectory from x0
+    xs = np.column_stack([run.column(s) for s in STATE_NAMES]) / scale
+    z = np.concatenate([x0, x0]) if jacobi else x0.copy()
+    ref = np.empty_like(xs)
+    for k in range(len(xs)):
+        ref[k] = z[:4]
+        z = F @ z
+    peak = np.maximum(np.abs(ref).max(axis=0), 1e-300)
+    err = float(np.max(np.abs(xs - ref) / peak)) if len(xs) else math.nan
+    result = CosimResult(run, K, master, step_wb, stop_wb, ident, cont, sampled, err)
+    if open_run is not None:
+        result.extra["open_loop"] = open_run
+    if out_dir is not None:
+        _write_outputs(result, Path(out_dir), name or _default_name(K, master), plot)
+    return result
+
+
+def _default_name(K: np.ndarray, master: str) -> str:
+    if not K.any():
+        tag = "open"
+    elif np.array_equal(K, np.array(default_gains())):
+        tag = "paper"
+    else:
+        tag = "custom"
+    return f"cosim_{tag}_{master}"
+
+
+def _write_outputs(result: CosimResult, out: Path, name: str, plot: bool) -> None:
+    """CSV, PNG and JSON next to their final names, then renamed: never half-written."""
+    from fmpy.util import write_csv
+
+    out.mkdir(parents=True, exist_ok=True)
+    csv = out / f"{name}.csv"
+    parts: list[tuple[Path, Path]] = []
+    tmp = csv.with_name(csv.name + ".part")
+    write_csv(str(tmp), result.run.structured())
+    parts.append((tmp, csv))
+    result.csv = csv
+    if plot:
+        from .plot import plot_loop
+
+        png = out / f"{name}.png"
+        tmp_png = png.with_name(png.name + ".part")
+        if plot_loop(result, tmp_png):
+            parts.append((tmp_png, png))
+            result.plot = png
+    summary = out / f"{name}.json"
+    tmp_json = summary.with_name(summary.name + ".part")
+    tmp_json.write_text(json.dumps(result.to_json(), indent=2) + "\n", encoding="utf-8")
+    parts.append((tmp_json, summary))
+    for src, dst in parts:
+        os.replace(src, dst)

@@ -1,0 +1,222 @@
+"""A small fixed-step co-simulation master for a plant/controller FMU pair.
+
+Variables are connected by name: every controller input is driven by the plant
+output of the same name, every plant input by the controller output of the same
+name. Two orderings:
+
+``gauss-seidel`` (default)
+    At each communication point the controller's inputs are set from the
+    plant's outputs at that point, its outputs (direct feedthrough) are read and
+    set on the plant, then both FMUs step: u_k = K x_k, held over the step.
+``jacobi``
+    Both FMUs are fed the values read at the previous point, so the plant sees
+    the controller's response to x_(k-1): u_k = K x_(k-1). Before the first
+    step the controller is fed the plant's initial outputs (or ``u_source0``).
+
+Every instance is terminated and freed on every exit path.
+"""
+
+from __future__ import annotations
+
+import math
+from ctypes import c_double, c_uint
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .fmu import FMU, FMUError, Instance
+
+__all__ = ["MASTERS", "CoSimError", "Loop", "LoopRun", "StepFailure"]
+
+MASTERS = ("gauss-seidel", "jacobi")
+
+
+class CoSimError(ValueError):
+    """Bad co-simulation set-up (names the offending value)."""
+
+
+@dataclass(frozen=True)
+class StepFailure:
+    """Where a run stopped early."""
+
+    fmu: str
+    call: str
+    time: float
+    status: int
+    message: str
+
+    def __str__(self) -> str:
+        return (f"{self.fmu}: {self.call} at t = {self.time!r} s returned status {self.status}"
+                + (f" ({self.message})" if self.message else ""))
+
+
+@dataclass
+class LoopRun:
+    """Recorded signals of one run: ``time`` (N,) s, ``signals`` (N, len(names))."""
+
+    names: list[str]
+    time: np.ndarray
+    signals: np.ndarray
+    failure: StepFailure | None = None
+    messages: list[str] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.failure is None
+
+    def column(self, name: str) -> np.ndarray:
+        return self.signals[:, self.names.index(name)]
+
+    def structured(self) -> np.ndarray:
+        """fmpy-style structured array (``time`` plus every connected signal)."""
+        dtype = [("time", np.float64)] + [(n, np.float64) for n in self.names]
+        out = np.empty(len(self.time), dtype=dtype)
+        out["time"] = self.time
+        for j, n in enumerate(self.names):
+            out[n] = self.signals[:, j]
+        return out
+
+
+class Loop:
+    """A plant/controller pair connected by name.
+
+    Parameters
+    ----------
+    plant, controller : FMU
+        Extracted FMUs (see :class:`harness.fmu.FMU`).
+
+    Raises
+    ------
+    CoSimError
+        A controller input has no plant output of the same name, or a plant input no
+        controller output (the message names the variable).
+    """
+
+    def __init__(self, plant: FMU, controller: FMU) -> None:
+        self.plant, self.controller = plant, controller
+        self.states = plant.names("output")
+        self.controls = plant.names("input")
+        ctrl_out = set(controller.names("output"))
+        for name in self.controls:
+            if name not in ctrl_out:
+                raise CoSimError(f"plant input {name!r} has no controller output of that name "
+                                 f"({controller.path})")
+        plant_out = set(self.states)
+        for name in controller.names("input"):
+            if name not in plant_out:
+                raise CoSimError(f"controller input {name!r} has no plant output of that name "
+                                 f"({plant.path})")
+        self.sensed = controller.names("input")  # subset of states, controller order
+        self.names = [*self.states, *self.controls]
+
+    def run(self, step: float, n_steps: int, *, master: str = "gauss-seidel",
+            plant_start: Mapping[str, float] | None = None,
+            controller_params: Mapping[str, float] | None = None,
+            u_source0: Sequence[float] | None = None,
+            instances: tuple[Instance, Instance] | None = None) -> LoopRun:
+        """Co-simulate ``n_steps`` communication steps of ``step`` seconds from t = 0.
+
+        ``plant_start`` and ``controller_params`` are set in initialization mode.
+        ``u_source0`` (Jacobi only) is what the controller is fed before the first step
+        (default: the plant's initial outputs). ``instances`` lets a caller reuse
+        instances across runs (they are reset first and not freed here).
+        """
+        if master not in MASTERS:
+            raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
+        if not (math.isfinite(step) and step > 0.0):
+            raise CoSimError(f"step = {step!r} s must be finite and > 0")
+        if n_steps < 1:
+            raise CoSimError(f"n_steps = {n_steps!r} must be >= 1")
+        if instances is None:
+            with self.plant.instantiate() as p, self.controller.instantiate() as c:
+                return self._run(p, c, step, n_steps, master, plant_start, controller_params,
+                                 u_source0)
+        p, c = instances
+        p.slave.reset()
+        c.slave.reset()
+        return self._run(p, c, step, n_steps, master, plant_start, controller_params, u_source0)
+
+    # -------------------------------------------------------------------------
+    def _run(self, p: Instance, c: Instance, step: float, n_steps: int, master: str,
+             plant_start: Mapping[str, float] | None,
+             controller_params: Mapping[str, float] | None,
+             u_source0: Sequence[float] | None) -> LoopRun:
+        from fmpy.fmi1 import FMICallException
+
+        ns, nu = len(self.states), len(self.controls)
+        rec = np.full((n_steps + 1, ns + nu), np.nan)
+        time = np.arange(n_steps + 1) * step
+        run = LoopRun(self.names, time, rec)
+        # preallocated ctypes buffers: plant outputs -> controller inputs -> plant inputs
+        y_vr = (c_uint * ns)(*p.vrs(self.states))
+        s_vr = (c_uint * len(self.sensed))(*c.vrs(self.sensed))
+        s_idx = [self.states.index(n) for n in self.sensed]
+        u_vr_c = (c_uint * nu)(*c.vrs(self.controls))
+        u_vr_p = (c_uint * nu)(*p.vrs(self.controls))
+        y = (c_double * ns)()
+        ys = (c_double * len(self.sensed))()
+        u = (c_double * nu)()
+        who, call, t = p, "initialization", 0.0
+        try:
+            for inst, values in ((p, plant_start), (c, controller_params)):
+                who = inst
+                inst.slave.setupExperiment(startTime=0.0, stopTime=n_steps * step)
+                inst.slave.enterInitializationMode()
+                for name, value in (values or {}).items():
+                    inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
+            who = p
+            p.slave.exitInitializationMode()
+            who, call = p, "fmi2GetReal"
+            p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
+            if master == "jacobi" and u_source0 is not None:
+                ys[:] = [float(v) for v in u_source0]
+            else:
+                ys[:] = [y[i] for i in s_idx]
+            who, call = c, "fmi2SetReal"
+            c.slave.fmi2SetReal(c.slave.component, s_vr, len(ys), ys)
+            c.slave.exitInitializationMode()
+            pg, ps, pd, pc = (p.slave.fmi2GetReal, p.slave.fmi2SetReal, p.slave.fmi2DoStep,
+                              p.slave.component)
+            cg, cs, cd, cc = (c.slave.fmi2GetReal, c.slave.fmi2SetReal, c.slave.fmi2DoStep,
+                              c.slave.component)
+            gauss = master == "gauss-seidel"
+            nsense = len(self.sensed)
+            for k in range(n_steps + 1):
+                t = k * step
+                who, call = p, "fmi2GetReal"
+                pg(pc, y_vr, ns, y)
+                if gauss:
+                    ys[:] = [y[i] for i in s_idx]
+                    who, call = c, "fmi2SetReal"
+                    cs(cc, s_vr, nsense, ys)
+                    who, call = c, "fmi2GetReal"
+                    cg(cc, u_vr_c, nu, u)
+                else:  # controller still holds the previous point's inputs
+                    who, call = c, "fmi2GetReal"
+                    cg(cc, u_vr_c, nu, u)
+                    ys[:] = [y[i] for i in s_idx]
+                    who, call = c, "fmi2SetReal"
+                    cs(cc, s_vr, nsense, ys)
+                rec[k, :ns] = y
+                rec[k, ns:] = u
+                if k == n_steps:
+                    break
+                who, call = p, "fmi2SetReal"
+                ps(pc, u_vr_p, nu, u)
+                who, call = p, "fmi2DoStep"
+                pd(pc, t, step, 1)
+                who, call = c, "fmi2DoStep"
+                cd(cc, t, step, 1)
+            for inst in (p, c):
+                who, call = inst, "fmi2Terminate"
+                inst.slave.terminate()
+        except FMICallException as e:
+            last = who.messages[-1].message if who.messages else ""
+            run.failure = StepFailure(who.fmu.name, call, t, e.status, last)
+            keep = int(np.argmax(np.isnan(rec).any(axis=1))) if np.isnan(rec).any() else len(rec)
+            run.time, run.signals = time[:keep], rec[:keep]
+        except (FMUError, OSError) as e:
+            raise CoSimError(str(e)) from e
+        run.messages = [m.message for inst in (p, c) for m in inst.messages]
+        return run

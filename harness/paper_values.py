@@ -1,0 +1,135 @@
+"""Printed values of Zhang & Sun that the analysis is compared against.
+
+Every number is stored once, as the text printed in the paper (so that its
+rounding, half a unit in the last printed digit, is known), with its source.
+``"a×10^-n"`` is written ``"ae-n"``. The lateral system matrix of Eq. (12) lives
+in :mod:`dronefly.plant.model` (``A1_EQ12``) and Eq. (24) reprints it verbatim,
+so it is imported, not repeated. A number that appears in two equations (e.g.
+0.4993 in Eq. 24 and Eq. 26) is two printed numbers and is checked twice.
+
+Layout conventions: matrices are tuples of rows; Table 3 is indexed
+``[state][mode]`` with states (dv+, dp+, dr+, dgamma) and modes 1-3 as printed.
+"""
+
+from __future__ import annotations
+
+import math
+from decimal import Decimal
+
+from dronefly.plant.model import A1_EQ12
+
+__all__ = [
+    "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
+    "EQ24_A", "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS",
+    "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
+    "SECT35_A", "SECT35_B", "TABLE2", "TABLE3_MAGNITUDE", "TABLE3_PHASE_DEG",
+    "half_unit", "value",
+]
+
+#: Eq. (12), from the model module (4 decimals as printed).
+EQ12_A1 = A1_EQ12
+EQ12_DECIMALS = 4
+#: Entries of Eq. (12) fixed by the structure of Eq. (10) (exact 0 and 1), 0-based.
+EQ12_STRUCTURAL = ((1, 3), (2, 3), (3, 0), (3, 1), (3, 2), (3, 3))
+#: Eq. (24), first term: "A1' = [Eq. (12) as printed] + b k" (identical print).
+EQ24_A = A1_EQ12
+
+#: Table 2: eigenvalues of A1 (per wing beat).
+TABLE2 = {"lambda1": "0.079", "lambda23_re": "-0.089", "lambda23_im": "0.057",
+          "lambda4": "-0.510"}
+
+#: Table 3: eigenvector magnitudes, normalised to dgamma = 1 (rows dv+, dp+, dr+, dgamma).
+TABLE3_MAGNITUDE = (("0.179", "0.163", "0.033"),
+                    ("0.079", "0.106", "0.510"),
+                    ("0.018", "0.072", "0.472"),
+                    ("1", "1", "1"))
+#: Table 3: eigenvector phases in degrees.
+TABLE3_PHASE_DEG = (("0", "-144.7", "180"),
+                    ("0", "147.5", "180"),
+                    ("180", "74.6", "0"),
+                    ("0", "0", "0"))
+
+#: Eq. (19): modal system matrix A_lnn.
+EQ19_A_LNN = (("0.0786", "0", "0", "0"),
+              ("0", "-0.0890", "0.0568", "0"),
+              ("0", "-0.0568", "-0.0890", "0"),
+              ("0", "0", "0", "-0.5097"))
+#: Eq. (20): modal control matrix B_ln (columns dPhi_a, dalpha_1a, dalpha_2a).
+EQ20_B_LN = (("-0.5711", "-0.8901", "-0.2809"),
+             ("0.1387", "0.1851", "0.7498"),
+             ("0.4979", "0.7747", "-0.4859"),
+             ("-1.0135", "-1.5056", "-2.1243"))
+
+#: Eq. (24): the dPhi_a column of B1 as printed.
+EQ24_B_COLUMN = ("-0.0005", "0.4993", "-0.3296", "0")
+
+#: Eq. (26a)-(26d): (constant, k1, k2, k3, k4) coefficients; None = term not printed.
+EQ26 = {
+    "b": ("0.609", "5e-4", "-0.4993", "0.3296", None),
+    "c": ("4.774e-2", "8.49e-4", "-8.2789e-2", "7.8691e-3", "-0.4993"),
+    "d": ("-2.3257e-3", "-7.782e-3", "-7.2081e-4", "4.671e-5", "-8.279e-3"),
+    "e": ("4.4567e-4", "-1.2353e-3", None, "-2.5462e-5", "-7.2081e-4"),
+}
+#: Absent terms are read as a printed 0 at the precision of the smallest printed
+#: coefficient of the same equation (b: 5e-4 -> 1 digit at 1e-4; e: 1e-9 digits).
+EQ26_ABSENT = {("b", 4): "0.0000", ("e", 2): "0.000000000"}
+
+#: Eq. (27): feedback gains k1..k4 of dPhi_a.
+EQ27_GAINS = ("-0.3192", "-0.2879", "-0.1969", "-0.0643")
+
+#: Sect. 3.5: longitudinal system matrix A (state du+, dw+, dq+, dtheta; Ref. [17]).
+SECT35_A = (("-0.0134", "0.0011", "-0.0025", "-0.0158"),
+            ("-0.0006", "-0.0122", "-0.0003", "0"),
+            ("0.0895", "-0.0062", "-0.0098", "0"),
+            ("0", "0", "1", "0"))
+#: Sect. 3.5: longitudinal control matrix B (columns in the order of Eq. 30).
+SECT35_B = (("0", "0.0009", "-0.0022", "-0.0321"),
+            ("-0.0180", "-0.0266", "0", "-0.0001"),
+            ("0.0011", "0.0013", "-0.1556", "0.0247"),
+            ("0", "0", "0", "0"))
+#: Eq. (30) control vector order; the text lists dPhi, dphi_bar, dalpha1, dalpha2,
+#: but B_n's rows (slow subsidence ~ B row 2) show that B uses Eq. (30)'s order.
+LONGITUDINAL_CONTROLS = ("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2")
+#: Structural entries of the longitudinal A (dtheta' = dq; no theta in w, q rows)
+#: and B (no control in the dtheta row), 0-based; all other entries are rounded.
+LONGITUDINAL_STRUCTURAL = {"A": ((1, 3), (2, 3), (3, 0), (3, 1), (3, 2), (3, 3)),
+                           "B": ((3, 0), (3, 1), (3, 2), (3, 3))}
+
+#: Eq. (31): longitudinal modal system matrix A_nn.
+EQ31_A_NN = (("0.0481", "-0.0977", "0", "0"),
+             ("0.0977", "0.0481", "0", "0"),
+             ("0", "0", "-0.1195", "0"),
+             ("0", "0", "0", "-0.0123"))
+#: Eq. (32): longitudinal modal control matrix B_n.
+EQ32_B_N = (("0.0004", "-0.0008", "-0.2201", "0.0742"),
+            ("0.0055", "0.0092", "-0.4312", "0.0012"),
+            ("0.0005", "0.0034", "0.4413", "-0.1488"),
+            ("-0.0181", "-0.0267", "-0.0011", "0"))
+
+
+def value(text: str) -> float:
+    """The printed number ``text`` as a float."""
+    return float(text)
+
+
+def half_unit(text: str, decimals: int | None = None) -> float:
+    """Half a unit in the last printed digit of ``text``.
+
+    Parameters
+    ----------
+    text : str
+        Printed number, e.g. ``"0.0786"`` (-> 5e-5) or ``"8.49e-4"`` (-> 5e-7).
+    decimals : int, optional
+        For a bare ``"0"`` inside a matrix printed to ``decimals`` places, the
+        zero is read as ``0.000...`` (structural zeros are exact).
+
+    Returns
+    -------
+    float
+        The rounding half-width, in the unit of the printed value.
+    """
+    if decimals is not None and Decimal(text) == 0 and "." not in text:
+        return 0.5 * 10.0 ** (-decimals)
+    exponent = Decimal(text).as_tuple().exponent
+    assert isinstance(exponent, int)
+    return 0.5 * math.pow(10.0, exponent)

@@ -1,0 +1,626 @@
+"""Tests of the StateFeedback controller (issue 3): the law, the slave class, and the real FMU.
+
+Unit tests call :mod:`dronefly.controller.law` and the slave class directly; the integration
+tests run the FMU built by the session fixture ``built_fmus`` through fmpy's FMU2Slave API.
+
+Run as a script, this file writes the reference result ``controller/StateFeedback_ref.csv``
+(see :func:`reference_run` and controller/README.md).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+import zipfile
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree as ET
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from dronefly.controller import law as L
+from dronefly.controller.slave import StateFeedback
+from dronefly.plant import model as M
+
+ROOT = Path(__file__).resolve().parents[1]
+REF_CSV = ROOT / "controller" / "StateFeedback_ref.csv"
+STATES = list(M.STATE_NAMES)
+CONTROLS = list(M.CONTROL_NAMES)
+GAINS = [L.gain_name(i, j) for i in range(3) for j in range(4)]
+H = 0.1 / M.N_HZ  # communication step: 0.1 wing beat
+
+#: Printed closed-loop eigenvalues (Sect. 3.4: lambda1 = 0, the others as in Table 2).
+EIG_EQ27 = (0.0, complex(-0.089, 0.057), complex(-0.089, -0.057), -0.510)
+#: Eq. (24): the delta_Phi_a column of B1 as printed.
+B1_COL1_EQ24 = (-0.0005, 0.4993, -0.3296, 0.0)
+
+
+def _dimensional(xp: np.ndarray, n: float = M.N_HZ, U: float = M.U_M_PER_S) -> list[float]:
+    return [float(v) for v in M.to_dimensional(np.asarray(xp, dtype=float), U, n)]
+
+
+def _expected(K: np.ndarray, x: list[float], n: float = M.N_HZ, U: float = M.U_M_PER_S,
+              u_max: float | None = None) -> tuple[np.ndarray, bool]:
+    u = np.asarray(K, dtype=float) @ M.to_nondimensional(np.array(x), U, n)
+    if u_max is None:
+        return u, False
+    return np.clip(u, -u_max, u_max), bool(np.any(np.abs(u) > u_max))
+
+
+def _random_gains(seed: int = 3) -> np.ndarray:
+    return np.random.default_rng(seed).uniform(-2.0, 2.0, (3, 4))
+
+
+# --------------------------------------------------------------------------- the law (no FMU)
+
+def test_paper_gains_and_defaults():
+    assert L.PAPER_GAINS_EQ27 == (-0.3192, -0.2879, -0.1969, -0.0643)
+    K = np.array(L.default_gains())
+    assert K.shape == (3, 4)
+    assert_allclose(K[0], L.PAPER_GAINS_EQ27, rtol=0, atol=0)
+    assert not K[1:].any()
+    assert L.FeedbackLaw(L.default_gains()).limit_enabled is False
+
+
+def test_eq27_gains_defined_once_in_the_project():
+    """The gains are numbers in exactly one source file: controller/law.py.
+
+    (Quoted digit strings, kept elsewhere to analyse the printed precision, are not numbers;
+    they are checked against the definition below.)
+    """
+    hits = []
+    for folder in ("dronefly", "fmu_src", "controller", "harness"):
+        for f in (ROOT / folder).rglob("*.py"):
+            if re.search(r"(?<![\d.\"'])0\.3192\b(?![\"'])", f.read_text()):
+                hits.append(f.relative_to(ROOT).as_posix())
+    assert hits == ["controller/law.py"]
+
+
+def test_printed_gain_strings_agree_with_the_definition():
+    paper = pytest.importorskip("dronefly.harness.paper_values")
+    printed = getattr(paper, "EQ27_GAINS", None)
+    if printed is None:
+        pytest.skip("no printed-string copy of Eq. (27)")
+    assert tuple(float(v) for v in printed) == L.PAPER_GAINS_EQ27
+
+
+@pytest.mark.parametrize("K", [np.array(L.default_gains()), _random_gains()],
+                         ids=["eq27", "random"])
+def test_law_equals_K_x_plus(K):
+    rng = np.random.default_rng(7)
+    law = L.FeedbackLaw(tuple(map(tuple, K.tolist())))
+    law.validate()
+    for xp in rng.normal(0.0, 0.3, (20, 4)):
+        x = _dimensional(xp)
+        u, sat = law.evaluate(x)
+        assert_allclose(u, K @ xp, rtol=1e-12, atol=1e-15)
+        assert sat is False
+
+
+def test_law_saturation_is_per_output_and_symmetric():
+    K = ((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, -1.0), (0.0, 0.0, 0.0, 0.0))
+    law = L.FeedbackLaw(K, u_max=0.2, limit_enabled=True)
+    u, sat = law.evaluate(_dimensional([0.5, 0.0, 0.0, 0.1]))
+    assert u == pytest.approx((0.2, -0.1, 0.0), rel=1e-15) and sat is True
+    u, sat = law.evaluate(_dimensional([-0.1, 0.0, 0.0, 0.3]))
+    assert u == pytest.approx((-0.1, -0.2, 0.0), rel=1e-15) and sat is True
+    u, sat = law.evaluate(_dimensional([0.15, 0.0, 0.0, -0.15]))
+    assert u == pytest.approx((0.15, 0.15, 0.0), rel=1e-14) and sat is False
+    u, sat = law.evaluate([0.0, 0.0, 0.0, 0.2])  # exactly at the limit: not limited
+    assert u == (0.0, -0.2, 0.0) and sat is False
+
+
+@pytest.mark.parametrize("changes, fragment", [
+    ({"K": ((math.nan, 0, 0, 0), (0, 0, 0, 0), (0, 0, 0, 0))}, "K[1,1] = nan"),
+    ({"K": ((0, 0, 0, 0), (0, 0, 0, 0), (0, 0, math.inf, 0))}, "K[3,3] = inf"),
+    ({"n": 0.0}, "n = 0.0"),
+    ({"U": -1.0}, "U = -1.0"),
+    ({"u_max": 0.0}, "u_max = 0.0"),
+    ({"u_max": math.nan, "limit_enabled": True}, "u_max = nan"),
+])
+def test_law_validation_names_the_value(changes, fragment):
+    law = L.FeedbackLaw(**{"K": L.default_gains(), **changes})
+    with pytest.raises(L.LawParameterError, match=re.escape(fragment)):
+        law.validate()
+
+
+def test_law_refuses_non_finite_state():
+    with pytest.raises(L.LawParameterError, match=re.escape("delta_r = -inf is not finite")):
+        L.FeedbackLaw(L.default_gains()).evaluate([0.0, 0.0, -math.inf, 0.0])
+
+
+# --------------------------------------------------------------------------- slave class, direct
+
+def _messages(s: StateFeedback) -> list[str]:
+    return [m.msg for m in s.log_queue]
+
+
+@pytest.fixture
+def slave() -> StateFeedback:
+    s = StateFeedback(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    return s
+
+
+def _set(s: StateFeedback, values: dict[str, float]) -> None:
+    s.set_real([s._vr[n] for n in values], list(values.values()))
+
+
+def _get(s: StateFeedback, names: list[str]) -> list[float]:
+    return s.get_real([s._vr[n] for n in names])
+
+
+def test_slave_outputs_follow_inputs_without_step(slave):
+    x = _dimensional([0.01, -0.02, 0.03, 0.4])
+    _set(slave, dict(zip(STATES, x)))
+    assert_allclose(_get(slave, CONTROLS), _expected(np.array(L.default_gains()), x)[0],
+                    rtol=1e-12)
+    _set(slave, {"K[2,4]": 0.5})  # a tunable parameter takes effect at once
+    assert _get(slave, ["delta_alpha_1a"]) == [pytest.approx(0.5 * 0.4, rel=1e-15)]
+    assert slave.do_step(0.0, H)
+
+
+def test_slave_bad_input_keeps_outputs_and_refuses_step(slave):
+    _set(slave, {"delta_gamma": 0.5})
+    before = _get(slave, CONTROLS)
+    _set(slave, {"delta_p": math.nan})
+    assert _get(slave, CONTROLS) == before
+    assert "delta_p = nan is not finite" in _messages(slave)[-1]
+    assert slave.do_step(0.0, H) is False
+    assert "delta_p = nan" in _messages(slave)[-1]
+    _set(slave, {"delta_p": 0.0})
+    assert slave.do_step(0.0, H) is True
+    assert _get(slave, CONTROLS) == before
+
+
+def test_slave_has_no_module_level_state():
+    a, b = StateFeedback(instance_name="a"), StateFeedback(instance_name="b")
+    _set(a, {"K[1,4]": 1.0, "delta_gamma": 0.1})
+    _set(b, {"delta_gamma": 0.1})
+    assert _get(a, ["delta_Phi_a"]) == [0.1]
+    assert _get(b, ["delta_Phi_a"]) == [pytest.approx(-0.00643, rel=1e-14)]
+
+
+# --------------------------------------------------------------------------- the real FMU
+
+@pytest.fixture(scope="module")
+def controller(built_fmus):
+    from dronefly.harness.fmu import FMU
+
+    with FMU(built_fmus["StateFeedback"]) as fmu:
+        yield fmu
+
+
+@pytest.fixture(scope="module")
+def plant(built_fmus):
+    from dronefly.harness.fmu import FMU
+
+    with FMU(built_fmus["DroneFlyLateral"]) as fmu:
+        yield fmu
+
+
+def _md(path: Path) -> ET.Element:
+    with zipfile.ZipFile(path) as z:
+        return ET.fromstring(z.read("modelDescription.xml"))
+
+
+def _start(inst: Any, values: dict[str, Any] | None = None, t0: float = 0.0) -> None:
+    s = inst.slave
+    s.setupExperiment(startTime=t0)
+    s.enterInitializationMode()
+    _fmu_set(inst, values or {})
+    s.exitInitializationMode()
+
+
+def _fmu_set(inst: Any, values: dict[str, Any]) -> None:
+    for name, value in values.items():
+        if isinstance(value, bool):
+            inst.slave.setBoolean([inst.fmu.vr(name)], [value])
+        else:
+            inst.slave.setReal([inst.fmu.vr(name)], [value])
+
+
+def _outputs(inst: Any) -> tuple[list[float], bool]:
+    u = inst.slave.getReal(inst.vrs(CONTROLS))
+    (sat,) = inst.slave.getBoolean([inst.fmu.vr("saturated")])
+    return u, bool(sat)
+
+
+def _discarded(inst: Any, t: float, h: float) -> str:
+    from fmpy.fmi1 import FMICallException
+
+    with pytest.raises(FMICallException) as e:
+        inst.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+    assert e.value.status == 2, "fmi2Discard"
+    return inst.messages[-1].message
+
+
+@pytest.mark.integration
+def test_fmpy_validate_reports_no_problems(built_fmus):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(built_fmus["StateFeedback"])) == []
+
+
+@pytest.mark.integration
+def test_reproducible_build_and_own_package(tmp_path, built_fmus):
+    from dronefly.build import build_fmu, fmu_sources
+
+    again = build_fmu("StateFeedback", tmp_path)
+    assert again.read_bytes() == built_fmus["StateFeedback"].read_bytes()
+    pkg_c, files_c = fmu_sources("StateFeedback")
+    pkg_p, _ = fmu_sources("DroneFlyLateral")
+    assert pkg_c != pkg_p and pkg_c.startswith("dronefly_statefeedback_")
+    assert files_c["resources/slavemodule.txt"].decode() == f"{pkg_c}_slave"
+    shipped = {k for k in files_c if k.startswith(f"resources/{pkg_c}/") and k.endswith(".py")
+               and not k.endswith("__init__.py")}
+    assert shipped == {f"resources/{pkg_c}/{r}" for r in
+                       ("fmi.py", "plant/model.py", "controller/law.py", "controller/slave.py")}
+
+
+@pytest.mark.integration
+def test_model_description_interface(built_fmus):
+    root = _md(built_fmus["StateFeedback"])
+    units = {u.get("name"): u for u in root.find("UnitDefinitions")}
+    svs = root.find("ModelVariables").findall("ScalarVariable")
+    idx = {sv.get("name"): i + 1 for i, sv in enumerate(svs)}
+    by_name = {sv.get("name"): sv for sv in svs}
+    for sv in svs:
+        assert sv.get("description"), sv.get("name")
+        real = sv.find("Real")
+        if real is not None:
+            assert real.get("unit") in units, sv.get("name")
+    assert [n for n in idx if n.startswith("K[")] == GAINS
+    assert {n: by_name[n].find("Real").get("unit") for n in ("n", "U", "u_max")} == {
+        "n": "Hz", "U": "m/s", "u_max": "rad"}
+    sat, lim = by_name["saturated"], by_name["limit_enabled"]
+    assert (sat.get("causality"), sat.get("variability"), sat.get("initial")) == (
+        "output", "discrete", "calculated")
+    assert sat.find("Boolean") is not None and sat.find("Boolean").get("start") is None
+    assert (lim.get("causality"), lim.get("variability"), lim.find("Boolean").get("start")) == (
+        "parameter", "tunable", "false")
+    assert float(by_name["u_max"].find("Real").get("start")) == 0.4
+    for name in GAINS + ["n", "U", "u_max"]:
+        assert by_name[name].get("variability") == "tunable"
+    inputs = " ".join(str(idx[n]) for n in STATES)
+    outs = root.find("ModelStructure/Outputs")
+    assert [(int(u.get("index")), u.get("dependencies")) for u in outs] == [
+        (idx[n], inputs) for n in CONTROLS + ["saturated"]]
+    init = {int(u.get("index")): set(map(int, u.get("dependencies").split()))
+            for u in root.find("ModelStructure/InitialUnknowns")}
+    common = {idx[n] for n in STATES + ["n", "U", "limit_enabled", "u_max"]}
+    for i, name in enumerate(CONTROLS):
+        assert init[idx[name]] == common | {idx[L.gain_name(i, j)] for j in range(4)}
+    assert init[idx["saturated"]] == common | {idx[g] for g in GAINS}
+    assert "nan" not in ET.tostring(root, encoding="unicode").lower()
+
+
+@pytest.mark.integration
+def test_plant_and_controller_connect_by_name_and_the_plant_breaks_the_loop(built_fmus):
+    """Controller inputs = plant outputs and vice versa (names, units); only the controller
+    has direct feedthrough, so plant -> controller -> plant is not an algebraic loop."""
+    def interface(path, causality):
+        root = _md(path)
+        svs = root.find("ModelVariables").findall("ScalarVariable")
+        deps = {int(u.get("index")): u.get("dependencies")
+                for u in root.find("ModelStructure/Outputs")}
+        return {sv.get("name"): (sv.find("Real").get("unit"), deps.get(i + 1))
+                for i, sv in enumerate(svs)
+                if sv.get("causality") == causality and sv.find("Real") is not None}
+
+    plant_out = interface(built_fmus["DroneFlyLateral"], "output")
+    ctrl_in = interface(built_fmus["StateFeedback"], "input")
+    assert {n: u for n, (u, _) in plant_out.items()} == {n: u for n, (u, _) in ctrl_in.items()}
+    assert all(d == "" for _, d in plant_out.values()), "plant outputs: no feedthrough"
+    ctrl_out = interface(built_fmus["StateFeedback"], "output")
+    plant_in = interface(built_fmus["DroneFlyLateral"], "input")
+    assert {n: u for n, (u, _) in ctrl_out.items()} == {n: u for n, (u, _) in plant_in.items()}
+    assert all(d for _, d in ctrl_out.values()), "controller outputs: direct feedthrough"
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("gains", ["eq27", "random"])
+@pytest.mark.parametrize("mode", ["initialization", "stepping"])
+def test_outputs_follow_inputs_without_do_step(controller, gains, mode):
+    K = np.array(L.default_gains()) if gains == "eq27" else _random_gains()
+    rng = np.random.default_rng(11)
+    with controller.instantiate() as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        if gains == "random":
+            s.setReal(inst.vrs(GAINS), K.ravel().tolist())
+        if mode == "stepping":
+            s.exitInitializationMode()
+        for xp in rng.normal(0.0, 0.2, (5, 4)):
+            x = _dimensional(xp)
+            s.setReal(inst.vrs(STATES), x)
+            u, sat = _outputs(inst)
+            assert_allclose(u, K @ xp, rtol=1e-12, atol=1e-300, err_msg="u = K x+")
+            assert sat is False
+        assert not [m for m in inst.messages if m.status > 0]
+
+
+@pytest.mark.integration
+def test_saturation_through_fmpy(controller):
+    K = _random_gains(5)
+    u_max = 0.3
+    with controller.instantiate() as inst:
+        _start(inst, {"limit_enabled": True, "u_max": u_max})
+        inst.slave.setReal(inst.vrs(GAINS), K.ravel().tolist())
+        seen = set()
+        for k, xp in enumerate(np.random.default_rng(2).normal(0.0, 0.15, (40, 4))):
+            x = _dimensional(xp)
+            inst.slave.setReal(inst.vrs(STATES), x)
+            u, sat = _outputs(inst)
+            ref, ref_sat = _expected(K, x, u_max=u_max)
+            assert_allclose(u, ref, rtol=1e-12, atol=1e-300)
+            assert max(abs(v) for v in u) <= u_max
+            assert sat is ref_sat
+            seen.add(sat)
+            inst.slave.doStep(currentCommunicationPoint=k * H, communicationStepSize=H)
+        assert seen == {True, False}, "both regimes exercised"
+        inst.slave.setBoolean([inst.fmu.vr("limit_enabled")], [False])  # tunable: off again
+        u, sat = _outputs(inst)
+        assert_allclose(u, _expected(K, x)[0], rtol=1e-12)
+        assert sat is False
+
+
+@pytest.mark.integration
+def test_closed_loop_eigenvalues_from_the_two_fmus(plant, controller):
+    """A1 + B1 K, all read through fmpy, has the eigenvalues of Sect. 3.4."""
+    import scipy.linalg as sl
+
+    with plant.instantiate() as p, controller.instantiate() as c:
+        _start(p)
+        _start(c)
+        A = np.array(p.slave.getReal(p.vrs([f"A[{i},{j}]" for i in range(1, 5)
+                                             for j in range(1, 5)]))).reshape(4, 4)
+        B = np.array(p.slave.getReal(p.vrs([f"B[{i},{j}]" for i in range(1, 5)
+                                             for j in range(1, 4)]))).reshape(4, 3)
+        K = np.array(c.slave.getReal(c.vrs(GAINS))).reshape(3, 4)
+    ev, left, right = sl.eig(A + B @ K, left=True, right=True)
+    order = np.lexsort((-ev.imag, -ev.real))
+    ev = ev[order]
+    assert_allclose(ev, EIG_EQ27, rtol=0, atol=5e-4, err_msg="printed to 3 decimals")
+    # The zero eigenvalue: first-order bound of the rounding of Eq. (27) (half a unit of the
+    # 4th decimal in each k) plus the difference between the plant's B1 column (from Table 1
+    # and the printed inertias) and Eq. (24) as printed, which the paper used to solve for k.
+    i = order[0]
+    w, v = left[:, i].conj(), right[:, i]
+    s = w @ v
+    k = K[0]
+    bound = (np.abs((w @ B[:, 0]) * v / s).sum() * 0.5e-4
+             + np.abs(w * (k @ v) / s) @ np.abs(B[:, 0] - np.array(B1_COL1_EQ24)))
+    residual = abs(ev[0])
+    print(f"closed-loop eigenvalues per wing beat: {ev}; |lambda1| = {residual:.3e} "
+          f"(first-order rounding bound {bound:.3e})")
+    assert residual <= bound
+    assert residual < 1e-4
+
+
+def _ref_inputs_nondimensional(k: int) -> tuple[float, float, float, float]:
+    """Documented input sequence of the reference result, sample k = 0..80 (t+ = k/10).
+
+    Wing beat 0: zero; wing beats 1-4: x+_j = 0.1 for j = 1..4 in turn; wing beat 5: the
+    paper's example x+ = (0.05, 0.05, 0.05, 0.5) (Sect. 3.4); wing beats 6-8: delta_gamma
+    ramps linearly from -1 to +1 rad (t+ = 6 to 8), the other components zero.
+    """
+    seg = k // 10
+    if seg == 0:
+        return (0.0, 0.0, 0.0, 0.0)
+    if seg <= 4:
+        x = [0.0, 0.0, 0.0, 0.0]
+        x[seg - 1] = 0.1
+        return tuple(x)  # type: ignore[return-value]
+    if seg == 5:
+        return (0.05, 0.05, 0.05, 0.5)
+    return (0.0, 0.0, 0.0, -1.0 + (k - 60) / 10.0)
+
+
+REF_START = {"limit_enabled": True, "u_max": 0.05}
+REF_COLUMNS = ["time", *STATES, *CONTROLS, "saturated"]
+
+
+def reference_run(fmu_path: Path) -> list[list[float]]:
+    """Rows of the reference result, produced through fmpy's FMU2Slave API.
+
+    Default parameters except limit_enabled = true, u_max = 0.05 rad; at each communication
+    point t_k = k/(10 n), k = 0..80: set the four inputs, read the outputs (no doStep between),
+    then doStep(t_k, 1/(10 n)).
+    """
+    from dronefly.harness.fmu import FMU
+
+    rows = []
+    with FMU(fmu_path) as fmu, fmu.instantiate() as inst:
+        _start(inst, REF_START)
+        for k in range(81):
+            t = k * H
+            x = _dimensional(np.array(_ref_inputs_nondimensional(k)))
+            inst.slave.setReal(inst.vrs(STATES), x)
+            u, sat = _outputs(inst)
+            rows.append([t, *x, *u, float(sat)])
+            if k < 80:
+                inst.slave.doStep(currentCommunicationPoint=t, communicationStepSize=H)
+    return rows
+
+
+@pytest.mark.integration
+def test_reference_result(built_fmus):
+    with REF_CSV.open() as f:
+        reader = csv.reader(f)
+        assert next(reader) == REF_COLUMNS
+        ref = np.array([[float(v) for v in row] for row in reader])
+    run = np.array(reference_run(built_fmus["StateFeedback"]))
+    assert ref.shape == run.shape == (81, len(REF_COLUMNS))
+    assert_allclose(run, ref, rtol=1e-12, atol=1e-15)
+    # and the file is what the law says
+    for row in ref:
+        u, sat = _expected(np.array(L.default_gains()), list(row[1:5]), u_max=0.05)
+        assert_allclose(row[5:8], u, rtol=1e-12, atol=1e-15)
+        assert row[8] == float(sat)
+    assert 0.0 < ref[:, 8].sum() < len(ref)
+
+
+BAD_CASES = [
+    # (values set after a first valid step, fragment expected in the logged messages)
+    ({"delta_v": math.nan}, "delta_v = nan"),
+    ({"delta_p": math.inf}, "delta_p = inf"),
+    ({"delta_r": -math.inf}, "delta_r = -inf"),
+    ({"delta_gamma": math.nan}, "delta_gamma = nan"),
+    ({"K[1,1]": math.nan}, "K[1,1] = nan"),
+    ({"K[3,4]": math.inf}, "K[3,4] = inf"),
+    ({"n": 0.0}, "n = 0.0"),
+    ({"n": -164.0}, "n = -164.0"),
+    ({"n": math.nan}, "n = nan"),
+    ({"U": 0.0}, "U = 0.0"),
+    ({"U": -3.0}, "U = -3.0"),
+    ({"U": math.inf}, "U = inf"),
+    ({"u_max": 0.0}, "u_max = 0.0"),
+    ({"u_max": -0.1}, "u_max = -0.1"),
+    ({"u_max": math.nan, "limit_enabled": True}, "u_max = nan"),
+]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("bad, fragment", BAD_CASES, ids=[c[1] for c in BAD_CASES])
+def test_bad_values_are_refused_and_the_instance_recovers(controller, bad, fragment):
+    x = _dimensional([0.02, -0.03, 0.01, 0.3])
+    with controller.instantiate() as inst:
+        _start(inst, dict(zip(STATES, x)))
+        inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
+        before = _outputs(inst)
+        good = {n: (inst.slave.getBoolean([controller.vr(n)])[0] == 1 if n == "limit_enabled"
+                    else inst.slave.getReal([controller.vr(n)])[0]) for n in bad}
+        _fmu_set(inst, bad)
+        assert _outputs(inst) == before, "outputs keep their last valid values"
+        errors = [m for m in inst.messages if m.status == 3]
+        assert errors and fragment in errors[-1].message, inst.messages
+        assert "last valid values" in errors[-1].message
+        msg = _discarded(inst, H, H)
+        assert fragment in msg and "step refused" in msg, msg
+        _fmu_set(inst, good)
+        inst.slave.doStep(currentCommunicationPoint=H, communicationStepSize=H)  # usable again
+        u, sat = _outputs(inst)
+        assert_allclose(u, _expected(np.array(L.default_gains()), x)[0], rtol=1e-12)
+
+
+@pytest.mark.integration
+def test_bad_value_in_initialization_mode(controller):
+    with controller.instantiate() as inst:
+        _start(inst, {"U": -1.0})
+        assert "U = -1.0" in inst.messages[-1].message and inst.messages[-1].status == 3
+        assert "U = -1.0" in _discarded(inst, 0.0, H)
+        _fmu_set(inst, {"U": M.U_M_PER_S, "delta_v": 0.1})
+        inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
+        assert_allclose(_outputs(inst)[0][0], -0.3192 * 0.1 / M.U_M_PER_S, rtol=1e-12)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("setter, name, value, fragment", [
+    ("setReal", "limit_enabled", 1.0, "limit_enabled = 1.0 rejected: is a Boolean variable"),
+    ("setBoolean", "u_max", True, "u_max = True rejected: is a Real variable"),
+    ("setReal", "delta_Phi_a", 0.1, "delta_Phi_a = 0.1 rejected: not settable"),
+])
+def test_wrong_type_or_causality_is_rejected(controller, setter, name, value, fragment):
+    with controller.instantiate() as inst:
+        _start(inst)
+        getattr(inst.slave, setter)([controller.vr(name)], [value])
+        assert fragment in inst.messages[-1].message, inst.messages
+        assert fragment in _discarded(inst, 0.0, H)
+        inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)  # reported once
+        assert inst.slave.getReal([controller.vr("u_max")]) == [0.4]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("t, h, fragment", [
+    (0.0, 0.0, "communicationStepSize = 0.0"),
+    (0.0, -H, "communicationStepSize = -"),
+    (0.0, math.inf, "communicationStepSize = inf"),
+    (0.5, H, "currentCommunicationPoint = 0.5"),
+])
+def test_bad_step_arguments_refused(controller, t, h, fragment):
+    with controller.instantiate() as inst:
+        _start(inst)
+        assert fragment in _discarded(inst, t, h)
+        inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
+        assert "does not continue" in _discarded(inst, 0.0, H)  # time now continues from H
+        inst.slave.doStep(currentCommunicationPoint=H, communicationStepSize=H)
+
+
+@pytest.mark.integration
+def test_state_get_set_serialize_and_reset(controller):
+    with controller.instantiate() as inst:
+        s = inst.slave
+        _start(inst, {"limit_enabled": True, "u_max": 0.01})
+        s.setReal(inst.vrs(STATES), _dimensional([0.1, 0.0, 0.0, 0.2]))
+        s.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
+        saved = _outputs(inst)
+        assert saved[1] is True
+        state = s.getFMUstate()
+        blob = s.serializeFMUstate(state)
+        s.setReal(inst.vrs(STATES + ["K[1,1]"]), [0.0, 0.0, 0.0, 0.0, 5.0])
+        s.setBoolean([controller.vr("limit_enabled")], [False])
+        s.doStep(currentCommunicationPoint=H, communicationStepSize=H)
+        assert _outputs(inst) == ([0.0, 0.0, 0.0], False)
+        s.setFMUstate(state)
+        assert _outputs(inst) == saved
+        s.doStep(currentCommunicationPoint=H, communicationStepSize=H)  # time restored to H
+        restored = s.deSerializeFMUstate(blob)
+        s.setReal([controller.vr("delta_v")], [0.0])
+        s.setFMUstate(restored)
+        assert _outputs(inst) == saved
+        s.freeFMUstate(restored)
+        s.freeFMUstate(state)
+        s.reset()
+        assert s.getReal([controller.vr("K[1,1]")]) == [-0.3192]
+        _start(inst)
+        assert _outputs(inst) == ([0.0, 0.0, 0.0], False)
+
+
+@pytest.mark.integration
+def test_closed_loop_cosimulation_with_the_plant(plant, controller):
+    """Both FMUs in one process, connected by name: plant outputs at t_k -> controller ->
+    plant inputs held over [t_k, t_k + h]. Equals x[k+1] = (Phi + Gamma K) x[k] exactly."""
+    steps, h = 50, 1.0 / M.N_HZ  # one wing beat per communication step
+    x0 = [0.0, 0.0, 0.0, 0.1]
+    with plant.instantiate("p") as p, controller.instantiate("c") as c:
+        _start(p, {f"{n}_start": v for n, v in zip(STATES, x0)})
+        _start(c)
+        xs = []
+        for k in range(steps):
+            y = p.slave.getReal(p.vrs(STATES))
+            xs.append(M.to_nondimensional(np.array(y), M.U_M_PER_S, M.N_HZ))
+            c.slave.setReal(c.vrs(STATES), y)
+            u = c.slave.getReal(c.vrs(CONTROLS))
+            p.slave.setReal(p.vrs(CONTROLS), u)
+            p.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
+            c.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
+    A, B = M.system_matrices(M.default_parameters())
+    Phi, Gamma = M.discretize_zoh(A, B, 1.0)
+    F = Phi + Gamma @ np.array(L.default_gains())
+    ref = [np.array(x0)]
+    for _ in range(steps - 1):
+        ref.append(F @ ref[-1])
+    assert_allclose(np.array(xs), np.array(ref), rtol=0, atol=1e-13)
+    assert abs(xs[-1][3]) < 0.1 * 1.01, "neutrally stable: no divergence"
+
+
+if __name__ == "__main__":  # regenerate controller/StateFeedback_ref.csv
+    import tempfile
+
+    from dronefly.build import build_fmu
+
+    with tempfile.TemporaryDirectory() as tmp:
+        data = reference_run(build_fmu("StateFeedback", tmp))
+    with REF_CSV.open("w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(REF_COLUMNS)
+        for row in data:
+            w.writerow([repr(v) for v in row[:-1]] + [int(row[-1])])
+    print(f"wrote {REF_CSV} ({len(data)} rows)")

@@ -156,13 +156,15 @@ class DroneFlyLateral(SlaveBase):
         if not (math.isfinite(u[0]) and math.isfinite(u[1]) and math.isfinite(u[2])):
             self._check_finite(CONTROL_NAMES, u)
         x = self._model.step(self._x, np.array(u), h * self._n)  # type: ignore[union-attr]
-        self._x = x
         n = self._n
-        o = self._out_vr
-        r[o[0]] = float(x[0]) * self._U
-        r[o[1]] = float(x[1]) * n
-        r[o[2]] = float(x[2]) * n
-        r[o[3]] = float(x[3])
+        y = (float(x[0]) * self._U, float(x[1]) * n, float(x[2]) * n, float(x[3]))
+        if not (math.isfinite(y[0]) and math.isfinite(y[1]) and math.isfinite(y[2])
+                and math.isfinite(y[3])):
+            raise ValueError(f"state overflow: outputs {y!r} after the step (the linear "
+                             "model is far outside its range)")
+        self._x = x
+        for i, v in zip(self._out_vr, y):
+            r[i] = v
 
     def _extra_state(self) -> dict[str, Any]:
         return {"x": self._x.tolist()}

@@ -18,6 +18,31 @@ from typing import Any, Sequence
 
 __all__ = ["FMU", "FMUError", "Instance", "LogMessage"]
 
+# fmpy's native logger proxy keeps ONE Python logger per process (the last one
+# installed), so every instance shares one dispatcher that routes messages by
+# instance name; live instance names are kept unique.
+_LIVE: dict[str, "Instance"] = {}
+_DISPATCH: Any = None
+
+
+def _dispatch(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+    def _s(b: bytes | None) -> str:
+        return b.decode("utf-8", "replace") if b else ""
+
+    name = _s(instance)
+    target = _LIVE.get(name)
+    if target is not None:
+        target.messages.append(LogMessage(name, int(status), _s(category), _s(message)))
+
+
+def _unique(name: str) -> str:
+    if name not in _LIVE:
+        return name
+    k = 2
+    while f"{name}#{k}" in _LIVE:
+        k += 1
+    return f"{name}#{k}"
+
 
 class FMUError(ValueError):
     """An FMU file is missing, corrupt, or not an FMI 2.0 co-simulation FMU."""
@@ -109,14 +134,16 @@ class Instance:
                                fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
         from fmpy.fmi1 import calloc, free
 
+        global _DISPATCH
+        if _DISPATCH is None:
+            _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
+        self.name = _unique(self.name)
         md = self.fmu.model_description
         self.slave = FMU2Slave(guid=md.guid, unzipDirectory=self.fmu._unzipdir,
                                modelIdentifier=md.coSimulation.modelIdentifier,
                                instanceName=self.name)
         cb = fmi2CallbackFunctions()
-        # keep the ctypes callbacks alive as long as the instance
-        self._logger = fmi2CallbackLoggerTYPE(self._log)
-        cb.logger = self._logger
+        cb.logger = _DISPATCH
         cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:
@@ -125,19 +152,15 @@ class Instance:
             addLoggerProxy(byref(cb))
         except Exception:  # pragma: no cover - fmpy without the proxy
             pass
-        self._callbacks = cb
+        self._callbacks = cb  # keep the ctypes structure alive as long as the instance
         self._freed = False
+        _LIVE[self.name] = self
         try:
             self.slave.instantiate(callbacks=cb, loggingOn=self.logging)
         except Exception as e:
             self._freed = True
+            _LIVE.pop(self.name, None)
             raise FMUError(f"cannot instantiate {self.fmu.name!r}: {e}") from e
-
-    def _log(self, env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
-        def _s(b: bytes | None) -> str:
-            return b.decode("utf-8", "replace") if b else ""
-
-        self.messages.append(LogMessage(_s(instance), int(status), _s(category), _s(message)))
 
     def vrs(self, names: Sequence[str]) -> list[int]:
         return [self.fmu.vr(n) for n in names]
@@ -150,6 +173,8 @@ class Instance:
                 self.slave.fmi2FreeInstance(self.slave.component)
             finally:
                 self.slave.freeLibrary()
+                if _LIVE.get(self.name) is self:
+                    del _LIVE[self.name]
 
     def __enter__(self) -> "Instance":
         return self

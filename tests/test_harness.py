@@ -1,0 +1,159 @@
+"""The co-simulation harness: verdicts, exactness against the sampled-data solution, bad input."""
+
+from __future__ import annotations
+
+import json
+import zipfile
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from dronefly.cli import main
+from dronefly.harness.cosim import cosimulate
+from dronefly.harness.fmu import FMU, FMUError
+from dronefly.harness.master import CoSimError, Loop
+
+pytestmark = pytest.mark.integration
+
+#: Table 2 (per wing beat) and the Eq. (27) target: lambda1 -> 0, the others unchanged.
+LAMBDA1_OPEN = 0.0786  # Eq. (19) prints 0.0786; Table 2 prints 0.079
+OTHERS = [complex(-0.089, 0.057), complex(-0.089, -0.057), -0.510]
+
+
+@pytest.fixture(scope="module")
+def fmus(built_fmus):
+    return built_fmus["DroneFlyLateral"], built_fmus["StateFeedback"]
+
+
+@pytest.fixture(scope="module", params=["gauss-seidel", "jacobi"])
+def runs(request, fmus, tmp_path_factory):
+    out = tmp_path_factory.mktemp(request.param)
+    return {g: cosimulate(*fmus, gains=g, master=request.param, stop_wingbeats=100,
+                          out_dir=out, plot=False) for g in ("open", "paper")}
+
+
+def test_open_loop_is_unstable(runs):
+    r = runs["open"]
+    assert r.verdict == "unstable"
+    assert_allclose(r.identification.dominant_growth_rate, LAMBDA1_OPEN, atol=1e-3,
+                    err_msg="Table 2 / Eq. (19): lambda1")
+
+
+def test_paper_gains_are_neutral(runs):
+    r = runs["paper"]
+    assert r.verdict == "neutral"
+    ev = r.identification.eigenvalues
+    assert abs(ev[0]) <= 1e-3, "Eq. (27): lambda1 = 0 within the rounding of the gains"
+    assert_allclose(ev[1:4], OTHERS, atol=1e-3, err_msg="Eq. (27) targets: Table 2 values")
+
+
+@pytest.mark.parametrize("gains", ["open", "paper"])
+def test_identified_equals_sampled_data_and_near_continuous(runs, gains):
+    r = runs[gains]
+    assert_allclose(r.identification.eigenvalues, r.sampled_eigenvalues, rtol=0, atol=1e-9,
+                    err_msg="identified vs exact ZOH closed loop at the same step")
+    assert_allclose(r.identification.eigenvalues[:4], r.continuous_eigenvalues, atol=1e-3,
+                    err_msg="step 0.1 wing beat vs eig(A1 + B1 K)")
+
+
+@pytest.mark.parametrize("gains", ["open", "paper"])
+def test_trajectory_equals_sampled_data_solution(runs, gains):
+    """Gauss-Seidel: x_(k+1) = (Phi + Gamma K) x_k; Jacobi: the same with one step of delay."""
+    assert runs[gains].trajectory_error <= 1e-9
+
+
+def test_jacobi_is_the_delayed_loop(fmus, tmp_path):
+    gs = cosimulate(*fmus, gains="paper", stop_wingbeats=5, out_dir=None)
+    ja = cosimulate(*fmus, gains="paper", stop_wingbeats=5, master="jacobi", out_dir=None)
+    u_gs, u_ja = gs.run.column("delta_Phi_a"), ja.run.column("delta_Phi_a")
+    assert u_ja[0] == u_gs[0]  # both start from K x0
+    assert not np.allclose(u_ja[2:], u_gs[2:], rtol=1e-6)  # the delay changes the loop
+
+
+def test_csv_is_fmpy_compatible(fmus, tmp_path):
+    from fmpy.util import read_csv
+
+    r = cosimulate(*fmus, gains="paper", stop_wingbeats=10, out_dir=tmp_path, plot=False)
+    data = read_csv(str(r.csv))
+    assert list(data.dtype.names) == ["time", *r.run.names]
+    assert_allclose(data["delta_gamma"], r.run.column("delta_gamma"), rtol=1e-15)
+    summary = json.loads(r.csv.with_suffix(".json").read_text())
+    assert summary["verdict"] == "neutral" and summary["complete"] is True
+
+
+def test_mismatched_fmus_are_refused(fmus):
+    with FMU(fmus[0]) as p, pytest.raises(CoSimError, match="'delta_Phi_a'"):
+        Loop(p, p)
+
+
+def test_corrupt_fmu_is_refused(tmp_path):
+    bad = tmp_path / "bad.fmu"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(FMUError, match="bad.fmu"):
+        FMU(bad)
+    empty = tmp_path / "empty.fmu"
+    with zipfile.ZipFile(empty, "w") as z:
+        z.writestr("x.txt", "x")
+    with pytest.raises(FMUError, match="empty.fmu"):
+        FMU(empty)
+
+
+def test_failure_mid_run_keeps_partial_result(fmus, tmp_path):
+    """Overflow of the linear state: the plant refuses the step; the run stops and says where."""
+    r = cosimulate(*fmus, gains="open", x0="1e306,0,0,0", stop_wingbeats=300, out_dir=tmp_path,
+                   plot=False)
+    assert not r.run.complete
+    f = r.run.failure
+    assert (f.fmu, f.call) == ("DroneFlyLateral", "fmi2DoStep") and f.time > 0
+    assert "state overflow" in f.message
+    assert 1 < len(r.run.time) < 3001 and np.isfinite(r.run.signals).all()
+    summary = json.loads(r.csv.with_suffix(".json").read_text())
+    assert summary["complete"] is False and "fmi2DoStep" in summary["failure"]
+
+
+def test_cli_json(fmus, tmp_path, capsys):
+    code = main(["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--gains", "open",
+                 "--stop", "50", "--step", "0.5", "--out", str(tmp_path), "--json", "--no-plot"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["verdict"] == "unstable" and out["step_wingbeats"] == 0.5
+    assert out["stop_wingbeats"] == 50 and len(out["eigenvalues_per_wingbeat"]) == 4
+    assert_allclose(out["dominant_growth_rate_per_wingbeat"], LAMBDA1_OPEN, atol=1e-3)
+    assert out["csv"].endswith(".csv") and out["plot"] is None
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--gains", "1,2,3"], "gains = '1,2,3'"),
+    (["--gains", "nan,0,0,0"], "gains = 'nan,0,0,0'"),
+    (["--x0", "0,0,x,0"], "x0 = '0,0,x,0'"),
+    (["--x0", "0,0,0,inf"], "x0 = '0,0,0,inf'"),
+    (["--step", "0"], "'0' must be > 0"),
+    (["--step", "nan"], "'nan' is not finite"),
+    (["--stop", "0.05"], "stop = 0.05 is shorter than one step"),
+    (["--plant", "missing.fmu"], "'missing.fmu' does not exist"),
+    (["--master", "newton"], "invalid choice"),
+])
+def test_cli_bad_input(fmus, tmp_path, capsys, args, fragment):
+    base = {"--plant": str(fmus[0]), "--controller": str(fmus[1])}
+    for flag in list(base):
+        if flag in args:
+            del base[flag]
+    argv = ["cosim", *[x for kv in base.items() for x in kv], "--out", str(tmp_path / "o"), *args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert fragment in err[-1] and not any("Traceback" in line for line in err)
+    assert not (tmp_path / "o").exists(), "no partial result files"
+
+
+def test_cli_incomplete_run_exits_1(fmus, tmp_path, capsys):
+    argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--gains", "open",
+            "--x0", "1e306,0,0,0", "--out", str(tmp_path), "--no-plot"]
+    assert main(argv) == 1
+    assert "run incomplete: DroneFlyLateral: fmi2DoStep" in capsys.readouterr().err
+
+
+def test_plot_is_written(fmus, tmp_path):
+    pytest.importorskip("matplotlib")
+    r = cosimulate(*fmus, gains="paper", stop_wingbeats=20, out_dir=tmp_path)
+    assert r.plot is not None and r.plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Sequence
 
 from ..plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S
@@ -101,6 +102,12 @@ class FeedbackLaw:
         t_w = 1.0 / self.n
         return (x[0] / self.U, x[1] * t_w, x[2] * t_w, x[3])
 
+    @cached_property
+    def _rows(self) -> tuple[tuple[float, float, float, float], ...]:
+        """K with the non-dimensionalisation folded in: u_i = sum_j Kd[i][j] x_j (x dimensional)."""
+        t_w = 1.0 / self.n
+        return tuple((k[0] / self.U, k[1] * t_w, k[2] * t_w, k[3]) for k in self.K)
+
     def evaluate(self, x: Sequence[float]) -> tuple[tuple[float, float, float], bool]:
         """Controls [rad] for a dimensional state, and whether any of them is limited.
 
@@ -112,11 +119,16 @@ class FeedbackLaw:
         LawParameterError
             A state value is not finite, or K x+ overflows.
         """
-        xp = self.nondimensional_state(x)
-        u = [math.fsum(k * v for k, v in zip(row, xp)) for row in self.K]
-        for name, value in zip(CONTROL_NAMES, u):
-            if not math.isfinite(value):
-                raise LawParameterError(f"{name} = {value!r} is not finite (K x+ overflows)")
+        x0, x1, x2, x3 = x
+        if not (math.isfinite(x0) and math.isfinite(x1) and math.isfinite(x2)
+                and math.isfinite(x3)):
+            self.nondimensional_state(x)  # raises, naming the value
+        # runs once per FMI get after a set: unrolled, no per-element Python loop
+        u = [k0 * x0 + k1 * x1 + k2 * x2 + k3 * x3 for k0, k1, k2, k3 in self._rows]
+        if not (math.isfinite(u[0]) and math.isfinite(u[1]) and math.isfinite(u[2])):
+            for name, value in zip(CONTROL_NAMES, u):
+                if not math.isfinite(value):
+                    raise LawParameterError(f"{name} = {value!r} is not finite (K x+ overflows)")
         saturated = False
         if self.limit_enabled:
             lim = self.u_max

@@ -98,6 +98,7 @@ class StateFeedback(SlaveBase):
         self._law_vr = tuple(vr[n] for n in (*self._GAINS, "n", "U", *_LIMIT))
         self._law_key: tuple[Any, ...] | None = None
         self._law: FeedbackLaw | None = None
+        self._outputs_valid = False  # the last _update_outputs succeeded
 
     def _current_law(self) -> FeedbackLaw:
         """The law of the current parameters, validated (rebuilt only when they changed)."""
@@ -116,16 +117,23 @@ class StateFeedback(SlaveBase):
         self._current_law()
 
     def _update_outputs(self) -> None:
+        self._outputs_valid = False
         r = self._real
-        u, saturated = self._current_law().evaluate([float(r[i]) for i in self._in_vr])
+        # parameters are re-read only after one was set (the base class's dirty flag)
+        law = self._current_law() if self._dirty or self._law is None else self._law
+        i0, i1, i2, i3 = self._in_vr
+        u, saturated = law.evaluate((r[i0], r[i1], r[i2], r[i3]))
         o = self._out_vr
         r[o[0]], r[o[1]], r[o[2]] = u
         r[self._sat_vr] = saturated
+        self._outputs_valid = True
 
     def _initialize(self) -> None:
         self._update_outputs()
 
     def _advance(self, t: float, h: float) -> None:
-        # No state to integrate. The step is refused while an input or parameter is bad.
-        self._update_outputs()
-        self._stale = False
+        # No state to integrate. The step is refused while an input or parameter is bad;
+        # outputs already computed for the current inputs are not computed again.
+        if self._stale or not self._outputs_valid:
+            self._update_outputs()
+            self._stale = False

@@ -243,7 +243,7 @@ class SlaveBase(Fmi2Slave):
             self._update_if_stale()
         r = self._real
         try:
-            return [float(r[i]) for i in vrs]
+            return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
         except Exception:
             return [float(r[i]) if 0 <= i < len(r) else math.nan for i in vrs]
 

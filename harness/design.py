@@ -21,7 +21,7 @@ from dronefly.plant import model
 from .analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
                        eigenvector_table, input_index, ordered_eigen)
 
-__all__ = ["Design", "DisturbanceResponse", "lqr_gains", "move_lambda1_gains",
+__all__ = ["Design", "DisturbanceResponse", "analysis_report", "lqr_gains", "move_lambda1_gains",
            "peak_control", "stabilising_designs"]
 
 Array = NDArray[np.float64]
@@ -140,4 +140,76 @@ def stabilising_designs(lambda1: float = -0.1, gamma0: float = 0.5,
         ev = np.linalg.eigvals(closed_loop_matrix(A, b, k))
         out.append(Design(method, u, k, ev[np.lexsort((-ev.imag, -ev.real))],
                           peak_control(A, b, k, x_roll), peak_control(A, b, k, x_mode)))
+    return out
+
+
+def _cx(z: Iterable[complex]) -> list[list[float]]:
+    return [[float(np.real(v)), float(np.imag(v))] for v in z]
+
+
+def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a",
+                    lambda1: float = -0.1, gamma0: float = 0.5) -> dict:
+    """Computed matrices, eigenvalues, controllability and designs, JSON-ready.
+
+    Parameters
+    ----------
+    targets : str, optional
+        Comma-separated closed-loop eigenvalues (per wing beat) for an extra design
+        with ``design_input`` (see :func:`~dronefly.harness.analysis.parse_targets`).
+    design_input : str
+        Control input of that design (one of ``model.CONTROL_NAMES``).
+    lambda1, gamma0 : float
+        Target of the lambda_1 designs (per wing beat) and the roll disturbance (rad).
+
+    Raises
+    ------
+    AnalysisInputError
+        Bad input name, non-finite or non-conjugate targets, uncontrollable input.
+    """
+    from . import paper_values as pv
+    from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
+                           characteristic_affine, controllability, lateral_system,
+                           longitudinal_system, modal_decomposition, parse_targets,
+                           place_poles_gains)
+
+    u = input_index(design_input)
+    custom = None if targets is None else parse_targets(targets)
+    A, B = lateral_system()
+    w, _ = ordered_eigen(A)
+    _, mag, ph = eigenvector_table(A)
+    mf = modal_decomposition(A, B)
+    m3 = modal_decomposition(A, B, ModalConvention((0, 1, 2, 3), norm="last"))
+    c0, G = characteristic_affine(A, B[:, 0])
+    Al, Bl = longitudinal_system()
+    ml = modal_decomposition(Al, Bl, LONGITUDINAL_CONVENTION)
+    k27 = np.array([pv.value(t) for t in pv.EQ27_GAINS])
+    out: dict = {
+        "lateral": {"A1": A.tolist(), "B1": B.tolist(), "eigenvalues": _cx(w),
+                    "eigenvectors_table3": {"magnitude": mag.tolist(), "phase_deg": ph.tolist()},
+                    "modal_eq20_convention": {"M1": mf.M.tolist(), "A_lnn": mf.A_nn.tolist(),
+                                              "B_ln": mf.B_n.tolist()},
+                    "modal_table3_convention": {"M1": m3.M.tolist(), "B_ln": m3.B_n.tolist()},
+                    "controllability": controllability(A, B, model.CONTROL_NAMES, mf),
+                    "eq24_b": B[:, 0].tolist(),
+                    "eq26": {"c0 (b, c, d, e at k = 0)": c0.tolist(), "G (d coeffs / d k_j)": G.tolist()}},
+        "longitudinal": {"A": Al.tolist(), "B": Bl.tolist(), "eigenvalues": _cx(ordered_eigen(Al)[0]),
+                         "controls": list(pv.LONGITUDINAL_CONTROLS), "M": ml.M.tolist(),
+                         "A_nn": ml.A_nn.tolist(), "B_n": ml.B_n.tolist(),
+                         "controllability": controllability(Al, Bl, pv.LONGITUDINAL_CONTROLS, ml)},
+        "designs": [d.as_dict() for d in stabilising_designs(lambda1, gamma0,
+                                                              extra={"Eq. (27) as printed": k27})],
+    }
+    if custom is not None:
+        k = coefficient_matching_gains(A, B, custom, u)
+        distinct = len({complex(z) for z in custom}) == len(custom)
+        b = B[:, u]
+        eta1 = mag[:, 0] * np.cos(np.radians(ph[:, 0]))
+        roll = peak_control(A, b, k, np.array([0.0, 0.0, 0.0, gamma0]))
+        mode = peak_control(A, b, k, gamma0 * eta1)
+        out["custom_design"] = {
+            "input": design_input, "targets": _cx(custom), "gains": k.tolist(),
+            "gains_ackermann": ackermann_gains(A, B, custom, u).tolist(),
+            "gains_place_poles": place_poles_gains(A, B, custom, u).tolist() if distinct else None,
+            "closed_loop_eigenvalues": _cx(np.linalg.eigvals(closed_loop_matrix(A, b, k))),
+            "peak_control_deg": {"roll": roll.peak_control_deg, "mode1": mode.peak_control_deg}}
     return out

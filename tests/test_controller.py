@@ -3,13 +3,11 @@
 Unit tests call :mod:`dronefly.controller.law` and the slave class directly; the integration
 tests run the FMU built by the session fixture ``built_fmus`` through fmpy's FMU2Slave API.
 
-Run as a script, this file writes the reference result ``controller/StateFeedback_ref.csv``
-(see :func:`reference_run` and controller/README.md).
+The reference result (FMI cross-check files) is checked in tests/test_reference.py.
 """
 
 from __future__ import annotations
 
-import csv
 import math
 import re
 import zipfile
@@ -26,7 +24,6 @@ from dronefly.controller.slave import StateFeedback
 from dronefly.plant import model as M
 
 ROOT = Path(__file__).resolve().parents[1]
-REF_CSV = ROOT / "controller" / "StateFeedback_ref.csv"
 STATES = list(M.STATE_NAMES)
 CONTROLS = list(M.CONTROL_NAMES)
 GAINS = [L.gain_name(i, j) for i in range(3) for j in range(4)]
@@ -404,69 +401,6 @@ def test_closed_loop_eigenvalues_from_the_two_fmus(plant, controller):
     assert residual < 1e-4
 
 
-def _ref_inputs_nondimensional(k: int) -> tuple[float, float, float, float]:
-    """Documented input sequence of the reference result, sample k = 0..80 (t+ = k/10).
-
-    Wing beat 0: zero; wing beats 1-4: x+_j = 0.1 for j = 1..4 in turn; wing beat 5: the
-    paper's example x+ = (0.05, 0.05, 0.05, 0.5) (Sect. 3.4); wing beats 6-8: delta_gamma
-    ramps linearly from -1 to +1 rad (t+ = 6 to 8), the other components zero.
-    """
-    seg = k // 10
-    if seg == 0:
-        return (0.0, 0.0, 0.0, 0.0)
-    if seg <= 4:
-        x = [0.0, 0.0, 0.0, 0.0]
-        x[seg - 1] = 0.1
-        return tuple(x)  # type: ignore[return-value]
-    if seg == 5:
-        return (0.05, 0.05, 0.05, 0.5)
-    return (0.0, 0.0, 0.0, -1.0 + (k - 60) / 10.0)
-
-
-REF_START = {"limit_enabled": True, "u_max": 0.05}
-REF_COLUMNS = ["time", *STATES, *CONTROLS, "saturated"]
-
-
-def reference_run(fmu_path: Path) -> list[list[float]]:
-    """Rows of the reference result, produced through fmpy's FMU2Slave API.
-
-    Default parameters except limit_enabled = true, u_max = 0.05 rad; at each communication
-    point t_k = k/(10 n), k = 0..80: set the four inputs, read the outputs (no doStep between),
-    then doStep(t_k, 1/(10 n)).
-    """
-    from dronefly.harness.fmu import FMU
-
-    rows = []
-    with FMU(fmu_path) as fmu, fmu.instantiate() as inst:
-        _start(inst, REF_START)
-        for k in range(81):
-            t = k * H
-            x = _dimensional(np.array(_ref_inputs_nondimensional(k)))
-            inst.slave.setReal(inst.vrs(STATES), x)
-            u, sat = _outputs(inst)
-            rows.append([t, *x, *u, float(sat)])
-            if k < 80:
-                inst.slave.doStep(currentCommunicationPoint=t, communicationStepSize=H)
-    return rows
-
-
-@pytest.mark.integration
-def test_reference_result(built_fmus):
-    with REF_CSV.open() as f:
-        reader = csv.reader(f)
-        assert next(reader) == REF_COLUMNS
-        ref = np.array([[float(v) for v in row] for row in reader])
-    run = np.array(reference_run(built_fmus["StateFeedback"]))
-    assert ref.shape == run.shape == (81, len(REF_COLUMNS))
-    assert_allclose(run, ref, rtol=1e-12, atol=1e-15)
-    # and the file is what the law says
-    for row in ref:
-        u, sat = _expected(np.array(L.default_gains()), list(row[1:5]), u_max=0.05)
-        assert_allclose(row[5:8], u, rtol=1e-12, atol=1e-15)
-        assert row[8] == float(sat)
-    assert 0.0 < ref[:, 8].sum() < len(ref)
-
-
 BAD_CASES = [
     # (values set after a first valid step, fragment expected in the logged messages)
     ({"delta_v": math.nan}, "delta_v = nan"),
@@ -609,18 +543,3 @@ def test_closed_loop_cosimulation_with_the_plant(plant, controller):
         ref.append(F @ ref[-1])
     assert_allclose(np.array(xs), np.array(ref), rtol=0, atol=1e-13)
     assert abs(xs[-1][3]) < 0.1 * 1.01, "neutrally stable: no divergence"
-
-
-if __name__ == "__main__":  # regenerate controller/StateFeedback_ref.csv
-    import tempfile
-
-    from dronefly.build import build_fmu
-
-    with tempfile.TemporaryDirectory() as tmp:
-        data = reference_run(build_fmu("StateFeedback", tmp))
-    with REF_CSV.open("w", newline="") as f:
-        w = csv.writer(f, lineterminator="\n")
-        w.writerow(REF_COLUMNS)
-        for row in data:
-            w.writerow([repr(v) for v in row[:-1]] + [int(row[-1])])
-    print(f"wrote {REF_CSV} ({len(data)} rows)")

@@ -1,0 +1,159 @@
+"""Reference results following the FMI cross-check rules.
+
+For each FMU of the project, its folder holds ``<Model>_in.csv`` (inputs at every
+communication point), ``<Model>_ref.opt`` (StartTime, StopTime, StepSize, RelTol)
+and ``<Model>_ref.csv`` (time and every output), produced by fmpy.simulate_fmu with
+the default start values. :func:`check_reference` simulates an FMU with the same
+settings and compares with fmpy's cross-check band (``fmpy.util.validate_result``)
+and with a tight numeric tolerance, since both FMUs are exact for held inputs.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
+
+__all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
+           "write_reference"]
+
+_PKG = Path(__file__).resolve().parent.parent
+
+
+def _plant_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
+    """A doublet on delta_Phi_a (+0.01 rad for 5 wing beats, -0.01 for 5), a pulse on alpha_2a."""
+    wb = t * N_HZ
+    return {
+        "delta_Phi_a": np.where(wb < 5 - 1e-9, 0.01, np.where(wb < 10 - 1e-9, -0.01, 0.0)),
+        "delta_alpha_1a": np.zeros_like(t),
+        "delta_alpha_2a": np.where((wb >= 15 - 1e-9) & (wb < 17 - 1e-9), 0.005, 0.0),
+    }
+
+
+def _controller_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
+    """A decaying oscillation of the four states (dimensional), like a disturbed hover."""
+    wb = t * N_HZ
+    env = np.exp(-wb / 20.0)
+    return {
+        "delta_v": 0.2 * env * np.sin(2 * np.pi * wb / 15.0),
+        "delta_p": 8.0 * env * np.cos(2 * np.pi * wb / 15.0),
+        "delta_r": -3.0 * env * np.sin(2 * np.pi * wb / 10.0),
+        "delta_gamma": 0.1 * env * np.cos(2 * np.pi * wb / 25.0),
+    }
+
+
+@dataclass(frozen=True)
+class _Setup:
+    folder: str  # subpackage of dronefly holding the files
+    inputs: Callable[[np.ndarray], dict[str, np.ndarray]]
+    outputs: tuple[str, ...]
+    stop_wingbeats: float = 30.0
+    step_wingbeats: float = 0.1
+    rel_tol: float = 1e-6
+
+
+REFERENCES: dict[str, _Setup] = {
+    "DroneFlyLateral": _Setup("plant", _plant_inputs, STATE_NAMES),
+    "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
+}
+
+
+@dataclass(frozen=True)
+class ReferenceCheck:
+    model: str
+    cross_check_outliers: float  # fraction of samples outside fmpy's band (0 = pass)
+    max_rel_error: float  # max |y - y_ref| / max |y_ref| over all outputs
+
+    @property
+    def passed(self) -> bool:
+        return self.cross_check_outliers == 0.0 and self.max_rel_error <= 1e-9
+
+
+def reference_paths(model: str) -> tuple[Path, Path, Path]:
+    """(``_in.csv``, ``_ref.opt``, ``_ref.csv``) of a model in the source tree."""
+    import importlib
+
+    setup = REFERENCES[model]
+    folder = Path(importlib.import_module(f"dronefly.{setup.folder}").__file__).resolve().parent
+    return (folder / f"{model}_in.csv", folder / f"{model}_ref.opt", folder / f"{model}_ref.csv")
+
+
+def _opt(setup: _Setup) -> dict[str, float]:
+    return {"StartTime": 0.0, "StopTime": setup.stop_wingbeats / N_HZ,
+            "StepSize": setup.step_wingbeats / N_HZ, "RelTol": setup.rel_tol}
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _simulate(fmu: Path, model: str, inputs: np.ndarray) -> np.ndarray:
+    import fmpy
+
+    setup = REFERENCES[model]
+    o = _opt(setup)
+    return fmpy.simulate_fmu(str(fmu), start_time=o["StartTime"], stop_time=o["StopTime"],
+                             output_interval=o["StepSize"], input=inputs,
+                             output=list(setup.outputs))
+
+
+def _input_table(model: str) -> np.ndarray:
+    setup = REFERENCES[model]
+    n = int(round(setup.stop_wingbeats / setup.step_wingbeats))
+    t = np.arange(n + 1) * (setup.step_wingbeats / N_HZ)
+    cols = setup.inputs(t)
+    table = np.empty(len(t), dtype=[("time", float)] + [(k, float) for k in cols])
+    table["time"] = t
+    for k, v in cols.items():
+        table[k] = v
+    return table
+
+
+def _csv_text(table: np.ndarray) -> str:
+    lines = [",".join(f'"{n}"' for n in table.dtype.names)]
+    for row in table:
+        lines.append(",".join(repr(float(v)) if isinstance(v, (float, np.floating))
+                              else str(int(v)) for v in row))
+    return "\n".join(lines) + "\n"
+
+
+def write_reference(model: str, fmu: Path) -> tuple[Path, Path, Path]:
+    """Simulate ``fmu`` and (re)write the model's ``_in.csv``, ``_ref.opt``, ``_ref.csv``."""
+    inp, opt, ref = reference_paths(model)
+    table = _input_table(model)
+    result = _simulate(fmu, model, table)
+    _write_atomic(inp, _csv_text(table))
+    _write_atomic(opt, "".join(f"{k},{v!r}\n" for k, v in _opt(REFERENCES[model]).items()))
+    _write_atomic(ref, _csv_text(result))
+    return inp, opt, ref
+
+
+def check_reference(model: str, fmu: Path, folder: Path | None = None) -> ReferenceCheck:
+    """Simulate ``fmu`` as the ``.opt`` file says and compare with ``_ref.csv``."""
+    from fmpy.util import read_csv, read_ref_opt_file, validate_result
+
+    inp, opt, ref = reference_paths(model)
+    if folder is not None:
+        inp, opt, ref = (folder / p.name for p in (inp, opt, ref))
+    opts = read_ref_opt_file(str(opt))
+    expected = _opt(REFERENCES[model])
+    for key in ("StartTime", "StopTime", "StepSize"):
+        if not math.isclose(opts[key], expected[key], rel_tol=1e-12, abs_tol=1e-15):
+            raise ValueError(f"{opt.name}: {key} = {opts[key]!r}, expected {expected[key]!r}")
+    reference = read_csv(str(ref))
+    result = _simulate(fmu, model, read_csv(str(inp)))
+    outliers = float(validate_result(result, reference, stop_time=opts["StopTime"]))
+    worst = 0.0
+    for name in reference.dtype.names[1:]:
+        y, y_ref = np.asarray(result[name], float), np.asarray(reference[name], float)
+        scale = max(float(np.max(np.abs(y_ref))), 1e-300)
+        worst = max(worst, float(np.max(np.abs(y - y_ref))) / scale)
+    return ReferenceCheck(model, outliers, worst)

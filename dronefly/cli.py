@@ -81,7 +81,7 @@ _EPILOG = {
     "demo": "examples:\n  dronefly demo",
     "analyze": "examples:\n  dronefly analyze\n  dronefly analyze --json\n"
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
-               "  dronefly analyze --targets '-0.2,-0.089+0.057j,-0.089-0.057j,-0.51' "
+               "  dronefly analyze --targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51 "
                "--input delta_Phi_a",
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
     "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50",
@@ -141,7 +141,7 @@ def _parser() -> argparse.ArgumentParser:
     a.add_argument("--markdown", action="store_true", help="print the Markdown report (docs/reproduction.md)")
     a.add_argument("--targets", default=None, metavar="LIST",
                    help="comma-separated closed-loop eigenvalues per wing beat for an extra "
-                        "gain design, e.g. '-0.2,-0.089+0.057j,-0.089-0.057j,-0.51'")
+                        "gain design; write --targets=... when the first one is negative")
     a.add_argument("--input", default="delta_Phi_a", metavar="NAME",
                    help="control input of that design: delta_Phi_a (default), delta_alpha_1a, "
                         "delta_alpha_2a")

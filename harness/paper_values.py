@@ -22,7 +22,7 @@ __all__ = [
     "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
     "EQ24_A", "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS",
     "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
-    "SECT35_A", "SECT35_B", "TABLE2", "TABLE3_MAGNITUDE", "TABLE3_PHASE_DEG",
+    "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE", "TABLE3_PHASE_DEG",
     "half_unit", "value",
 ]
 
@@ -133,3 +133,8 @@ def half_unit(text: str, decimals: int | None = None) -> float:
     exponent = Decimal(text).as_tuple().exponent
     assert isinstance(exponent, int)
     return 0.5 * math.pow(10.0, exponent)
+
+#: Printed decimals of the Sect. 2.1 values in ``model.INERTIAS_SECT21``
+#: (m+ = 92.7, Ix+ = 10.00, Iz+ = 12.69, Ixz+ = -8.36) and of Table 1 (all 3 decimals).
+SECT21_DECIMALS = {"m_plus": 1, "Ix_plus": 2, "Iz_plus": 2, "Ixz_plus": 2}
+TABLE1_DECIMALS = 3

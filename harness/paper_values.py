@@ -22,7 +22,8 @@ __all__ = [
     "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
     "EQ24_A", "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS",
     "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
-    "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE", "TABLE3_PHASE_DEG",
+    "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE",
+    "TABLE3_PHASE_DEG",
     "half_unit", "value",
 ]
 
@@ -70,8 +71,8 @@ EQ26 = {
     "d": ("-2.3257e-3", "-7.782e-3", "-7.2081e-4", "4.671e-5", "-8.279e-3"),
     "e": ("4.4567e-4", "-1.2353e-3", None, "-2.5462e-5", "-7.2081e-4"),
 }
-#: Absent terms are read as a printed 0 at the precision of the smallest printed
-#: coefficient of the same equation (b: 5e-4 -> 1 digit at 1e-4; e: 1e-9 digits).
+#: Absent terms are read as a printed 0 at the precision of the last digit of the
+#: smallest printed coefficient of the same equation.
 EQ26_ABSENT = {("b", 4): "0.0000", ("e", 2): "0.000000000"}
 
 #: Eq. (27): feedback gains k1..k4 of dPhi_a.
@@ -118,7 +119,7 @@ def half_unit(text: str, decimals: int | None = None) -> float:
     Parameters
     ----------
     text : str
-        Printed number, e.g. ``"0.0786"`` (-> 5e-5) or ``"8.49e-4"`` (-> 5e-7).
+        Printed number: ``"0.1234"`` -> 5e-5, ``"1.23e-4"`` -> 5e-7.
     decimals : int, optional
         For a bare ``"0"`` inside a matrix printed to ``decimals`` places, the
         zero is read as ``0.000...`` (structural zeros are exact).
@@ -134,7 +135,8 @@ def half_unit(text: str, decimals: int | None = None) -> float:
     assert isinstance(exponent, int)
     return 0.5 * math.pow(10.0, exponent)
 
-#: Printed decimals of the Sect. 2.1 values in ``model.INERTIAS_SECT21``
-#: (m+ = 92.7, Ix+ = 10.00, Iz+ = 12.69, Ixz+ = -8.36) and of Table 1 (all 3 decimals).
+
+#: Printed decimals of the Sect. 2.1 values held (as floats) in ``model.INERTIAS_SECT21``
+#: and of Table 1 (``model.CONTROL_DERIVATIVES_TABLE1``, all printed to 3 decimals).
 SECT21_DECIMALS = {"m_plus": 1, "Ix_plus": 2, "Iz_plus": 2, "Ixz_plus": 2}
 TABLE1_DECIMALS = 3

@@ -276,8 +276,11 @@ class Notes:
         if src == "Table 3":
             parts = []
             if qty == "|dp+| mode 2":
-                parts.append("|dp+| = |lambda2| exactly (dgamma' = dp+ with dgamma = 1); Table 2's -0.089 +/- "
-                             "0.057i and Eq. (19)'s -0.0890 +/- 0.0568i give 0.1057 and 0.1056, printed 0.106.")
+                t2 = complex(pv.value(pv.TABLE2["lambda23_re"]), pv.value(pv.TABLE2["lambda23_im"]))
+                e19 = complex(pv.value(pv.EQ19_A_LNN[1][1]), pv.value(pv.EQ19_A_LNN[1][2]))
+                parts.append(f"|dp+| = |lambda2| exactly (dgamma' = dp+ with dgamma = 1); Table 2's lambda2 "
+                             f"gives {abs(t2):.5f} and Eq. (19)'s {abs(e19):.5f}, both consistent with the "
+                             "print, while Eq. (12)'s exact |lambda2| is just below the rounding boundary.")
             if "mode 2" in qty:
                 parts.append("Mode 2 is the eigenvector of lambda2 = sigma + i omega (omega > 0); that of "
                              "lambda3 is its conjugate (opposite phases).")
@@ -325,8 +328,8 @@ class Notes:
             r, j = "bcde".index(qty[0]), int(qty[-1])
             g24 = a["G24"][r, j - 1]
             return ("error in print", f"Error in print (exponent): the k4 coefficient of d equals the k2 "
-                    f"coefficient of c (dgamma' = dp+), printed -8.2789e-2 in (26b); 'x10^-3' should read "
-                    f"'x10^-2'. Computed {x:.5g} (model.py b), {g24:.5g} with Eq. (24)'s b, which matches "
+                    f"coefficient of c (dgamma' = dp+), printed {pv.EQ26['c'][2]} in (26b); the exponent "
+                    f"should be one higher. Computed {x:.5g} (model.py b), {g24:.5g} with Eq. (24)'s b, which matches "
                     f"{10 * p:.4g} after the correction; the remaining difference is b's rounding (Eq. 24 rows).")
         if src.startswith("Eq. (26") and not qty.endswith("constant"):
             r, j = "bcde".index(qty[0]), int(qty.split("k")[-1][0])
@@ -428,8 +431,9 @@ def render_markdown(rows: Sequence[Row], report: dict, gains: dict) -> str:
     for r in rows:
         note = "as above" if r.note and r.note == last else r.note
         last = r.note
-        lines.append(f"| {r.source} | {r.quantity} | {r.printed} | {r.computed:.6g} | "
-                     f"{'yes' if r.match else 'no: ' + r.reason} | {note.replace('|', '/')} |")
+        q, note = (t.replace("|", "\\|") for t in (r.quantity, note))
+        lines.append(f"| {r.source} | {q} | {r.printed} | {r.computed:.6g} | "
+                     f"{'yes' if r.match else 'no: ' + r.reason} | {note} |")
     lat, lon = report["lateral"], report["longitudinal"]
     lines += ["", "## Computed matrices", ""]
     lines += _mat("A1 (model.py)", lat["A1"]) + _mat("B1 (Table 1, Sect. 2.1 inertias)", lat["B1"])

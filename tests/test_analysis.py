@@ -108,9 +108,10 @@ def test_every_printed_number_has_a_row() -> None:
 
 
 def test_half_unit_of_printed_digits() -> None:
-    # Tolerances stated by the issue: 0.0786 -> 5e-5; scientific and bare zeros.
-    assert_allclose([pv.half_unit("0.0786"), pv.half_unit("8.49e-4"), pv.half_unit("5e-4"),
-                     pv.half_unit("-144.7"), pv.half_unit("0", 4)], [5e-5, 5e-7, 5e-5, 0.05, 5e-5], rtol=1e-12)
+    # Half a unit in the last printed digit: 4 decimals, scientific, one digit, degrees, bare zero.
+    texts = [pv.EQ19_A_LNN[0][0], pv.EQ26["c"][1], pv.EQ26["b"][1], pv.TABLE3_PHASE_DEG[0][1], "0"]
+    got = [pv.half_unit(t, 4 if t == "0" else None) for t in texts]
+    assert_allclose(got, [5e-5, 5e-7, 5e-5, 0.05, 5e-5], rtol=1e-12)
 
 
 def test_tables_2_and_3_within_rounding() -> None:

@@ -52,6 +52,29 @@ def _cmd_cosim(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_check(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from .harness.compliance import check_fmu, format_reports
+
+    paths = [Path(p) for p in args.fmus]
+    if not paths:
+        from .build import build_all
+
+        paths = [p for p in build_all(args.build) if p.suffix == ".fmu"]
+    for p in paths:
+        if not p.is_file():
+            raise UsageError(f"FMU {str(p)!r} does not exist")
+    reports = [check_fmu(p) for p in paths]
+    if args.json:
+        print(json.dumps([{"fmu": str(r.path), "passed": r.passed,
+                           "checks": [c.__dict__ for c in r.checks]} for r in reports], indent=2))
+    else:
+        print(format_reports(reports))
+    return EXIT_OK if all(r.passed for r in reports) else EXIT_FAILED
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .harness.demo import verdict_table
 
@@ -79,6 +102,8 @@ _EPILOG = {
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
              "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input",
     "demo": "examples:\n  dronefly demo",
+    "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
+             "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
     "analyze": "examples:\n  dronefly analyze\n  dronefly analyze --json\n"
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
                "  dronefly analyze --targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51 "
@@ -130,6 +155,13 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSV, PNG and JSON")
     c.add_argument("--json", action="store_true", help="print a machine-readable summary")
     c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
+
+    k = add("check", "FMI 2.0 co-simulation compliance suite (fmpy validate, call sequence, reset, "
+            "state, bad input, reference results)", _cmd_check)
+    k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build every FMU "
+                   "of the project into --build and check those)")
+    k.add_argument("--build", default="build", metavar="DIR", help="where to build (default build/)")
+    k.add_argument("--json", action="store_true", help="machine-readable report")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
             _cmd_demo)

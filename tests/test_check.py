@@ -1,0 +1,92 @@
+"""`dronefly check`: passes on the project's FMUs, fails with a clear report on broken ones."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from dronefly.cli import main
+from dronefly.harness.compliance import check_fmu
+
+pytestmark = pytest.mark.integration
+
+
+def _status(report) -> dict[str, bool]:
+    return {c.name: c.passed for c in report.checks}
+
+
+@pytest.mark.parametrize("model", ["DroneFlyLateral", "StateFeedback"])
+def test_project_fmus_pass(built_fmus, model):
+    report = check_fmu(built_fmus[model])
+    assert report.passed, report.checks
+
+
+def _rewrite_md(src: Path, dst: Path, old: bytes, new: bytes) -> Path:
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                assert old in data
+                data = data.replace(old, new)
+            zout.writestr(item, data)
+    return dst
+
+
+def test_broken_model_description_fails_validate(built_fmus, tmp_path, capsys):
+    src = built_fmus["DroneFlyLateral"]
+    with zipfile.ZipFile(src) as z:
+        md = z.read("modelDescription.xml")
+    start = md.index(b"<InitialUnknowns>")
+    end = md.index(b"</InitialUnknowns>") + len(b"</InitialUnknowns>")
+    broken = _rewrite_md(src, tmp_path / "NoInitialUnknowns.fmu", md[start:end], b"")
+    report = check_fmu(broken)
+    status = _status(report)
+    assert not report.passed and status["validate"] is False and status["reset"] is True
+    assert main(["check", str(broken)]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL" in out and "validate" in out and "0 of 1 FMUs passed" in out
+
+
+def test_state_that_is_not_captured_fails(tmp_path, monkeypatch):
+    """A plant whose FMU state forgets the integrator state: continuation differs."""
+    import dronefly.build as build
+
+    original = build._source_path
+
+    def patched(rel):
+        path = original(rel)
+        if rel == "plant/slave.py":
+            text = path.read_text()
+            bad = text.replace('return {"x": self._x.tolist()}', 'return {"x": [0.0] * 4}')
+            assert bad != text
+            path = tmp_path / "slave.py"
+            path.write_text(bad)
+        return path
+
+    monkeypatch.setattr(build, "_source_path", patched)
+    fmu = build.build_fmu("DroneFlyLateral", tmp_path / "bad")
+    status = _status(check_fmu(fmu))
+    assert status["state"] is False and status["validate"] is True
+
+
+def test_do_nothing_fmu_fails_bad_input(tmp_path):
+    """A plain pythonfmu FMU: no units/InitialUnknowns, and NaN inputs are not refused."""
+    from pythonfmu import FmuBuilder
+
+    src = Path(__file__).resolve().parents[1] / "benchmarks" / "null_fmus" / "NullPlant.py"
+    fmu = Path(FmuBuilder.build_FMU(src, dest=tmp_path))
+    report = check_fmu(fmu)
+    status = _status(report)
+    assert status["validate"] is False and status["bad-input"] is False
+    detail = {c.name: c.detail for c in report.checks}["bad-input"]
+    assert "delta_Phi_a = nan" in detail
+
+
+def test_missing_and_corrupt_files(tmp_path, capsys):
+    assert main(["check", str(tmp_path / "nope.fmu")]) == 2
+    bad = tmp_path / "corrupt.fmu"
+    bad.write_bytes(b"PK\x03\x04 garbage")
+    report = check_fmu(bad)
+    assert not report.passed and report.checks[0].name == "load"

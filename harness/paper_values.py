@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from decimal import Decimal
 
+from dronefly.controller.law import PAPER_GAINS_EQ27
 from dronefly.plant.model import A1_EQ12
 
 __all__ = [
@@ -75,8 +76,9 @@ EQ26 = {
 #: smallest printed coefficient of the same equation.
 EQ26_ABSENT = {("b", 4): "0.0000", ("e", 2): "0.000000000"}
 
-#: Eq. (27): feedback gains k1..k4 of dPhi_a.
-EQ27_GAINS = ("-0.3192", "-0.2879", "-0.1969", "-0.0643")
+#: Eq. (27): feedback gains k1..k4 of dPhi_a, printed to 4 decimals; the numbers live in
+#: the controller's law module (the FMU's default gains), so they are formatted, not repeated.
+EQ27_GAINS = tuple(f"{k:.4f}" for k in PAPER_GAINS_EQ27)
 
 #: Sect. 3.5: longitudinal system matrix A (state du+, dw+, dq+, dtheta; Ref. [17]).
 SECT35_A = (("-0.0134", "0.0011", "-0.0025", "-0.0158"),

@@ -9,12 +9,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from dronefly.harness import paper_values as pv
 from dronefly.plant import model as M
 
 #: Eq. (24): first column of B1 as printed (the delta Phi_a column).
-B1_COL1_EQ24 = (-0.0005, 0.4993, -0.3296, 0.0)
+B1_COL1_EQ24 = tuple(pv.value(t) for t in pv.EQ24_B_COLUMN)
 #: Table 2: eigenvalues of A1 per wing beat, printed to three decimals.
-EIG_TABLE2 = (0.079, complex(-0.089, 0.057), complex(-0.089, -0.057), -0.510)
+_T2 = {k: pv.value(t) for k, t in pv.TABLE2.items()}
+EIG_TABLE2 = (_T2["lambda1"], complex(_T2["lambda23_re"], _T2["lambda23_im"]),
+              complex(_T2["lambda23_re"], -_T2["lambda23_im"]), _T2["lambda4"])
 
 
 def test_a1_from_parameters_equals_eq12():

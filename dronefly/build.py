@@ -112,7 +112,7 @@ def fmu_sources(name: str) -> tuple[str, dict[str, bytes]]:
 
 def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str) -> bytes:
     """Generate the XML from the code the FMU ships, imported under its own name."""
-    from .fmi import model_description_bytes
+    from .modeldescription import model_description_bytes
 
     spec = FMUS[name]
     with tempfile.TemporaryDirectory(prefix="dronefly_build_") as tmp:

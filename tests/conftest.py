@@ -14,3 +14,21 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
     out = tmp_path_factory.mktemp("fmus")
     return {p.stem: p for p in build_all(out)}
+
+
+@pytest.fixture(scope="session")
+def plant(built_fmus):
+    """The built DroneFlyLateral, read and extracted once."""
+    from dronefly.harness.fmu import FMU
+
+    with FMU(built_fmus["DroneFlyLateral"]) as fmu:
+        yield fmu
+
+
+@pytest.fixture(scope="session")
+def controller(built_fmus):
+    """The built StateFeedback, read and extracted once."""
+    from dronefly.harness.fmu import FMU
+
+    with FMU(built_fmus["StateFeedback"]) as fmu:
+        yield fmu

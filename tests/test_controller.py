@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import re
-import zipfile
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
@@ -22,6 +21,7 @@ from numpy.testing import assert_allclose
 from dronefly.controller import law as L
 from dronefly.controller.slave import StateFeedback
 from dronefly.plant import model as M
+from fmu_helpers import model_description, set_values, start
 
 ROOT = Path(__file__).resolve().parents[1]
 STATES = list(M.STATE_NAMES)
@@ -185,43 +185,6 @@ def test_slave_has_no_module_level_state():
 
 # --------------------------------------------------------------------------- the real FMU
 
-@pytest.fixture(scope="module")
-def controller(built_fmus):
-    from dronefly.harness.fmu import FMU
-
-    with FMU(built_fmus["StateFeedback"]) as fmu:
-        yield fmu
-
-
-@pytest.fixture(scope="module")
-def plant(built_fmus):
-    from dronefly.harness.fmu import FMU
-
-    with FMU(built_fmus["DroneFlyLateral"]) as fmu:
-        yield fmu
-
-
-def _md(path: Path) -> ET.Element:
-    with zipfile.ZipFile(path) as z:
-        return ET.fromstring(z.read("modelDescription.xml"))
-
-
-def _start(inst: Any, values: dict[str, Any] | None = None, t0: float = 0.0) -> None:
-    s = inst.slave
-    s.setupExperiment(startTime=t0)
-    s.enterInitializationMode()
-    _fmu_set(inst, values or {})
-    s.exitInitializationMode()
-
-
-def _fmu_set(inst: Any, values: dict[str, Any]) -> None:
-    for name, value in values.items():
-        if isinstance(value, bool):
-            inst.slave.setBoolean([inst.fmu.vr(name)], [value])
-        else:
-            inst.slave.setReal([inst.fmu.vr(name)], [value])
-
-
 def _outputs(inst: Any) -> tuple[list[float], bool]:
     u = inst.slave.getReal(inst.vrs(CONTROLS))
     (sat,) = inst.slave.getBoolean([inst.fmu.vr("saturated")])
@@ -262,7 +225,7 @@ def test_reproducible_build_and_own_package(tmp_path, built_fmus):
 
 @pytest.mark.integration
 def test_model_description_interface(built_fmus):
-    root = _md(built_fmus["StateFeedback"])
+    root = model_description(built_fmus["StateFeedback"])
     units = {u.get("name"): u for u in root.find("UnitDefinitions")}
     svs = root.find("ModelVariables").findall("ScalarVariable")
     idx = {sv.get("name"): i + 1 for i, sv in enumerate(svs)}
@@ -302,7 +265,7 @@ def test_plant_and_controller_connect_by_name_and_the_plant_breaks_the_loop(buil
     """Controller inputs = plant outputs and vice versa (names, units); only the controller
     has direct feedthrough, so plant -> controller -> plant is not an algebraic loop."""
     def interface(path, causality):
-        root = _md(path)
+        root = model_description(path)
         svs = root.find("ModelVariables").findall("ScalarVariable")
         deps = {int(u.get("index")): u.get("dependencies")
                 for u in root.find("ModelStructure/Outputs")}
@@ -348,7 +311,7 @@ def test_saturation_through_fmpy(controller):
     K = _random_gains(5)
     u_max = 0.3
     with controller.instantiate() as inst:
-        _start(inst, {"limit_enabled": True, "u_max": u_max})
+        start(inst, {"limit_enabled": True, "u_max": u_max})
         inst.slave.setReal(inst.vrs(GAINS), K.ravel().tolist())
         seen = set()
         for k, xp in enumerate(np.random.default_rng(2).normal(0.0, 0.15, (40, 4))):
@@ -374,8 +337,8 @@ def test_closed_loop_eigenvalues_from_the_two_fmus(plant, controller):
     import scipy.linalg as sl
 
     with plant.instantiate() as p, controller.instantiate() as c:
-        _start(p)
-        _start(c)
+        start(p)
+        start(c)
         A = np.array(p.slave.getReal(p.vrs([f"A[{i},{j}]" for i in range(1, 5)
                                              for j in range(1, 5)]))).reshape(4, 4)
         B = np.array(p.slave.getReal(p.vrs([f"B[{i},{j}]" for i in range(1, 5)
@@ -426,19 +389,19 @@ BAD_CASES = [
 def test_bad_values_are_refused_and_the_instance_recovers(controller, bad, fragment):
     x = _dimensional([0.02, -0.03, 0.01, 0.3])
     with controller.instantiate() as inst:
-        _start(inst, dict(zip(STATES, x)))
+        start(inst, dict(zip(STATES, x)))
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         before = _outputs(inst)
         good = {n: (inst.slave.getBoolean([controller.vr(n)])[0] == 1 if n == "limit_enabled"
                     else inst.slave.getReal([controller.vr(n)])[0]) for n in bad}
-        _fmu_set(inst, bad)
+        set_values(inst, bad)
         assert _outputs(inst) == before, "outputs keep their last valid values"
         errors = [m for m in inst.messages if m.status == 3]
         assert errors and fragment in errors[-1].message, inst.messages
         assert "last valid values" in errors[-1].message
         msg = _discarded(inst, H, H)
         assert fragment in msg and "step refused" in msg, msg
-        _fmu_set(inst, good)
+        set_values(inst, good)
         inst.slave.doStep(currentCommunicationPoint=H, communicationStepSize=H)  # usable again
         u, sat = _outputs(inst)
         assert_allclose(u, _expected(np.array(L.default_gains()), x)[0], rtol=1e-12)
@@ -447,10 +410,10 @@ def test_bad_values_are_refused_and_the_instance_recovers(controller, bad, fragm
 @pytest.mark.integration
 def test_bad_value_in_initialization_mode(controller):
     with controller.instantiate() as inst:
-        _start(inst, {"U": -1.0})
+        start(inst, {"U": -1.0})
         assert "U = -1.0" in inst.messages[-1].message and inst.messages[-1].status == 3
         assert "U = -1.0" in _discarded(inst, 0.0, H)
-        _fmu_set(inst, {"U": M.U_M_PER_S, "delta_v": 0.1})
+        set_values(inst, {"U": M.U_M_PER_S, "delta_v": 0.1})
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         assert_allclose(_outputs(inst)[0][0], -0.3192 * 0.1 / M.U_M_PER_S, rtol=1e-12)
 
@@ -463,7 +426,7 @@ def test_bad_value_in_initialization_mode(controller):
 ])
 def test_wrong_type_or_causality_is_rejected(controller, setter, name, value, fragment):
     with controller.instantiate() as inst:
-        _start(inst)
+        start(inst)
         getattr(inst.slave, setter)([controller.vr(name)], [value])
         assert fragment in inst.messages[-1].message, inst.messages
         assert fragment in _discarded(inst, 0.0, H)
@@ -480,7 +443,7 @@ def test_wrong_type_or_causality_is_rejected(controller, setter, name, value, fr
 ])
 def test_bad_step_arguments_refused(controller, t, h, fragment):
     with controller.instantiate() as inst:
-        _start(inst)
+        start(inst)
         assert fragment in _discarded(inst, t, h)
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         assert "does not continue" in _discarded(inst, 0.0, H)  # time now continues from H
@@ -491,7 +454,7 @@ def test_bad_step_arguments_refused(controller, t, h, fragment):
 def test_state_get_set_serialize_and_reset(controller):
     with controller.instantiate() as inst:
         s = inst.slave
-        _start(inst, {"limit_enabled": True, "u_max": 0.01})
+        start(inst, {"limit_enabled": True, "u_max": 0.01})
         s.setReal(inst.vrs(STATES), _dimensional([0.1, 0.0, 0.0, 0.2]))
         s.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         saved = _outputs(inst)
@@ -513,7 +476,7 @@ def test_state_get_set_serialize_and_reset(controller):
         s.freeFMUstate(state)
         s.reset()
         assert s.getReal([controller.vr("K[1,1]")]) == [-0.3192]
-        _start(inst)
+        start(inst)
         assert _outputs(inst) == ([0.0, 0.0, 0.0], False)
 
 
@@ -524,8 +487,8 @@ def test_closed_loop_cosimulation_with_the_plant(plant, controller):
     steps, h = 50, 1.0 / M.N_HZ  # one wing beat per communication step
     x0 = [0.0, 0.0, 0.0, 0.1]
     with plant.instantiate("p") as p, controller.instantiate("c") as c:
-        _start(p, {f"{n}_start": v for n, v in zip(STATES, x0)})
-        _start(c)
+        start(p, {f"{n}_start": v for n, v in zip(STATES, x0)})
+        start(c)
         xs = []
         for k in range(steps):
             y = p.slave.getReal(p.vrs(STATES))

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import math
 import zipfile
-from pathlib import Path
-from xml.etree import ElementTree as ET
 
 import numpy as np
 import pytest
@@ -14,32 +12,13 @@ from numpy.testing import assert_allclose
 from dronefly.plant import model as M
 from dronefly.simulate import exact_open_loop
 from dronefly.harness.fmu import FMU
+from fmu_helpers import model_description, start
 
 pytestmark = pytest.mark.integration
 
 STATES = list(M.STATE_NAMES)
 CONTROLS = list(M.CONTROL_NAMES)
 DT_WB = 1.0 / M.N_HZ  # one wing beat in s
-
-
-@pytest.fixture(scope="module")
-def plant(built_fmus):
-    with FMU(built_fmus["DroneFlyLateral"]) as fmu:
-        yield fmu
-
-
-def _md(path: Path) -> ET.Element:
-    with zipfile.ZipFile(path) as z:
-        return ET.fromstring(z.read("modelDescription.xml"))
-
-
-def _start(inst, start_values=None, t0=0.0):
-    s = inst.slave
-    s.setupExperiment(startTime=t0)
-    s.enterInitializationMode()
-    for name, value in (start_values or {}).items():
-        s.setReal([inst.fmu.vr(name)], [value])
-    s.exitInitializationMode()
 
 
 def _outputs(inst):
@@ -57,14 +36,14 @@ def test_reproducible_build(tmp_path, built_fmus):
 
     again = build_fmu("DroneFlyLateral", tmp_path)
     first = built_fmus["DroneFlyLateral"]
-    assert _md(again).get("guid") == _md(first).get("guid")
+    assert model_description(again).get("guid") == model_description(first).get("guid")
     with zipfile.ZipFile(first) as a, zipfile.ZipFile(again) as b:
         assert a.read("modelDescription.xml") == b.read("modelDescription.xml")
     assert again.read_bytes() == first.read_bytes()
 
 
 def test_model_description_interface(built_fmus):
-    root = _md(built_fmus["DroneFlyLateral"])
+    root = model_description(built_fmus["DroneFlyLateral"])
     units = {u.get("name"): u for u in root.find("UnitDefinitions")}
     svs = root.find("ModelVariables").findall("ScalarVariable")
     by_name = {sv.get("name"): (i + 1, sv) for i, sv in enumerate(svs)}
@@ -112,7 +91,7 @@ def test_simulate_fmu_matches_exact_solution(built_fmus, step_wb):
 
 def test_matrices_read_through_fmpy(plant):
     with plant.instantiate() as inst:
-        _start(inst)
+        start(inst)
         A = np.array(inst.slave.getReal(inst.vrs([f"A[{i},{j}]" for i in range(1, 5)
                                                    for j in range(1, 5)]))).reshape(4, 4)
         B = np.array(inst.slave.getReal(inst.vrs([f"B[{i},{j}]" for i in range(1, 5)
@@ -159,7 +138,7 @@ BAD_CASES = [
 def test_bad_values_refuse_the_step(plant, bad, fragment):
     h = 0.1 * DT_WB
     with plant.instantiate() as inst:
-        _start(inst, {"delta_gamma_start": 0.1})
+        start(inst, {"delta_gamma_start": 0.1})
         _step(inst, 0.0, h)
         before = _outputs(inst)
         good = {n: inst.slave.getReal([plant.vr(n)])[0] for n in bad}
@@ -183,7 +162,7 @@ def test_bad_values_refuse_the_step(plant, bad, fragment):
 ])
 def test_bad_step_arguments_refused(plant, t, h, fragment):
     with plant.instantiate() as inst:
-        _start(inst, {"delta_gamma_start": 0.1})
+        start(inst, {"delta_gamma_start": 0.1})
         msg = _discarded(inst, t, h)
         assert fragment in msg, msg
         _step(inst, 0.0, 0.001)
@@ -193,14 +172,14 @@ def test_bad_step_arguments_refused(plant, t, h, fragment):
 def test_reset_restores_fresh_instance(plant):
     h = DT_WB
     with plant.instantiate() as inst:
-        _start(inst, {"delta_gamma_start": 0.1})
+        start(inst, {"delta_gamma_start": 0.1})
         _step(inst, 0.0, h)
         first = _outputs(inst)
         inst.slave.setReal([plant.vr("m_plus")], [-1.0])
         _discarded(inst, h, h)
         inst.slave.reset()
         assert inst.slave.getReal([plant.vr("m_plus")]) == [92.7]
-        _start(inst, {"delta_gamma_start": 0.1})
+        start(inst, {"delta_gamma_start": 0.1})
         _step(inst, 0.0, h)
         assert_allclose(_outputs(inst), first, rtol=0, atol=0)
 
@@ -208,8 +187,8 @@ def test_reset_restores_fresh_instance(plant):
 def test_two_instances_are_independent(plant):
     h = DT_WB
     with plant.instantiate("a") as a, plant.instantiate("b") as b:
-        _start(a, {"delta_gamma_start": 0.1})
-        _start(b, {"delta_gamma_start": 0.2})
+        start(a, {"delta_gamma_start": 0.1})
+        start(b, {"delta_gamma_start": 0.2})
         b.slave.setReal([plant.vr("m_plus")], [-1.0])
         _step(a, 0.0, h)
         _discarded(b, 0.0, h)
@@ -221,7 +200,7 @@ def test_state_get_set_and_serialize_continue_bit_for_bit(plant):
     h = 0.1 * DT_WB
     with plant.instantiate() as inst:
         s = inst.slave
-        _start(inst, {"delta_gamma_start": 0.1, "delta_Phi_a": 0.01})
+        start(inst, {"delta_gamma_start": 0.1, "delta_Phi_a": 0.01})
         for k in range(5):
             _step(inst, k * h, h)
         state = s.getFMUstate()
@@ -247,7 +226,7 @@ def test_fmu_runs_the_code_it_ships(built_fmus, monkeypatch):
     monkeypatch.setattr(M, "A1_EQ12", tuple(tuple(2 * a for a in row) for row in M.A1_EQ12))
     monkeypatch.setattr(M, "N_HZ", 1.0)
     with FMU(built_fmus["DroneFlyLateral"]) as fmu, fmu.instantiate() as inst:
-        _start(inst)
+        start(inst)
         assert inst.slave.getReal([fmu.vr("A[2,1]"), fmu.vr("n")]) == [0.1741, 164.0]
 
 
@@ -269,12 +248,12 @@ def test_module_names_are_content_addressed(tmp_path, monkeypatch, built_fmus):
     monkeypatch.setattr(build, "_source_path", patched)
     other = build.build_fmu("DroneFlyLateral", tmp_path / "v2")
     pkg2, _ = build.fmu_sources("DroneFlyLateral")
-    assert pkg2 != pkg and _md(other).get("guid") != _md(built_fmus["DroneFlyLateral"]).get("guid")
+    assert pkg2 != pkg and model_description(other).get("guid") != model_description(built_fmus["DroneFlyLateral"]).get("guid")
     values = []
     with FMU(built_fmus["DroneFlyLateral"]) as f1, FMU(other) as f2:
         with f1.instantiate() as a, f2.instantiate() as b:
             for inst in (a, b):
-                _start(inst)
+                start(inst)
                 values.append(inst.slave.getReal([inst.fmu.vr("B[2,1]")])[0])
     expected = [M.system_matrices(M.default_parameters().with_values(L_Phi_a_plus=L))[1][1, 0]
                 for L in (2.236, 4.472)]

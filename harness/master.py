@@ -214,6 +214,11 @@ class Loop:
         except FMICallException as e:
             last = who.messages[-1].message if who.messages else ""
             run.failure = StepFailure(who.fmu.name, call, t, e.status, last)
+            for inst in (p, c):  # terminate what can be terminated; freeing follows anyway
+                try:
+                    inst.slave.terminate()
+                except FMICallException:
+                    pass
             keep = int(np.argmax(np.isnan(rec).any(axis=1))) if np.isnan(rec).any() else len(rec)
             run.time, run.signals = time[:keep], rec[:keep]
         except (FMUError, OSError) as e:

@@ -4,11 +4,13 @@
     SSP 1.0 archive: ``SystemStructure.ssd`` (components ``plant`` and ``controller``, their
     input/output connectors, the connections by name, a default experiment),
     ``resources/DroneFlyLateral.fmu``, ``resources/StateFeedback.fmu`` and the parameter
-    values ``resources/DroneFlyClosedLoop.ssv``, bound at system level with hierarchical names
-    (``plant.delta_gamma_start``, ``controller.K[1,1]``, ...; SSP 1.0, ParameterBinding).
-    fmpy's ``simulate_ssp`` does not apply the SSD's bindings itself; it takes a parameter set
-    whose names are exactly these hierarchical names, so :func:`run_ssp` reads the bound set
-    with fmpy's ``read_ssd`` and passes it on unchanged.
+    values ``resources/plant.ssv`` and ``resources/controller.ssv``, each bound to its component
+    (SSP 1.0 ParameterBinding; names are the FMU's variable names). fmpy's ``simulate_ssp``
+    does not apply an SSD's bindings itself; it takes one parameter set with hierarchical
+    names (``plant.delta_gamma_start``, ``controller.K[1,1]``), so :func:`ssp_parameter_set`
+    reads the bound sets with fmpy's ``read_ssd`` and prefixes each name with its component's
+    name. libcosim (``CosimExecution.from_ssp_file``) applies component bindings itself and
+    runs the same file; a system-level binding it would ignore.
 
 ``DroneFlyClosedLoop.fmu``
     An FMI 2.0 co-simulation FMU made with fmpy's container FMU (``fmpy.container_fmu``): its
@@ -164,19 +166,22 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
     version="1.0" name="{CLOSED_LOOP}">
   <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {_fmt(step)} s">
-    <ssd:ParameterBindings>
-      <ssd:ParameterBinding source="resources/{CLOSED_LOOP}.ssv"/>
-    </ssd:ParameterBindings>
     <ssd:Elements>
       <ssd:Component name="plant" source="resources/{PLANT}.fmu" type="application/x-fmu-sharedlibrary">
         <ssd:Connectors>
 {connectors(pmd)}
         </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="resources/plant.ssv"/>
+        </ssd:ParameterBindings>
       </ssd:Component>
       <ssd:Component name="controller" source="resources/{CONTROLLER}.fmu" type="application/x-fmu-sharedlibrary">
         <ssd:Connectors>
 {connectors(cmd)}
         </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="resources/controller.ssv"/>
+        </ssd:ParameterBindings>
       </ssd:Component>
     </ssd:Elements>
     <ssd:Connections>
@@ -186,31 +191,40 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
   <ssd:DefaultExperiment startTime="0.0" stopTime="{_fmt(spec.stop_wingbeats / n)}"/>
 </ssd:SystemStructureDescription>
 """
-    ssv_rows = "\n".join(f"    <ssv:Parameter name={quoteattr(k)}><ssv:Real value=\"{_fmt(v)}\"/>"
-                         f"</ssv:Parameter>" for k, v in params.items())
-    ssv = f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-    version="1.0" name="{CLOSED_LOOP}">
-  <ssv:Parameters>
-{ssv_rows}
-  </ssv:Parameters>
-</ssv:ParameterSet>
-"""
-    files = {"SystemStructure.ssd": ssd.encode(), f"resources/{CLOSED_LOOP}.ssv": ssv.encode(),
+    files = {"SystemStructure.ssd": ssd.encode(),
              f"resources/{PLANT}.fmu": Path(plant).read_bytes(),
              f"resources/{CONTROLLER}.fmu": Path(controller).read_bytes()}
+    for comp in ("plant", "controller"):
+        rows = "\n".join(
+            f"    <ssv:Parameter name={quoteattr(k.split('.', 1)[1])}>"
+            f"<ssv:Real value=\"{_fmt(v)}\"/></ssv:Parameter>"
+            for k, v in params.items() if k.split(".", 1)[0] == comp)
+        files[f"resources/{comp}.ssv"] = f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    version="1.0" name="{comp}">
+  <ssv:Parameters>
+{rows}
+  </ssv:Parameters>
+</ssv:ParameterSet>
+""".encode()
     return _write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
 
 
 def ssp_parameter_set(ssp: str | Path):
-    """The fmpy ``ParameterSet`` bound at system level in the SSP (hierarchical names)."""
-    from fmpy.ssp.ssd import ParameterSet, read_ssd
+    """One fmpy ``ParameterSet`` of every component binding of the SSP, named
+    ``<component>.<variable>`` as fmpy's ``simulate_ssp`` expects."""
+    from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
 
-    ssd = read_ssd(str(ssp))  # validates against the SSP 1.0 schema
+    ssd = read_ssd(str(ssp))  # validates the SSD and the SSV files against the SSP 1.0 schema
     merged = ParameterSet(name=CLOSED_LOOP)
-    for binding in ssd.system.parameterBindings:
-        for pset in binding.parameterValues:
-            merged.parameters.extend(pset.parameters)
+    for comp in find_components(ssd.system):
+        for binding in comp.parameterBindings:
+            prefix = binding.prefix or ""
+            for pset in binding.parameterValues:
+                for p in pset.parameters:
+                    name = p.name[len(prefix):] if p.name.startswith(prefix) else p.name
+                    merged.parameters.append(Parameter(name=f"{comp.name}.{name}", type=p.type,
+                                                       value=p.value, unit=p.unit))
     return merged
 
 

@@ -1,0 +1,431 @@
+"""``dronefly sweep``: where do closed-loop trajectories stay inside the Sect. 3.6 bounds?
+
+Each case (see :mod:`harness.sweep_cases`) is one co-simulation of the real plant
+and controller FMUs through :class:`harness.master.Loop`. Bounds are checked at
+every communication point on the non-dimensional state (|x_i| / (scale bound_i))
+and on the controls (|u| / (scale 0.4 rad)).
+
+Execution: each worker process extracts each FMU once and instantiates plant and
+controller once (module-level cache keyed by the FMUs' digests, one pair of
+instances per thread); every case reuses them through fmi2Reset. Cases run in
+chunks, in-process (``workers=1``), on a local process pool, or on an existing
+Dask cluster (``scheduler=ADDRESS``); the rows are the same whichever backend.
+Results go to ``sweep.csv`` (one row per case, sorted by case number), rewritten
+atomically after chunks complete; a rerun with the same ``out_dir`` resumes:
+finished cases (matched by key) are not run again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .sweep_cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError,
+                          SweepSpec, _one_line)
+from .sweep_plot import (_RESULT_COLS, COLUMNS, _load_done, _row, _write_atomic, _write_csv,
+                         read_rows, summarize, write_maps)
+
+__all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
+
+_TOL = 1e-9  # a ratio up to 1 + _TOL counts as on the bound (a = 1 starts on the face)
+_CONTROL_SHORT = {"delta_Phi_a": "dPhi_a", "delta_alpha_1a": "dalpha_1a",
+                  "delta_alpha_2a": "dalpha_2a"}
+
+
+@dataclass(frozen=True)
+class FmuRef:
+    """An FMU file and the SHA-1 of its bytes (the worker cache key)."""
+
+    path: str
+    digest: str
+
+    @classmethod
+    def of(cls, path: str | Path) -> "FmuRef":
+        return cls(str(Path(path).resolve()), hashlib.sha1(Path(path).read_bytes()).hexdigest())
+
+
+# ----------------------------------------------------------------------------- worker side
+_LOCK = threading.Lock()
+_FMUS: dict[str, Any] = {}  # digest -> harness.fmu.FMU (extracted once per process)
+_LOOPS: dict[tuple[int, str, str], tuple[Any, Any, Any, np.ndarray]] = {}
+_TMP: list[str] = []
+
+
+def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
+    from .fmu import FMU
+
+    with _LOCK:
+        if ref.digest not in _FMUS:
+            path = ref.path
+            if data is not None and not (os.path.isfile(path) and FmuRef.of(path) == ref):
+                import tempfile  # a remote worker without the file: materialise the bytes
+
+                d = tempfile.mkdtemp(prefix="dronefly_sweep_")
+                _TMP.append(d)
+                path = os.path.join(d, os.path.basename(ref.path))
+                Path(path).write_bytes(data)
+            _FMUS[ref.digest] = FMU(path)
+        return _FMUS[ref.digest]
+
+
+def _loop(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
+    """(Loop, plant instance, controller instance, x+ scale) of this thread, made once."""
+    from .master import Loop
+
+    key = (threading.get_ident(), refs[0].digest, refs[1].digest)
+    if key not in _LOOPS:
+        pf, cf = _open_fmu(refs[0], data[0]), _open_fmu(refs[1], data[1])
+        loop = Loop(pf, cf)
+        U, n = (float(pf.variables[v].start) for v in ("U", "n"))
+        scale = np.array([U, n, n, 1.0])  # x = x+ * scale (dv+ = dv/U, dp+ = dp/n, ...)
+        _LOOPS[key] = (loop, pf.instantiate(logging=False), cf.instantiate(logging=False), scale)
+    return _LOOPS[key]
+
+
+def _close_all() -> None:
+    """Free every cached instance and delete every extraction (worker exit)."""
+    import shutil
+
+    for loop, p, c, _ in list(_LOOPS.values()):
+        for inst in (p, c):
+            try:
+                inst.free()
+            except Exception:  # pragma: no cover - best effort at exit
+                pass
+    _LOOPS.clear()
+    for f in list(_FMUS.values()):
+        f.close()
+    _FMUS.clear()
+    for d in _TMP:
+        shutil.rmtree(d, ignore_errors=True)
+    _TMP.clear()
+
+
+def _init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
+    """Process-pool initializer: ignore Ctrl-C (the parent handles it), open the FMUs once."""
+    import atexit
+    import signal
+    from multiprocessing import util
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _LOOPS.clear()  # forked: these belong to the parent (which also deletes its extractions)
+    _FMUS.clear()
+    _TMP.clear()
+    atexit.register(_close_all)
+    util.Finalize(None, _close_all, exitpriority=10)
+    _loop(refs, (None, None))
+
+
+def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, Any]:
+    """Peaks, first exit and final state of a run (ratios to the scaled bounds)."""
+    S = run.signals
+    idx = [loop.names.index(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+    nu = len(loop.controls)
+    x = S[:, idx] / scale
+    r = np.abs(np.hstack([x / np.array(STATE_BOUNDS_SECT36),
+                          S[:, len(loop.states):] / CONTROL_BOUND])) / case.scale
+    out: dict[str, Any] = {"error": "", "t_exit_wb": math.nan}
+    peaks = r.max(axis=0) if len(r) else np.full(4 + nu, math.nan)
+    out.update({f"peak_{a}": float(v) for a, v in zip(AXES, peaks[:4])})
+    out["peak_u"] = float(peaks[4:].max())
+    out["peak"] = float(peaks.max())
+    out.update({f"final_{a}": float(v) for a, v in zip(AXES, x[-1] if len(x) else [math.nan] * 4)})
+    over = r > 1.0 + _TOL
+    hit = over.any(axis=1)
+    names = [*AXES, *(_CONTROL_SHORT.get(c, c) for c in loop.controls)]
+    if hit.any():
+        k = int(np.argmax(hit))
+        out["t_exit_wb"] = k * case.step_wb
+        out["verdict"] = "left " + names[int(np.argmax(np.where(over[k], r[k], -1.0)))]
+    else:
+        out["verdict"] = "within"
+    if not run.complete:
+        out["verdict"], out["error"] = "error", _one_line(str(run.failure))
+    return out
+
+
+def _failed(case: Case, e: BaseException) -> dict[str, Any]:
+    out: dict[str, Any] = {c: math.nan for c in _RESULT_COLS}
+    out.update(verdict="error", error=_one_line(f"{type(e).__name__}: {e}"))
+    return out
+
+
+def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
+              data: tuple[bytes | None, bytes | None] = (None, None)) -> tuple[list, float, float]:
+    """Run cases on this worker's cached instances.
+
+    Returns
+    -------
+    results : list of (key, result dict)
+    loop_s : float
+        Time inside ``Loop.run``, s.
+    wall_s : float
+        Wall time of the whole chunk in the worker, s.
+    """
+    from ..controller.law import gain_name
+
+    t_chunk = time.perf_counter()
+    loop_s, out = 0.0, []
+    for case in cases:
+        try:
+            loop, p, c, scale = _loop(refs, data)
+            start = {f"{s}_start": float(v)
+                     for s, v in zip(("delta_v", "delta_p", "delta_r", "delta_gamma"),
+                                     np.asarray(case.x0) * scale)}
+            t0 = time.perf_counter()
+            run = loop.run(case.step_wb / scale[2], case.n_steps, master=case.master,
+                           plant_start=start,
+                           controller_params={gain_name(i, j): v for i, row in enumerate(case.K)
+                                              for j, v in enumerate(row)},
+                           instances=(p, c))
+            loop_s += time.perf_counter() - t0
+            out.append((case.key, _measure(run, loop, scale, case)))
+        except Exception as e:  # recorded; the sweep goes on with fresh instances
+            out.append((case.key, _failed(case, e)))
+            _drop_thread_loop(refs)
+    return out, loop_s, time.perf_counter() - t_chunk
+
+
+def _drop_thread_loop(refs: tuple[FmuRef, FmuRef]) -> None:
+    """After an exception: free this thread's instances; the next case makes new ones."""
+    entry = _LOOPS.pop((threading.get_ident(), refs[0].digest, refs[1].digest), None)
+    for inst in (entry[1:3] if entry else ()):
+        try:
+            inst.free()
+        except Exception:  # pragma: no cover - already broken
+            pass
+
+
+# ----------------------------------------------------------------------------- runner
+@dataclass
+class SweepResult:
+    """What :func:`run_sweep` wrote: rows (strings, sorted by case), summary, file paths."""
+
+    rows: list[dict[str, str]]
+    summary: dict[str, Any]
+    csv: Path
+    json: Path
+    maps: list[Path]
+
+
+def _chunks(cases: list[Case], workers: int, chunk_steps: int | None) -> list[list[Case]]:
+    total = sum(c.n_steps for c in cases)
+    target = chunk_steps or min(max(total / (workers * 16), 4000), 60000)
+    chunks: list[list[Case]] = [[]]
+    cost = 0
+    for c in cases:
+        if cost >= target:
+            chunks.append([])
+            cost = 0
+        chunks[-1].append(c)
+        cost += c.n_steps
+    return [ch for ch in chunks if ch]
+
+
+def _connect(address: str, timeout_s: float) -> Any:
+    try:
+        from distributed import Client
+
+        return Client(address, timeout=timeout_s, set_as_default=False)
+    except Exception as e:
+        raise SweepInputError(f"scheduler {address!r} unreachable: {_one_line(str(e))}") from None
+
+
+def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
+    for label, path in (("plant", plant), ("controller", controller)):
+        if path is not None and not Path(path).is_file():
+            raise SweepInputError(f"{label} FMU {str(path)!r} does not exist")
+    if plant is None or controller is None:
+        from ..build import build_fmu
+
+        plant = plant or build_fmu("DroneFlyLateral", "build")
+        controller = controller or build_fmu("StateFeedback", "build")
+    return FmuRef.of(plant), FmuRef.of(controller)
+
+
+def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep", *,
+              plant: str | Path | None = None, controller: str | Path | None = None,
+              workers: int | None = None, scheduler: str | None = None,
+              connect_timeout_s: float = 10.0, cases: Sequence[Case] | None = None,
+              fresh: bool = False, plot: bool = True, progress_bar: bool | None = None,
+              on_chunk: Callable[[int, int], None] | None = None, chunk_steps: int | None = None,
+              flush_s: float = 5.0) -> SweepResult:
+    """Run (or resume) a sweep and write ``sweep.csv``, ``sweep.json`` and ``map_*.png``.
+
+    Parameters
+    ----------
+    spec : SweepSpec, optional
+        What to sweep (default: ``SweepSpec()``); ignored if ``cases`` is given.
+    out_dir : path
+        Output folder; results already there (same cases, matched by key) are kept.
+    plant, controller : path, optional
+        FMUs (default: the project's, built into ``build/``).
+    workers : int, optional
+        Local worker processes (default: all cores; 1 runs in this process).
+    scheduler : str, optional
+        Address of an existing Dask scheduler; the cases then run on its workers.
+    connect_timeout_s : float
+        How long to try reaching the scheduler, s.
+    cases : sequence of Case, optional
+        Explicit cases instead of ``spec.cases()``.
+    fresh : bool
+        Discard the results in ``out_dir`` instead of resuming.
+    plot : bool
+        Write the PNG maps.
+    progress_bar : bool, optional
+        tqdm bar on stderr (default: when stderr is a terminal).
+    on_chunk : callable(done, total), optional
+        Called after each chunk (cases done so far, cases to do); may raise to stop.
+    chunk_steps : int, optional
+        Communication steps per chunk (default: about total / (16 workers)).
+    flush_s : float
+        Rewrite ``sweep.csv`` at most this often while running, s.
+
+    Raises
+    ------
+    SweepInputError
+        Empty or bad input, missing FMU, unreachable scheduler, or an output folder
+        holding another sweep; nothing is written then.
+    KeyboardInterrupt
+        After the finished cases have been written (rerun to resume).
+    """
+    t_start = time.perf_counter()
+    all_cases = list(cases) if cases is not None else (spec or SweepSpec()).cases()
+    if not all_cases:
+        raise SweepInputError("the sweep has no cases")
+    if workers is None:
+        workers = os.cpu_count() or 1
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise SweepInputError(f"workers = {workers!r} must be an integer >= 1")
+    if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
+        raise SweepInputError(f"connect timeout = {connect_timeout_s!r} s must be finite and > 0")
+    refs = _fmu_paths(plant, controller)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise SweepInputError(f"output folder {str(out)!r} is a file")
+    csv_path, json_path = out / "sweep.csv", out / "sweep.json"
+    keys = {c.key for c in all_cases}
+    done = {} if fresh else _load_done(csv_path, keys)
+    resumed = len(keys & done.keys())
+    client = _connect(scheduler, connect_timeout_s) if scheduler else None
+    todo = list({c.key: c for c in reversed(all_cases) if c.key not in done}.values())[::-1]
+    n_workers = len(client.scheduler_info()["workers"]) if client else min(workers, max(1, len(todo)))
+    chunks = _chunks(todo, n_workers, chunk_steps)
+    stats = {"loop_s": 0.0, "wall_s": 0.0, "computed": 0}
+    out.mkdir(parents=True, exist_ok=True)
+    bar = _Bar(total=len(todo), unit="case", desc="sweep", dynamic_ncols=True,
+               disable=(not _isatty()) if progress_bar is None else not progress_bar)
+    last_flush = [time.perf_counter()]
+
+    def flush() -> None:
+        _write_csv(csv_path, [_row(c, done[c.key]) for c in all_cases if c.key in done])
+        last_flush[0] = time.perf_counter()
+
+    def collect(res: tuple[list, float, float]) -> None:
+        results, loop_s, wall_s = res
+        done.update(results)
+        stats["loop_s"] += loop_s
+        stats["wall_s"] += wall_s
+        stats["computed"] += len(results)
+        bar.update(len(results))
+        if on_chunk is not None:
+            on_chunk(stats["computed"], len(todo))
+        if time.perf_counter() - last_flush[0] >= flush_s:
+            flush()
+
+    try:
+        if client is not None:
+            _run_dask(client, refs, chunks, collect)
+        elif n_workers == 1:
+            _run_here(refs, chunks, collect)
+        else:
+            _run_pool(refs, chunks, n_workers, collect)
+    finally:
+        bar.close()
+        if client is not None:
+            client.close()
+        if stats["computed"] or fresh or not csv_path.exists():
+            flush()
+    rows = [_row(c, done[c.key]) for c in all_cases]
+    maps = write_maps(rows, out) if plot else []
+    summary = summarize(rows, all_cases)
+    summary.update(elapsed_s=time.perf_counter() - t_start, workers=n_workers,
+                   backend="dask" if client else ("in-process" if n_workers == 1 else "processes"),
+                   scheduler=scheduler, computed_cases=stats["computed"], resumed_cases=resumed,
+                   loop_run_s=stats["loop_s"], worker_case_s=stats["wall_s"],
+                   per_case_overhead=(stats["wall_s"] / stats["loop_s"] - 1.0
+                                      if stats["loop_s"] > 0 else None),
+                   plant=refs[0].path, controller=refs[1].path, csv=str(csv_path),
+                   maps=[str(m) for m in maps])
+    import json
+
+    _write_atomic(json_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    return SweepResult(rows, summary, csv_path, json_path, maps)
+
+
+def _Bar(**kw: Any) -> Any:
+    """A tqdm bar without tqdm's monitor thread (the pool forks after it exists)."""
+    from tqdm import tqdm
+
+    class Bar(tqdm):
+        monitor_interval = 0
+
+    return Bar(**kw)
+
+
+def _isatty() -> bool:
+    import sys
+
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def _run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Callable) -> None:
+    try:
+        _loop(refs, (None, None))  # instantiate once, before any case is timed
+        for ch in chunks:
+            collect(run_chunk(refs, ch))
+    finally:
+        _close_all()
+
+
+def _run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
+              collect: Callable) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    # fork: no re-import of __main__ (``python -m dronefly`` has no main guard); the
+    # workers drop the inherited caches and open their own FMUs in the initializer
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    ctx = multiprocessing.get_context(method)
+    with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init_worker,
+                             initargs=(refs,)) as ex:
+        futs = [ex.submit(run_chunk, refs, ch) for ch in chunks]
+        try:
+            for f in as_completed(futs):
+                collect(f.result())
+        except BaseException:
+            for f in futs:
+                f.cancel()
+            raise
+
+
+def _run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]],
+              collect: Callable) -> None:
+    from distributed import as_completed
+
+    data = client.scatter([Path(r.path).read_bytes() for r in refs], broadcast=True)
+    futs = [client.submit(run_chunk, refs, ch, tuple(data), pure=False) for ch in chunks]
+    try:
+        for f in as_completed(futs):
+            collect(f.result())
+    except BaseException:
+        client.cancel(futs)
+        raise

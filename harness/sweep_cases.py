@@ -1,0 +1,302 @@
+"""The cases of ``dronefly sweep``: what is swept, and how each case is named.
+
+Sect. 3.6 of the paper bounds the validity of the linear analysis by
+|dv+|, |dp+|, |dr+| <= 0.15, |dgamma| <= 0.22 (the *validity box*) and
+|control| <= 0.4 rad. A sweep is the product of four dimensions:
+
+initial disturbance x+(0)
+    ``grid``: an N x N grid over a two-dimensional slice of the box (the other two
+    components zero); ``lhs``: a Latin hypercube over the whole box; ``directions``:
+    a direction (a state axis, or the unstable open-loop eigenvector ``mode1``)
+    times an amplitude a in (0, 1], in units of the box (a = 1 touches its face).
+gain set
+    ``paper`` (Eq. 27, neutral), ``stabilising`` (lambda_1 moved to
+    ``STABILISING_LAMBDA1`` with delta_Phi_a alone), ``open`` (no control).
+communication step
+    How often the insect senses and acts, in wing beats (meaningful: 0.1 to 3).
+bound scale
+    A factor on the bounds checked; the initial disturbances stay in the nominal box.
+
+Every case has a deterministic number (its position in that product) and a
+``key``: a hash of everything that determines its result, used to resume.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from ..controller.law import U_MAX_LINEAR_RANGE, default_gains
+from ..plant import model
+from .master import MASTERS
+
+__all__ = ["AXES", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
+           "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
+           "gain_matrix", "parse_floats", "parse_int", "parse_names", "parse_slices"]
+
+#: Sect. 3.6: bounds of dv+, dp+, dr+ and dgamma within which the linear theory holds.
+STATE_BOUNDS_SECT36: tuple[float, float, float, float] = (0.15, 0.15, 0.15, 0.22)
+#: Short names of the non-dimensional state components (x+ order).
+AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
+GAIN_SETS: tuple[str, ...] = ("paper", "stabilising", "open")
+DISTURBANCES: tuple[str, ...] = ("grid", "lhs", "directions")
+DEFAULT_DIRECTIONS: tuple[str, ...] = tuple(f"{s}{a}" for a in (*AXES, "mode1") for s in "+-")
+#: Where the ``stabilising`` gain set moves the unstable root, per wing beat.
+STABILISING_LAMBDA1: float = -0.1
+
+
+class SweepInputError(ValueError):
+    """Bad sweep input; the message names the offending value."""
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def parse_floats(text: str | Iterable[float], name: str) -> tuple[float, ...]:
+    """``"0.1,1,3"`` (or numbers) -> finite floats; empty or non-finite raises."""
+    items = [p.strip() for p in text.split(",")] if isinstance(text, str) else list(text)
+    if not items or items == [""]:
+        raise SweepInputError(f"{name} = {text!r} is empty")
+    out = []
+    for p in items:
+        try:
+            v = float(p)
+        except (TypeError, ValueError):
+            raise SweepInputError(f"{name} = {text!r}: {p!r} is not a number") from None
+        if not math.isfinite(v):
+            raise SweepInputError(f"{name} = {text!r}: {p!r} is not finite")
+        out.append(v)
+    return tuple(out)
+
+
+def parse_int(text: str | int, name: str, lo: int) -> int:
+    """``"17"`` -> 17; not an integer or below ``lo`` raises."""
+    try:
+        v = int(str(text).strip())
+    except ValueError:
+        raise SweepInputError(f"{name} = {text!r} is not an integer") from None
+    if v < lo:
+        raise SweepInputError(f"{name} = {v} must be >= {lo}")
+    return v
+
+
+def parse_names(text: str | Iterable[str], name: str, allowed: Sequence[str]) -> tuple[str, ...]:
+    """``"paper,open"`` -> names, each one of ``allowed`` (duplicates dropped, order kept)."""
+    items = [p.strip() for p in text.split(",")] if isinstance(text, str) else list(text)
+    if not items or items == [""]:
+        raise SweepInputError(f"{name} = {text!r} is empty")
+    for p in items:
+        if p not in allowed:
+            raise SweepInputError(f"{name}: unknown {p!r}; choose from {', '.join(allowed)}")
+    return tuple(dict.fromkeys(items))
+
+
+def parse_slices(text: str | Iterable[Sequence[str]]) -> tuple[tuple[str, str], ...]:
+    """``"dgamma:dv,dp:dr"`` -> ((x axis, y axis), ...), two different state axes each."""
+    items = ([p.strip().split(":") for p in text.split(",")] if isinstance(text, str)
+             else [tuple(p) for p in text])
+    if not items or items == [[""]]:
+        raise SweepInputError(f"slices = {text!r} is empty")
+    out = []
+    for pair in items:
+        if len(pair) != 2 or any(a not in AXES for a in pair) or pair[0] == pair[1]:
+            raise SweepInputError(f"slice {':'.join(pair)!r}: expected two different axes "
+                                  f"of {', '.join(AXES)} as X:Y")
+        out.append((pair[0], pair[1]))
+    return tuple(dict.fromkeys(out))
+
+
+def gain_matrix(name: str) -> np.ndarray:
+    """The 3x4 non-dimensional gain matrix of a named gain set (rad per unit x+)."""
+    if name == "paper":
+        return np.array(default_gains(), dtype=float)
+    if name == "open":
+        return np.zeros((3, 4))
+    if name == "stabilising":
+        A, B = model.system_matrices(model.default_parameters())
+        try:
+            from .design import move_lambda1_gains
+
+            k = np.asarray(move_lambda1_gains(A, B, model.CONTROL_NAMES[0], STABILISING_LAMBDA1))
+        except ImportError:  # pragma: no cover - the analysis module is absent
+            from scipy.signal import place_poles
+
+            w = np.linalg.eigvals(A)
+            w = w[np.lexsort((-w.imag, -w.real))]
+            k = -place_poles(A, B[:, :1], [STABILISING_LAMBDA1, *w[1:]]).gain_matrix[0]
+        K = np.zeros((3, 4))
+        K[0] = k
+        return K
+    raise SweepInputError(f"unknown gain set {name!r}; choose from {', '.join(GAIN_SETS)}")
+
+
+def _mode1_direction() -> np.ndarray:
+    """Unstable open-loop eigenvector in box units (max component 1, dgamma > 0)."""
+    A, _ = model.system_matrices(model.default_parameters())
+    w, V = np.linalg.eig(A)
+    v = np.real(V[:, int(np.argmax(w.real))]) / np.array(STATE_BOUNDS_SECT36)
+    v = v / np.max(np.abs(v))
+    return v if v[3] >= 0 else -v
+
+
+def _direction(name: str) -> np.ndarray:
+    sign = 1.0 if name[0] == "+" else -1.0
+    if name[1:] == "mode1":
+        return sign * _mode1_direction()
+    d = np.zeros(4)
+    d[AXES.index(name[1:])] = sign
+    return d
+
+
+@dataclass(frozen=True)
+class Case:
+    """One closed-loop run. ``x0`` is non-dimensional (dv+, dp+, dr+, dgamma)."""
+
+    case: int
+    family: str  # grid | lhs | direction | custom
+    label: str  # the slice "X:Y", the direction "+dp", or ""
+    amplitude: float  # direction cases: box units; NaN otherwise
+    x0: tuple[float, float, float, float]
+    gains: str
+    K: tuple[tuple[float, ...], ...]
+    step_wb: float
+    scale: float
+    stop_wb: float
+    master: str = "gauss-seidel"
+    key: str = field(init=False)
+
+    def __post_init__(self) -> None:
+        ident = repr((tuple(map(float, self.x0)), tuple(tuple(map(float, r)) for r in self.K),
+                      float(self.step_wb), float(self.scale), self.n_steps, self.master))
+        object.__setattr__(self, "key", hashlib.sha1(ident.encode()).hexdigest()[:16])
+
+    @property
+    def n_steps(self) -> int:
+        """Communication steps: stop / step, rounded (at least 1)."""
+        return max(1, int(round(self.stop_wb / self.step_wb)))
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """What a sweep covers; every field has the ``dronefly sweep`` default.
+
+    Attributes
+    ----------
+    disturbances : subset of ``DISTURBANCES``
+    slices : ((x axis, y axis), ...)
+        Slices of the box covered by ``grid``.
+    grid_points : int
+        Points per axis of each grid (odd keeps the origin), >= 2.
+    lhs_points : int
+        Latin-hypercube samples over the box (seeded by ``seed``), >= 1.
+    directions : names like ``+dv`` or ``-mode1``
+    amplitudes : int
+        Amplitudes 1/N, 2/N, ..., 1 (box units) per direction, >= 1.
+    gains : subset of ``GAIN_SETS``
+    steps_wb : communication steps, wing beats, each > 0 and <= ``stop_wb``
+    scales : factors on the bounds checked, each > 0
+    stop_wb : float
+        Simulated time, wing beats.
+    master : {'gauss-seidel', 'jacobi'}
+    seed : int
+    """
+
+    disturbances: tuple[str, ...] = ("grid", "directions")
+    slices: tuple[tuple[str, str], ...] = (("dgamma", "dv"), ("dgamma", "dp"), ("dr", "dp"))
+    grid_points: int = 17
+    lhs_points: int = 200
+    directions: tuple[str, ...] = DEFAULT_DIRECTIONS
+    amplitudes: int = 10
+    gains: tuple[str, ...] = ("paper", "stabilising")
+    steps_wb: tuple[float, ...] = (0.1, 1.0, 3.0)
+    scales: tuple[float, ...] = (1.0,)
+    stop_wb: float = 200.0
+    master: str = "gauss-seidel"
+    seed: int = 0
+
+    @classmethod
+    def from_text(cls, *, disturbances: str, slices: str, grid: str, lhs: str, directions: str,
+                  amplitudes: str, gains: str, steps: str, scales: str, stop: str, master: str,
+                  seed: str) -> "SweepSpec":
+        """A validated spec from command-line strings (comma-separated lists)."""
+        spec = cls(parse_names(disturbances, "disturbances", DISTURBANCES), parse_slices(slices),
+                   parse_int(grid, "grid", 2), parse_int(lhs, "lhs", 1),
+                   parse_names(directions, "directions", DEFAULT_DIRECTIONS),
+                   parse_int(amplitudes, "amplitudes", 1), parse_names(gains, "gains", GAIN_SETS),
+                   parse_floats(steps, "steps"), parse_floats(scales, "scales"),
+                   parse_floats(stop, "stop")[0], master, parse_int(seed, "seed", 0))
+        spec.validate()
+        return spec
+
+    def validate(self) -> None:
+        """Raise :class:`SweepInputError` naming the first bad value."""
+        parse_names(self.disturbances, "disturbances", DISTURBANCES)
+        parse_names(self.gains, "gains", GAIN_SETS)
+        parse_names(self.directions, "directions", DEFAULT_DIRECTIONS)
+        parse_slices(self.slices)
+        if self.master not in MASTERS:
+            raise SweepInputError(f"master = {self.master!r}; choose from {', '.join(MASTERS)}")
+        for name, v, lo in (("grid_points", self.grid_points, 2), ("lhs_points", self.lhs_points, 1),
+                            ("amplitudes", self.amplitudes, 1), ("seed", self.seed, 0)):
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
+                raise SweepInputError(f"{name} = {v!r} must be an integer >= {lo}")
+        stop = parse_floats([self.stop_wb], "stop")[0]
+        if stop <= 0:
+            raise SweepInputError(f"stop = {self.stop_wb!r} wing beats must be > 0")
+        for h in parse_floats(self.steps_wb, "steps"):
+            if not 0 < h <= stop:
+                raise SweepInputError(f"step = {h!r} wing beats must be > 0 and <= stop ({stop:g})")
+        for s in parse_floats(self.scales, "scales"):
+            if s <= 0:
+                raise SweepInputError(f"scale = {s!r} must be > 0")
+
+    def initial_states(self) -> list[tuple[str, str, float, np.ndarray]]:
+        """(family, label, amplitude, x+(0)) of every disturbance, in a fixed order."""
+        box = np.array(STATE_BOUNDS_SECT36)
+        out: list[tuple[str, str, float, np.ndarray]] = []
+        if "grid" in self.disturbances:
+            g = np.linspace(-1.0, 1.0, self.grid_points)
+            for ax, ay in self.slices:
+                i, j = AXES.index(ax), AXES.index(ay)
+                for b in g:  # rows: y
+                    for a in g:  # columns: x
+                        x = np.zeros(4)
+                        x[i], x[j] = a * box[i], b * box[j]
+                        out.append(("grid", f"{ax}:{ay}", math.nan, x))
+        if "lhs" in self.disturbances:
+            rng = np.random.default_rng(self.seed)
+            n = self.lhs_points
+            u = np.column_stack([(rng.permutation(n) + rng.random(n)) / n for _ in range(4)])
+            for row in u:
+                out.append(("lhs", "", math.nan, (2.0 * row - 1.0) * box))
+        if "directions" in self.disturbances:
+            for name in self.directions:
+                d = _direction(name)
+                for k in range(1, self.amplitudes + 1):
+                    a = k / self.amplitudes
+                    out.append(("direction", name, a, a * d * box))
+        return out
+
+    def cases(self) -> list[Case]:
+        """Every case, numbered: gain set x step x scale x disturbance (that nesting)."""
+        self.validate()
+        x0s = self.initial_states()
+        out: list[Case] = []
+        for g in self.gains:
+            K = tuple(tuple(float(v) for v in row) for row in gain_matrix(g))
+            for h in self.steps_wb:
+                for s in self.scales:
+                    for family, label, amp, x in x0s:
+                        out.append(Case(len(out), family, label, amp,
+                                        tuple(float(v) for v in x), g, K, float(h), float(s),
+                                        float(self.stop_wb), self.master))
+        return out
+
+
+#: The control bound of Sect. 3.1/3.6, rad (re-exported for the sweep).
+CONTROL_BOUND: float = U_MAX_LINEAR_RANGE

@@ -1,0 +1,242 @@
+"""Result files of a sweep: the rows of ``sweep.csv``, the summary and the PNG maps.
+
+``sweep.csv`` has one row per case (``COLUMNS``), floats written with ``repr`` so
+that they read back exactly; files are written to ``NAME.part`` and renamed.
+
+A map shows, over a two-dimensional slice of initial disturbances (the whole
+Sect. 3.6 validity box on both axes, the other two components zero), the peak
+over the run of max_i(|x_i| / bound_i, |u| / 0.4 rad): green where the trajectory
+stays inside the bounds, red where it leaves them; the black line is peak = 1.
+One figure per slice (and bound scale); one panel per gain set and step.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections import defaultdict
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .sweep_cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
+
+__all__ = ["COLUMNS", "format_summary", "read_rows", "summarize", "write_maps"]
+
+_CASE_COLS = ["case", "key", "family", "label", "amplitude", *(f"x0_{a}" for a in AXES), "gains",
+              "step_wb", "scale", "stop_wb", "n_steps", "master"]
+_PEAKS = [*(f"peak_{a}" for a in AXES), "peak_u", "peak"]
+_RESULT_COLS = [*_PEAKS, "t_exit_wb", "verdict", *(f"final_{a}" for a in AXES), "error"]
+#: Columns of ``sweep.csv``: the case, then its result.
+COLUMNS = _CASE_COLS + _RESULT_COLS
+
+_AXIS_LABEL = {"dv": "dv+ = dv/U", "dp": "dp+ = dp t_w", "dr": "dr+ = dr t_w",
+               "dgamma": "dgamma [rad]"}
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        return str(int(v))
+    f = float(v)
+    return "" if math.isnan(f) else repr(f)
+
+
+def _row(case: Case, result: dict[str, Any]) -> dict[str, str]:
+    vals = [case.case, case.key, case.family, case.label, case.amplitude, *case.x0, case.gains,
+            case.step_wb, case.scale, case.stop_wb, case.n_steps, case.master]
+    row = {c: _fmt(v) for c, v in zip(_CASE_COLS, vals)}
+    row.update({c: _fmt(result[c]) for c in _RESULT_COLS})
+    return row
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _write_csv(path: Path, rows: list[dict[str, str]]) -> None:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    w.writeheader()
+    w.writerows(sorted(rows, key=lambda r: int(r["case"])))
+    _write_atomic(path, buf.getvalue())
+
+
+def read_rows(path: str | Path) -> list[dict[str, str]]:
+    """Rows of a ``sweep.csv`` as strings (raises :class:`SweepInputError` if it is not one)."""
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.DictReader(fh)
+            if reader.fieldnames != COLUMNS:
+                raise SweepInputError(f"{str(path)!r} is not a sweep result (its columns differ); "
+                                      "use another output folder or --fresh")
+            return list(reader)
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise SweepInputError(f"cannot read {str(path)!r}: {e}") from e
+
+
+def _load_done(path: Path, keys: set[str]) -> dict[str, dict[str, Any]]:
+    """Results already in ``path`` by key; refuses a file from a different sweep."""
+    if not path.exists():
+        return {}
+    done: dict[str, dict[str, Any]] = {}
+    for row in read_rows(path):
+        if row["key"] not in keys:
+            raise SweepInputError(f"{str(path)!r} holds case {row['case']} (key {row['key']}) that "
+                                  "is not in this sweep; use another output folder or --fresh")
+        done[row["key"]] = {c: (row[c] if c in ("verdict", "error")
+                                else (float(row[c]) if row[c] else math.nan))
+                            for c in _RESULT_COLS}
+    return done
+
+
+def _f(text: str) -> float:
+    return float(text) if text else math.nan
+
+
+def summarize(rows: Sequence[dict[str, str]], cases: Sequence[Case]) -> dict[str, Any]:
+    """JSON-ready summary: counts, per-group fractions, per-direction amplitude limits.
+
+    ``largest_amplitude_within_bounds`` is, per gain set, step, scale and direction,
+    the largest sampled amplitude (box units) such that it and every smaller one stay
+    within the bounds (None if even the smallest leaves); ``linear_limit_amplitude``
+    is amplitude / peak of the largest sampled amplitude, exact for a linear loop.
+    """
+    n = len(rows)
+    within = sum(r["verdict"] == "within" for r in rows)
+    groups: dict[tuple, list[dict[str, str]]] = defaultdict(list)
+    dirs: dict[tuple, list[dict[str, str]]] = defaultdict(list)
+    for r in rows:
+        g = (r["gains"], float(r["step_wb"]), float(r["scale"]))
+        groups[g].append(r)
+        if r["family"] == "direction":
+            dirs[(*g, r["label"])].append(r)
+    group_list = []
+    for (gains, h, s), rs in groups.items():
+        left: dict[str, int] = defaultdict(int)
+        for r in rs:
+            if r["verdict"] != "within":
+                left[r["verdict"]] += 1
+        k = sum(r["verdict"] == "within" for r in rs)
+        group_list.append({"gains": gains, "step_wb": h, "scale": s, "cases": len(rs),
+                           "within_bounds": k, "fraction_within_bounds": k / len(rs),
+                           "verdicts": dict(sorted(left.items()))})
+    amp_list = []
+    for (gains, h, s, label), rs in dirs.items():
+        rs = sorted(rs, key=lambda r: float(r["amplitude"]))
+        largest = None
+        for r in rs:
+            if r["verdict"] != "within":
+                break
+            largest = float(r["amplitude"])
+        top = rs[-1]
+        peak = _f(top["peak"])
+        limit = float(top["amplitude"]) / peak if math.isfinite(peak) and peak > 0 else None
+        amp_list.append({"gains": gains, "step_wb": h, "scale": s, "direction": label,
+                         "largest_amplitude": largest, "linear_limit_amplitude": limit})
+    gain_sets = {c.gains: [list(row) for row in c.K] for c in cases}
+    return {
+        "cases": n,
+        "within_bounds": within,
+        "fraction_within_bounds": within / n if n else None,
+        "errors": sum(r["verdict"] == "error" for r in rows),
+        "bounds": {"state_nondimensional": dict(zip(AXES, STATE_BOUNDS_SECT36)),
+                   "control_rad": CONTROL_BOUND},
+        "stop_wb": sorted({float(r["stop_wb"]) for r in rows}),
+        "master": sorted({r["master"] for r in rows}),
+        "groups": group_list,
+        "largest_amplitude_within_bounds": amp_list,
+        "gain_sets": gain_sets,
+        "complete": True,
+    }
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """A few lines for the terminal: totals, per-group fractions, per-direction limits."""
+    s = summary
+    lines = [f"sweep: {s['cases']} cases ({s['computed_cases']} run, {s['resumed_cases']} resumed) "
+             f"in {s['elapsed_s']:.1f} s on {s['workers']} worker(s) ({s['backend']})",
+             f"within bounds: {s['within_bounds']}/{s['cases']} "
+             f"({100 * (s['fraction_within_bounds'] or 0):.1f} %), errors: {s['errors']}"]
+    for g in s["groups"]:
+        lines.append(f"  {g['gains']:<12} step {g['step_wb']:g} wb, scale {g['scale']:g}: "
+                     f"{100 * g['fraction_within_bounds']:5.1f} % within")
+        amps = [a for a in s["largest_amplitude_within_bounds"]
+                if (a["gains"], a["step_wb"], a["scale"]) == (g["gains"], g["step_wb"], g["scale"])]
+        if amps:
+            best = [(a["direction"], a["largest_amplitude"]) for a in amps]
+            lines.append("    largest amplitude within bounds: " + ", ".join(
+                f"{d} {'-' if v is None else format(v, 'g')}" for d, v in best))
+    lines.append(f"csv: {s['csv']}")
+    lines.append(f"json: {Path(s['csv']).with_name('sweep.json')}")
+    lines += [f"map: {m}" for m in s["maps"]]
+    return "\n".join(lines)
+
+
+def _panel(ax: Any, rs: list[dict[str, str]], sx: str, sy: str) -> Any:
+    xs = sorted({float(r[f"x0_{sx}"]) for r in rs})
+    ys = sorted({float(r[f"x0_{sy}"]) for r in rs})
+    P = np.full((len(ys), len(xs)), np.nan)
+    for r in rs:
+        P[ys.index(float(r[f"x0_{sy}"])), xs.index(float(r[f"x0_{sx}"]))] = _f(r["peak"])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        L = np.log10(np.clip(P, 1e-3, 1e3))
+    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(L), cmap="RdYlGn_r", vmin=-1, vmax=1,
+                         shading="nearest")
+    if len(xs) > 1 and len(ys) > 1 and np.nanmin(L) < 0 < np.nanmax(L):
+        ax.contour(xs, ys, L, levels=[0.0], colors="k", linewidths=1.5)
+    ax.set_facecolor("0.6")  # errors (NaN) show grey
+    return mesh
+
+
+def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path]:
+    """One PNG per grid slice (and bound scale): ``map_X_Y.png`` (``..._scaleS.png``)."""
+    from matplotlib.figure import Figure
+
+    grid = [r for r in rows if r["family"] == "grid"]
+    scales = sorted({float(r["scale"]) for r in grid})
+    written = []
+    for label in dict.fromkeys(r["label"] for r in grid):
+        sx, sy = label.split(":")
+        for s in scales:
+            rs = [r for r in grid if r["label"] == label and float(r["scale"]) == s]
+            gains = list(dict.fromkeys(r["gains"] for r in rs))
+            steps = sorted({float(r["step_wb"]) for r in rs})
+            fig = Figure(figsize=(1.2 + 3.3 * len(steps), 0.9 + 3.0 * len(gains)), dpi=110,
+                         layout="constrained")
+            axes = fig.subplots(len(gains), len(steps), squeeze=False, sharex=True, sharey=True)
+            mesh = None
+            for i, g in enumerate(gains):
+                for j, h in enumerate(steps):
+                    sub = [r for r in rs if r["gains"] == g and float(r["step_wb"]) == h]
+                    ax = axes[i][j]
+                    mesh = _panel(ax, sub, sx, sy)
+                    k = sum(r["verdict"] == "within" for r in sub)
+                    ax.set_title(f"{g} gains, step {h:g} wb: {100 * k / len(sub):.0f}% within",
+                                 fontsize=9)
+                    if i == len(gains) - 1:
+                        ax.set_xlabel(_AXIS_LABEL[sx])
+                    if j == 0:
+                        ax.set_ylabel(_AXIS_LABEL[sy])
+            cb = fig.colorbar(mesh, ax=axes, shrink=0.8, ticks=np.log10([0.1, 0.3, 1, 3, 10]))
+            cb.ax.set_yticklabels(["0.1", "0.3", "1", "3", "10"])
+            cb.set_label("peak of max(|x_i|/bound_i, |u|/0.4 rad)")
+            stop = rs[0]["stop_wb"]
+            fig.suptitle(f"Initial disturbances over the Sect. 3.6 box, slice {sx} x {sy} "
+                         f"(others 0), {float(stop):g} wing beats"
+                         + (f", bounds x {s:g}" if s != 1.0 else "")
+                         + "\ngreen: stays within the bounds; red: leaves them; "
+                         "black line: peak = bound", fontsize=10)
+            name = f"map_{sx}_{sy}" + (f"_scale{s:g}" if len(scales) > 1 or s != 1.0 else "")
+            path = Path(out_dir) / f"{name}.png"
+            tmp = path.with_name(path.name + ".part")
+            fig.savefig(tmp, format="png")
+            os.replace(tmp, path)
+            written.append(path)
+    return written

@@ -20,7 +20,7 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["FMUS", "BuildError", "build_all", "build_fmu", "fmu_sources"]
+__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "fmu_sources"]
 
 _PKG_ROOT = Path(__file__).resolve().parent
 _NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
@@ -165,5 +165,18 @@ def build_fmu(name: str, out_dir: str | Path = "build") -> Path:
 
 
 def build_all(out_dir: str | Path = "build") -> list[Path]:
-    """Build every FMU of the project into ``out_dir``."""
-    return [build_fmu(name, out_dir) for name in FMUS]
+    """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts."""
+    fmus = [build_fmu(name, out_dir) for name in FMUS]
+    return fmus + build_closed_loop(out_dir, fmus)
+
+
+def build_closed_loop(out_dir: str | Path, fmus: list[Path]) -> list[Path]:
+    """``DroneFlyClosedLoop.ssp`` and the container FMU ``DroneFlyClosedLoop.fmu`` holding the
+    built plant and controller (see ``harness/artefacts.py``)."""
+    from .harness.artefacts import build_closed_loop as _build
+
+    by_name = {p.stem: p for p in fmus}
+    try:
+        return _build(out_dir, by_name["DroneFlyLateral"], by_name["StateFeedback"])
+    except (OSError, ValueError, KeyError) as e:
+        raise BuildError(f"cannot build the closed-loop artefacts: {e}") from e

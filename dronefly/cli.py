@@ -96,6 +96,32 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    import json
+
+    from .harness.sweep import run_sweep
+    from .harness.sweep_cases import SweepSpec, parse_floats, parse_int
+    from .harness.sweep_plot import format_summary
+
+    spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices, grid=args.grid,
+                               lhs=args.lhs, directions=args.directions,
+                               amplitudes=args.amplitudes, gains=args.gains, steps=args.steps,
+                               scales=args.scales, stop=args.stop, master=args.master,
+                               seed=args.seed)
+    workers = None if args.workers is None else parse_int(args.workers, "workers", 1)
+    timeout = parse_floats(args.connect_timeout, "connect timeout")[0]
+    result = run_sweep(spec, args.out, plant=args.plant, controller=args.controller,
+                       workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
+                       fresh=args.fresh, plot=not args.no_plot,
+                       progress_bar=False if args.no_progress else None)
+    print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
+    if result.summary["errors"]:
+        print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "
+              f"'error' column of {result.csv})", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
 _EPILOG = {
     "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
              "  dronefly cosim --gains -0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
@@ -108,6 +134,12 @@ _EPILOG = {
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
                "  dronefly analyze --targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51 "
                "--input delta_Phi_a",
+    "sweep": "examples:\n  dronefly sweep\n  dronefly sweep --gains paper,stabilising,open "
+             "--steps 0.1,0.5,1,2,3\n"
+             "  dronefly sweep --disturbances lhs --lhs 500 --scales 1,1.5,2 --out build/lhs\n"
+             "  dronefly sweep --scheduler tcp://10.0.0.5:8786\n"
+             "rerun with the same --out to resume an interrupted sweep (--fresh starts over)\n"
+             "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input",
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
     "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50",
 }
@@ -178,6 +210,48 @@ def _parser() -> argparse.ArgumentParser:
                    help="control input of that design: delta_Phi_a (default), delta_alpha_1a, "
                         "delta_alpha_2a")
     a.add_argument("--out", default=None, metavar="FILE", help="write to FILE instead of stdout")
+    w = add("sweep", "co-simulate many disturbed closed loops: where do they stay within the "
+            "Sect. 3.6 bounds?", _cmd_sweep)
+    w.add_argument("--out", default="build/sweep", metavar="DIR",
+                   help="folder of sweep.csv, sweep.json and map_*.png; rerun to resume "
+                        "(default build/sweep)")
+    w.add_argument("--plant", default=None, metavar="FMU", help="plant FMU (default: built)")
+    w.add_argument("--controller", default=None, metavar="FMU",
+                   help="controller FMU (default: built)")
+    w.add_argument("--disturbances", default="grid,directions", metavar="LIST",
+                   help="initial disturbances: grid, lhs, directions (default grid,directions)")
+    w.add_argument("--slices", default="dgamma:dv,dgamma:dp,dr:dp", metavar="X:Y,...",
+                   help="2-D slices of the box for grid (axes dv, dp, dr, dgamma; "
+                        "default dgamma:dv,dgamma:dp,dr:dp)")
+    w.add_argument("--grid", default="17", metavar="N", help="grid points per axis (default 17)")
+    w.add_argument("--lhs", default="200", metavar="N", help="Latin-hypercube samples (default 200)")
+    w.add_argument("--directions", default=",".join(f"{s}{a}" for a in ("dv", "dp", "dr", "dgamma",
+                                                                        "mode1") for s in "+-"),
+                   metavar="LIST", help="directions for 'directions' (default: +-dv, +-dp, +-dr, "
+                                        "+-dgamma, +-mode1 = the unstable eigenvector)")
+    w.add_argument("--amplitudes", default="10", metavar="N",
+                   help="amplitudes 1/N..1 of the box per direction (default 10)")
+    w.add_argument("--gains", default="paper,stabilising", metavar="LIST",
+                   help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open "
+                        "(default paper,stabilising)")
+    w.add_argument("--steps", default="0.1,1,3", metavar="LIST",
+                   help="communication steps = how often the insect senses and acts, wing beats "
+                        "(default 0.1,1,3)")
+    w.add_argument("--scales", default="1", metavar="LIST", help="factors on the bounds (default 1)")
+    w.add_argument("--stop", default="200", metavar="WB", help="wing beats per case (default 200)")
+    w.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
+                   help="ordering of the FMU calls (default gauss-seidel)")
+    w.add_argument("--seed", default="0", metavar="N", help="seed of the Latin hypercube")
+    w.add_argument("--workers", default=None, metavar="N",
+                   help="local worker processes (default: all cores; 1 = in this process)")
+    w.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on an existing Dask cluster, e.g. tcp://host:8786")
+    w.add_argument("--connect-timeout", default="10", metavar="S",
+                   help="seconds to reach the scheduler (default 10)")
+    w.add_argument("--fresh", action="store_true", help="discard earlier results in --out")
+    w.add_argument("--no-plot", action="store_true", help="do not write the PNG maps")
+    w.add_argument("--no-progress", action="store_true", help="no progress bar")
+    w.add_argument("--json", action="store_true", help="print the JSON summary")
     return p
 
 

@@ -44,8 +44,8 @@ from ..plant.model import STATE_NAMES
 from .master import CoSimError
 from .stability import Identification, identify
 
-__all__ = ["InteropRun", "libcosim_available", "libcosim_verdict", "run_libcosim", "step_ns",
-           "unit_runs_verdict"]
+__all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
+           "run_libcosim", "step_ns", "unit_runs_verdict"]
 
 
 def libcosim_available() -> str | None:
@@ -244,3 +244,60 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
     if not math.isfinite(ident.dominant_growth_rate):
         raise CoSimError("libcosim identification gave no finite growth rate")
     return ident, h_wb
+
+
+# -----------------------------------------------------------------------------
+# hosts that are not Python
+def libpython_path() -> str | None:
+    """The shared libpython to preload in a non-Python FMI host, or None if there is none.
+
+    pythonfmu's binary leaves the Python C API symbols (``_Py_NoneStruct``, ...) undefined and
+    expects the host process to provide them: a Python host does, a C/C++ host must preload
+    libpython. The interpreter's own library comes first (``LIBDIR``/``INSTSONAME``, also under
+    ``MULTIARCH`` on Debian); failing that, the system's libpython of the same major.minor
+    version (same ABI). None means the interpreter is statically linked
+    (``Py_ENABLE_SHARED = 0``) and no such library is installed (Debian: ``libpython3.X``).
+    """
+    import ctypes.util
+    import os
+    import sys
+    import sysconfig
+
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    multiarch = sysconfig.get_config_var("MULTIARCH") or ""
+    for so in (sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")):
+        if so and ".so" in so:
+            for cand in (os.path.join(libdir, so), os.path.join(libdir, multiarch, so)):
+                if os.path.isfile(cand):
+                    return cand
+    found = ctypes.util.find_library(f"python{sys.version_info[0]}.{sys.version_info[1]}")
+    if found:
+        for d in (libdir, os.path.join("/usr/lib", multiarch), "/usr/lib", "/usr/local/lib"):
+            cand = os.path.join(d, found)
+            if os.path.isfile(cand):
+                return cand
+    return None
+
+
+def c_host_env(base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """Environment for running our pythonfmu FMUs in a C/C++ host.
+
+    ``LD_PRELOAD`` = :func:`libpython_path`, ``PYTHONHOME`` = this interpreter's base prefix
+    (its standard library), ``PYTHONPATH`` = this environment's site-packages (numpy, scipy,
+    which the FMUs import). Raises :class:`CoSimError` if there is no shared libpython.
+    """
+    import os
+    import sys
+    import sysconfig
+
+    lib = libpython_path()
+    if lib is None:
+        raise CoSimError("no shared libpython for this interpreter (Py_ENABLE_SHARED = "
+                         f"{sysconfig.get_config_var('Py_ENABLE_SHARED')}); pythonfmu FMUs "
+                         "cannot run in a non-Python host without one")
+    env = dict(os.environ if base is None else base)
+    paths = [sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]]
+    old = env.get("PYTHONPATH")
+    env.update(LD_PRELOAD=lib, PYTHONHOME=sys.base_prefix,
+               PYTHONPATH=os.pathsep.join(dict.fromkeys(paths + ([old] if old else []))))
+    return env

@@ -421,10 +421,21 @@ def _run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]]
               collect: Callable) -> None:
     from distributed import as_completed
 
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class Cleanup(WorkerPlugin):
+        """Deletes the worker's FMU extractions when the Dask worker closes."""
+
+        name = "dronefly-sweep-cleanup"
+
+        def teardown(self, worker: Any) -> None:
+            _close_all()
+
+    client.register_plugin(Cleanup())
     data = client.scatter([Path(r.path).read_bytes() for r in refs], broadcast=True)
     futs = [client.submit(run_chunk, refs, ch, tuple(data), pure=False) for ch in chunks]
     try:
-        for f in as_completed(futs):
+        for f in as_completed(futs, loop=client.loop):
             collect(f.result())
     except BaseException:
         client.cancel(futs)

@@ -179,19 +179,26 @@ def format_summary(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+#: Colour classes of the peak ratio: greens inside the bounds, reds outside.
+_EDGE = 1.0 + 1e-6  # a peak of exactly 1 (a start on the box face) counts as within
+_LEVELS = (0.0, 0.2, 0.4, 0.6, 0.8, _EDGE, 1.25, 1.5, 2.0, 3.0, 5.0)
+_COLOURS = ("#00441b", "#1b7837", "#5aae61", "#a6dba0", "#d9f0d3",
+            "#fddbc7", "#f4a582", "#d6604d", "#b2182b", "#67001f")
+
+
 def _panel(ax: Any, rs: list[dict[str, str]], sx: str, sy: str) -> Any:
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
     xs = sorted({float(r[f"x0_{sx}"]) for r in rs})
     ys = sorted({float(r[f"x0_{sy}"]) for r in rs})
     P = np.full((len(ys), len(xs)), np.nan)
     for r in rs:
         P[ys.index(float(r[f"x0_{sy}"])), xs.index(float(r[f"x0_{sx}"]))] = _f(r["peak"])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        L = np.log10(np.clip(P, 1e-3, 1e3))
-    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(L), cmap="RdYlGn_r", vmin=-1, vmax=1,
-                         shading="nearest")
-    if len(xs) > 1 and len(ys) > 1 and np.nanmin(L) < 0 < np.nanmax(L):
-        ax.contour(xs, ys, L, levels=[0.0], colors="k", linewidths=1.5)
-    ax.set_facecolor("0.6")  # errors (NaN) show grey
+    cmap = ListedColormap(_COLOURS).with_extremes(over=_COLOURS[-1], bad="0.6")  # bad: failed
+    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(P), cmap=cmap,
+                         norm=BoundaryNorm(_LEVELS, cmap.N), shading="nearest")
+    if len(xs) > 1 and len(ys) > 1 and np.nanmin(P) < _EDGE < np.nanmax(P):
+        ax.contour(xs, ys, P, levels=[_EDGE], colors="k", linewidths=1.5)
     return mesh
 
 
@@ -224,9 +231,9 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
                         ax.set_xlabel(_AXIS_LABEL[sx])
                     if j == 0:
                         ax.set_ylabel(_AXIS_LABEL[sy])
-            cb = fig.colorbar(mesh, ax=axes, shrink=0.8, ticks=np.log10([0.1, 0.3, 1, 3, 10]))
-            cb.ax.set_yticklabels(["0.1", "0.3", "1", "3", "10"])
-            cb.set_label("peak of max(|x_i|/bound_i, |u|/0.4 rad)")
+            cb = fig.colorbar(mesh, ax=axes, shrink=0.8, extend="max", ticks=_LEVELS,
+                              spacing="uniform", format="%.3g")
+            cb.set_label("peak over the run of max(|x_i|/bound_i, |u|/0.4 rad)")
             stop = rs[0]["stop_wb"]
             fig.suptitle(f"Initial disturbances over the Sect. 3.6 box, slice {sx} x {sy} "
                          f"(others 0), {float(stop):g} wing beats"

@@ -1,0 +1,199 @@
+"""``dronefly sweep``: cases, backends (in-process, process pool, Dask), resume, failures, CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dronefly.harness.sweep import COLUMNS, read_rows, run_sweep
+from dronefly.harness.sweep_cases import (STATE_BOUNDS_SECT36, Case, SweepInputError, SweepSpec,
+                                          gain_matrix)
+
+pytestmark = pytest.mark.integration
+
+SMALL = SweepSpec(slices=(("dgamma", "dp"),), grid_points=3, amplitudes=2,
+                  directions=("+dp", "-mode1"), gains=("paper", "open"), steps_wb=(1.0, 3.0),
+                  stop_wb=30.0)
+
+
+@pytest.fixture(scope="module")
+def fmus(built_fmus: dict[str, Path]) -> dict[str, Path]:
+    return {"plant": built_fmus["DroneFlyLateral"], "controller": built_fmus["StateFeedback"]}
+
+
+@pytest.fixture(scope="module")
+def reference(fmus: dict[str, Path], tmp_path_factory: pytest.TempPathFactory):
+    """The small sweep, uninterrupted, in this process."""
+    return run_sweep(SMALL, tmp_path_factory.mktemp("ref"), workers=1, progress_bar=False, **fmus)
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def test_cases_are_deterministic_and_cover_the_box() -> None:
+    a, b = SMALL.cases(), SMALL.cases()
+    assert [c.key for c in a] == [c.key for c in b]
+    assert [c.case for c in a] == list(range(len(a)))
+    # 2 gain sets x 2 steps x (3x3 grid + 2 directions x 2 amplitudes)
+    assert len(a) == 2 * 2 * (9 + 4)
+    box = np.array(STATE_BOUNDS_SECT36)
+    grid = np.array([c.x0 for c in a if c.family == "grid"])
+    assert np.allclose(np.abs(grid).max(axis=0), [0, box[1], 0, box[3]])
+    ones = [c for c in a if c.family == "direction" and c.amplitude == 1.0]
+    assert all(math.isclose(np.max(np.abs(c.x0) / box), 1.0) for c in ones)
+    lhs = SweepSpec(disturbances=("lhs",), lhs_points=50, seed=3).initial_states()
+    u = np.array([x for *_, x in lhs]) / box
+    assert np.all(np.abs(u) <= 1.0)
+    for j in range(4):  # a Latin hypercube: one sample per stratum in every dimension
+        assert sorted(np.floor((u[:, j] + 1.0) / 2.0 * 50).astype(int)) == list(range(50))
+    K = gain_matrix("stabilising")
+    from dronefly.plant.model import default_parameters, system_matrices
+
+    A, B = system_matrices(default_parameters())
+    assert np.max(np.linalg.eigvals(A + B @ K).real) < -0.05
+
+
+def test_rows_verdicts_and_summary(reference) -> None:
+    rows = reference.rows
+    assert [int(r["case"]) for r in rows] == list(range(len(SMALL.cases())))
+    assert list(rows[0]) == COLUMNS
+    assert read_rows(reference.csv) == rows
+    box = np.array(STATE_BOUNDS_SECT36)
+    for r in rows:
+        start = np.max(np.abs([float(r[f"x0_{a}"]) for a in ("dv", "dp", "dr", "dgamma")]) / box)
+        assert float(r["peak"]) >= start - 1e-12
+        within = r["verdict"] == "within"
+        assert within == (float(r["peak"]) <= 1.0 + 1e-9)
+        assert within == (r["t_exit_wb"] == "")
+    opened = [r for r in rows if r["gains"] == "open" and r["x0_dp"] != "0.0"]
+    assert opened and all(r["verdict"].startswith("left ") for r in opened)
+    assert any(r["verdict"] == "within" for r in rows if r["gains"] == "paper")
+    s = json.loads(reference.json.read_text())
+    for key in ("cases", "within_bounds", "fraction_within_bounds", "elapsed_s", "workers",
+                "largest_amplitude_within_bounds"):
+        assert key in s
+    assert s["cases"] == len(rows) and s["errors"] == 0
+    assert s["within_bounds"] == sum(r["verdict"] == "within" for r in rows)
+    assert {(a["gains"], a["direction"]) for a in s["largest_amplitude_within_bounds"]} == \
+        {(g, d) for g in SMALL.gains for d in SMALL.directions}
+    assert [m.name for m in reference.maps] == ["map_dgamma_dp.png"]
+    assert not list(reference.csv.parent.glob("*.part"))
+
+
+def test_process_pool_gives_the_same_rows(fmus, reference, tmp_path: Path) -> None:
+    r = run_sweep(SMALL, tmp_path, workers=2, plot=False, progress_bar=False, chunk_steps=100,
+                  **fmus)
+    assert r.summary["backend"] == "processes" and r.summary["workers"] == 2
+    assert r.csv.read_text() == reference.csv.read_text()
+
+
+def test_dask_local_cluster_gives_the_same_rows(fmus, reference, tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                  dashboard_address=None) as cluster:
+        r = run_sweep(SMALL, tmp_path, scheduler=cluster.scheduler_address, plot=False,
+                      progress_bar=False, chunk_steps=100, **fmus)
+    assert r.summary["backend"] == "dask" and r.summary["workers"] == 2
+    assert r.rows == reference.rows
+    assert r.csv.read_text() == reference.csv.read_text()
+
+
+def test_interrupted_sweep_resumes_to_the_same_csv(fmus, reference, tmp_path: Path) -> None:
+    chunks = []
+
+    def stop_after_two(done: int, total: int) -> None:
+        chunks.append(done)
+        if len(chunks) == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(SMALL, tmp_path, workers=1, plot=False, progress_bar=False, chunk_steps=60,
+                  on_chunk=stop_after_two, flush_s=1e9, **fmus)
+    partial = read_rows(tmp_path / "sweep.csv")  # flushed on the way out, complete rows only
+    ref = {r["case"]: r for r in reference.rows}
+    assert 0 < len(partial) < len(reference.rows)
+    assert all(ref[r["case"]] == r for r in partial)
+    assert not (tmp_path / "sweep.json").exists() and not list(tmp_path.glob("*.part"))
+    r = run_sweep(SMALL, tmp_path, workers=2, progress_bar=False, chunk_steps=60, **fmus)
+    assert r.summary["resumed_cases"] > 0
+    assert r.summary["computed_cases"] + r.summary["resumed_cases"] == len({c.key for c in
+                                                                           SMALL.cases()})
+    assert r.csv.read_text() == reference.csv.read_text()
+    again = run_sweep(SMALL, tmp_path, workers=1, plot=False, progress_bar=False, **fmus)
+    assert again.summary["computed_cases"] == 0  # nothing redone
+    assert again.csv.read_text() == reference.csv.read_text()
+
+
+def test_failed_case_is_recorded_and_the_sweep_goes_on(fmus, tmp_path: Path) -> None:
+    K = gain_matrix("paper")
+    huge = K.copy()
+    huge[0, 3] = 1e308  # u = K x+ overflows: the controller refuses the step
+    cases = [Case(0, "custom", "", math.nan, (0.0, 0.0, 0.0, 10.0), "huge",
+                  tuple(map(tuple, huge)), 1.0, 1.0, 10.0),
+             Case(1, "custom", "", math.nan, (0.0, 0.0, 0.0, 0.1), "paper",
+                  tuple(map(tuple, K)), 1.0, 1.0, 10.0)]
+    r = run_sweep(None, tmp_path, cases=cases, workers=1, plot=False, progress_bar=False, **fmus)
+    assert r.rows[0]["verdict"] == "error" and "StateFeedback" in r.rows[0]["error"]
+    assert r.rows[1]["verdict"] == "within" and r.rows[1]["error"] == ""
+    assert r.summary["errors"] == 1
+
+
+def test_output_folder_of_another_sweep_is_refused(fmus, reference, tmp_path: Path) -> None:
+    (tmp_path / "sweep.csv").write_bytes(reference.csv.read_bytes())
+    other = SweepSpec(disturbances=("directions",), directions=("+dv",), amplitudes=1,
+                      steps_wb=(1.0,), stop_wb=10.0)
+    before = _snapshot(tmp_path)
+    with pytest.raises(SweepInputError, match="not in this sweep"):
+        run_sweep(other, tmp_path, workers=1, plot=False, progress_bar=False, **fmus)
+    assert _snapshot(tmp_path) == before
+    r = run_sweep(other, tmp_path, workers=1, plot=False, progress_bar=False, fresh=True, **fmus)
+    assert len(read_rows(r.csv)) == 2
+
+
+def test_cli_sweep(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from dronefly.cli import main
+
+    out = tmp_path / "sw"
+    code = main(["sweep", "--plant", str(fmus["plant"]), "--controller", str(fmus["controller"]),
+                 "--out", str(out), "--slices", "dgamma:dv", "--grid", "3", "--directions",
+                 "+dgamma", "--amplitudes", "2", "--gains", "paper", "--steps", "1",
+                 "--stop", "20", "--workers", "1", "--no-progress"])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "within bounds:" in text and "map: " in text
+    assert {p.name for p in out.iterdir()} == {"sweep.csv", "sweep.json", "map_dgamma_dv.png"}
+
+
+@pytest.mark.parametrize("args, named", [
+    (["--steps", ""], "steps"),
+    (["--steps", "0.1,nan"], "nan"),
+    (["--scales", "inf"], "inf"),
+    (["--stop", "-5"], "stop"),
+    (["--gains", "paper,bogus"], "bogus"),
+    (["--grid", "1"], "grid"),
+    (["--slices", "dgamma:dgamma"], "dgamma:dgamma"),
+    (["--directions", "+roll"], "+roll"),
+    (["--workers", "zero"], "workers"),
+    (["--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "0.5"], "tcp://127.0.0.1:1"),
+])
+def test_cli_bad_input(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
+                       named: str) -> None:
+    from dronefly.cli import main
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("untouched\n")
+    before = _snapshot(tmp_path)
+    code = main(["sweep", "--plant", str(fmus["plant"]), "--controller", str(fmus["controller"]),
+                 "--out", str(out), "--no-progress", *args])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and err.startswith("dronefly sweep: error:")
+    assert named in err
+    assert _snapshot(tmp_path) == before

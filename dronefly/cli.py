@@ -60,9 +60,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.fmus]
     if not paths:
-        from .build import build_all
+        from .build import FMUS, build_all
 
-        paths = [p for p in build_all(args.build) if p.suffix == ".fmu"]
+        paths = [p for p in build_all(args.build) if p.suffix == ".fmu" and p.stem in FMUS]
     for p in paths:
         if not p.is_file():
             raise UsageError(f"FMU {str(p)!r} does not exist")
@@ -190,8 +190,8 @@ def _parser() -> argparse.ArgumentParser:
 
     k = add("check", "FMI 2.0 co-simulation compliance suite (fmpy validate, call sequence, reset, "
             "state, bad input, reference results)", _cmd_check)
-    k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build every FMU "
-                   "of the project into --build and check those)")
+    k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
+                   "into --build and check DroneFlyLateral and StateFeedback)")
     k.add_argument("--build", default="build", metavar="DIR", help="where to build (default build/)")
     k.add_argument("--json", action="store_true", help="machine-readable report")
 

@@ -142,6 +142,17 @@ class DroneFlyLateral(SlaveBase):
         self._set_values(self._MATRIX,
                          [*self._model.A.ravel().tolist(), *self._model.B.ravel().tolist()])
 
+    def _update_outputs(self) -> None:
+        # Before initialization ends, the initial unknowns already follow the start values and
+        # parameters (FMI 2.0: fmi2GetReal in initialization mode); afterwards only doStep
+        # changes the outputs (no direct feedthrough).
+        if self._initialized:
+            return
+        start = self._values(self._STARTS)
+        self._check_finite(self._STARTS, start)
+        self._set_values(STATE_NAMES, start)
+        self._refresh()
+
     def _initialize(self) -> None:
         start = self._values(self._STARTS)
         self._check_finite(self._STARTS, start)

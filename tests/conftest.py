@@ -9,11 +9,12 @@ import pytest
 
 @pytest.fixture(scope="session")
 def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    """``{model name: path}`` of every FMU of the project, freshly built."""
+    """Every artefact of ``dronefly build``, freshly built: FMUs by model name
+    (``"DroneFlyLateral"``), other files by file name (``"DroneFlyClosedLoop.ssp"``)."""
     from dronefly.build import build_all
 
     out = tmp_path_factory.mktemp("fmus")
-    return {p.stem: p for p in build_all(out)}
+    return {(p.stem if p.suffix == ".fmu" else p.name): p for p in build_all(out)}
 
 
 @pytest.fixture(scope="session")

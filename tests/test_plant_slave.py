@@ -111,3 +111,9 @@ def test_state_serialization_round_trip(slave):
     slave._set_fmu_state(DroneFlyLateral._fmu_state_from_bytes(blob))
     slave.do_step(0.001, 0.001)
     assert _get(slave, *M.STATE_NAMES) == ref
+
+
+def test_initial_unknowns_readable_in_initialization_mode(slave):
+    """FMI 2.0: outputs and calculated parameters follow the start values before exit."""
+    _set(slave, delta_gamma_start=0.2, m_plus=2 * 92.7)
+    assert _get(slave, "delta_gamma", "A[1,1]") == [0.2, -0.0094 / 2]

@@ -1,0 +1,194 @@
+"""The closed loop as an SSP 1.0 file.
+
+``DroneFlyClosedLoop.ssp``
+    SSP 1.0 archive: ``SystemStructure.ssd`` (components ``plant`` and ``controller``, their
+    input/output connectors, the connections by name, a default experiment),
+    ``resources/DroneFlyLateral.fmu``, ``resources/StateFeedback.fmu`` and the parameter
+    values ``resources/plant.ssv`` and ``resources/controller.ssv``, each bound to its component
+    (SSP 1.0 ParameterBinding; names are the FMU's variable names). fmpy's ``simulate_ssp``
+    does not apply an SSD's bindings itself; it takes one parameter set with hierarchical
+    names (``plant.delta_gamma_start``, ``controller.K[1,1]``), so :func:`ssp_parameter_set`
+    reads the bound sets with fmpy's ``read_ssd`` and prefixes each name with its component's
+    name. libcosim (``CosimExecution.from_ssp_file``) applies component bindings itself and
+    runs the same file; a system-level binding it would ignore.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Mapping
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from .artefacts import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, _connections,
+                        _fmt, _md, _parameters, _scales, _write_zip)
+from .master import CoSimError
+from .stability import Identification
+from ..plant.model import STATE_NAMES
+
+__all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
+
+
+def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
+              spec: ClosedLoopSpec = ClosedLoopSpec()) -> Path:
+    """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path."""
+    pmd, cmd = _md(plant), _md(controller)
+    n, _ = _scales(pmd)
+    params = _parameters(pmd, spec)
+
+    def connectors(md) -> str:
+        rows = [f'          <ssd:Connector name={quoteattr(v.name)} kind="{v.causality}">'
+                f"<ssc:Real/></ssd:Connector>"
+                for v in md.modelVariables if v.causality in ("input", "output")
+                and v.type == "Real"]
+        return "\n".join(rows)
+
+    cons = "\n".join(
+        f"      <ssd:Connection startElement={quoteattr(a)} startConnector={quoteattr(x)} "
+        f"endElement={quoteattr(b)} endConnector={quoteattr(y)}/>"
+        for a, x, b, y in _connections(pmd, cmd))
+    step = spec.step_wingbeats / n
+    ssd = f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    version="1.0" name="{CLOSED_LOOP}">
+  <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {_fmt(step)} s">
+    <ssd:Elements>
+      <ssd:Component name="plant" source="resources/{PLANT}.fmu" type="application/x-fmu-sharedlibrary">
+        <ssd:Connectors>
+{connectors(pmd)}
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="resources/plant.ssv"/>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="controller" source="resources/{CONTROLLER}.fmu" type="application/x-fmu-sharedlibrary">
+        <ssd:Connectors>
+{connectors(cmd)}
+        </ssd:Connectors>
+        <ssd:ParameterBindings>
+          <ssd:ParameterBinding source="resources/controller.ssv"/>
+        </ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+{cons}
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0.0" stopTime="{_fmt(spec.stop_wingbeats / n)}"/>
+</ssd:SystemStructureDescription>
+"""
+    files = {"SystemStructure.ssd": ssd.encode(),
+             f"resources/{PLANT}.fmu": Path(plant).read_bytes(),
+             f"resources/{CONTROLLER}.fmu": Path(controller).read_bytes()}
+    for comp in ("plant", "controller"):
+        rows = "\n".join(
+            f"    <ssv:Parameter name={quoteattr(k.split('.', 1)[1])}>"
+            f"<ssv:Real value=\"{_fmt(v)}\"/></ssv:Parameter>"
+            for k, v in params.items() if k.split(".", 1)[0] == comp)
+        files[f"resources/{comp}.ssv"] = f"""<?xml version="1.0" encoding="UTF-8"?>
+<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+    version="1.0" name="{comp}">
+  <ssv:Parameters>
+{rows}
+  </ssv:Parameters>
+</ssv:ParameterSet>
+""".encode()
+    return _write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
+
+
+def ssp_parameter_set(ssp: str | Path):
+    """One fmpy ``ParameterSet`` of every component binding of the SSP, named
+    ``<component>.<variable>`` as fmpy's ``simulate_ssp`` expects."""
+    from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
+
+    ssd = read_ssd(str(ssp))  # validates the SSD and the SSV files against the SSP 1.0 schema
+    merged = ParameterSet(name=CLOSED_LOOP)
+    for comp in find_components(ssd.system):
+        for binding in comp.parameterBindings:
+            prefix = binding.prefix or ""
+            for pset in binding.parameterValues:
+                for p in pset.parameters:
+                    name = p.name[len(prefix):] if p.name.startswith(prefix) else p.name
+                    merged.parameters.append(Parameter(name=f"{comp.name}.{name}", type=p.type,
+                                                       value=p.value, unit=p.unit))
+    return merged
+
+
+def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
+    from lxml import etree
+
+    with zipfile.ZipFile(ssp) as z:
+        root = etree.fromstring(z.read("SystemStructure.ssd"))
+    ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
+    stop = float(root.find("ssd:DefaultExperiment", ns).get("stopTime"))
+    with zipfile.ZipFile(ssp) as z:
+        n = _scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
+    return 0.1 / n, stop
+
+
+def _md_from_bytes(data: bytes):
+    with tempfile.TemporaryDirectory(prefix="dronefly_md_") as tmp:
+        p = Path(tmp, "x.fmu")
+        p.write_bytes(data)
+        return _md(p)
+
+
+def run_ssp(ssp: str | Path, *, step: float | None = None, stop_time: float | None = None,
+            overrides: Mapping[str, float] | None = None) -> np.ndarray:
+    """Simulate the SSP with fmpy's ``simulate_ssp`` and the SSP's own parameter values.
+
+    ``overrides`` replace bound values by hierarchical name (e.g. ``plant.delta_v_start``).
+    Default step: 0.1 wing beat; default stop: the SSD's DefaultExperiment.
+
+    fmpy's SSP master (read from fmpy/ssp/simulation.py, and measured): connectors start at 0;
+    in every step each component gets its inputs from the connector values, steps, and its
+    outputs are read; then all connections are applied. The row stamped t_j therefore holds
+    the values *after* the step, at t_(j+1), and the plant's control over step k is
+    u_k = K x_(k-1) for k >= 2, with u_0 = u_1 = 0 (the controller sees 0 in its first step).
+    """
+    from fmpy.ssp.simulation import simulate_ssp
+
+    d_step, d_stop = _ssp_step_stop(ssp)
+    pset = ssp_parameter_set(ssp)
+    for name, value in (overrides or {}).items():
+        hits = [p for p in pset.parameters if p.name == name]
+        if not hits:
+            raise CoSimError(f"the SSP binds no parameter {name!r}")
+        for p in hits:
+            p.value = repr(float(value))
+    step = d_step if step is None else step
+    stop = d_stop if stop_time is None else stop_time
+    # fmpy steps while time < stop; stop half a step early so that float accumulation of
+    # the time cannot add one step
+    return simulate_ssp(str(ssp), start_time=0.0, stop_time=stop - 0.5 * step,
+                        step_size=step, parameter_set=pset)
+
+
+def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, list[np.ndarray]]:
+    """Identify and classify the loop as fmpy's SSP simulation runs it.
+
+    One run per unit initial state x+_0 = e_i (the SSP's gains). By the master described in
+    :func:`run_ssp` the rows hold x_1, x_2, ... and the controller's first input is 0, so each
+    run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.stability.identify``.
+    """
+    from .interop import unit_runs_verdict
+
+    d_step, _ = _ssp_step_stop(ssp)
+    with zipfile.ZipFile(ssp) as z:
+        n, scale = _scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
+    runs = []
+    for e in np.eye(len(STATE_NAMES)):
+        res = run_ssp(ssp, stop_time=(n_steps + 0.5) * d_step,
+                      overrides={f"plant.{s}_start": float(v)
+                                 for s, v in zip(STATE_NAMES, e * scale)})
+        xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale
+        runs.append(np.vstack([np.zeros(len(STATE_NAMES)), xs]))
+    return unit_runs_verdict(runs, d_step * n, delay=True), runs
+
+
+# -----------------------------------------------------------------------------
+# container FMU

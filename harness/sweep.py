@@ -109,6 +109,39 @@ def _close_all() -> None:
     _TMP.clear()
 
 
+def _blas_threads(n: int) -> list[tuple[Any, int]]:
+    """Set every loaded OpenBLAS to ``n`` threads; returns (setter, previous) pairs.
+
+    The plant steps call BLAS on 4x4 matrices; an idle OpenBLAS thread spins on the
+    other core after each call, so two worker processes would fight over 2 cores.
+    """
+    import ctypes
+
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as fh:
+            libs = {ln.split()[-1] for ln in fh if "openblas" in ln.rsplit("/", 1)[-1].lower()}
+    except OSError:  # pragma: no cover - not Linux
+        return []
+    done = []
+    for path in sorted(libs):
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:  # pragma: no cover
+            continue
+        for stem in ("scipy_openblas", "openblas"):
+            for suffix in ("64_", "_64_", ""):
+                get = getattr(lib, f"{stem}_get_num_threads{suffix}", None)
+                put = getattr(lib, f"{stem}_set_num_threads{suffix}", None)
+                if get is not None and put is not None:
+                    done.append((put, int(get())))
+                    put(ctypes.c_int(n))
+                    break
+            else:
+                continue
+            break
+    return done
+
+
 def _init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
     """Process-pool initializer: ignore Ctrl-C (the parent handles it), open the FMUs once."""
     import atexit
@@ -121,6 +154,7 @@ def _init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
     _TMP.clear()
     atexit.register(_close_all)
     util.Finalize(None, _close_all, exitpriority=10)
+    _blas_threads(1)
     _loop(refs, (None, None))
 
 
@@ -388,12 +422,15 @@ def _isatty() -> bool:
 
 
 def _run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Callable) -> None:
+    restore = _blas_threads(1)
     try:
         _loop(refs, (None, None))  # instantiate once, before any case is timed
         for ch in chunks:
             collect(run_chunk(refs, ch))
     finally:
         _close_all()
+        for put, n in restore:
+            put(n)
 
 
 def _run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
@@ -427,6 +464,9 @@ def _run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]]
         """Deletes the worker's FMU extractions when the Dask worker closes."""
 
         name = "dronefly-sweep-cleanup"
+
+        def setup(self, worker: Any) -> None:
+            _blas_threads(1)
 
         def teardown(self, worker: Any) -> None:
             _close_all()

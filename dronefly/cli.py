@@ -223,7 +223,7 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--slices", default="dgamma:dv,dgamma:dp,dr:dp", metavar="X:Y,...",
                    help="2-D slices of the box for grid (axes dv, dp, dr, dgamma; "
                         "default dgamma:dv,dgamma:dp,dr:dp)")
-    w.add_argument("--grid", default="17", metavar="N", help="grid points per axis (default 17)")
+    w.add_argument("--grid", default="21", metavar="N", help="grid points per axis (default 21)")
     w.add_argument("--lhs", default="200", metavar="N", help="Latin-hypercube samples (default 200)")
     w.add_argument("--directions", default=",".join(f"{s}{a}" for a in ("dv", "dp", "dr", "dgamma",
                                                                         "mode1") for s in "+-"),

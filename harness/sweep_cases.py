@@ -208,7 +208,7 @@ class SweepSpec:
 
     disturbances: tuple[str, ...] = ("grid", "directions")
     slices: tuple[tuple[str, str], ...] = (("dgamma", "dv"), ("dgamma", "dp"), ("dr", "dp"))
-    grid_points: int = 17
+    grid_points: int = 21
     lhs_points: int = 200
     directions: tuple[str, ...] = DEFAULT_DIRECTIONS
     amplitudes: int = 10

@@ -177,7 +177,7 @@ def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, An
     names = [*AXES, *(_CONTROL_SHORT.get(c, c) for c in loop.controls)]
     if hit.any():
         k = int(np.argmax(hit))
-        out["t_exit_wb"] = k * case.step_wb
+        out["t_exit_wb"] = round(k * case.step_wb, 12)
         out["verdict"] = "left " + names[int(np.argmax(np.where(over[k], r[k], -1.0)))]
     else:
         out["verdict"] = "within"

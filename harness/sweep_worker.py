@@ -1,0 +1,231 @@
+"""Worker side of ``dronefly sweep``: FMUs opened once per process, one case per Loop.run.
+
+Each worker process extracts each FMU once and instantiates plant and controller once
+(module-level cache keyed by the FMUs' digests, one pair of instances per thread); every
+case reuses them through fmi2Reset. :func:`run_chunk` is what the local pool and the Dask
+workers execute.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .sweep_cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, _one_line)
+from .sweep_plot import (_RESULT_COLS)
+
+
+__all__ = ["FmuRef", "run_chunk"]
+
+_TOL = 1e-9  # a ratio up to 1 + _TOL counts as on the bound (a = 1 starts on the face)
+_CONTROL_SHORT = {"delta_Phi_a": "dPhi_a", "delta_alpha_1a": "dalpha_1a",
+                  "delta_alpha_2a": "dalpha_2a"}
+
+
+@dataclass(frozen=True)
+class FmuRef:
+    """An FMU file and the SHA-1 of its bytes (the worker cache key)."""
+
+    path: str
+    digest: str
+
+    @classmethod
+    def of(cls, path: str | Path) -> "FmuRef":
+        return cls(str(Path(path).resolve()), hashlib.sha1(Path(path).read_bytes()).hexdigest())
+
+
+# ----------------------------------------------------------------------------- worker side
+_LOCK = threading.Lock()
+_FMUS: dict[str, Any] = {}  # digest -> harness.fmu.FMU (extracted once per process)
+_LOOPS: dict[tuple[int, str, str], tuple[Any, Any, Any, np.ndarray]] = {}
+_TMP: list[str] = []
+
+
+def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
+    from .fmu import FMU
+
+    with _LOCK:
+        if ref.digest not in _FMUS:
+            path = ref.path
+            if data is not None and not (os.path.isfile(path) and FmuRef.of(path) == ref):
+                import tempfile  # a remote worker without the file: materialise the bytes
+
+                d = tempfile.mkdtemp(prefix="dronefly_sweep_")
+                _TMP.append(d)
+                path = os.path.join(d, os.path.basename(ref.path))
+                Path(path).write_bytes(data)
+            _FMUS[ref.digest] = FMU(path)
+        return _FMUS[ref.digest]
+
+
+def _loop(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
+    """(Loop, plant instance, controller instance, x+ scale) of this thread, made once."""
+    from .master import Loop
+
+    key = (threading.get_ident(), refs[0].digest, refs[1].digest)
+    if key not in _LOOPS:
+        pf, cf = _open_fmu(refs[0], data[0]), _open_fmu(refs[1], data[1])
+        loop = Loop(pf, cf)
+        U, n = (float(pf.variables[v].start) for v in ("U", "n"))
+        scale = np.array([U, n, n, 1.0])  # x = x+ * scale (dv+ = dv/U, dp+ = dp/n, ...)
+        _LOOPS[key] = (loop, pf.instantiate(logging=False), cf.instantiate(logging=False), scale)
+    return _LOOPS[key]
+
+
+def _close_all() -> None:
+    """Free every cached instance and delete every extraction (worker exit)."""
+    import shutil
+
+    for loop, p, c, _ in list(_LOOPS.values()):
+        for inst in (p, c):
+            try:
+                inst.free()
+            except Exception:  # pragma: no cover - best effort at exit
+                pass
+    _LOOPS.clear()
+    for f in list(_FMUS.values()):
+        f.close()
+    _FMUS.clear()
+    for d in _TMP:
+        shutil.rmtree(d, ignore_errors=True)
+    _TMP.clear()
+
+
+def _blas_threads(n: int) -> list[tuple[Any, int]]:
+    """Set every loaded OpenBLAS to ``n`` threads; returns (setter, previous) pairs.
+
+    The plant steps call BLAS on 4x4 matrices; an idle OpenBLAS thread spins on the
+    other core after each call, so two worker processes would fight over 2 cores.
+    """
+    import ctypes
+
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as fh:
+            libs = {ln.split()[-1] for ln in fh if "openblas" in ln.rsplit("/", 1)[-1].lower()}
+    except OSError:  # pragma: no cover - not Linux
+        return []
+    done = []
+    for path in sorted(libs):
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:  # pragma: no cover
+            continue
+        for stem in ("scipy_openblas", "openblas"):
+            for suffix in ("64_", "_64_", ""):
+                get = getattr(lib, f"{stem}_get_num_threads{suffix}", None)
+                put = getattr(lib, f"{stem}_set_num_threads{suffix}", None)
+                if get is not None and put is not None:
+                    done.append((put, int(get())))
+                    put(ctypes.c_int(n))
+                    break
+            else:
+                continue
+            break
+    return done
+
+
+def _init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
+    """Process-pool initializer: ignore Ctrl-C (the parent handles it), open the FMUs once."""
+    import atexit
+    import signal
+    from multiprocessing import util
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _LOOPS.clear()  # forked: these belong to the parent (which also deletes its extractions)
+    _FMUS.clear()
+    _TMP.clear()
+    atexit.register(_close_all)
+    util.Finalize(None, _close_all, exitpriority=10)
+    _blas_threads(1)
+    _loop(refs, (None, None))
+
+
+def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, Any]:
+    """Peaks, first exit and final state of a run (ratios to the scaled bounds)."""
+    S = run.signals
+    idx = [loop.names.index(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+    nu = len(loop.controls)
+    x = S[:, idx] / scale
+    r = np.abs(np.hstack([x / np.array(STATE_BOUNDS_SECT36),
+                          S[:, len(loop.states):] / CONTROL_BOUND])) / case.scale
+    out: dict[str, Any] = {"error": "", "t_exit_wb": math.nan}
+    peaks = r.max(axis=0) if len(r) else np.full(4 + nu, math.nan)
+    out.update({f"peak_{a}": float(v) for a, v in zip(AXES, peaks[:4])})
+    out["peak_u"] = float(peaks[4:].max())
+    out["peak"] = float(peaks.max())
+    out.update({f"final_{a}": float(v) for a, v in zip(AXES, x[-1] if len(x) else [math.nan] * 4)})
+    over = r > 1.0 + _TOL
+    hit = over.any(axis=1)
+    names = [*AXES, *(_CONTROL_SHORT.get(c, c) for c in loop.controls)]
+    if hit.any():
+        k = int(np.argmax(hit))
+        out["t_exit_wb"] = round(k * case.step_wb, 12)
+        out["verdict"] = "left " + names[int(np.argmax(np.where(over[k], r[k], -1.0)))]
+    else:
+        out["verdict"] = "within"
+    if not run.complete:
+        out["verdict"], out["error"] = "error", _one_line(str(run.failure))
+    return out
+
+
+def _failed(case: Case, e: BaseException) -> dict[str, Any]:
+    out: dict[str, Any] = {c: math.nan for c in _RESULT_COLS}
+    out.update(verdict="error", error=_one_line(f"{type(e).__name__}: {e}"))
+    return out
+
+
+def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
+              data: tuple[bytes | None, bytes | None] = (None, None)) -> tuple[list, float, float]:
+    """Run cases on this worker's cached instances.
+
+    Returns
+    -------
+    results : list of (key, result dict)
+    loop_s : float
+        Time inside ``Loop.run``, s.
+    wall_s : float
+        Wall time of the whole chunk in the worker, s.
+    """
+    from ..controller.law import gain_name
+
+    t_chunk = time.perf_counter()
+    loop_s, out = 0.0, []
+    for case in cases:
+        try:
+            loop, p, c, scale = _loop(refs, data)
+            start = {f"{s}_start": float(v)
+                     for s, v in zip(("delta_v", "delta_p", "delta_r", "delta_gamma"),
+                                     np.asarray(case.x0) * scale)}
+            t0 = time.perf_counter()
+            run = loop.run(case.step_wb / scale[2], case.n_steps, master=case.master,
+                           plant_start=start,
+                           controller_params={gain_name(i, j): v for i, row in enumerate(case.K)
+                                              for j, v in enumerate(row)},
+                           instances=(p, c))
+            loop_s += time.perf_counter() - t0
+            out.append((case.key, _measure(run, loop, scale, case)))
+        except Exception as e:  # recorded; the sweep goes on with fresh instances
+            out.append((case.key, _failed(case, e)))
+            _drop_thread_loop(refs)
+    return out, loop_s, time.perf_counter() - t_chunk
+
+
+def _drop_thread_loop(refs: tuple[FmuRef, FmuRef]) -> None:
+    """After an exception: free this thread's instances; the next case makes new ones."""
+    entry = _LOOPS.pop((threading.get_ident(), refs[0].digest, refs[1].digest), None)
+    for inst in (entry[1:3] if entry else ()):
+        try:
+            inst.free()
+        except Exception:  # pragma: no cover - already broken
+            pass
+
+
+# ----------------------------------------------------------------------------- runner

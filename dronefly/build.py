@@ -27,8 +27,8 @@ _NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
-class BuildError(RuntimeError):
-    """An FMU could not be built."""
+class BuildError(ValueError):
+    """An FMU could not be built, or a given FMU file does not exist."""
 
 
 @dataclass(frozen=True)
@@ -151,17 +151,37 @@ def build_fmu(name: str, out_dir: str | Path = "build") -> Path:
         files["modelDescription.xml"] = _model_description(name, pkg, files, guid)
     except (OSError, ImportError) as e:
         raise BuildError(f"cannot build {name}: {e}") from e
-    out.mkdir(parents=True, exist_ok=True)
-    target = out / f"{name}.fmu"
-    tmp = target.with_suffix(".fmu.part")
+    return write_zip(out / f"{name}.fmu", files)
+
+
+def write_zip(target: Path, files: dict[str, bytes]) -> Path:
+    """Write a reproducible archive (sorted entries, fixed timestamps) atomically."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(target.name + ".part")
     with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         for rel in sorted(files):
             info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
             info.external_attr = 0o644 << 16
             info.compress_type = zipfile.ZIP_DEFLATED
             z.writestr(info, files[rel])
-    tmp.replace(target)  # atomic: never a half-written FMU under the final name
+    tmp.replace(target)  # never a half-written file under the final name
     return target
+
+
+def project_fmus(plant: str | Path | None = None, controller: str | Path | None = None,
+                 out_dir: str | Path = "build") -> tuple[Path, Path]:
+    """The given plant and controller FMUs, or the project's, built into ``out_dir`` on demand.
+
+    Raises
+    ------
+    BuildError
+        (a ValueError) if a given path is not a file; nothing is built then.
+    """
+    for label, path in (("plant", plant), ("controller", controller)):
+        if path is not None and not Path(path).is_file():
+            raise BuildError(f"{label} FMU {str(path)!r} does not exist")
+    return (Path(plant) if plant is not None else build_fmu("DroneFlyLateral", out_dir),
+            Path(controller) if controller is not None else build_fmu("StateFeedback", out_dir))
 
 
 def build_all(out_dir: str | Path = "build") -> list[Path]:

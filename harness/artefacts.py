@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import uuid
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
@@ -26,7 +25,6 @@ PLANT, CONTROLLER = "DroneFlyLateral", "StateFeedback"
 #: FMI 2 type name -> container type name; the mapping fmpy's write_configuration already
 #: applies to container variables.
 CONTAINER_TYPES = {"Real": "Float64", "Integer": "Int32"}
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 _NAMESPACE = uuid.UUID("0b6f8a8e-4f1d-4e55-9d0b-7c1e2f3a4b5c")
 
 
@@ -89,16 +87,9 @@ def _parameters(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
 
 
 def _write_zip(target: Path, files: Mapping[str, bytes]) -> Path:
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(target.name + ".part")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
-        for rel in sorted(files):
-            info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
-            info.external_attr = 0o644 << 16
-            info.compress_type = zipfile.ZIP_DEFLATED
-            z.writestr(info, files[rel])
-    tmp.replace(target)
-    return target
+    from ..build import write_zip
+
+    return write_zip(target, dict(files))
 
 
 def _fmt(x: float) -> str:

@@ -187,14 +187,9 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         raise CoSimError(f"stop = {stop_wingbeats!r} is shorter than one step ({step_wingbeats!r})")
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
-    for label, path in (("plant", plant), ("controller", controller)):
-        if path is not None and not Path(path).is_file():
-            raise CoSimError(f"{label} FMU {str(path)!r} does not exist")
-    if plant is None or controller is None:
-        from ..build import build_fmu
+    from ..build import project_fmus
 
-        plant = plant or build_fmu("DroneFlyLateral", "build")
-        controller = controller or build_fmu("StateFeedback", "build")
+    plant, controller = project_fmus(plant, controller)
     with FMU(plant) as pf, FMU(controller) as cf:
         loop = Loop(pf, cf)
         return _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir, plot,

@@ -67,14 +67,12 @@ def _connect(address: str, timeout_s: float) -> Any:
 
 
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
-    for label, path in (("plant", plant), ("controller", controller)):
-        if path is not None and not Path(path).is_file():
-            raise SweepInputError(f"{label} FMU {str(path)!r} does not exist")
-    if plant is None or controller is None:
-        from ..build import build_fmu
+    from ..build import BuildError, project_fmus
 
-        plant = plant or build_fmu("DroneFlyLateral", "build")
-        controller = controller or build_fmu("StateFeedback", "build")
+    try:
+        plant, controller = project_fmus(plant, controller)
+    except BuildError as e:
+        raise SweepInputError(str(e)) from e
     return FmuRef.of(plant), FmuRef.of(controller)
 
 

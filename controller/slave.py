@@ -80,6 +80,7 @@ class StateFeedback(SlaveBase):
     """Full-state feedback u = K x+ for the hovering model drone fly (Zhang & Sun)."""
 
     MODEL_NAME = "StateFeedback"
+    DIRECT_FEEDTHROUGH = True
     MODEL_DESCRIPTION = (
         "State feedback u = K x+ (Eq. 22 generalised to the three lateral controls) of "
         "Zhang & Sun, 'Stabilization control of a hovering model insect: lateral motion'; "

@@ -81,6 +81,8 @@ class SlaveBase(Fmi2Slave):
     DEFAULT_EXPERIMENT: ClassVar[tuple[float, float, float]]
     GENERATION_TOOL: ClassVar[str] = "dronefly-fmu (pythonfmu 0.7.0 wrapper)"
     UNITS: ClassVar[dict[str, tuple[dict[str, int], dict[str, float]]]] = UNITS
+    #: outputs depend on inputs within a time instant (Modelica block semantics)
+    DIRECT_FEEDTHROUGH: ClassVar[bool] = False
     log_categories = {
         "logStatusWarning": "Messages with status fmi2Warning.",
         "logStatusDiscard": "Messages with status fmi2Discard (refused steps).",
@@ -102,8 +104,9 @@ class SlaveBase(Fmi2Slave):
         self._initialized = False
         self._types = tuple(v.type for v in vars_)
         self._settable = {
-            mode: frozenset(i for i, v in enumerate(vars_) if self._may_set(v, mode))
-            for mode in _MODES
+            (mode, kind): frozenset(i for i, v in enumerate(vars_)
+                                    if v.type == kind and self._may_set(v, mode))
+            for mode in _MODES for kind in ("Real", "Boolean")
         }
         self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
 
@@ -218,6 +221,10 @@ class SlaveBase(Fmi2Slave):
                 return self._refuse(
                     f"currentCommunicationPoint = {current_time!r} s does not continue "
                     f"from the last communication point {self._time!r} s")
+            stop = self._stop_time
+            if stop is not None and current_time + step_size > stop + tol:
+                return self._refuse(f"a step of {step_size!r} s from {current_time!r} s goes "
+                                    f"past stopTime = {stop!r} s (fmi2SetupExperiment)")
             if not self._initialized:
                 self._initialize()
                 self._initialized = True
@@ -240,12 +247,15 @@ class SlaveBase(Fmi2Slave):
         try:
             return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
         except Exception:
+            self._bad_get(vrs, "Real")
             return [float(r[i]) if 0 <= i < len(r) else math.nan for i in vrs]
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
         if self._stale:
             self._update_if_stale()
-        r = self._real
+        r, types = self._real, self._types
+        if any(not 0 <= i < len(r) or types[i] != "Boolean" for i in vrs):
+            self._bad_get(vrs, "Boolean")
         return [bool(r[i]) if 0 <= i < len(r) else False for i in vrs]
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
@@ -256,32 +266,52 @@ class SlaveBase(Fmi2Slave):
 
     def _set(self, vrs: list[int], values: list[Any], kind: str) -> None:
         try:
-            ok = self._settable[self._mode]
-            r, types = self._real, self._types
+            ok = self._settable[(self._mode, kind)]
+            r = self._real
             for i, x in zip(vrs, values):
-                if i in ok and types[i] == kind:
+                if i in ok:
                     r[i] = x
-                elif i in ok:
-                    self._reject(i, x, f"is a {types[i]} variable, not {kind}")
                 else:
-                    self._reject(i, x, f"not settable in mode {self._mode!r}")
-            self._stale = True
+                    self._reject(i, x, self._why_not_settable(i, kind))
+            # outputs follow sets only before initialization ends or with direct feedthrough
+            if self.DIRECT_FEEDTHROUGH or not self._initialized:
+                self._stale = True
             if not self._dirty and not self._param_vrs.isdisjoint(vrs):
                 self._dirty = True
         except Exception as e:
             self._pending.append(f"set{kind} failed: {e!r}")
 
-    def get_integer(self, vrs: list[int]) -> list[int]:
+    def _why_not_settable(self, vr: int, kind: str) -> str:
+        if not 0 <= vr < len(self._types):
+            return "no such variable"
+        if self._types[vr] != kind:
+            return f"is a {self._types[vr]} variable, not {kind}"
+        return f"not settable in mode {self._mode!r}"
+
+    def _bad_get(self, vrs: list[int], kind: str) -> None:
+        """Log reads of unknown or wrongly typed variables (a getter cannot fail)."""
         for i in vrs:
-            self._reject(i, None, "this FMU has no Integer variables")
+            if not (0 <= i < len(self._types)) or self._types[i] != kind:
+                what = (f"valueReference {i}" if not 0 <= i < len(self._types)
+                        else f"{self.VARIABLES[i].name} (a {self._types[i]} variable)")
+                self._report(f"fmi2Get{kind} of {what}: not a {kind} variable of this FMU",
+                             Fmi2Status.error)
+
+    def get_integer(self, vrs: list[int]) -> list[int]:
+        self._bad_get(vrs, "Integer")
         return [0 for _ in vrs]
+
+    def get_string(self, vrs: list[int]) -> list[str]:
+        self._bad_get(vrs, "String")
+        return ["" for _ in vrs]
 
     def set_integer(self, vrs: list[int], values: list[int]) -> None:
         for i, x in zip(vrs, values):
             self._reject(i, x, "this FMU has no Integer variables")
 
-    get_string = get_integer
-    set_string = set_integer
+    def set_string(self, vrs: list[int], values: list[str]) -> None:
+        for i, x in zip(vrs, values):
+            self._reject(i, x, "this FMU has no String variables")
 
     # -- FMU state ----------------------------------------------------------
     def _get_fmu_state(self) -> dict[str, Any]:

@@ -301,6 +301,7 @@ class LateralModel:
         self.params = params
         self.A, self.B = system_matrices(params)
         self._cache: dict[float, tuple[Array, Array]] = {}
+        self._rows: dict[float, tuple[tuple[float, ...], ...]] = {}
 
     def transition(self, h_plus: float) -> tuple[Array, Array]:
         """(Phi, Gamma) for a step of ``h_plus`` wing beats (cached)."""
@@ -315,6 +316,23 @@ class LateralModel:
         """State after ``h_plus`` wing beats with the control held at ``u``."""
         Phi, Gamma = self.transition(h_plus)
         return Phi @ x + Gamma @ u
+
+    def step_list(self, x: list[float], u: list[float], h_plus: float) -> list[float]:
+        """:meth:`step` on plain lists, for the FMU's doStep.
+
+        Same arithmetic as ``Phi @ x + Gamma @ u`` on the rows of [Phi, Gamma]; at this
+        size plain Python is about three times faster than building numpy arrays per call.
+        """
+        rows = self._rows.get(h_plus)
+        if rows is None:
+            Phi, Gamma = self.transition(h_plus)
+            if len(self._rows) >= self._CACHE_SIZE:
+                self._rows.pop(next(iter(self._rows)))
+            rows = self._rows[h_plus] = tuple(map(tuple, np.hstack([Phi, Gamma]).tolist()))
+        x0, x1, x2, x3 = x
+        u0, u1, u2 = u
+        return [a * x0 + b * x1 + c * x2 + d * x3 + e * u0 + f * u1 + g * u2
+                for a, b, c, d, e, f, g in rows]
 
     def eigenvalues(self) -> Array:
         """Eigenvalues of A1 per wing beat, sorted by descending real part."""

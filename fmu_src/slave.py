@@ -9,8 +9,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 from ..fmi import SlaveBase, Var
 from .model import (
     CONTROL_NAMES,
@@ -121,7 +119,7 @@ class DroneFlyLateral(SlaveBase):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self._x = np.zeros(4)
+        self._x = [0.0, 0.0, 0.0, 0.0]  # x+, non-dimensional
         self._model: LateralModel | None = None
         self._n = N_HZ
         self._U = U_M_PER_S
@@ -159,16 +157,16 @@ class DroneFlyLateral(SlaveBase):
         self._set_values(STATE_NAMES, start)  # outputs are defined even if _refresh fails
         self._refresh()
         n, U = self._n, self._U
-        self._x = np.array([start[0] / U, start[1] / n, start[2] / n, start[3]])
+        self._x = [start[0] / U, start[1] / n, start[2] / n, float(start[3])]
 
     def _advance(self, t: float, h: float) -> None:
         r = self._real
         u = [r[i] for i in self._in_vr]
         if not (math.isfinite(u[0]) and math.isfinite(u[1]) and math.isfinite(u[2])):
             self._check_finite(CONTROL_NAMES, u)
-        x = self._model.step(self._x, np.array(u), h * self._n)  # type: ignore[union-attr]
+        x = self._model.step_list(self._x, u, h * self._n)  # type: ignore[union-attr]
         n = self._n
-        y = (float(x[0]) * self._U, float(x[1]) * n, float(x[2]) * n, float(x[3]))
+        y = (x[0] * self._U, x[1] * n, x[2] * n, x[3])
         if not (math.isfinite(y[0]) and math.isfinite(y[1]) and math.isfinite(y[2])
                 and math.isfinite(y[3])):
             raise ValueError(f"state overflow: outputs {y!r} after the step (the linear "
@@ -178,7 +176,7 @@ class DroneFlyLateral(SlaveBase):
             r[i] = v
 
     def _extra_state(self) -> dict[str, Any]:
-        return {"x": self._x.tolist()}
+        return {"x": list(self._x)}
 
     def _restore_extra_state(self, state: dict[str, Any]) -> None:
-        self._x = np.array(state["x"], dtype=float)
+        self._x = [float(v) for v in state["x"]]

@@ -182,12 +182,17 @@ class Loop:
                               c.slave.component)
             gauss = master == "gauss-seidel"
             nsense = len(self.sensed)
+            if sorted(self.sensed) == sorted(self.states):  # no gather: y feeds c as it is
+                s_vr = (c_uint * ns)(*c.vrs(self.states))
+                ys = y
+                s_idx = []
             for k in range(n_steps + 1):
                 t = k * step
                 who, call = p, "fmi2GetReal"
                 pg(pc, y_vr, ns, y)
                 if gauss:
-                    ys[:] = [y[i] for i in s_idx]
+                    if s_idx:
+                        ys[:] = [y[i] for i in s_idx]
                     who, call = c, "fmi2SetReal"
                     cs(cc, s_vr, nsense, ys)
                     who, call = c, "fmi2GetReal"
@@ -195,7 +200,8 @@ class Loop:
                 else:  # controller still holds the previous point's inputs
                     who, call = c, "fmi2GetReal"
                     cg(cc, u_vr_c, nu, u)
-                    ys[:] = [y[i] for i in s_idx]
+                    if s_idx:
+                        ys[:] = [y[i] for i in s_idx]
                     who, call = c, "fmi2SetReal"
                     cs(cc, s_vr, nsense, ys)
                 rec[k, :ns] = y

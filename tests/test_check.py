@@ -59,7 +59,7 @@ def test_state_that_is_not_captured_fails(tmp_path, monkeypatch):
         path = original(rel)
         if rel == "plant/slave.py":
             text = path.read_text()
-            bad = text.replace('return {"x": self._x.tolist()}', 'return {"x": [0.0] * 4}')
+            bad = text.replace('return {"x": list(self._x)}', 'return {"x": [0.0] * 4}')
             assert bad != text
             path = tmp_path / "slave.py"
             path.write_text(bad)

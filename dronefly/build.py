@@ -179,7 +179,8 @@ def project_fmus(plant: str | Path | None = None, controller: str | Path | None 
     """
     for label, path in (("plant", plant), ("controller", controller)):
         if path is not None and not Path(path).is_file():
-            raise BuildError(f"{label} FMU {str(path)!r} does not exist")
+            raise BuildError(f"{label} FMU {str(path)!r} " + (
+                "is a folder, not an FMU file" if Path(path).is_dir() else "does not exist"))
     return (Path(plant) if plant is not None else build_fmu("DroneFlyLateral", out_dir),
             Path(controller) if controller is not None else build_fmu("StateFeedback", out_dir))
 

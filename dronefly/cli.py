@@ -34,7 +34,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     result = simulate_plant(stop_wingbeats=args.stop, step_wingbeats=args.step,
                             gamma0=args.gamma0, out_dir=args.out)
     print(result.summary())
-    return EXIT_OK
+    return EXIT_OK if result.complete else EXIT_FAILED
 
 
 def _cmd_cosim(args: argparse.Namespace) -> int:
@@ -60,12 +60,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
     paths = [Path(p) for p in args.fmus]
     if not paths:
-        from .build import FMUS, build_all
+        from .build import build_all
 
-        paths = [p for p in build_all(args.build) if p.suffix == ".fmu" and p.stem in FMUS]
+        paths = [p for p in build_all(args.build) if p.suffix == ".fmu"]
     for p in paths:
         if not p.is_file():
-            raise UsageError(f"FMU {str(p)!r} does not exist")
+            raise UsageError(f"FMU {str(p)!r} " + ("is a folder, not an FMU file" if p.is_dir()
+                                                  else "does not exist"))
     reports = [check_fmu(p) for p in paths]
     if args.json:
         print(json.dumps([{"fmu": str(r.path), "passed": r.passed,
@@ -124,7 +125,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 _EPILOG = {
     "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
-             "  dronefly cosim --gains -0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
+             "  dronefly cosim --gains=-0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
+             "  (a value starting with '-' needs the form --gains=... or --x0=...)\n"
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
              "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input",
     "demo": "examples:\n  dronefly demo",
@@ -145,8 +147,15 @@ _EPILOG = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (the usage is one ``--help`` away)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="dronefly",
         description="FMUs and analysis of the lateral stabilization control of a hovering "
                     "model drone fly (Zhang & Sun).",
@@ -191,7 +200,7 @@ def _parser() -> argparse.ArgumentParser:
     k = add("check", "FMI 2.0 co-simulation compliance suite (fmpy validate, call sequence, reset, "
             "state, bad input, reference results)", _cmd_check)
     k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
-                   "into --build and check DroneFlyLateral and StateFeedback)")
+                   "into --build and check every FMU there)")
     k.add_argument("--build", default="build", metavar="DIR", help="where to build (default build/)")
     k.add_argument("--json", action="store_true", help="machine-readable report")
 

@@ -188,7 +188,7 @@ def _check_state(fmu: FMU) -> str:
     return f"bit-for-bit continuation from t = {start + half * step:.6g} s ({len(blob)} bytes)"
 
 
-def _expect_discard(inst: Instance, t: float, h: float, fragment: str) -> None:
+def _expect_discard(inst: Instance, t: float, h: float, fragment: str, named: bool = True) -> None:
     from fmpy.fmi1 import FMICallException
 
     before = len(inst.messages)
@@ -198,13 +198,17 @@ def _expect_discard(inst: Instance, t: float, h: float, fragment: str) -> None:
         _require(e.status in (2, 3), f"{fragment}: doStep returned status {e.status}")
     else:
         raise _CheckFailed(f"{fragment}: doStep returned OK")
-    logged = " ".join(m.message for m in inst.messages[before:])
-    _require(fragment in logged, f"{fragment}: not named in the log ({logged!r})")
+    if named:
+        logged = " ".join(m.message for m in inst.messages[before:])
+        _require(fragment in logged, f"{fragment}: not named in the log ({logged!r})")
 
 
 def _check_bad_input(fmu: FMU) -> str:
     start, stop, step = _experiment(fmu)
     inputs = _real_inputs(fmu)
+    # Messages that name the value are this project's requirement of its own FMU code; a
+    # wrapper made by other tools (fmpy's container binary) is held to the FMI statuses only.
+    named = (fmu.model_description.generationTool or "").startswith("dronefly-fmu")
     cases = 0
     with fmu.instantiate("check") as inst:
         s = inst.slave
@@ -214,18 +218,20 @@ def _check_bad_input(fmu: FMU) -> str:
             vr = [fmu.vr(name)]
             good = s.getReal(vr)
             s.setReal(vr, [math.nan])
-            _expect_discard(inst, t, step, f"{name} = nan")
+            _expect_discard(inst, t, step, f"{name} = nan", named)
             s.setReal(vr, good)
             s.doStep(currentCommunicationPoint=t, communicationStepSize=step)
             t += step
             cases += 1
         for h, what in ((0.0, "communicationStepSize = 0.0"), (-step, f"communicationStepSize = {-step!r}")):
-            _expect_discard(inst, t, h, what)
+            _expect_discard(inst, t, h, what, named)
             cases += 1
-        _expect_discard(inst, t + 10 * step, step, f"currentCommunicationPoint = {t + 10 * step!r}")
+        _expect_discard(inst, t + 10 * step, step, f"currentCommunicationPoint = {t + 10 * step!r}",
+                        named)
         cases += 1
         s.doStep(currentCommunicationPoint=t, communicationStepSize=step)
-    return f"{cases} cases refused with fmi2Discard and a named value; the instance recovered"
+    how = "with a logged message naming the value" if named else "(messages not checked: not our code)"
+    return f"{cases} cases refused {how}; the instance recovered"
 
 
 def _check_reference(fmu: FMU) -> str:

@@ -19,7 +19,7 @@ import numpy as np
 from ..controller.law import default_gains, gain_name
 from ..plant.model import STATE_NAMES, discretize_zoh
 from .fmu import FMU
-from .master import MASTERS, CoSimError, Loop, LoopRun
+from .master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from .stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
     sort_eigenvalues
 
@@ -128,7 +128,12 @@ def _fmt_complex(z: complex) -> str:
 
 
 def _start_value(fmu: FMU, name: str) -> float:
-    return float(fmu.variables[name].start)
+    """A parameter's start value; the loop needs the plant's reference scales n and U."""
+    v = fmu.variables.get(name)
+    if v is None or v.start is None:
+        raise CoSimError(f"plant FMU {fmu.name!r} ({fmu.path}) has no parameter {name!r} with a "
+                         "start value (the harness needs n [Hz] and U [m/s])")
+    return float(v.start)
 
 
 def _read_plant_matrices(loop: Loop) -> tuple[np.ndarray, np.ndarray]:
@@ -180,11 +185,7 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     """
     K = gains if isinstance(gains, np.ndarray) else parse_gains(gains)
     x0v = parse_x0(x0)
-    for label, v in (("step", step_wingbeats), ("stop", stop_wingbeats)):
-        if not math.isfinite(v) or v <= 0:
-            raise CoSimError(f"{label} = {v!r} wing beats must be finite and > 0")
-    if stop_wingbeats < step_wingbeats:
-        raise CoSimError(f"stop = {stop_wingbeats!r} is shorter than one step ({step_wingbeats!r})")
+    step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
     from ..build import project_fmus
@@ -203,7 +204,8 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
     n, U = _start_value(pf, "n"), _start_value(pf, "U")
     scale = np.array([U, n, n, 1.0])
     h = step_wb / n
-    n_steps = int(round(stop_wb / step_wb))
+    n_steps = step_count(stop_wb, step_wb)
+    stop_wb = round(n_steps * step_wb, 12)  # what is run and reported: whole steps, never past
     gains = {gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}
     jacobi = master == "jacobi"
 

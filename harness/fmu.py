@@ -75,7 +75,8 @@ class FMU:
 
         self.path = Path(path)
         if not self.path.is_file():
-            raise FMUError(f"FMU file {str(self.path)!r} does not exist")
+            raise FMUError(f"FMU file {str(self.path)!r} " + (
+                "is a folder, not an FMU file" if self.path.is_dir() else "does not exist"))
         try:
             self.model_description = fmpy.read_model_description(str(self.path))
         except (zipfile.BadZipFile, OSError, KeyError, Exception) as e:

@@ -27,13 +27,37 @@ import numpy as np
 
 from .fmu import FMU, FMUError, Instance
 
-__all__ = ["MASTERS", "CoSimError", "Loop", "LoopRun", "StepFailure"]
+__all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "step_count"]
 
 MASTERS = ("gauss-seidel", "jacobi")
+#: Communication steps per run at most: the recorded signals take 8 bytes per signal and step
+#: (about 56 MB here) and a run about 15 s.
+MAX_STEPS = 1_000_000
 
 
 class CoSimError(ValueError):
     """Bad co-simulation set-up (names the offending value)."""
+
+
+def step_count(stop: float, step: float, unit: str = "wing beats") -> int:
+    """Whole communication steps of ``step`` that fit in ``stop`` (never past it).
+
+    Raises
+    ------
+    CoSimError
+        Non-finite or non-positive values, a stop shorter than one step, or more than
+        :data:`MAX_STEPS` steps.
+    """
+    for label, v in (("step", step), ("stop", stop)):
+        if not (math.isfinite(v) and v > 0.0):
+            raise CoSimError(f"{label} = {v!r} {unit} must be finite and > 0")
+    n = math.floor(stop / step * (1.0 + 1e-12))
+    if n < 1:
+        raise CoSimError(f"stop = {stop!r} is shorter than one step ({step!r}) ({unit})")
+    if n > MAX_STEPS:
+        raise CoSimError(f"stop / step = {stop!r} / {step!r} = {n} communication steps exceeds "
+                         f"the limit of {MAX_STEPS}")
+    return n
 
 
 @dataclass(frozen=True)
@@ -126,8 +150,8 @@ class Loop:
             raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
         if not (math.isfinite(step) and step > 0.0):
             raise CoSimError(f"step = {step!r} s must be finite and > 0")
-        if n_steps < 1:
-            raise CoSimError(f"n_steps = {n_steps!r} must be >= 1")
+        if not 1 <= n_steps <= MAX_STEPS:
+            raise CoSimError(f"n_steps = {n_steps!r} must be in 1..{MAX_STEPS}")
         if instances is None:
             with self.plant.instantiate() as p, self.controller.instantiate() as c:
                 return self._run(p, c, step, n_steps, master, plant_start, controller_params,

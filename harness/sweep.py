@@ -58,12 +58,33 @@ def _chunks(cases: list[Case], workers: int, chunk_steps: int | None) -> list[li
 
 
 def _connect(address: str, timeout_s: float) -> Any:
+    from distributed.comm import parse_address, parse_host_port
+
+    try:  # a malformed address fails here, before a Client exists to be torn down
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except Exception as e:
+        raise SweepInputError(f"scheduler address {address!r} is malformed: "
+                              f"{_one_line(str(e))}") from None
     try:
         from distributed import Client
 
         return Client(address, timeout=timeout_s, set_as_default=False)
     except Exception as e:
         raise SweepInputError(f"scheduler {address!r} unreachable: {_one_line(str(e))}") from None
+
+
+def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
+    """Open both FMUs and connect them by name here, before any file is written."""
+    from .fmu import FMU, FMUError
+    from .master import CoSimError, Loop
+
+    try:
+        with FMU(refs[0].path) as p, FMU(refs[1].path) as c:
+            Loop(p, c)
+    except (FMUError, CoSimError) as e:
+        raise SweepInputError(str(e)) from e
 
 
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
@@ -133,6 +154,9 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
         raise SweepInputError(f"connect timeout = {connect_timeout_s!r} s must be finite and > 0")
     refs = _fmu_paths(plant, controller)
+    _check_pair(refs)
+    if scheduler is not None and not scheduler.strip():
+        raise SweepInputError("scheduler address is empty")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepInputError(f"output folder {str(out)!r} is a file")
@@ -140,7 +164,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     keys = {c.key for c in all_cases}
     done = {} if fresh else _load_done(csv_path, keys)
     resumed = len(keys & done.keys())
-    client = _connect(scheduler, connect_timeout_s) if scheduler else None
+    client = _connect(scheduler, connect_timeout_s) if scheduler is not None else None
     todo = list({c.key: c for c in reversed(all_cases) if c.key not in done}.values())[::-1]
     n_workers = len(client.scheduler_info()["workers"]) if client else min(workers, max(1, len(todo)))
     chunks = _chunks(todo, n_workers, chunk_steps)

@@ -90,3 +90,11 @@ def test_missing_and_corrupt_files(tmp_path, capsys):
     bad.write_bytes(b"PK\x03\x04 garbage")
     report = check_fmu(bad)
     assert not report.passed and report.checks[0].name == "load"
+
+
+def test_container_fmu_passes_with_fmi_status_checks(built_fmus):
+    """The container's binary is fmpy's: statuses and recovery are checked, its messages not."""
+    report = check_fmu(built_fmus["DroneFlyClosedLoop"])
+    assert report.passed, report.checks
+    detail = {c.name: c.detail for c in report.checks}
+    assert "not applicable" in detail["state"] and "messages not checked" in detail["bad-input"]

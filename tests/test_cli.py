@@ -47,3 +47,13 @@ def test_step_longer_than_stop_is_refused(capsys, tmp_path):
     assert main(["simulate", "--stop", "0.05", "--step", "0.1", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "step (0.1)" in err[0]
+
+
+@pytest.mark.integration
+def test_simulate_that_stops_early_exits_1(tmp_path, capsys):
+    """The open loop overflows the linear state after about 9,000 wing beats: the plant
+    refuses the step; the command says so and exits 1, keeping what was computed."""
+    assert main(["simulate", "--stop", "20000", "--step", "1", "--out", str(tmp_path)]) == 1
+    out = capsys.readouterr().out
+    assert "INCOMPLETE" in out
+    assert (tmp_path / "DroneFlyLateral_open_loop.csv").is_file()

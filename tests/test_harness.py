@@ -157,3 +157,33 @@ def test_plot_is_written(fmus, tmp_path):
     pytest.importorskip("matplotlib")
     r = cosimulate(*fmus, gains="paper", stop_wingbeats=20, out_dir=tmp_path)
     assert r.plot is not None and r.plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--stop", "1e12"], "exceeds the limit of 1000000"),
+    (["--step", "1e-300", "--stop", "1"], "exceeds the limit of 1000000"),
+])
+def test_cli_refuses_runs_too_long_to_record(fmus, tmp_path, capsys, args, fragment):
+    argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]),
+            "--out", str(tmp_path / "o"), *args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_stop_is_whole_steps_never_past(fmus):
+    r = cosimulate(*fmus, gains="paper", stop_wingbeats=0.3, step_wingbeats=0.2, out_dir=None)
+    assert r.stop_wingbeats == 0.2 and len(r.run.time) == 2
+
+
+def test_plant_without_reference_scales_is_refused(tmp_path, fmus):
+    from pathlib import Path
+
+    from pythonfmu import FmuBuilder
+
+    src = Path(__file__).resolve().parents[1] / "benchmarks" / "null_fmus" / "NullPlant.py"
+    null = FmuBuilder.build_FMU(src, dest=tmp_path)
+    with pytest.raises(CoSimError, match="has no parameter 'n'"):
+        cosimulate(null, fmus[1], out_dir=tmp_path / "o")
+    assert not (tmp_path / "o").exists()

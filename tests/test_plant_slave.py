@@ -117,3 +117,24 @@ def test_initial_unknowns_readable_in_initialization_mode(slave):
     """FMI 2.0: outputs and calculated parameters follow the start values before exit."""
     _set(slave, delta_gamma_start=0.2, m_plus=2 * 92.7)
     assert _get(slave, "delta_gamma", "A[1,1]") == [0.2, -0.0094 / 2]
+
+
+def test_no_step_past_stop_time():
+    s = DroneFlyLateral(instance_name="stop")
+    s.setup_experiment(0.0, 0.002)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    assert s.do_step(0.0, 0.002) is True
+    assert s.do_step(0.002, 0.5) is False
+    assert "past stopTime = 0.002" in s.log_queue[-1].msg
+
+
+@pytest.mark.parametrize("call, fragment", [
+    (lambda s: s.get_real([10_000]), "fmi2GetReal of valueReference 10000"),
+    (lambda s: s.get_integer([0]), "fmi2GetInteger of delta_Phi_a (a Real variable)"),
+    (lambda s: s.get_boolean([0]), "fmi2GetBoolean of delta_Phi_a (a Real variable)"),
+])
+def test_misused_getters_are_logged(slave, call, fragment):
+    call(slave)
+    assert fragment in slave.log_queue[-1].msg
+    assert int(slave.log_queue[-1].status) == 3  # fmi2Error

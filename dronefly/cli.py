@@ -89,9 +89,14 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     text = run_analyze(as_json=args.json, markdown=args.markdown, targets=args.targets,
                        design_input=args.input)
     if args.out:
-        with open(args.out, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        print(args.out)
+        import os
+        from pathlib import Path
+
+        out = Path(args.out)
+        tmp = out.with_name(out.name + ".part")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, out)  # never a half-written document
+        print(out)
     else:
         print(text, end="" if text.endswith("\n") else "\n")
     return EXIT_OK

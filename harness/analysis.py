@@ -222,6 +222,10 @@ def characteristic_affine(A: ArrayLike, b: ArrayLike) -> tuple[Array, Array]:
     return c0, G
 
 
+#: Largest target eigenvalue magnitude, per wing beat; the open-loop modes are below 1.
+_MAX_TARGET = 1e3
+
+
 def parse_targets(text: str) -> NDArray[np.complex128]:
     """Comma-separated eigenvalues ('-0.1, -0.089+0.057j, ...'; 'i' accepted for 'j')."""
     out = []
@@ -229,7 +233,7 @@ def parse_targets(text: str) -> NDArray[np.complex128]:
         try:
             out.append(complex(tok.replace(" ", "").replace("i", "j")))
         except ValueError:
-            raise AnalysisInputError(f"target {tok!r} is not a number") from None
+            raise AnalysisInputError(f"target {tok!r} is not a finite (complex) number") from None
     return validate_targets(out)
 
 
@@ -241,6 +245,9 @@ def validate_targets(targets: Iterable[complex], n: int = 4, rtol: float = 1e-9)
     for z in t:
         if not (math.isfinite(z.real) and math.isfinite(z.imag)):
             raise AnalysisInputError(f"target eigenvalue {z} is not finite")
+        if abs(z) > _MAX_TARGET:
+            raise AnalysisInputError(f"target eigenvalue {z} exceeds {_MAX_TARGET:g} per wing beat "
+                                     "in magnitude (the gains would overflow)")
     scale = max(1.0, float(np.abs(t).max()))
     free = list(t)
     for z in t:

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..controller.law import U_MAX_LINEAR_RANGE, default_gains
 from ..plant import model
-from .master import MASTERS
+from .master import MASTERS, MAX_STEPS
 
 __all__ = ["AXES", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
@@ -251,6 +251,9 @@ class SweepSpec:
         for h in parse_floats(self.steps_wb, "steps"):
             if not 0 < h <= stop:
                 raise SweepInputError(f"step = {h!r} wing beats must be > 0 and <= stop ({stop:g})")
+            if stop / h > MAX_STEPS:
+                raise SweepInputError(f"stop / step = {stop!r} / {h!r} exceeds {MAX_STEPS} "
+                                      "communication steps per case")
         for s in parse_floats(self.scales, "scales"):
             if s <= 0:
                 raise SweepInputError(f"scale = {s!r} must be > 0")

@@ -81,25 +81,26 @@ def model_description(cls: type[SlaveBase], guid: str) -> Element:
             tattrs["start"] = _fmt(v.start)
         SubElement(sv, v.type, tattrs)
     ms = SubElement(root, "ModelStructure")
-    outputs = [(i, v) for i, v in enumerate(cls.VARIABLES) if v.causality == "output"]
-    if outputs:
-        out = SubElement(ms, "Outputs")
-        for i, v in outputs:
-            a = {"index": str(i + 1)}
-            if v.dependencies is not None:
-                a["dependencies"] = _dependency_indices(cls, v.dependencies)
-            SubElement(out, "Unknown", a)
-    unknowns = [(i, v) for i, v in enumerate(cls.VARIABLES)
-                if (v.causality == "output" and v.initial in ("approx", "calculated"))
-                or v.causality == "calculatedParameter"]
-    if unknowns:
-        iu = SubElement(ms, "InitialUnknowns")
-        for i, v in unknowns:
-            a = {"index": str(i + 1)}
-            if v.initial_dependencies is not None:
-                a["dependencies"] = _dependency_indices(cls, v.initial_dependencies)
-            SubElement(iu, "Unknown", a)
+    outputs = [(i, v.dependencies) for i, v in enumerate(cls.VARIABLES) if v.causality == "output"]
+    _unknowns(cls, ms, "Outputs", outputs)
+    initial = [(i, v.initial_dependencies) for i, v in enumerate(cls.VARIABLES)
+               if (v.causality == "output" and v.initial in ("approx", "calculated"))
+               or v.causality == "calculatedParameter"]
+    _unknowns(cls, ms, "InitialUnknowns", initial)
     return root
+
+
+def _unknowns(cls: type[SlaveBase], parent: Element, tag: str,
+              items: list[tuple[int, tuple[str, ...] | None]]) -> None:
+    """``<tag><Unknown index=.. dependencies=../>...`` (no element when there are none)."""
+    if not items:
+        return
+    node = SubElement(parent, tag)
+    for i, deps in items:
+        a = {"index": str(i + 1)}
+        if deps is not None:  # None: depends on all knowns, the attribute is omitted
+            a["dependencies"] = _dependency_indices(cls, deps)
+        SubElement(node, "Unknown", a)
 
 
 def model_description_bytes(cls: type[SlaveBase], guid: str) -> bytes:

@@ -89,14 +89,9 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
     text = run_analyze(as_json=args.json, markdown=args.markdown, targets=args.targets,
                        design_input=args.input)
     if args.out:
-        import os
-        from pathlib import Path
+        from .files import write_text_atomic
 
-        out = Path(args.out)
-        tmp = out.with_name(out.name + ".part")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, out)  # never a half-written document
-        print(out)
+        print(write_text_atomic(args.out, text))
     else:
         print(text, end="" if text.endswith("\n") else "\n")
     return EXIT_OK

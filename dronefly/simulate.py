@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,12 +59,10 @@ def exact_open_loop(x0_dim: np.ndarray, t: np.ndarray, u: np.ndarray | None = No
 
 def write_csv_atomic(path: Path, header: list[str], rows: np.ndarray) -> None:
     """Write a CSV next to its final name, then rename: never a half-written file."""
-    tmp = path.with_name(path.name + ".part")
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(",".join(header) + "\n")
-        for row in rows:
-            f.write(",".join(repr(float(v)) for v in row) + "\n")
-    os.replace(tmp, path)
+    from .files import write_text_atomic
+
+    lines = [",".join(header), *(",".join(repr(float(v)) for v in row) for row in rows)]
+    write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, gamma0: float = 0.1,

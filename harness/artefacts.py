@@ -10,7 +10,6 @@ import math
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -18,14 +17,16 @@ from ..controller.law import default_gains, gain_name
 from ..plant.model import STATE_NAMES
 from .master import CoSimError
 
-__all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "ClosedLoopSpec", "build_closed_loop"]
+__all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "GUID_NAMESPACE", "ClosedLoopSpec", "build_closed_loop",
+           "connections", "fmt_float", "parameter_values", "read_md", "reference_scales",
+           "start_values"]
 
 CLOSED_LOOP = "DroneFlyClosedLoop"
 PLANT, CONTROLLER = "DroneFlyLateral", "StateFeedback"
 #: FMI 2 type name -> container type name; the mapping fmpy's write_configuration already
 #: applies to container variables.
 CONTAINER_TYPES = {"Real": "Float64", "Integer": "Int32"}
-_NAMESPACE = uuid.UUID("0b6f8a8e-4f1d-4e55-9d0b-7c1e2f3a4b5c")
+GUID_NAMESPACE = uuid.UUID("0b6f8a8e-4f1d-4e55-9d0b-7c1e2f3a4b5c")
 
 
 @dataclass(frozen=True)
@@ -40,24 +41,24 @@ class ClosedLoopSpec:
 
 # -----------------------------------------------------------------------------
 # shared helpers
-def _md(path: str | Path):
+def read_md(path: str | Path):
     import fmpy
 
     return fmpy.read_model_description(str(path))
 
 
-def _starts(md) -> dict[str, float]:
+def start_values(md) -> dict[str, float]:
     return {v.name: float(v.start) for v in md.modelVariables
             if v.type == "Real" and v.start is not None}
 
 
-def _scales(plant_md) -> tuple[float, np.ndarray]:
-    s = _starts(plant_md)
+def reference_scales(plant_md) -> tuple[float, np.ndarray]:
+    s = start_values(plant_md)
     n, U = s["n"], s["U"]
     return n, np.array([U, n, n, 1.0])
 
 
-def _connections(plant_md, ctrl_md) -> list[tuple[str, str, str, str]]:
+def connections(plant_md, ctrl_md) -> list[tuple[str, str, str, str]]:
     """(start element, variable, end element, variable): every controller input from the plant
     output of that name, then every plant input from the controller output of that name."""
     p_out = {v.name for v in plant_md.modelVariables if v.causality == "output"}
@@ -76,9 +77,9 @@ def _connections(plant_md, ctrl_md) -> list[tuple[str, str, str, str]]:
     return cons
 
 
-def _parameters(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
+def parameter_values(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
     """Hierarchical name -> value: the plant's initial state and the controller's gains."""
-    _, scale = _scales(plant_md)
+    _, scale = reference_scales(plant_md)
     out = {f"plant.{s}_start": float(v) for s, v in zip(STATE_NAMES, np.array(spec.x0) * scale)}
     for i, row in enumerate(spec.gains):
         for j, k in enumerate(row):
@@ -86,13 +87,7 @@ def _parameters(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
     return out
 
 
-def _write_zip(target: Path, files: Mapping[str, bytes]) -> Path:
-    from ..build import write_zip
-
-    return write_zip(target, dict(files))
-
-
-def _fmt(x: float) -> str:
+def fmt_float(x: float) -> str:
     return repr(float(x))
 
 

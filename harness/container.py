@@ -28,8 +28,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .artefacts import (_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec, _connections,
-                        _fmt, _md, _parameters, _scales, _write_zip)
+from ..build import write_zip
+from .artefacts import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec, connections,
+                        fmt_float, read_md, parameter_values, reference_scales)
 from .stability import Identification
 from ..plant.model import STATE_NAMES
 
@@ -55,16 +56,16 @@ def container_configuration(plant: str | Path, controller: str | Path,
     from fmpy.model_description import (BaseUnit, CoSimulation, DefaultExperiment,
                                         ModelDescription, ModelVariable, Unit, Unknown)
 
-    pmd, cmd = _md(plant), _md(controller)
-    n, scale = _scales(pmd)
+    pmd, cmd = read_md(plant), read_md(controller)
+    n, scale = reference_scales(pmd)
     comps = {"plant": Component(name="plant", filename=Path(plant), modelDescription=pmd),
              "controller": Component(name="controller", filename=Path(controller),
                                      modelDescription=cmd)}
     pvars = {v.name: v for v in pmd.modelVariables}
     cvars = {v.name: v for v in cmd.modelVariables}
-    values = _parameters(pmd, spec)
+    values = parameter_values(pmd, spec)
     step = spec.step_wingbeats / n
-    guid = "{" + str(uuid.uuid5(_NAMESPACE, f"{CLOSED_LOOP}:{pmd.guid}:{cmd.guid}:{spec!r}")) + "}"
+    guid = "{" + str(uuid.uuid5(GUID_NAMESPACE, f"{CLOSED_LOOP}:{pmd.guid}:{cmd.guid}:{spec!r}")) + "}"
     md = ModelDescription(fmiVersion="2.0", modelName=CLOSED_LOOP,
                           description="DroneFlyLateral plant with StateFeedback controller "
                                       "(fmpy container FMU)",
@@ -74,8 +75,8 @@ def container_configuration(plant: str | Path, controller: str | Path,
     md.coSimulation = CoSimulation(modelIdentifier="container_fmu", needsExecutionTool=True,
                                    canHandleVariableCommunicationStepSize=False,
                                    fixedInternalStepSize=step)
-    md.defaultExperiment = DefaultExperiment(startTime="0.0", stopTime=_fmt(spec.stop_wingbeats / n),
-                                             stepSize=_fmt(step))
+    md.defaultExperiment = DefaultExperiment(startTime="0.0", stopTime=fmt_float(spec.stop_wingbeats / n),
+                                             stepSize=fmt_float(step))
     units = {}
     for m in (pmd, cmd):
         for u in m.unitDefinitions:
@@ -97,7 +98,7 @@ def container_configuration(plant: str | Path, controller: str | Path,
                           description=src.description, unit=src.unit,
                           displayUnit=src.displayUnit)
         if start is not None:
-            v.start = _fmt(start)
+            v.start = fmt_float(start)
         elif src.start is not None and src.causality == "parameter":
             v.start = src.start
         md.modelVariables.append(v)
@@ -124,12 +125,14 @@ def container_configuration(plant: str | Path, controller: str | Path,
     md.outputs = [Unknown(variable=v, dependencies=[]) for v in outputs]  # no inputs at all
     md.initialUnknowns = [Unknown(variable=v) for v in outputs]
 
-    connections = [Connection(startElement=comps[a], startConnectors=[
-        (pvars if a == "plant" else cvars)[x]], endElement=comps[b],
-        endConnectors=[(pvars if b == "plant" else cvars)[y]])
-        for a, x, b, y in _connections(pmd, cmd)]
+    def _var(component: str, name: str) -> Any:
+        return (pvars if component == "plant" else cvars)[name]
+
+    links = [Connection(startElement=comps[a], startConnectors=[_var(a, x)],
+                        endElement=comps[b], endConnectors=[_var(b, y)])
+             for a, x, b, y in connections(pmd, cmd)]
     return Configuration(parallelDoStep=False, modelDescription=md,
-                         components=list(comps.values()), connections=connections,
+                         components=list(comps.values()), connections=links,
                          variableMappings=mappings)
 
 
@@ -170,7 +173,7 @@ def write_container(plant: str | Path, controller: str | Path, out_dir: str | Pa
     """Write the container FMU ``<name>.fmu``. ``fix=False`` keeps fmpy's connection types
     (only to show that fmpy's output fails)."""
     config = container_configuration(plant, controller, spec)
-    return _write_zip(Path(out_dir) / f"{name}.fmu", _container_files(config, fix))
+    return write_zip(Path(out_dir) / f"{name}.fmu", _container_files(config, fix))
 
 
 def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None = None,
@@ -178,7 +181,7 @@ def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None =
     """``fmpy.simulate_fmu`` with the container's default experiment (output every step)."""
     import fmpy
 
-    md = _md(fmu)
+    md = read_md(fmu)
     step = float(md.defaultExperiment.stepSize)
     stop = float(md.defaultExperiment.stopTime) if stop_time is None else stop_time
     return fmpy.simulate_fmu(str(fmu), stop_time=stop, output_interval=step,
@@ -200,7 +203,7 @@ def container_verdict(fmu: str | Path,
     """
     from .interop import unit_runs_verdict
 
-    md = _md(fmu)
+    md = read_md(fmu)
     s = {v.name: float(v.start) for v in md.modelVariables if v.start is not None}
     n, U = s["n"], s["U"]
     scale = np.array([U, n, n, 1.0])

@@ -11,13 +11,13 @@ and with a tight numeric tolerance, since both FMUs are exact for held inputs.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from ..files import write_text_atomic
 from ..plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
@@ -96,12 +96,6 @@ def _opt(setup: _Setup) -> dict[str, float]:
             "StepSize": setup.step_wingbeats / N_HZ, "RelTol": setup.rel_tol}
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 def _simulate(fmu: Path, model: str, inputs: np.ndarray) -> np.ndarray:
     import fmpy
 
@@ -139,9 +133,9 @@ def write_reference(model: str, fmu: Path) -> tuple[Path, Path, Path]:
     table = _input_table(model)
     result = _simulate(fmu, model, table)
     if len(table.dtype.names) > 1:  # an _in.csv only for a model with inputs
-        _write_atomic(inp, _csv_text(table))
-    _write_atomic(opt, "".join(f"{k},{v!r}\n" for k, v in _opt(REFERENCES[model]).items()))
-    _write_atomic(ref, _csv_text(result))
+        write_text_atomic(inp, _csv_text(table))
+    write_text_atomic(opt, "".join(f"{k},{v!r}\n" for k, v in _opt(REFERENCES[model]).items()))
+    write_text_atomic(ref, _csv_text(result))
     return inp, opt, ref
 
 

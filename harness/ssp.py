@@ -23,8 +23,9 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from .artefacts import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, _connections,
-                        _fmt, _md, _parameters, _scales, _write_zip)
+from ..build import write_zip
+from .artefacts import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, connections,
+                        fmt_float, read_md, parameter_values, reference_scales)
 from .master import CoSimError
 from .stability import Identification
 from ..plant.model import STATE_NAMES
@@ -35,9 +36,9 @@ __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
 def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
               spec: ClosedLoopSpec = ClosedLoopSpec()) -> Path:
     """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path."""
-    pmd, cmd = _md(plant), _md(controller)
-    n, _ = _scales(pmd)
-    params = _parameters(pmd, spec)
+    pmd, cmd = read_md(plant), read_md(controller)
+    n, _ = reference_scales(pmd)
+    params = parameter_values(pmd, spec)
 
     def connectors(md) -> str:
         rows = [f'          <ssd:Connector name={quoteattr(v.name)} kind="{v.causality}">'
@@ -49,13 +50,13 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     cons = "\n".join(
         f"      <ssd:Connection startElement={quoteattr(a)} startConnector={quoteattr(x)} "
         f"endElement={quoteattr(b)} endConnector={quoteattr(y)}/>"
-        for a, x, b, y in _connections(pmd, cmd))
+        for a, x, b, y in connections(pmd, cmd))
     step = spec.step_wingbeats / n
     ssd = f"""<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
     xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
     version="1.0" name="{CLOSED_LOOP}">
-  <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {_fmt(step)} s">
+  <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {fmt_float(step)} s">
     <ssd:Elements>
       <ssd:Component name="plant" source="resources/{PLANT}.fmu" type="application/x-fmu-sharedlibrary">
         <ssd:Connectors>
@@ -78,7 +79,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
 {cons}
     </ssd:Connections>
   </ssd:System>
-  <ssd:DefaultExperiment startTime="0.0" stopTime="{_fmt(spec.stop_wingbeats / n)}"/>
+  <ssd:DefaultExperiment startTime="0.0" stopTime="{fmt_float(spec.stop_wingbeats / n)}"/>
 </ssd:SystemStructureDescription>
 """
     files = {"SystemStructure.ssd": ssd.encode(),
@@ -87,7 +88,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     for comp in ("plant", "controller"):
         rows = "\n".join(
             f"    <ssv:Parameter name={quoteattr(k.split('.', 1)[1])}>"
-            f"<ssv:Real value=\"{_fmt(v)}\"/></ssv:Parameter>"
+            f"<ssv:Real value=\"{fmt_float(v)}\"/></ssv:Parameter>"
             for k, v in params.items() if k.split(".", 1)[0] == comp)
         files[f"resources/{comp}.ssv"] = f"""<?xml version="1.0" encoding="UTF-8"?>
 <ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
@@ -97,7 +98,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
   </ssv:Parameters>
 </ssv:ParameterSet>
 """.encode()
-    return _write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
+    return write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
 
 
 def ssp_parameter_set(ssp: str | Path):
@@ -126,7 +127,7 @@ def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
     ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
     stop = float(root.find("ssd:DefaultExperiment", ns).get("stopTime"))
     with zipfile.ZipFile(ssp) as z:
-        n = _scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
+        n = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
     return 0.1 / n, stop
 
 
@@ -134,7 +135,7 @@ def _md_from_bytes(data: bytes):
     with tempfile.TemporaryDirectory(prefix="dronefly_md_") as tmp:
         p = Path(tmp, "x.fmu")
         p.write_bytes(data)
-        return _md(p)
+        return read_md(p)
 
 
 def run_ssp(ssp: str | Path, *, step: float | None = None, stop_time: float | None = None,
@@ -179,7 +180,7 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, lis
 
     d_step, _ = _ssp_step_stop(ssp)
     with zipfile.ZipFile(ssp) as z:
-        n, scale = _scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
+        n, scale = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
     runs = []
     for e in np.eye(len(STATE_NAMES)):
         res = run_ssp(ssp, stop_time=(n_steps + 0.5) * d_step,

@@ -26,7 +26,8 @@ from typing import Any, Callable, Sequence
 
 
 from .sweep_cases import Case, SweepInputError, SweepSpec, _one_line
-from .sweep_plot import (COLUMNS, _load_done, _row, _write_atomic, _write_csv, read_rows,
+from ..files import write_text_atomic
+from .sweep_plot import (COLUMNS, _load_done, _row, _write_csv, read_rows,
                          summarize, write_maps)
 from .sweep_worker import FmuRef, _blas_threads, _close_all, _init_worker, _loop, run_chunk
 
@@ -216,7 +217,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
                    maps=[str(m) for m in maps])
     import json
 
-    _write_atomic(json_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
+    write_text_atomic(json_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return SweepResult(rows, summary, csv_path, json_path, maps)
 
 

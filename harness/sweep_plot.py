@@ -22,6 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..files import write_text_atomic
 from .sweep_cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
 
 __all__ = ["COLUMNS", "format_summary", "read_rows", "summarize", "write_maps"]
@@ -54,18 +55,12 @@ def _row(case: Case, result: dict[str, Any]) -> dict[str, str]:
     return row
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 def _write_csv(path: Path, rows: list[dict[str, str]]) -> None:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     w.writeheader()
     w.writerows(sorted(rows, key=lambda r: int(r["case"])))
-    _write_atomic(path, buf.getvalue())
+    write_text_atomic(path, buf.getvalue())
 
 
 def read_rows(path: str | Path) -> list[dict[str, str]]:

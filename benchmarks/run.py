@@ -2,7 +2,7 @@
 
 Measures, in one run, interleaved repeat by repeat (so that the machine's noise hits all
 three alike):
-  ours    DroneFlyLateral + StateFeedback through the harness master (harness.master.Loop)
+  ours    DroneFlyLateral + StateFeedback through the harness master (harness.cosim.master.Loop)
   master  do-nothing pythonfmu FMUs with the same interface through the same master
   floor   the same six FMI calls per step on the do-nothing FMUs, no master, no recording
 Prints medians and the ratios ours/floor (target <= 1.5: everything we add, FMU code and
@@ -74,8 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=9)
     args = ap.parse_args(argv)
-    from dronefly.harness.fmu import FMU
-    from dronefly.harness.master import Loop
+    from dronefly.harness.cosim.fmu import FMU
+    from dronefly.harness.cosim.master import Loop
 
     times: dict[str, list[float]] = {"ours": [], "master": [], "floor": []}
     with tempfile.TemporaryDirectory() as tmp:

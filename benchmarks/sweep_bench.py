@@ -25,8 +25,8 @@ from pathlib import Path
 
 def _bare_loop_s(plant: Path, controller: Path, repeats: int) -> float:
     from dronefly.controller.law import default_gains, gain_name
-    from dronefly.harness.fmu import FMU
-    from dronefly.harness.master import Loop
+    from dronefly.harness.cosim.fmu import FMU
+    from dronefly.harness.cosim.master import Loop
 
     K = default_gains()
     gains = {gain_name(i, j): v for i, row in enumerate(K) for j, v in enumerate(row)}
@@ -52,8 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from dronefly.build import build_all
-    from dronefly.harness.sweep import run_sweep
-    from dronefly.harness.sweep_cases import DEFAULT_DIRECTIONS, SweepSpec
+    from dronefly.harness.sweep.run import run_sweep
+    from dronefly.harness.sweep.cases import DEFAULT_DIRECTIONS, SweepSpec
 
     amplitudes = max(1, args.cases // len(DEFAULT_DIRECTIONS))
     spec = SweepSpec(disturbances=("directions",), amplitudes=amplitudes, gains=("paper",),

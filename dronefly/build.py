@@ -194,7 +194,7 @@ def build_all(out_dir: str | Path = "build") -> list[Path]:
 def build_closed_loop(out_dir: str | Path, fmus: list[Path]) -> list[Path]:
     """``DroneFlyClosedLoop.ssp`` and the container FMU ``DroneFlyClosedLoop.fmu`` holding the
     built plant and controller (see ``harness/artefacts.py``)."""
-    from .harness.artefacts import build_closed_loop as _build
+    from .harness.interop.closedloop import build_closed_loop as _build
 
     by_name = {p.stem: p for p in fmus}
     try:

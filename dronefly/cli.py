@@ -40,7 +40,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _cmd_cosim(args: argparse.Namespace) -> int:
     import json
 
-    from .harness.cosim import cosimulate
+    from .harness.cosim.run import cosimulate
 
     result = cosimulate(args.plant, args.controller, gains=args.gains, x0=args.x0,
                         step_wingbeats=args.step, stop_wingbeats=args.stop, master=args.master,
@@ -56,7 +56,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from .harness.compliance import check_fmu, format_reports
+    from .harness.compliance.checker import check_fmu, format_reports
 
     paths = [Path(p) for p in args.fmus]
     if not paths:
@@ -77,14 +77,14 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .harness.demo import verdict_table
+    from .harness.cosim.demo import verdict_table
 
     print(verdict_table(out_dir=args.out))
     return EXIT_OK
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from .harness.reproduction import run_analyze
+    from .harness.paper.reproduction import run_analyze
 
     text = run_analyze(as_json=args.json, markdown=args.markdown, targets=args.targets,
                        design_input=args.input)
@@ -100,9 +100,9 @@ def _cmd_analyze(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     import json
 
-    from .harness.sweep import run_sweep
-    from .harness.sweep_cases import SweepSpec, parse_floats, parse_int
-    from .harness.sweep_plot import format_summary
+    from .harness.sweep.run import run_sweep
+    from .harness.sweep.cases import SweepSpec, parse_floats, parse_int
+    from .harness.sweep.results import format_summary
 
     spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices, grid=args.grid,
                                lhs=args.lhs, directions=args.directions,

@@ -80,7 +80,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
 
     from .build import build_fmu
 
-    from .harness.master import step_count
+    from .harness.cosim.master import step_count
 
     if not math.isfinite(gamma0):
         raise ValueError(f"gamma0 = {gamma0!r} is not finite")

@@ -20,7 +20,7 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 @pytest.fixture(scope="session")
 def plant(built_fmus):
     """The built DroneFlyLateral, read and extracted once."""
-    from dronefly.harness.fmu import FMU
+    from dronefly.harness.cosim.fmu import FMU
 
     with FMU(built_fmus["DroneFlyLateral"]) as fmu:
         yield fmu
@@ -29,7 +29,7 @@ def plant(built_fmus):
 @pytest.fixture(scope="session")
 def controller(built_fmus):
     """The built StateFeedback, read and extracted once."""
-    from dronefly.harness.fmu import FMU
+    from dronefly.harness.cosim.fmu import FMU
 
     with FMU(built_fmus["StateFeedback"]) as fmu:
         yield fmu

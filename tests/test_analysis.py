@@ -1,6 +1,6 @@
 """Tests of the reproduction of Zhang & Sun (issue 5): every row of the table, the API, the CLI.
 
-Every printed value comes from ``dronefly.harness.paper_values`` (one place); the
+Every printed value comes from ``dronefly.harness.paper.values`` (one place); the
 tolerance of a match is half a unit in the last printed digit (``Row.tolerance``).
 A regression in any computed number flips a row and fails here.
 """
@@ -16,10 +16,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.cli import main
-from dronefly.harness import analysis as an
-from dronefly.harness import paper_values as pv
-from dronefly.harness.design import lqr_gains, move_lambda1_gains, stabilising_designs
-from dronefly.harness.reproduction import reproduction_table, run_analyze
+from dronefly.harness.paper import analysis as an
+from dronefly.harness.paper import values as pv
+from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabilising_designs
+from dronefly.harness.paper.reproduction import reproduction_table, run_analyze
 from dronefly.plant import model
 
 ROWS = {(r.source, r.quantity): r for r in reproduction_table()}

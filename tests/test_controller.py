@@ -77,7 +77,7 @@ def test_eq27_gains_defined_once_in_the_project():
 
 
 def test_printed_gain_strings_agree_with_the_definition():
-    paper = pytest.importorskip("dronefly.harness.paper_values")
+    paper = pytest.importorskip("dronefly.harness.paper.values")
     printed = getattr(paper, "EQ27_GAINS", None)
     if printed is None:
         pytest.skip("no printed-string copy of Eq. (27)")

@@ -10,9 +10,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.cli import main
-from dronefly.harness.cosim import cosimulate
-from dronefly.harness.fmu import FMU, FMUError
-from dronefly.harness.master import CoSimError, Loop
+from dronefly.harness.cosim.run import cosimulate
+from dronefly.harness.cosim.fmu import FMU, FMUError
+from dronefly.harness.cosim.master import CoSimError, Loop
 
 pytestmark = pytest.mark.integration
 

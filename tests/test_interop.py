@@ -1,7 +1,7 @@
 """Interoperability (issue 7): a second importer (libcosim), the SSP, the container FMU, a C host.
 
-Every run here gives a trajectory that is compared with ``harness.master.Loop`` under the
-same master algorithm, and a verdict classified by ``harness.stability.identify``.
+Every run here gives a trajectory that is compared with ``harness.cosim.master.Loop`` under the
+same master algorithm, and a verdict classified by ``harness.cosim.stability.identify``.
 """
 
 from __future__ import annotations
@@ -19,15 +19,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.harness.artefacts import CLOSED_LOOP
-from dronefly.harness.container import (container_verdict, fix_connection_types, run_container,
+from dronefly.harness.interop.closedloop import CLOSED_LOOP
+from dronefly.harness.interop.container import (container_verdict, fix_connection_types, run_container,
                                         write_container)
-from dronefly.harness.ssp import run_ssp, ssp_parameter_set, ssp_verdict
-from dronefly.harness.fmu import FMU
-from dronefly.harness.interop import (c_host_env, libcosim_available, libcosim_verdict,
+from dronefly.harness.interop.ssp import run_ssp, ssp_parameter_set, ssp_verdict
+from dronefly.harness.cosim.fmu import FMU
+from dronefly.harness.interop.libcosim import (c_host_env, libcosim_available, libcosim_verdict,
                                       libpython_path, run_libcosim, step_ns)
-from dronefly.harness.master import Loop
-from dronefly.harness.stability import TOL_PER_WINGBEAT
+from dronefly.harness.cosim.master import Loop
+from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
 
 pytestmark = pytest.mark.integration
 
@@ -267,7 +267,7 @@ def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path
 
 
 def test_closed_loop_artefacts_are_reproducible(fmus, ssp, container, tmp_path):
-    from dronefly.harness.artefacts import build_closed_loop
+    from dronefly.harness.interop.closedloop import build_closed_loop
 
     again = build_closed_loop(tmp_path, *fmus)
     assert [p.read_bytes() for p in again] == [ssp.read_bytes(), container.read_bytes()]

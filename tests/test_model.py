@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.harness import paper_values as pv
+from dronefly.harness.paper import values as pv
 from dronefly.plant import model as M
 
 #: Eq. (24): first column of B1 as printed (the delta Phi_a column).

@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.plant import model as M
 from dronefly.simulate import exact_open_loop
-from dronefly.harness.fmu import FMU
+from dronefly.harness.cosim.fmu import FMU
 from fmu_helpers import model_description, start
 
 pytestmark = pytest.mark.integration

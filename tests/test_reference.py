@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from dronefly.harness.reference import REFERENCES, check_reference, reference_paths
+from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
 
 pytestmark = pytest.mark.integration
 

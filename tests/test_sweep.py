@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronefly.harness.sweep import COLUMNS, read_rows, run_sweep
-from dronefly.harness.sweep_cases import (STATE_BOUNDS_SECT36, Case, SweepInputError, SweepSpec,
+from dronefly.harness.sweep.run import COLUMNS, read_rows, run_sweep
+from dronefly.harness.sweep.cases import (STATE_BOUNDS_SECT36, Case, SweepInputError, SweepSpec,
                                           gain_matrix)
 
 pytestmark = pytest.mark.integration

@@ -18,7 +18,7 @@ from scipy.linalg import expm, solve_continuous_are
 
 from dronefly.plant import model
 
-from .analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
+from dronefly.harness.paper.analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
                        eigenvector_table, input_index, ordered_eigen)
 
 __all__ = ["Design", "DisturbanceResponse", "analysis_report", "lqr_gains", "move_lambda1_gains",
@@ -155,7 +155,7 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
     ----------
     targets : str, optional
         Comma-separated closed-loop eigenvalues (per wing beat) for an extra design
-        with ``design_input`` (see :func:`~dronefly.harness.analysis.parse_targets`).
+        with ``design_input`` (see :func:`~dronefly.harness.paper.analysis.parse_targets`).
     design_input : str
         Control input of that design (one of ``model.CONTROL_NAMES``).
     lambda1, gamma0 : float
@@ -166,8 +166,8 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
     AnalysisInputError
         Bad input name, non-finite or non-conjugate targets, uncontrollable input.
     """
-    from . import paper_values as pv
-    from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
+    from dronefly.harness.paper import values as pv
+    from dronefly.harness.paper.analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
                            characteristic_affine, controllability, lateral_system,
                            longitudinal_system, modal_decomposition, parse_targets,
                            place_poles_gains)

@@ -22,8 +22,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..files import write_text_atomic
-from .sweep_cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
+from dronefly.files import write_text_atomic
+from dronefly.harness.sweep.cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
 
 __all__ = ["COLUMNS", "format_summary", "read_rows", "summarize", "write_maps"]
 

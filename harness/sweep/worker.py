@@ -19,8 +19,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .sweep_cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, _one_line)
-from .sweep_plot import (_RESULT_COLS)
+from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, _one_line)
+from dronefly.harness.sweep.results import (_RESULT_COLS)
 
 
 __all__ = ["FmuRef", "run_chunk"]
@@ -44,13 +44,13 @@ class FmuRef:
 
 # ----------------------------------------------------------------------------- worker side
 _LOCK = threading.Lock()
-_FMUS: dict[str, Any] = {}  # digest -> harness.fmu.FMU (extracted once per process)
+_FMUS: dict[str, Any] = {}  # digest -> harness.cosim.fmu.FMU (extracted once per process)
 _LOOPS: dict[tuple[int, str, str], tuple[Any, Any, Any, np.ndarray]] = {}
 _TMP: list[str] = []
 
 
 def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
-    from .fmu import FMU
+    from dronefly.harness.cosim.fmu import FMU
 
     with _LOCK:
         if ref.digest not in _FMUS:
@@ -68,7 +68,7 @@ def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
 
 def _loop(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
     """(Loop, plant instance, controller instance, x+ scale) of this thread, made once."""
-    from .master import Loop
+    from dronefly.harness.cosim.master import Loop
 
     key = (threading.get_ident(), refs[0].digest, refs[1].digest)
     if key not in _LOOPS:
@@ -194,7 +194,7 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     wall_s : float
         Wall time of the whole chunk in the worker, s.
     """
-    from ..controller.law import gain_name
+    from dronefly.controller.law import gain_name
 
     t_chunk = time.perf_counter()
     loop_s, out = 0.0, []

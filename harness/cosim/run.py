@@ -16,11 +16,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..controller.law import default_gains, gain_name
-from ..plant.model import STATE_NAMES, discretize_zoh
-from .fmu import FMU
-from .master import MASTERS, CoSimError, Loop, LoopRun, step_count
-from .stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
+from dronefly.controller.law import default_gains, gain_name
+from dronefly.plant.model import STATE_NAMES, discretize_zoh
+from dronefly.harness.cosim.fmu import FMU
+from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
+from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
     sort_eigenvalues
 
 __all__ = ["CosimResult", "cosimulate", "parse_gains", "parse_x0"]
@@ -188,7 +188,7 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
-    from ..build import project_fmus
+    from dronefly.build import project_fmus
 
     plant, controller = project_fmus(plant, controller)
     with FMU(plant) as pf, FMU(controller) as cf:
@@ -276,7 +276,7 @@ def _write_outputs(result: CosimResult, out: Path, name: str, plot: bool) -> Non
     parts.append((tmp, csv))
     result.csv = csv
     if plot:
-        from .plot import plot_loop
+        from dronefly.harness.cosim.plot import plot_loop
 
         png = out / f"{name}.png"
         tmp_png = png.with_name(png.name + ".part")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .cosim import cosimulate
+from dronefly.harness.cosim.run import cosimulate
 
 __all__ = ["verdict_table"]
 

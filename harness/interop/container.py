@@ -28,11 +28,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..build import write_zip
-from .artefacts import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec, connections,
+from dronefly.build import write_zip
+from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec, connections,
                         fmt_float, read_md, parameter_values, reference_scales)
-from .stability import Identification
-from ..plant.model import STATE_NAMES
+from dronefly.harness.cosim.stability import Identification
+from dronefly.plant.model import STATE_NAMES
 
 __all__ = ["container_configuration", "container_verdict", "fix_connection_types", "run_container",
            "write_container"]
@@ -201,7 +201,7 @@ def container_verdict(fmu: str | Path,
     Gauss-Seidel loop started from x_1 (``Loop.run(master="gauss-seidel")`` from x_1 agrees
     bit for bit), and the identification uses them without delay.
     """
-    from .interop import unit_runs_verdict
+    from dronefly.harness.interop.libcosim import unit_runs_verdict
 
     md = read_md(fmu)
     s = {v.name: float(v.start) for v in md.modelVariables if v.start is not None}

@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-from .fmu import FMU, FMUError, Instance
+from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
 __all__ = ["CheckResult", "FMUReport", "check_fmu", "format_reports"]
 
@@ -235,7 +235,7 @@ def _check_bad_input(fmu: FMU) -> str:
 
 
 def _check_reference(fmu: FMU) -> str:
-    from .reference import REFERENCES, check_reference
+    from dronefly.harness.compliance.reference import REFERENCES, check_reference
 
     if fmu.name not in REFERENCES:
         return "no reference result for this model (skipped)"

@@ -5,7 +5,7 @@ with its own fixed-step master. :func:`run_libcosim` connects plant and controll
 (every controller input from the plant output of that name, every plant input from the
 controller output of that name), runs ``n_steps`` steps and returns the time series;
 :func:`libcosim_verdict` runs it from the unit initial states and classifies neutral stability
-with :func:`harness.stability.identify`.
+with :func:`harness.cosim.stability.identify`.
 
 libcosim's fixed-step master, measured (``tests/test_interop.py``)
 -------------------------------------------------------------------
@@ -19,7 +19,7 @@ set on the controller's connected inputs are overwritten by that transfer.) Our 
 publishes x_0 only at fmi2ExitInitializationMode, so x_(-1) = 0 and u_0 = 0, u_1 = K x_0.
 :func:`run_libcosim` records x_(-1) from libcosim's own observer (the controller's inputs at
 step 0, ``InteropRun.controller_inputs0``). The loop is then exactly
-``harness.master.Loop.run(..., master="jacobi", u_source0=x_(-1))``; the two agree to
+``harness.cosim.master.Loop.run(..., master="jacobi", u_source0=x_(-1))``; the two agree to
 rounding (~1e-15 relative).
 
 Time in libcosim is an integer number of nanoseconds, so the step is rounded to whole
@@ -40,9 +40,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..plant.model import STATE_NAMES
-from .master import CoSimError
-from .stability import Identification, identify
+from dronefly.plant.model import STATE_NAMES
+from dronefly.harness.cosim.master import CoSimError
+from dronefly.harness.cosim.stability import Identification, identify
 
 __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
            "run_libcosim", "step_ns", "unit_runs_verdict"]
@@ -203,7 +203,7 @@ def unit_runs_verdict(runs: Sequence[np.ndarray], step_wingbeats: float,
                       delay: bool) -> Identification:
     """Eigenvalues and verdict from non-dimensional state runs of any importer.
 
-    A thin front to :func:`harness.stability.identify` (the same fit and tolerance as the
+    A thin front to :func:`harness.cosim.stability.identify` (the same fit and tolerance as the
     harness): ``runs`` are (N, 4) arrays of x+; with ``delay`` (a Jacobi master) the first row
     of each is x+_(-1), the state the controller saw before the first step.
     """

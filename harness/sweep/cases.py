@@ -30,9 +30,9 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ..controller.law import U_MAX_LINEAR_RANGE, default_gains
-from ..plant import model
-from .master import MASTERS, MAX_STEPS
+from dronefly.controller.law import U_MAX_LINEAR_RANGE, default_gains
+from dronefly.plant import model
+from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
 
 __all__ = ["AXES", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
@@ -120,7 +120,7 @@ def gain_matrix(name: str) -> np.ndarray:
     if name == "stabilising":
         A, B = model.system_matrices(model.default_parameters())
         try:
-            from .design import move_lambda1_gains
+            from dronefly.harness.paper.design import move_lambda1_gains
 
             k = np.asarray(move_lambda1_gains(A, B, model.CONTROL_NAMES[0], STABILISING_LAMBDA1))
         except ImportError:  # pragma: no cover - the analysis module is absent

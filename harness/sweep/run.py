@@ -1,7 +1,7 @@
 """``dronefly sweep``: where do closed-loop trajectories stay inside the Sect. 3.6 bounds?
 
-Each case (see :mod:`harness.sweep_cases`) is one co-simulation of the real plant
-and controller FMUs through :class:`harness.master.Loop`. Bounds are checked at
+Each case (see :mod:`harness.sweep.cases`) is one co-simulation of the real plant
+and controller FMUs through :class:`harness.cosim.master.Loop`. Bounds are checked at
 every communication point on the non-dimensional state (|x_i| / (scale bound_i))
 and on the controls (|u| / (scale 0.4 rad)).
 
@@ -25,11 +25,11 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 
-from .sweep_cases import Case, SweepInputError, SweepSpec, _one_line
-from ..files import write_text_atomic
-from .sweep_plot import (COLUMNS, _load_done, _row, _write_csv, read_rows,
+from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec, _one_line
+from dronefly.files import write_text_atomic
+from dronefly.harness.sweep.results import (COLUMNS, _load_done, _row, _write_csv, read_rows,
                          summarize, write_maps)
-from .sweep_worker import FmuRef, _blas_threads, _close_all, _init_worker, _loop, run_chunk
+from dronefly.harness.sweep.worker import FmuRef, _blas_threads, _close_all, _init_worker, _loop, run_chunk
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
 
@@ -78,8 +78,8 @@ def _connect(address: str, timeout_s: float) -> Any:
 
 def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
     """Open both FMUs and connect them by name here, before any file is written."""
-    from .fmu import FMU, FMUError
-    from .master import CoSimError, Loop
+    from dronefly.harness.cosim.fmu import FMU, FMUError
+    from dronefly.harness.cosim.master import CoSimError, Loop
 
     try:
         with FMU(refs[0].path) as p, FMU(refs[1].path) as c:
@@ -89,7 +89,7 @@ def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
 
 
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
-    from ..build import BuildError, project_fmus
+    from dronefly.build import BuildError, project_fmus
 
     try:
         plant, controller = project_fmus(plant, controller)

@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .reproduction import Row, _v, summary
+from dronefly.harness.paper.reproduction import Row, _v, summary
 
 __all__ = ["render_markdown", "render_text"]
 

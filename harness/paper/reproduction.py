@@ -21,8 +21,8 @@ import numpy as np
 
 from dronefly.plant import model
 
-from . import paper_values as pv
-from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
+from dronefly.harness.paper import values as pv
+from dronefly.harness.paper.analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
                        characteristic_affine, coefficient_matching_gains, eigenvector_table,
                        longitudinal_system, modal_decomposition, ordered_eigen, place_poles_gains)
 
@@ -379,7 +379,7 @@ def run_analyze(as_json: bool = False, markdown: bool = False, targets: str | No
     AnalysisInputError
         (a ValueError) for a bad input name or bad targets, before any output.
     """
-    from .design import analysis_report
+    from dronefly.harness.paper.design import analysis_report
 
     report = analysis_report(targets, design_input)
     rows, notes = _build()
@@ -387,6 +387,6 @@ def run_analyze(as_json: bool = False, markdown: bool = False, targets: str | No
     if as_json:
         return json.dumps({"reproduction": [r.as_dict() for r in rows], "summary": summary(rows),
                            "gains": gains, **report}, indent=1) + "\n"
-    from .report import render_markdown, render_text
+    from dronefly.harness.paper.report import render_markdown, render_text
 
     return (render_markdown if markdown else render_text)(rows, report, gains)

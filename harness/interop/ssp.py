@@ -23,12 +23,12 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ..build import write_zip
-from .artefacts import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, connections,
+from dronefly.build import write_zip
+from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, connections,
                         fmt_float, read_md, parameter_values, reference_scales)
-from .master import CoSimError
-from .stability import Identification
-from ..plant.model import STATE_NAMES
+from dronefly.harness.cosim.master import CoSimError
+from dronefly.harness.cosim.stability import Identification
+from dronefly.plant.model import STATE_NAMES
 
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
 
@@ -174,9 +174,9 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, lis
 
     One run per unit initial state x+_0 = e_i (the SSP's gains). By the master described in
     :func:`run_ssp` the rows hold x_1, x_2, ... and the controller's first input is 0, so each
-    run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.stability.identify``.
+    run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.cosim.stability.identify``.
     """
-    from .interop import unit_runs_verdict
+    from dronefly.harness.interop.libcosim import unit_runs_verdict
 
     d_step, _ = _ssp_step_stop(ssp)
     with zipfile.ZipFile(ssp) as z:

@@ -1,7 +1,7 @@
 """Eigen-, modal, controllability and pole-placement analysis (Sects. 3.3-3.5).
 
 Lateral matrices come from :mod:`dronefly.plant.model`; the longitudinal ones
-from the printed A, B of Sect. 3.5 (:mod:`dronefly.harness.paper_values`).
+from the printed A, B of Sect. 3.5 (:mod:`dronefly.harness.paper.values`).
 All rates are non-dimensional, per wing beat (t+ = t n); controls in rad.
 """
 
@@ -17,7 +17,7 @@ from scipy.signal import place_poles
 
 from dronefly.plant import model
 
-from . import paper_values as pv
+from dronefly.harness.paper import values as pv
 
 __all__ = [
     "AnalysisInputError", "LATERAL_CONVENTION", "LONGITUDINAL_CONVENTION", "ModalConvention",

@@ -25,7 +25,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .fmu import FMU, FMUError, Instance
+from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
 __all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "step_count"]
 
@@ -108,7 +108,7 @@ class Loop:
     Parameters
     ----------
     plant, controller : FMU
-        Extracted FMUs (see :class:`harness.fmu.FMU`).
+        Extracted FMUs (see :class:`harness.cosim.fmu.FMU`).
 
     Raises
     ------

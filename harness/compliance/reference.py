@@ -17,8 +17,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..files import write_text_atomic
-from ..plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
+from dronefly.files import write_text_atomic
+from dronefly.plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
            "write_reference"]
@@ -66,7 +66,7 @@ REFERENCES: dict[str, _Setup] = {
     "DroneFlyLateral": _Setup("plant", _plant_inputs, STATE_NAMES),
     "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
     # the container FMU: the closed loop from its default initial state (a 0.1 rad roll)
-    "DroneFlyClosedLoop": _Setup("harness", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
+    "DroneFlyClosedLoop": _Setup("harness.interop", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
                                  stop_wingbeats=100.0),
 }
 

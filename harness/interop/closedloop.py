@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..controller.law import default_gains, gain_name
-from ..plant.model import STATE_NAMES
-from .master import CoSimError
+from dronefly.controller.law import default_gains, gain_name
+from dronefly.plant.model import STATE_NAMES
+from dronefly.harness.cosim.master import CoSimError
 
 __all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "GUID_NAMESPACE", "ClosedLoopSpec", "build_closed_loop",
            "connections", "fmt_float", "parameter_values", "read_md", "reference_scales",
@@ -100,8 +100,8 @@ def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | 
     """``DroneFlyClosedLoop.ssp`` and ``DroneFlyClosedLoop.fmu`` from two built FMUs."""
     if not (math.isfinite(spec.step_wingbeats) and spec.step_wingbeats > 0):
         raise CoSimError(f"step = {spec.step_wingbeats!r} wing beats must be finite and > 0")
-    from .container import write_container
-    from .ssp import write_ssp
+    from dronefly.harness.interop.container import write_container
+    from dronefly.harness.interop.ssp import write_ssp
 
     return [write_ssp(plant, controller, out_dir, spec),
             write_container(plant, controller, out_dir, spec)]

@@ -2,8 +2,9 @@
 
 This module is the single home of the controller's numbers: the gains of
 Eq. (27) are defined here and nowhere else. The reference scales (n, U) and
-the variable names come from the plant model, so that the controller and the
-plant agree on the non-dimensionalisation of Sect. 2.1:
+the variable names come from :mod:`dronefly.lateral`, the interface the plant
+shares, so that the controller and the plant agree on the
+non-dimensionalisation of Sect. 2.1:
 
     x+ = (delta_v / U, delta_p t_w, delta_r t_w, delta_gamma),  t_w = 1/n
     u  = (delta_Phi_a, delta_alpha_1a, delta_alpha_2a) = K x+   [rad]
@@ -19,7 +20,9 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Sequence
 
-from ..plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S
+from ..errors import DroneflyError
+from ..lateral import (CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, scale_vector,
+                       to_nondimensional)
 
 __all__ = [
     "CONTROL_NAMES",
@@ -43,7 +46,7 @@ PAPER_GAINS_EQ27: tuple[float, float, float, float] = (-0.3192, -0.2879, -0.1969
 U_MAX_LINEAR_RANGE: float = 0.4
 
 
-class LawParameterError(ValueError):
+class LawParameterError(DroneflyError):
     """A gain, reference scale, limit or state value is not acceptable."""
 
 
@@ -99,14 +102,13 @@ class FeedbackLaw:
         for name, value in zip(STATE_NAMES, x):
             if not math.isfinite(value):
                 raise LawParameterError(f"{name} = {value!r} is not finite")
-        t_w = 1.0 / self.n
-        return (x[0] / self.U, x[1] * t_w, x[2] * t_w, x[3])
+        return to_nondimensional(x, self.U, self.n)  # type: ignore[return-value]
 
     @cached_property
     def _rows(self) -> tuple[tuple[float, float, float, float], ...]:
         """K with the non-dimensionalisation folded in: u_i = sum_j Kd[i][j] x_j (x dimensional)."""
-        t_w = 1.0 / self.n
-        return tuple((k[0] / self.U, k[1] * t_w, k[2] * t_w, k[3]) for k in self.K)
+        scale = scale_vector(self.U, self.n)
+        return tuple(tuple(k / s for k, s in zip(row, scale)) for row in self.K)  # type: ignore
 
     def evaluate(self, x: Sequence[float]) -> tuple[tuple[float, float, float], bool]:
         """Controls [rad] for a dimensional state, and whether any of them is limited.

@@ -10,30 +10,12 @@ from __future__ import annotations
 from typing import Any
 
 from ..fmi import SlaveBase, Var
-from .law import (
-    CONTROL_NAMES,
-    STATE_NAMES,
-    U_MAX_LINEAR_RANGE,
-    FeedbackLaw,
-    default_gains,
-    gain_name,
-)
-from ..plant.model import N_HZ, U_M_PER_S
+from ..lateral import (CONTROL_DESCRIPTIONS, CONTROL_NAMES, CONTROL_UNIT, N_HZ, NONDIMENSIONAL,
+                       STATE_DESCRIPTIONS, STATE_NAMES, STATE_UNITS, U_M_PER_S)
+from .law import U_MAX_LINEAR_RANGE, FeedbackLaw, default_gains, gain_name
 
 __all__ = ["StateFeedback"]
 
-_STATE_UNITS = (("m/s", None), ("rad/s", "deg/s"), ("rad/s", "deg/s"), ("rad", "deg"))
-_STATE_TEXT = (
-    "measured lateral (y-axis) velocity disturbance; x+1 = delta_v/U",
-    "measured roll rate disturbance; x+2 = delta_p/n",
-    "measured yaw rate disturbance; x+3 = delta_r/n",
-    "measured roll angle disturbance; x+4 = delta_gamma",
-)
-_CONTROL_TEXT = (
-    "anti-symmetric stroke-amplitude change (left minus right)",
-    "anti-symmetric change of both angles of attack (left minus right)",
-    "anti-symmetric differential change of down/upstroke angles of attack",
-)
 _LIMIT = ("limit_enabled", "u_max")
 
 
@@ -45,12 +27,14 @@ def _variables() -> tuple[Var, ...]:
     K = default_gains()
     all_gains = tuple(g for i in range(len(CONTROL_NAMES)) for g in _gains_of_row(i))
     out: list[Var] = []
-    for name, text, (unit, disp) in zip(STATE_NAMES, _STATE_TEXT, _STATE_UNITS):
-        out.append(Var(name, "input", "continuous", text, unit, disp, start=0.0))
-    for i, (name, text) in enumerate(zip(CONTROL_NAMES, _CONTROL_TEXT)):
+    for name, text, nondim, (unit, disp) in zip(STATE_NAMES, STATE_DESCRIPTIONS, NONDIMENSIONAL,
+                                                STATE_UNITS):
+        out.append(Var(name, "input", "continuous", f"measured {text}; {nondim}", unit, disp,
+                       start=0.0))
+    for i, (name, text) in enumerate(zip(CONTROL_NAMES, CONTROL_DESCRIPTIONS)):
         out.append(Var(name, "output", "continuous",
                        f"{text}: row {i + 1} of u = K x+, limited to +/-u_max if limit_enabled",
-                       "rad", "deg", initial="calculated", dependencies=STATE_NAMES,
+                       *CONTROL_UNIT, initial="calculated", dependencies=STATE_NAMES,
                        initial_dependencies=(*STATE_NAMES, *_gains_of_row(i), "n", "U", *_LIMIT)))
     out.append(Var("saturated", "output", "discrete",
                    "true while any control output is limited to +/-u_max", None,

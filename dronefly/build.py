@@ -43,11 +43,11 @@ class _Spec:
 FMUS: dict[str, _Spec] = {
     "DroneFlyLateral": _Spec(
         module="plant.slave", cls="DroneFlyLateral",
-        files=("fmi.py", "plant/model.py", "plant/slave.py"),
+        files=("errors.py", "fmi.py", "lateral.py", "plant/model.py", "plant/slave.py"),
         readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
     "StateFeedback": _Spec(
         module="controller.slave", cls="StateFeedback",
-        files=("fmi.py", "plant/model.py", "controller/law.py", "controller/slave.py"),
+        files=("errors.py", "fmi.py", "lateral.py", "controller/law.py", "controller/slave.py"),
         readme="controller/README.md", reference="controller/StateFeedback_ref.csv"),
 }
 

@@ -1,8 +1,9 @@
 """Linearized lateral dynamics of the hovering model drone fly (Zhang & Sun).
 
-This module is the single home of the model's numbers and equations. The plant
-FMU, the controller FMU, the harness and the analysis all import it; nothing
-else writes a coefficient of the paper.
+This module is the single home of the model's equations and of its printed
+coefficients (Eq. 12, Sect. 2.1, Table 1). The plant FMU and the analysis
+import it; names, units and reference scales (Sect. 2.4) live in
+:mod:`dronefly.lateral`, which the controller shares without this module.
 
 Non-dimensionalisation (end of Sect. 2.1): reference length c (mean chord),
 velocity U = 2 Phi n r2, time t_w = 1/n. The state is
@@ -26,6 +27,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import expm
 
+from ..errors import DroneflyError
+from ..lateral import (CONTROL_NAMES, FLIGHT_DATA, N_HZ, STATE_NAMES, U_M_PER_S, reference_scales,
+                       sort_eigenvalues, to_dimensional, to_nondimensional)
+
 __all__ = [
     "A1_EQ12",
     "CONTROL_DERIVATIVES_TABLE1",
@@ -48,9 +53,6 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-
-STATE_NAMES: tuple[str, ...] = ("delta_v", "delta_p", "delta_r", "delta_gamma")
-CONTROL_NAMES: tuple[str, ...] = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
 
 #: Eq. (12): the system matrix A1 as printed (non-dimensional, per wing beat).
 A1_EQ12: tuple[tuple[float, ...], ...] = (
@@ -82,64 +84,9 @@ CONTROL_DERIVATIVES_TABLE1: dict[str, float] = {
     "N_alpha_2a_plus": -4.922,
 }
 
-#: Sect. 2.4: flight data of the model drone fly, SI units.
-FLIGHT_DATA: dict[str, float] = {
-    "m_body": 87.76e-6,  # kg
-    "m_wing": 0.56e-6,  # kg, one wing
-    "R": 11.2e-3,  # m, wing length
-    "c": 2.98e-3,  # m, mean chord
-    "r2_over_R": 0.55,
-    "S_wing": 33.34e-6,  # m^2, one wing
-    "Ix": 657.7e-12,  # kg m^2 (657.7 mg mm^2)
-    "Iz": 834.6e-12,
-    "Ixz": -550.0e-12,
-    "Phi_deg": 107.1,  # stroke amplitude
-    "n": 164.0,  # Hz
-    "rho": 1.25,  # kg/m^3
-    "g": 9.81,  # m/s^2
-}
 
-
-class ModelParameterError(ValueError):
+class ModelParameterError(DroneflyError):
     """A model parameter is not finite or not physical."""
-
-
-def reference_scales(data: Mapping[str, float] = FLIGHT_DATA) -> dict[str, float]:
-    """Reference scales and non-dimensional mass properties from flight data.
-
-    Parameters
-    ----------
-    data : mapping
-        Flight data as in :data:`FLIGHT_DATA` (SI units).
-
-    Returns
-    -------
-    dict
-        ``n`` [Hz], ``t_w`` [s], ``U`` [m/s] (U = 2 Phi n r2), and the
-        non-dimensional ``m_plus``, ``Ix_plus``, ``Iz_plus``, ``Ixz_plus``,
-        ``g_plus`` as defined at the end of Sect. 2.1.
-    """
-    n = data["n"]
-    t_w = 1.0 / n
-    U = 2.0 * math.radians(data["Phi_deg"]) * n * data["r2_over_R"] * data["R"]
-    S_t = 2.0 * data["S_wing"]
-    m = data["m_body"] + 2.0 * data["m_wing"]
-    q_force = 0.5 * data["rho"] * U * S_t * t_w
-    q_inertia = 0.5 * data["rho"] * U**2 * S_t * data["c"] * t_w**2
-    return {
-        "n": n,
-        "t_w": t_w,
-        "U": U,
-        "m_plus": m / q_force,
-        "Ix_plus": data["Ix"] / q_inertia,
-        "Iz_plus": data["Iz"] / q_inertia,
-        "Ixz_plus": data["Ixz"] / q_inertia,
-        "g_plus": data["g"] * t_w / U,
-    }
-
-
-N_HZ: float = FLIGHT_DATA["n"]
-U_M_PER_S: float = reference_scales()["U"]
 
 
 def derive_stability_derivatives(
@@ -336,16 +283,4 @@ class LateralModel:
 
     def eigenvalues(self) -> Array:
         """Eigenvalues of A1 per wing beat, sorted by descending real part."""
-        ev = np.linalg.eigvals(self.A)
-        return ev[np.lexsort((-ev.imag, -ev.real))]
-
-
-def to_nondimensional(x: Array, U: float, n: float) -> Array:
-    """(dv [m/s], dp [rad/s], dr [rad/s], dgamma [rad]) -> x+."""
-    t_w = 1.0 / n
-    return np.array([x[0] / U, x[1] * t_w, x[2] * t_w, x[3]], dtype=float)
-
-
-def to_dimensional(x_plus: Array, U: float, n: float) -> Array:
-    """x+ -> (dv [m/s], dp [rad/s], dr [rad/s], dgamma [rad])."""
-    return np.array([x_plus[0] * U, x_plus[1] * n, x_plus[2] * n, x_plus[3]], dtype=float)
+        return np.array(sort_eigenvalues(np.linalg.eigvals(self.A)))

@@ -10,30 +10,12 @@ import math
 from typing import Any
 
 from ..fmi import SlaveBase, Var
-from .model import (
-    CONTROL_NAMES,
-    N_HZ,
-    STATE_NAMES,
-    U_M_PER_S,
-    LateralModel,
-    LateralParameters,
-    default_parameters,
-)
+from ..lateral import (CONTROL_DESCRIPTIONS, CONTROL_NAMES, CONTROL_UNIT, N_HZ, STATE_DESCRIPTIONS,
+                       STATE_NAMES, STATE_UNITS, U_M_PER_S)
+from .model import LateralModel, LateralParameters, default_parameters
 
 __all__ = ["DroneFlyLateral"]
 
-_STATE_UNITS = (("m/s", None), ("rad/s", "deg/s"), ("rad/s", "deg/s"), ("rad", "deg"))
-_STATE_TEXT = (
-    "lateral (y-axis) velocity disturbance",
-    "roll rate disturbance (about x)",
-    "yaw rate disturbance (about z)",
-    "roll angle disturbance (y-axis to horizontal)",
-)
-_CONTROL_TEXT = (
-    "anti-symmetric stroke-amplitude change (left minus right)",
-    "anti-symmetric change of both angles of attack (left minus right)",
-    "anti-symmetric differential change of down/upstroke angles of attack",
-)
 _PARAM_TEXT = {
     "m_plus": "non-dimensional mass m/(0.5 rho U S_t t_w)",
     "Ix_plus": "non-dimensional roll inertia",
@@ -71,10 +53,10 @@ def _matrix_dependencies(row: int, col: int, controls: bool) -> tuple[str, ...]:
 def _variables() -> tuple[Var, ...]:
     defaults = default_parameters()
     out: list[Var] = []
-    for name, text in zip(CONTROL_NAMES, _CONTROL_TEXT):
+    for name, text in zip(CONTROL_NAMES, CONTROL_DESCRIPTIONS):
         out.append(Var(name, "input", "continuous", f"{text} (held over each step)",
-                       "rad", "deg", start=0.0))
-    for name, text, (unit, disp) in zip(STATE_NAMES, _STATE_TEXT, _STATE_UNITS):
+                       *CONTROL_UNIT, start=0.0))
+    for name, text, (unit, disp) in zip(STATE_NAMES, STATE_DESCRIPTIONS, STATE_UNITS):
         out.append(Var(name, "output", "continuous", text, unit, disp, initial="calculated",
                        dependencies=(), initial_dependencies=(f"{name}_start",)))
     for name in LateralParameters.names():
@@ -84,7 +66,7 @@ def _variables() -> tuple[Var, ...]:
                    "wing-beat frequency; reference time t_w = 1/n (Sect. 2.4)", "Hz", start=N_HZ))
     out.append(Var("U", "parameter", "tunable",
                    "reference velocity U = 2 Phi n r2 (Sect. 2.4)", "m/s", start=U_M_PER_S))
-    for name, text, (unit, disp) in zip(STATE_NAMES, _STATE_TEXT, _STATE_UNITS):
+    for name, text, (unit, disp) in zip(STATE_NAMES, STATE_DESCRIPTIONS, STATE_UNITS):
         out.append(Var(f"{name}_start", "parameter", "fixed", f"initial {text}", unit, disp,
                        start=0.0))
     for i in range(4):

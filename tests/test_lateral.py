@@ -1,0 +1,62 @@
+"""The lateral interface module: one home for names, units, scales and eigenvalue order."""
+
+from __future__ import annotations
+
+import ast
+import math
+
+import numpy as np
+import pytest
+
+from dronefly import lateral as L
+from dronefly.build import fmu_sources
+from dronefly.controller.slave import StateFeedback
+from dronefly.plant.slave import DroneFlyLateral
+
+
+def test_reference_scales_from_flight_data():
+    # U = 2 Phi n r2 (Sect. 2.4), computed here from the printed flight data
+    d = L.FLIGHT_DATA
+    U = 2 * d["Phi_deg"] * math.pi / 180 * d["n"] * d["r2_over_R"] * d["R"]
+    assert L.U_M_PER_S == pytest.approx(U, rel=1e-15)
+    assert L.N_HZ == d["n"] == 164.0
+
+
+def test_scale_vector_round_trip():
+    x = (0.3, -12.0, 4.5, 0.1)
+    xp = L.to_nondimensional(x, 3.7, 164.0)
+    assert xp == pytest.approx((0.3 / 3.7, -12.0 / 164.0, 4.5 / 164.0, 0.1), rel=1e-15)
+    assert L.to_dimensional(xp, 3.7, 164.0) == pytest.approx(x, rel=1e-15)
+    assert np.allclose(np.array(xp) * L.scale_vector(3.7, 164.0), x, rtol=1e-15)
+
+
+def test_sort_eigenvalues_matches_lexsort():
+    rng = np.random.default_rng(1)
+    ev = np.linalg.eigvals(rng.normal(size=(7, 7)))
+    ref = ev[np.lexsort((-ev.imag, -ev.real))]
+    assert np.array_equal(np.array(L.sort_eigenvalues(ev)), ref)
+
+
+@pytest.mark.parametrize("cls", [DroneFlyLateral, StateFeedback])
+def test_slaves_use_the_interface(cls):
+    by_name = {v.name: v for v in cls.VARIABLES}
+    for name, (unit, disp) in zip(L.STATE_NAMES, L.STATE_UNITS):
+        assert (by_name[name].unit, by_name[name].display_unit) == (unit, disp)
+    for name in L.CONTROL_NAMES:
+        assert (by_name[name].unit, by_name[name].display_unit) == L.CONTROL_UNIT
+    assert by_name["n"].start == L.N_HZ and by_name["U"].start == L.U_M_PER_S
+
+
+def test_controller_fmu_needs_no_numpy_or_scipy():
+    """The controller ships names and scales only, not the plant model: plain Python."""
+    pkg, files = fmu_sources("StateFeedback")
+    imported = set()
+    for rel, data in files.items():
+        if rel.startswith(f"resources/{pkg}/") and rel.endswith(".py"):
+            for node in ast.walk(ast.parse(data)):
+                if isinstance(node, ast.Import):
+                    imported |= {a.name.split(".")[0] for a in node.names}
+                elif isinstance(node, ast.ImportFrom) and not node.level:
+                    imported.add((node.module or "").split(".")[0])
+    assert not imported & {"numpy", "scipy"}, imported
+    assert not any("plant/" in rel for rel in files)

@@ -16,18 +16,20 @@ import importlib
 import sys
 import tempfile
 import uuid
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "fmu_sources"]
+from .errors import DroneflyError
+from .files import write_zip
+
+__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "fmu_sources",
+           "project_fmus"]
 
 _PKG_ROOT = Path(__file__).resolve().parent
 _NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
-_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
-class BuildError(ValueError):
+class BuildError(DroneflyError):
     """An FMU could not be built, or a given FMU file does not exist."""
 
 
@@ -154,20 +156,6 @@ def build_fmu(name: str, out_dir: str | Path = "build") -> Path:
     return write_zip(out / f"{name}.fmu", files)
 
 
-def write_zip(target: Path, files: dict[str, bytes]) -> Path:
-    """Write a reproducible archive (sorted entries, fixed timestamps) atomically."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(target.name + ".part")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
-        for rel in sorted(files):
-            info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
-            info.external_attr = 0o644 << 16
-            info.compress_type = zipfile.ZIP_DEFLATED
-            z.writestr(info, files[rel])
-    tmp.replace(target)  # never a half-written file under the final name
-    return target
-
-
 def project_fmus(plant: str | Path | None = None, controller: str | Path | None = None,
                  out_dir: str | Path = "build") -> tuple[Path, Path]:
     """The given plant and controller FMUs, or the project's, built into ``out_dir`` on demand.
@@ -187,17 +175,28 @@ def project_fmus(plant: str | Path | None = None, controller: str | Path | None 
 
 def build_all(out_dir: str | Path = "build") -> list[Path]:
     """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts."""
-    fmus = [build_fmu(name, out_dir) for name in FMUS]
-    return fmus + build_closed_loop(out_dir, fmus)
+    fmus = {name: build_fmu(name, out_dir) for name in FMUS}
+    return [*fmus.values(), *build_closed_loop(out_dir, fmus["DroneFlyLateral"],
+                                               fmus["StateFeedback"])]
 
 
-def build_closed_loop(out_dir: str | Path, fmus: list[Path]) -> list[Path]:
-    """``DroneFlyClosedLoop.ssp`` and the container FMU ``DroneFlyClosedLoop.fmu`` holding the
-    built plant and controller (see ``harness/artefacts.py``)."""
-    from .harness.interop.closedloop import build_closed_loop as _build
+def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,
+                      spec: "ClosedLoopSpec | None" = None) -> list[Path]:
+    """``DroneFlyClosedLoop.ssp`` and the container FMU ``DroneFlyClosedLoop.fmu`` holding two
+    built FMUs (see :mod:`dronefly.harness.interop`).
 
-    by_name = {p.stem: p for p in fmus}
+    Raises
+    ------
+    BuildError
+        The FMUs cannot be read or the artefacts cannot be written.
+    """
+    from .harness.interop.closedloop import ClosedLoopSpec
+    from .harness.interop.container import write_container
+    from .harness.interop.ssp import write_ssp
+
+    spec = ClosedLoopSpec() if spec is None else spec
     try:
-        return _build(out_dir, by_name["DroneFlyLateral"], by_name["StateFeedback"])
+        return [write_ssp(plant, controller, out_dir, spec),
+                write_container(plant, controller, out_dir, spec)]
     except (OSError, ValueError, KeyError) as e:
         raise BuildError(f"cannot build the closed-loop artefacts: {e}") from e

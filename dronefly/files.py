@@ -1,17 +1,84 @@
-"""Result files are written next to their final name and then renamed, never half-written."""
+"""Every result file is written next to its final name and then renamed: never half-written.
+
+One mechanism (:func:`atomic_path`) for every writer of the project: text, CSV
+tables, plots and reproducible zip archives (FMUs, SSP files).
+"""
 
 from __future__ import annotations
 
+import contextlib
+import csv
+import io
 import os
+import zipfile
 from pathlib import Path
+from typing import Any, Iterable, Iterator, Mapping, Sequence
 
-__all__ = ["write_text_atomic"]
+__all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_text_atomic", "write_zip"]
+
+#: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
+_ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield ``path.part`` to write to; rename it to ``path`` if the block succeeds.
+
+    On an exception the partial file is removed and ``path`` is left as it was.
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path.part``, then rename it to ``path``."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    """Write ``text`` (UTF-8) to ``path`` atomically and return the path."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def format_cell(value: Any) -> str:
+    """A CSV cell: floats with ``repr`` (they read back exactly), None as empty."""
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    if hasattr(value, "item"):  # numpy scalar
+        return format_cell(value.item())
+    return str(value)
+
+
+def write_csv_atomic(path: str | Path, header: Sequence[str],
+                     rows: Iterable[Sequence[Any] | Mapping[str, Any]]) -> Path:
+    """Write a CSV table (header line, then one line per row) atomically.
+
+    Rows are sequences in ``header`` order or mappings by column name; floats are
+    written with ``repr``, so the file reads back to the same numbers.
+    """
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for row in rows:
+        cells = [row.get(c) for c in header] if isinstance(row, Mapping) else row
+        w.writerow([format_cell(c) for c in cells])
+    return write_text_atomic(path, buf.getvalue())
+
+
+def write_zip(target: str | Path, files: Mapping[str, bytes]) -> Path:
+    """Write a reproducible archive (sorted entries, fixed timestamps) atomically."""
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(target) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+        for rel in sorted(files):
+            info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
+            info.external_attr = 0o644 << 16
+            info.compress_type = zipfile.ZIP_DEFLATED
+            z.writestr(info, files[rel])
+    return target

@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 from typing import Iterable, Mapping, Sequence
 
+from .errors import DroneflyError
+
 __all__ = [
     "CONTROL_DESCRIPTIONS",
     "CONTROL_NAMES",
@@ -32,6 +34,8 @@ __all__ = [
     "STATE_NAMES",
     "STATE_UNITS",
     "U_M_PER_S",
+    "eigen_order",
+    "plant_scales",
     "reference_scales",
     "scale_vector",
     "sort_eigenvalues",
@@ -138,6 +142,34 @@ def to_dimensional(x_plus: Sequence[float], u_m_per_s: float = U_M_PER_S,
     return (x_plus[0] * u_m_per_s, x_plus[1] * n_hz, x_plus[2] * n_hz, float(x_plus[3]))
 
 
+def plant_scales(parameters: Mapping[str, float]) -> tuple[float, ...]:
+    """[U, n, n, 1] from a plant's parameter values ``U`` [m/s] and ``n`` [Hz].
+
+    ``parameters`` is any mapping that holds them, e.g. the start values of a
+    plant FMU's model description. Raises :class:`DroneflyError` if one is
+    missing or not a finite positive number.
+    """
+    out = {}
+    for name in ("n", "U"):
+        value = parameters.get(name)
+        if value is None:
+            raise DroneflyError(f"the plant has no parameter {name!r}: its reference scales "
+                                "(U [m/s], n [Hz]) are needed to read its state as x+")
+        value = float(value)
+        if not (math.isfinite(value) and value > 0.0):
+            raise DroneflyError(f"{name} = {value!r} must be finite and > 0")
+        out[name] = value
+    return scale_vector(out["U"], out["n"])
+
+
+def eigen_order(values: Sequence[complex]) -> list[int]:
+    """Indices that put eigenvalues in the order of every table: descending real part,
+    then descending imaginary part."""
+    return sorted(range(len(values)), key=lambda i: (-complex(values[i]).real,
+                                                     -complex(values[i]).imag))
+
+
 def sort_eigenvalues(values: Iterable[complex]) -> list[complex]:
-    """Eigenvalues in the order of every table: descending real, then descending imaginary part."""
-    return sorted((complex(v) for v in values), key=lambda z: (-z.real, -z.imag))
+    """Eigenvalues in the order of :func:`eigen_order`."""
+    v = [complex(z) for z in values]
+    return [v[i] for i in eigen_order(v)]

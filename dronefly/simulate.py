@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .plant.model import N_HZ, STATE_NAMES, U_M_PER_S, LateralModel, default_parameters
+from .lateral import N_HZ, STATE_NAMES, scale_vector
+from .plant.model import LateralModel, default_parameters
 
 __all__ = ["PlantRun", "exact_open_loop", "simulate_plant", "write_csv_atomic"]
 
@@ -46,7 +47,7 @@ def exact_open_loop(x0_dim: np.ndarray, t: np.ndarray, u: np.ndarray | None = No
     A, B = model.A, model.B
     lam, V = np.linalg.eig(A)
     Vinv = np.linalg.inv(V)
-    scale = np.array([U_M_PER_S, N_HZ, N_HZ, 1.0])
+    scale = np.array(scale_vector())
     x0 = np.asarray(x0_dim, dtype=float) / scale
     u = np.zeros(3) if u is None else np.asarray(u, dtype=float)
     a0 = Vinv @ x0

@@ -10,6 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.cli import main
+from dronefly.errors import DroneflyError
 from dronefly.harness.cosim.run import cosimulate
 from dronefly.harness.cosim.fmu import FMU, FMUError
 from dronefly.harness.cosim.master import CoSimError, Loop
@@ -184,6 +185,6 @@ def test_plant_without_reference_scales_is_refused(tmp_path, fmus):
 
     src = Path(__file__).resolve().parents[1] / "benchmarks" / "null_fmus" / "NullPlant.py"
     null = FmuBuilder.build_FMU(src, dest=tmp_path)
-    with pytest.raises(CoSimError, match="has no parameter 'n'"):
+    with pytest.raises(DroneflyError, match="has no parameter 'n'"):
         cosimulate(null, fmus[1], out_dir=tmp_path / "o")
     assert not (tmp_path / "o").exists()

@@ -267,7 +267,7 @@ def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path
 
 
 def test_closed_loop_artefacts_are_reproducible(fmus, ssp, container, tmp_path):
-    from dronefly.harness.interop.closedloop import build_closed_loop
+    from dronefly.build import build_closed_loop
 
     again = build_closed_loop(tmp_path, *fmus)
     assert [p.read_bytes() for p in again] == [ssp.read_bytes(), container.read_bytes()]

@@ -16,7 +16,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-__all__ = ["FMU", "FMUError", "Instance", "LogMessage"]
+from dronefly.errors import DroneflyError
+
+__all__ = ["FMU", "FMUError", "Instance", "LogMessage", "start_values"]
 
 # fmpy's native logger proxy keeps ONE Python logger per process (the last one
 # installed), so every instance shares one dispatcher that routes messages by
@@ -44,7 +46,7 @@ def _unique(name: str) -> str:
     return f"{name}#{k}"
 
 
-class FMUError(ValueError):
+class FMUError(DroneflyError):
     """An FMU file is missing, corrupt, or not an FMI 2.0 co-simulation FMU."""
 
 
@@ -54,6 +56,12 @@ class LogMessage:
     status: int
     category: str
     message: str
+
+
+def start_values(md: Any) -> dict[str, float]:
+    """Start values of the Real variables of an fmpy model description, by name."""
+    return {v.name: float(v.start) for v in md.modelVariables
+            if v.type == "Real" and v.start is not None}
 
 
 class FMU:
@@ -99,6 +107,10 @@ class FMU:
             return self.variables[name].valueReference
         except KeyError:
             raise FMUError(f"FMU {self.name!r} ({self.path}) has no variable {name!r}") from None
+
+    def start_values(self) -> dict[str, float]:
+        """Start values of the Real variables, by name (see :func:`start_values`)."""
+        return start_values(self.model_description)
 
     def names(self, causality: str) -> list[str]:
         return [v.name for v in self.model_description.modelVariables if v.causality == causality]

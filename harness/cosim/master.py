@@ -25,6 +25,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from dronefly.errors import DroneflyError
+
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
 __all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "step_count"]
@@ -35,7 +37,7 @@ MASTERS = ("gauss-seidel", "jacobi")
 MAX_STEPS = 1_000_000
 
 
-class CoSimError(ValueError):
+class CoSimError(DroneflyError):
     """Bad co-simulation set-up (names the offending value)."""
 
 

@@ -16,6 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dronefly.lateral import plant_scales
 from dronefly.controller.law import default_gains, gain_name
 from dronefly.plant.model import STATE_NAMES, discretize_zoh
 from dronefly.harness.cosim.fmu import FMU
@@ -127,15 +128,6 @@ def _fmt_complex(z: complex) -> str:
     return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
-def _start_value(fmu: FMU, name: str) -> float:
-    """A parameter's start value; the loop needs the plant's reference scales n and U."""
-    v = fmu.variables.get(name)
-    if v is None or v.start is None:
-        raise CoSimError(f"plant FMU {fmu.name!r} ({fmu.path}) has no parameter {name!r} with a "
-                         "start value (the harness needs n [Hz] and U [m/s])")
-    return float(v.start)
-
-
 def _read_plant_matrices(loop: Loop) -> tuple[np.ndarray, np.ndarray]:
     """A1 and B1 as the plant FMU computes them (calculated parameters)."""
     p = loop.plant
@@ -201,8 +193,8 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None) -> CosimResult:
     pf, cf = loop.plant, loop.controller
-    n, U = _start_value(pf, "n"), _start_value(pf, "U")
-    scale = np.array([U, n, n, 1.0])
+    scale = np.array(plant_scales(pf.start_values()))
+    n = scale[1]
     h = step_wb / n
     n_steps = step_count(stop_wb, step_wb)
     stop_wb = round(n_steps * step_wb, 12)  # what is run and reported: whole steps, never past

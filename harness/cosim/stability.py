@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dronefly import lateral
+
 __all__ = ["TOL_PER_WINGBEAT", "Identification", "classify", "identify", "rates_from_transition",
            "sort_eigenvalues"]
 
@@ -28,9 +30,8 @@ _DELAY_MODE = 1e-9  # |mu| below this: a pure delay, no continuous rate
 
 
 def sort_eigenvalues(ev: np.ndarray) -> np.ndarray:
-    """Descending real part, then descending imaginary part."""
-    ev = np.asarray(ev, dtype=complex)
-    return ev[np.lexsort((-ev.imag, -ev.real))]
+    """As an array, in the order of :func:`dronefly.lateral.sort_eigenvalues`."""
+    return np.array(lateral.sort_eigenvalues(np.ravel(ev)), dtype=complex)
 
 
 def rates_from_transition(F: np.ndarray, h_plus: float) -> np.ndarray:

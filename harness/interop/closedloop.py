@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from dronefly.controller.law import default_gains, gain_name
-from dronefly.plant.model import STATE_NAMES
+from dronefly.harness.cosim.fmu import start_values
+from dronefly.lateral import STATE_NAMES, plant_scales
 from dronefly.harness.cosim.master import CoSimError
 
-__all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "GUID_NAMESPACE", "ClosedLoopSpec", "build_closed_loop",
-           "connections", "fmt_float", "parameter_values", "read_md", "reference_scales",
-           "start_values"]
+__all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "CONTROLLER", "GUID_NAMESPACE", "PLANT", "ClosedLoopSpec",
+           "connections", "parameter_values", "reference_scales"]
 
 CLOSED_LOOP = "DroneFlyClosedLoop"
 PLANT, CONTROLLER = "DroneFlyLateral", "StateFeedback"
@@ -38,24 +38,17 @@ class ClosedLoopSpec:
     step_wingbeats: float = 0.1
     stop_wingbeats: float = 300.0
 
-
-# -----------------------------------------------------------------------------
-# shared helpers
-def read_md(path: str | Path):
-    import fmpy
-
-    return fmpy.read_model_description(str(path))
-
-
-def start_values(md) -> dict[str, float]:
-    return {v.name: float(v.start) for v in md.modelVariables
-            if v.type == "Real" and v.start is not None}
+    def __post_init__(self) -> None:
+        for name in ("step_wingbeats", "stop_wingbeats"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise CoSimError(f"{name} = {value!r} wing beats must be finite and > 0")
 
 
 def reference_scales(plant_md) -> tuple[float, np.ndarray]:
-    s = start_values(plant_md)
-    n, U = s["n"], s["U"]
-    return n, np.array([U, n, n, 1.0])
+    """n [Hz] and the scale vector [U, n, n, 1] of a plant's model description."""
+    scale = np.array(plant_scales(start_values(plant_md)))
+    return float(scale[1]), scale
 
 
 def connections(plant_md, ctrl_md) -> list[tuple[str, str, str, str]]:
@@ -85,23 +78,3 @@ def parameter_values(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
         for j, k in enumerate(row):
             out[f"controller.{gain_name(i, j)}"] = float(k)
     return out
-
-
-def fmt_float(x: float) -> str:
-    return repr(float(x))
-
-
-# -----------------------------------------------------------------------------
-# SSP
-
-
-def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,
-                      spec: ClosedLoopSpec = ClosedLoopSpec()) -> list[Path]:
-    """``DroneFlyClosedLoop.ssp`` and ``DroneFlyClosedLoop.fmu`` from two built FMUs."""
-    if not (math.isfinite(spec.step_wingbeats) and spec.step_wingbeats > 0):
-        raise CoSimError(f"step = {spec.step_wingbeats!r} wing beats must be finite and > 0")
-    from dronefly.harness.interop.container import write_container
-    from dronefly.harness.interop.ssp import write_ssp
-
-    return [write_ssp(plant, controller, out_dir, spec),
-            write_container(plant, controller, out_dir, spec)]

@@ -27,12 +27,14 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from fmpy import read_model_description
 
-from dronefly.build import write_zip
+from dronefly.files import write_zip
 from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec, connections,
-                        fmt_float, read_md, parameter_values, reference_scales)
-from dronefly.harness.cosim.stability import Identification
-from dronefly.plant.model import STATE_NAMES
+                        parameter_values, reference_scales)
+from dronefly.harness.cosim.stability import Identification, identify
+from dronefly.harness.cosim.fmu import start_values
+from dronefly.lateral import STATE_NAMES, plant_scales
 
 __all__ = ["container_configuration", "container_verdict", "fix_connection_types", "run_container",
            "write_container"]
@@ -56,7 +58,7 @@ def container_configuration(plant: str | Path, controller: str | Path,
     from fmpy.model_description import (BaseUnit, CoSimulation, DefaultExperiment,
                                         ModelDescription, ModelVariable, Unit, Unknown)
 
-    pmd, cmd = read_md(plant), read_md(controller)
+    pmd, cmd = read_model_description(plant), read_model_description(controller)
     n, scale = reference_scales(pmd)
     comps = {"plant": Component(name="plant", filename=Path(plant), modelDescription=pmd),
              "controller": Component(name="controller", filename=Path(controller),
@@ -75,8 +77,8 @@ def container_configuration(plant: str | Path, controller: str | Path,
     md.coSimulation = CoSimulation(modelIdentifier="container_fmu", needsExecutionTool=True,
                                    canHandleVariableCommunicationStepSize=False,
                                    fixedInternalStepSize=step)
-    md.defaultExperiment = DefaultExperiment(startTime="0.0", stopTime=fmt_float(spec.stop_wingbeats / n),
-                                             stepSize=fmt_float(step))
+    md.defaultExperiment = DefaultExperiment(startTime="0.0", stopTime=repr(float(spec.stop_wingbeats / n)),
+                                             stepSize=repr(float(step)))
     units = {}
     for m in (pmd, cmd):
         for u in m.unitDefinitions:
@@ -98,7 +100,7 @@ def container_configuration(plant: str | Path, controller: str | Path,
                           description=src.description, unit=src.unit,
                           displayUnit=src.displayUnit)
         if start is not None:
-            v.start = fmt_float(start)
+            v.start = repr(float(start))
         elif src.start is not None and src.causality == "parameter":
             v.start = src.start
         md.modelVariables.append(v)
@@ -181,7 +183,7 @@ def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None =
     """``fmpy.simulate_fmu`` with the container's default experiment (output every step)."""
     import fmpy
 
-    md = read_md(fmu)
+    md = read_model_description(fmu)
     step = float(md.defaultExperiment.stepSize)
     stop = float(md.defaultExperiment.stopTime) if stop_time is None else stop_time
     return fmpy.simulate_fmu(str(fmu), stop_time=stop, output_interval=step,
@@ -201,12 +203,9 @@ def container_verdict(fmu: str | Path,
     Gauss-Seidel loop started from x_1 (``Loop.run(master="gauss-seidel")`` from x_1 agrees
     bit for bit), and the identification uses them without delay.
     """
-    from dronefly.harness.interop.libcosim import unit_runs_verdict
-
-    md = read_md(fmu)
-    s = {v.name: float(v.start) for v in md.modelVariables if v.start is not None}
-    n, U = s["n"], s["U"]
-    scale = np.array([U, n, n, 1.0])
+    md = read_model_description(fmu)
+    scale = np.array(plant_scales(start_values(md)))
+    n = scale[1]
     step = float(md.defaultExperiment.stepSize)
     runs = []
     for e in np.eye(len(STATE_NAMES)):
@@ -215,7 +214,7 @@ def container_verdict(fmu: str | Path,
                             stop_time=(n_steps + 1) * step)
         xs = np.column_stack([res[x] for x in STATE_NAMES]) / scale
         runs.append(xs[1:])
-    return unit_runs_verdict(runs, step * n, delay=False), runs
+    return identify(runs, step * n, delay=False), runs
 
 
 # -----------------------------------------------------------------------------

@@ -40,12 +40,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from dronefly.plant.model import STATE_NAMES
+from dronefly.harness.cosim.fmu import start_values
+from dronefly.lateral import STATE_NAMES, plant_scales
 from dronefly.harness.cosim.master import CoSimError
 from dronefly.harness.cosim.stability import Identification, identify
 
 __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
-           "run_libcosim", "step_ns", "unit_runs_verdict"]
+           "run_libcosim", "step_ns"]
 
 
 def libcosim_available() -> str | None:
@@ -199,17 +200,6 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_step
                       error=error, controller_inputs0=inputs0)
 
 
-def unit_runs_verdict(runs: Sequence[np.ndarray], step_wingbeats: float,
-                      delay: bool) -> Identification:
-    """Eigenvalues and verdict from non-dimensional state runs of any importer.
-
-    A thin front to :func:`harness.cosim.stability.identify` (the same fit and tolerance as the
-    harness): ``runs`` are (N, 4) arrays of x+; with ``delay`` (a Jacobi master) the first row
-    of each is x+_(-1), the state the controller saw before the first step.
-    """
-    return identify([np.asarray(r, dtype=float) for r in runs], step_wingbeats, delay=delay)
-
-
 def libcosim_verdict(plant: str | Path, controller: str | Path, *,
                      gains: Mapping[str, float] | None = None, step_wingbeats: float = 0.1,
                      n_steps: int = 20) -> tuple[Identification, float]:
@@ -224,10 +214,8 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
     import fmpy
 
     md = fmpy.read_model_description(str(plant))
-    start = {v.name: float(v.start) for v in md.modelVariables if v.start is not None
-             and v.type == "Real"}
-    n_hz, U = start["n"], start["U"]
-    scale = np.array([U, n_hz, n_hz, 1.0])
+    scale = np.array(plant_scales(start_values(md)))
+    n_hz = scale[1]
     h = step_ns(step_wingbeats, n_hz)
     h_wb = h * 1e-9 * n_hz
     runs = []
@@ -240,7 +228,7 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
             raise CoSimError(f"libcosim identification run failed: {r.error}")
         x_prev = np.array([r.controller_inputs0[s] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([x_prev, r.states() / scale]))
-    ident = unit_runs_verdict(runs, h_wb, delay=True)
+    ident = identify(runs, h_wb, delay=True)
     if not math.isfinite(ident.dominant_growth_rate):
         raise CoSimError("libcosim identification gave no finite growth rate")
     return ident, h_wb

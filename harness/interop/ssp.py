@@ -22,13 +22,14 @@ from typing import Mapping
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+from fmpy import read_model_description
 
-from dronefly.build import write_zip
+from dronefly.files import write_zip
 from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, connections,
-                        fmt_float, read_md, parameter_values, reference_scales)
+                        parameter_values, reference_scales)
 from dronefly.harness.cosim.master import CoSimError
-from dronefly.harness.cosim.stability import Identification
-from dronefly.plant.model import STATE_NAMES
+from dronefly.harness.cosim.stability import Identification, identify
+from dronefly.lateral import STATE_NAMES
 
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
 
@@ -36,7 +37,7 @@ __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
 def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
               spec: ClosedLoopSpec = ClosedLoopSpec()) -> Path:
     """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path."""
-    pmd, cmd = read_md(plant), read_md(controller)
+    pmd, cmd = read_model_description(plant), read_model_description(controller)
     n, _ = reference_scales(pmd)
     params = parameter_values(pmd, spec)
 
@@ -56,7 +57,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
 <ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
     xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
     version="1.0" name="{CLOSED_LOOP}">
-  <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {fmt_float(step)} s">
+  <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {repr(float(step))} s">
     <ssd:Elements>
       <ssd:Component name="plant" source="resources/{PLANT}.fmu" type="application/x-fmu-sharedlibrary">
         <ssd:Connectors>
@@ -79,7 +80,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
 {cons}
     </ssd:Connections>
   </ssd:System>
-  <ssd:DefaultExperiment startTime="0.0" stopTime="{fmt_float(spec.stop_wingbeats / n)}"/>
+  <ssd:DefaultExperiment startTime="0.0" stopTime="{repr(float(spec.stop_wingbeats / n))}"/>
 </ssd:SystemStructureDescription>
 """
     files = {"SystemStructure.ssd": ssd.encode(),
@@ -88,7 +89,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     for comp in ("plant", "controller"):
         rows = "\n".join(
             f"    <ssv:Parameter name={quoteattr(k.split('.', 1)[1])}>"
-            f"<ssv:Real value=\"{fmt_float(v)}\"/></ssv:Parameter>"
+            f"<ssv:Real value=\"{repr(float(v))}\"/></ssv:Parameter>"
             for k, v in params.items() if k.split(".", 1)[0] == comp)
         files[f"resources/{comp}.ssv"] = f"""<?xml version="1.0" encoding="UTF-8"?>
 <ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
@@ -135,7 +136,7 @@ def _md_from_bytes(data: bytes):
     with tempfile.TemporaryDirectory(prefix="dronefly_md_") as tmp:
         p = Path(tmp, "x.fmu")
         p.write_bytes(data)
-        return read_md(p)
+        return read_model_description(p)
 
 
 def run_ssp(ssp: str | Path, *, step: float | None = None, stop_time: float | None = None,
@@ -176,8 +177,6 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, lis
     :func:`run_ssp` the rows hold x_1, x_2, ... and the controller's first input is 0, so each
     run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.cosim.stability.identify``.
     """
-    from dronefly.harness.interop.libcosim import unit_runs_verdict
-
     d_step, _ = _ssp_step_stop(ssp)
     with zipfile.ZipFile(ssp) as z:
         n, scale = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
@@ -188,7 +187,7 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, lis
                                  for s, v in zip(STATE_NAMES, e * scale)})
         xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([np.zeros(len(STATE_NAMES)), xs]))
-    return unit_runs_verdict(runs, d_step * n, delay=True), runs
+    return identify(runs, d_step * n, delay=True), runs
 
 
 # -----------------------------------------------------------------------------

@@ -15,6 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import place_poles
 
+from dronefly.errors import DroneflyError
+from dronefly.lateral import eigen_order
 from dronefly.plant import model
 
 from dronefly.harness.paper import values as pv
@@ -31,7 +33,7 @@ __all__ = [
 Array = NDArray[np.float64]
 
 
-class AnalysisInputError(ValueError):
+class AnalysisInputError(DroneflyError):
     """Bad input to the analysis (the message names the value)."""
 
 
@@ -53,7 +55,7 @@ def longitudinal_system() -> tuple[Array, Array]:
 def ordered_eigen(A: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
     """Eigenvalues and eigenvectors by descending real part, sigma + i omega before its conjugate."""
     w, V = np.linalg.eig(np.asarray(A, dtype=float))
-    o = np.lexsort((-w.imag, -w.real))
+    o = eigen_order(w)
     return w[o], V[:, o]
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_continuous_are
 
+from dronefly.harness.cosim.stability import sort_eigenvalues
 from dronefly.plant import model
 
 from dronefly.harness.paper.analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
@@ -138,7 +139,7 @@ def stabilising_designs(lambda1: float = -0.1, gamma0: float = 0.5,
     for method, u, k in todo:
         b = B[:, input_index(u)]
         ev = np.linalg.eigvals(closed_loop_matrix(A, b, k))
-        out.append(Design(method, u, k, ev[np.lexsort((-ev.imag, -ev.real))],
+        out.append(Design(method, u, k, sort_eigenvalues(ev),
                           peak_control(A, b, k, x_roll), peak_control(A, b, k, x_mode)))
     return out
 

@@ -30,6 +30,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from dronefly.errors import DroneflyError
+
 from dronefly.controller.law import U_MAX_LINEAR_RANGE, default_gains
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
@@ -49,7 +51,7 @@ DEFAULT_DIRECTIONS: tuple[str, ...] = tuple(f"{s}{a}" for a in (*AXES, "mode1") 
 STABILISING_LAMBDA1: float = -0.1
 
 
-class SweepInputError(ValueError):
+class SweepInputError(DroneflyError):
     """Bad sweep input; the message names the offending value."""
 
 
@@ -119,16 +121,9 @@ def gain_matrix(name: str) -> np.ndarray:
         return np.zeros((3, 4))
     if name == "stabilising":
         A, B = model.system_matrices(model.default_parameters())
-        try:
-            from dronefly.harness.paper.design import move_lambda1_gains
+        from dronefly.harness.paper.design import move_lambda1_gains
 
-            k = np.asarray(move_lambda1_gains(A, B, model.CONTROL_NAMES[0], STABILISING_LAMBDA1))
-        except ImportError:  # pragma: no cover - the analysis module is absent
-            from scipy.signal import place_poles
-
-            w = np.linalg.eigvals(A)
-            w = w[np.lexsort((-w.imag, -w.real))]
-            k = -place_poles(A, B[:, :1], [STABILISING_LAMBDA1, *w[1:]]).gain_matrix[0]
+        k = np.asarray(move_lambda1_gains(A, B, model.CONTROL_NAMES[0], STABILISING_LAMBDA1))
         K = np.zeros((3, 4))
         K[0] = k
         return K

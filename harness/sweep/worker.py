@@ -19,6 +19,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dronefly.lateral import plant_scales
+
 from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, _one_line)
 from dronefly.harness.sweep.results import (_RESULT_COLS)
 
@@ -74,8 +76,7 @@ def _loop(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) 
     if key not in _LOOPS:
         pf, cf = _open_fmu(refs[0], data[0]), _open_fmu(refs[1], data[1])
         loop = Loop(pf, cf)
-        U, n = (float(pf.variables[v].start) for v in ("U", "n"))
-        scale = np.array([U, n, n, 1.0])  # x = x+ * scale (dv+ = dv/U, dp+ = dp/n, ...)
+        scale = np.array(plant_scales(pf.start_values()))  # x = x+ * scale
         _LOOPS[key] = (loop, pf.instantiate(logging=False), cf.instantiate(logging=False), scale)
     return _LOOPS[key]
 

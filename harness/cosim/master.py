@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from ctypes import c_double, c_uint
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -29,7 +29,8 @@ from dronefly.errors import DroneflyError
 
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
-__all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "step_count"]
+__all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "connect_by_name",
+           "step_count"]
 
 MASTERS = ("gauss-seidel", "jacobi")
 #: Communication steps per run at most: the recorded signals take 8 bytes per signal and step
@@ -60,6 +61,39 @@ def step_count(stop: float, step: float, unit: str = "wing beats") -> int:
         raise CoSimError(f"stop / step = {stop!r} / {step!r} = {n} communication steps exceeds "
                          f"the limit of {MAX_STEPS}")
     return n
+
+
+def _names(md: Any, causality: str) -> list[str]:
+    return [v.name for v in md.modelVariables if v.causality == causality]
+
+
+def connect_by_name(plant_md: Any, controller_md: Any,
+                    where: tuple[str, str] = ("", "")) -> list[tuple[str, str, str, str]]:
+    """Connections of a plant/controller pair by variable name.
+
+    Every controller input is driven by the plant output of that name, every plant input by
+    the controller output of that name. Returns (source element, variable, target element,
+    variable) with elements ``"plant"`` and ``"controller"``, controller inputs first.
+
+    Raises
+    ------
+    CoSimError
+        An input has no output of that name on the other side (the message names it and,
+        if given, where the other FMU is).
+    """
+    p_out, c_out = set(_names(plant_md, "output")), set(_names(controller_md, "output"))
+    cons = []
+    for name in _names(controller_md, "input"):
+        if name not in p_out:
+            raise CoSimError(f"controller input {name!r} has no plant output of that name"
+                             + (f" ({where[0]})" if where[0] else ""))
+        cons.append(("plant", name, "controller", name))
+    for name in _names(plant_md, "input"):
+        if name not in c_out:
+            raise CoSimError(f"plant input {name!r} has no controller output of that name"
+                             + (f" ({where[1]})" if where[1] else ""))
+        cons.append(("controller", name, "plant", name))
+    return cons
 
 
 @dataclass(frozen=True)
@@ -123,16 +157,8 @@ class Loop:
         self.plant, self.controller = plant, controller
         self.states = plant.names("output")
         self.controls = plant.names("input")
-        ctrl_out = set(controller.names("output"))
-        for name in self.controls:
-            if name not in ctrl_out:
-                raise CoSimError(f"plant input {name!r} has no controller output of that name "
-                                 f"({controller.path})")
-        plant_out = set(self.states)
-        for name in controller.names("input"):
-            if name not in plant_out:
-                raise CoSimError(f"controller input {name!r} has no plant output of that name "
-                                 f"({plant.path})")
+        connect_by_name(plant.model_description, controller.model_description,
+                        where=(str(plant.path), str(controller.path)))
         self.sensed = controller.names("input")  # subset of states, controller order
         self.names = [*self.states, *self.controls]
 

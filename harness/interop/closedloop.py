@@ -19,7 +19,7 @@ from dronefly.lateral import STATE_NAMES, plant_scales
 from dronefly.harness.cosim.master import CoSimError
 
 __all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "CONTROLLER", "GUID_NAMESPACE", "PLANT", "ClosedLoopSpec",
-           "connections", "parameter_values", "reference_scales"]
+           "parameter_values", "reference_scales"]
 
 CLOSED_LOOP = "DroneFlyClosedLoop"
 PLANT, CONTROLLER = "DroneFlyLateral", "StateFeedback"
@@ -49,25 +49,6 @@ def reference_scales(plant_md) -> tuple[float, np.ndarray]:
     """n [Hz] and the scale vector [U, n, n, 1] of a plant's model description."""
     scale = np.array(plant_scales(start_values(plant_md)))
     return float(scale[1]), scale
-
-
-def connections(plant_md, ctrl_md) -> list[tuple[str, str, str, str]]:
-    """(start element, variable, end element, variable): every controller input from the plant
-    output of that name, then every plant input from the controller output of that name."""
-    p_out = {v.name for v in plant_md.modelVariables if v.causality == "output"}
-    c_out = {v.name for v in ctrl_md.modelVariables if v.causality == "output"}
-    cons = []
-    for v in ctrl_md.modelVariables:
-        if v.causality == "input":
-            if v.name not in p_out:
-                raise CoSimError(f"controller input {v.name!r} has no plant output of that name")
-            cons.append(("plant", v.name, "controller", v.name))
-    for v in plant_md.modelVariables:
-        if v.causality == "input":
-            if v.name not in c_out:
-                raise CoSimError(f"plant input {v.name!r} has no controller output of that name")
-            cons.append(("controller", v.name, "plant", v.name))
-    return cons
 
 
 def parameter_values(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:

@@ -30,8 +30,9 @@ import numpy as np
 from fmpy import read_model_description
 
 from dronefly.files import write_zip
-from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec, connections,
+from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec,
                         parameter_values, reference_scales)
+from dronefly.harness.cosim.master import connect_by_name
 from dronefly.harness.cosim.stability import Identification, identify
 from dronefly.harness.cosim.fmu import start_values
 from dronefly.lateral import STATE_NAMES, plant_scales
@@ -132,7 +133,7 @@ def container_configuration(plant: str | Path, controller: str | Path,
 
     links = [Connection(startElement=comps[a], startConnectors=[_var(a, x)],
                         endElement=comps[b], endConnectors=[_var(b, y)])
-             for a, x, b, y in connections(pmd, cmd)]
+             for a, x, b, y in connect_by_name(pmd, cmd)]
     return Configuration(parallelDoStep=False, modelDescription=md,
                          components=list(comps.values()), connections=links,
                          variableMappings=mappings)

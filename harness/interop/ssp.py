@@ -25,9 +25,10 @@ import numpy as np
 from fmpy import read_model_description
 
 from dronefly.files import write_zip
-from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, connections,
+from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec,
                         parameter_values, reference_scales)
 from dronefly.harness.cosim.master import CoSimError
+from dronefly.harness.cosim.master import connect_by_name
 from dronefly.harness.cosim.stability import Identification, identify
 from dronefly.lateral import STATE_NAMES
 
@@ -51,7 +52,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     cons = "\n".join(
         f"      <ssd:Connection startElement={quoteattr(a)} startConnector={quoteattr(x)} "
         f"endElement={quoteattr(b)} endConnector={quoteattr(y)}/>"
-        for a, x, b, y in connections(pmd, cmd))
+        for a, x, b, y in connect_by_name(pmd, cmd))
     step = spec.step_wingbeats / n
     ssd = f"""<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"

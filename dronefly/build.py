@@ -45,11 +45,11 @@ class _Spec:
 FMUS: dict[str, _Spec] = {
     "DroneFlyLateral": _Spec(
         module="plant.slave", cls="DroneFlyLateral",
-        files=("errors.py", "fmi.py", "lateral.py", "plant/model.py", "plant/slave.py"),
+        files=("errors.py", "fmi.py", "fmistate.py", "lateral.py", "plant/model.py", "plant/slave.py"),
         readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
     "StateFeedback": _Spec(
         module="controller.slave", cls="StateFeedback",
-        files=("errors.py", "fmi.py", "lateral.py", "controller/law.py", "controller/slave.py"),
+        files=("errors.py", "fmi.py", "fmistate.py", "lateral.py", "controller/law.py", "controller/slave.py"),
         readme="controller/README.md", reference="controller/StateFeedback_ref.csv"),
 }
 
@@ -58,9 +58,14 @@ _ENTRY = """\
 # Entry module named in resources/slavemodule.txt; the pythonfmu wrapper imports it and then
 # evaluates this file once more in the module's namespace on every fmi2Instantiate.
 # pythonfmu 0.7.0's findClass releases one reference to this module's globals per load that it
-# never took (Py_DECREF of the borrowed PyModule_GetDict result). Each evaluation pins one more,
-# so the namespace survives any number of instantiations in one process.
-globals().setdefault("_pins", []).append(globals())
+# never took (Py_DECREF of the borrowed PyModule_GetDict result). Each evaluation takes that
+# reference first, as a bare reference count that nothing ever releases: no container holds
+# it, so the dictionary is freed exactly once when the interpreter ends. (Holding it in a
+# list inside the dictionary itself made the count too low at teardown: the list released
+# references that findClass had already released, a double free at process exit.)
+import ctypes as _ctypes
+_ctypes.pythonapi.Py_IncRef(_ctypes.py_object(globals()))
+del _ctypes
 from {pkg}.{module} import {cls}  # noqa: E402,F401
 """
 

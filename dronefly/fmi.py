@@ -6,8 +6,22 @@ pythonfmu does not give: a declarative variable table with units, display
 units and ModelStructure dependencies; a model description that passes
 ``fmpy validate`` (generated from it by :mod:`dronefly.modeldescription`, which
 the FMUs do not ship); value storage by value reference; full-state get/set and
-serialisation; and error containment (no Python exception ever reaches the
-wrapper, where it would become fmi2Fatal).
+serialisation (:mod:`.fmistate`); the FMI 2.0 co-simulation state machine;
+and error containment (no Python exception ever reaches the wrapper, where it
+would become fmi2Fatal).
+
+pythonfmu 0.7.0 lets a Python slave return a non-OK status only from doStep
+(False = fmi2Discard); every other call returns fmi2OK unless an exception
+escapes, which is fmi2Fatal and corrupts the instance. So a call that the
+standard answers with fmi2Error (a call in the wrong state, an unknown value
+reference, a value that may not be set) is logged at once with status
+fmi2Error, changes nothing, and the next doStep is refused with the same
+message (the standard's error state allows no doStep). ``docs/fmi-limits.md``
+lists these calls.
+
+Every logged message passes through :meth:`SlaveBase._report`, which escapes
+``%`` (the importer's logger treats the message as a printf format) and any
+character that is not UTF-8.
 
 Each FMU ships its own copy of this module inside a content-addressed package,
 so it must import nothing from the project but relative siblings.
@@ -15,13 +29,15 @@ so it must import nothing from the project but relative siblings.
 
 from __future__ import annotations
 
-import json
 import math
+import sys
 from dataclasses import dataclass
 from typing import Any, ClassVar, Iterable, Sequence
 
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
+
+from . import fmistate
 
 __all__ = ["UNITS", "SlaveBase", "Var"]
 
@@ -38,6 +54,16 @@ UNITS: dict[str, tuple[dict[str, int], dict[str, float]]] = {
 }
 
 _MODES = ("instantiated", "initialization", "stepping", "terminated")
+#: FMI 2.0 CS call-sequence table (section 4.2.4): the states in which each call is allowed
+#: ("stepping" = stepComplete). Calls not listed are allowed in every state.
+_ALLOWED = {
+    "fmi2SetupExperiment": ("instantiated",),
+    "fmi2EnterInitializationMode": ("instantiated",),
+    "fmi2ExitInitializationMode": ("initialization",),
+    "fmi2Terminate": ("stepping",),
+    "fmi2DoStep": ("stepping",),
+    "fmi2Get": ("initialization", "stepping", "terminated"),
+}
 
 
 @dataclass(frozen=True)
@@ -109,6 +135,13 @@ class SlaveBase(Fmi2Slave):
             for mode in _MODES for kind in ("Real", "Boolean")
         }
         self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
+        self._n_vars = len(vars_)
+        self._fmu_id = self._class_fmu_id()
+        # The wrapper puts the resources folder at the front of sys.path on every
+        # instantiation; the FMU's package is imported by then, so take it out again.
+        res = self.resources
+        while res is not None and res in sys.path:
+            sys.path.remove(res)
 
     # -- subclass hooks ---------------------------------------------------
     def _refresh(self) -> None:  # pragma: no cover - abstract
@@ -160,7 +193,20 @@ class SlaveBase(Fmi2Slave):
             r[vr[n]] = x
 
     def _report(self, msg: str, status: Fmi2Status) -> None:
-        self.log(f"{self.instance_name}: {msg}", status)
+        """Log ``msg``: ``%`` escaped for the printf-style logger, valid UTF-8 guaranteed."""
+        text = f"{self.instance_name}: {msg}".replace("%", "%%")
+        self.log(text.encode("utf-8", "backslashreplace").decode("utf-8"), status)
+
+    def _in_state(self, call: str) -> bool:
+        """Whether ``call`` is allowed now; if not, log an error and keep it for doStep."""
+        if self._mode in _ALLOWED[call]:
+            return True
+        msg = (f"{call} is not allowed in state {self._mode!r} (FMI 2.0 co-simulation "
+               f"call sequence: only in {', '.join(_ALLOWED[call])}); ignored")
+        if call != "fmi2DoStep" and call != "fmi2Get":
+            self._pending.append(msg)
+        self._report(msg, Fmi2Status.error)
+        return False
 
     def _refuse(self, msg: str) -> bool:
         self._report(msg, Fmi2Status.discard)
@@ -188,13 +234,31 @@ class SlaveBase(Fmi2Slave):
     # -- FMI calls ----------------------------------------------------------
     def setup_experiment(self, start_time: float, stop_time: float | None = None,
                          tolerance: float | None = None) -> None:
-        self._time = float(start_time)
-        self._stop_time = stop_time
+        try:
+            if not self._in_state("fmi2SetupExperiment"):
+                return
+            bad = [f"{name} = {value!r}" for name, value in (("startTime", start_time),
+                                                             ("stopTime", stop_time))
+                   if value is not None and not math.isfinite(value)]
+            if stop_time is not None and not bad and stop_time < start_time:
+                bad.append(f"stopTime = {stop_time!r} < startTime = {start_time!r}")
+            if bad:
+                msg = f"fmi2SetupExperiment: {', '.join(bad)} refused; times must be finite"
+                self._pending.append(msg)
+                self._report(msg, Fmi2Status.error)
+                return
+            self._time = float(start_time)
+            self._stop_time = None if stop_time is None else float(stop_time)
+        except Exception as e:  # never let an exception reach the wrapper
+            self._report(f"fmi2SetupExperiment failed: {e!r}", Fmi2Status.error)
 
     def enter_initialization_mode(self) -> None:
-        self._mode = "initialization"
+        if self._in_state("fmi2EnterInitializationMode"):
+            self._mode = "initialization"
 
     def exit_initialization_mode(self) -> None:
+        if not self._in_state("fmi2ExitInitializationMode"):
+            return
         self._mode = "stepping"
         try:
             self._initialize()
@@ -204,19 +268,27 @@ class SlaveBase(Fmi2Slave):
             self._report(f"initialization: {e}", Fmi2Status.error)
 
     def terminate(self) -> None:
-        self._mode = "terminated"
+        if self._in_state("fmi2Terminate"):
+            self._mode = "terminated"
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         try:
             if self._mode != "stepping":
-                return self._refuse(f"doStep in mode {self._mode!r}: initialization not completed")
+                return self._refuse(f"fmi2DoStep is not allowed in state {self._mode!r} (FMI 2.0 "
+                                    "co-simulation call sequence: only after "
+                                    "fmi2ExitInitializationMode and before fmi2Terminate)")
             if self._pending:
                 msg = "; ".join(self._pending)
                 self._pending.clear()
                 return self._refuse(f"step refused at t = {current_time!r} s: {msg}")
-            if not (math.isfinite(step_size) and step_size > 0.0):
-                return self._refuse(f"communicationStepSize = {step_size!r} must be finite and > 0")
-            tol = 1e-9 * max(abs(current_time), step_size)
+            if not math.isfinite(current_time):
+                return self._refuse(f"currentCommunicationPoint = {current_time!r} s must be finite")
+            if not (math.isfinite(step_size) and step_size > 0.0
+                    and math.isfinite(current_time + step_size)):
+                return self._refuse(f"communicationStepSize = {step_size!r} s must be finite and > "
+                                    f"0, with a finite end (from {current_time!r} s)")
+            # float accumulation of the master's time: relative to the times, never to the step
+            tol = 1e-9 * max(abs(current_time), abs(self._time), 1e-300)
             if not (abs(current_time - self._time) <= tol):
                 return self._refuse(
                     f"currentCommunicationPoint = {current_time!r} s does not continue "
@@ -241,16 +313,24 @@ class SlaveBase(Fmi2Slave):
             return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
 
     def get_real(self, vrs: list[int]) -> list[float]:
-        if self._stale:
-            self._update_if_stale()
-        r = self._real
         try:
+            if self._mode == "instantiated":
+                self._in_state("fmi2Get")
+            if self._stale:
+                self._update_if_stale()
+            r = self._real
+            # the wrapper passes value references as C int: 2**32 - 1 arrives as -1
+            if vrs and (min(vrs) < 0 or max(vrs) >= self._n_vars):
+                self._bad_get(vrs, "Real")
+                return [float(r[i]) if 0 <= i < len(r) else math.nan for i in vrs]
             return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
-        except Exception:
-            self._bad_get(vrs, "Real")
-            return [float(r[i]) if 0 <= i < len(r) else math.nan for i in vrs]
+        except Exception as e:  # a getter cannot fail: log, answer NaN
+            self._report(f"fmi2GetReal failed: {e!r}", Fmi2Status.error)
+            return [math.nan for _ in vrs]
 
     def get_boolean(self, vrs: list[int]) -> list[bool]:
+        if self._mode == "instantiated":
+            self._in_state("fmi2Get")
         if self._stale:
             self._update_if_stale()
         r, types = self._real, self._types
@@ -313,40 +393,78 @@ class SlaveBase(Fmi2Slave):
         for i, x in zip(vrs, values):
             self._reject(i, x, "this FMU has no String variables")
 
-    # -- FMU state ----------------------------------------------------------
-    def _get_fmu_state(self) -> dict[str, Any]:
+    # -- FMU state (see fmistate) ------------------------------------------
+    def _snapshot(self) -> dict[str, Any]:
         return {
             "real": list(self._real),
             "mode": self._mode,
             "time": self._time,
             "stop_time": self._stop_time,
             "pending": list(self._pending),
-            "dirty": self._dirty,
             "initialized": self._initialized,
             "extra": self._extra_state(),
         }
 
-    def _set_fmu_state(self, state: dict[str, Any]) -> None:
+    def _get_fmu_state(self) -> Any:
         try:
-            self._real = list(state["real"])
-            self._mode = state["mode"]
-            self._time = state["time"]
-            self._stop_time = state["stop_time"]
-            self._pending = list(state["pending"])
-            self._restore_extra_state(state["extra"])
-            self._initialized = state["initialized"]
-            self._dirty = True  # the next doStep rebuilds from the restored values
-            self._stale = True
+            return fmistate.StateHandle(self._fmu_id, self._snapshot())
         except Exception as e:
-            self._dirty = True
-            self._stale = True
-            self._pending.append(f"fmi2SetFMUstate: {e!r}")
+            self._report(f"fmi2GetFMUstate failed: {e!r}", Fmi2Status.error)
+            return fmistate.StateHandle(self._fmu_id, None, rejected=f"not saved: {e!r}")
 
-    @staticmethod
-    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
-        # repr-exact floats; NaN/Inf inputs survive as JSON extensions
-        return json.dumps(state, separators=(",", ":")).encode("utf-8")
+    def _set_fmu_state(self, state: Any) -> None:
+        try:
+            why = (state.problem(self._fmu_id) if isinstance(state, fmistate.StateHandle)
+                   else fmistate.foreign(state))
+            if why is None:
+                why = self._check_payload(state.payload)
+            if why is not None:
+                self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {why}",
+                             Fmi2Status.error)
+                return
+            before = self._snapshot()
+            try:
+                self._restore(state.payload)
+            except Exception as e:
+                self._restore(before)
+                self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {e}",
+                             Fmi2Status.error)
+        except Exception as e:  # never let an exception reach the wrapper
+            self._report(f"fmi2SetFMUstate failed: {e!r}", Fmi2Status.error)
 
-    @staticmethod
-    def _fmu_state_from_bytes(data: bytes) -> dict[str, Any]:
-        return json.loads(data.decode("utf-8"))
+    def _check_payload(self, p: Any) -> str | None:
+        """Why a state payload does not fit this FMU (None if it does)."""
+        real = p.get("real")
+        if not isinstance(real, list) or len(real) != self._n_vars:
+            return f"it holds {len(real) if isinstance(real, list) else 'no'} values, this FMU " \
+                   f"has {self._n_vars} variables"
+        if p.get("mode") not in _MODES or not isinstance(p.get("pending"), list):
+            return f"unknown mode {p.get('mode')!r}"
+        t = p.get("time")
+        if not (isinstance(t, (int, float)) and math.isfinite(t)):
+            return f"time = {t!r} is not a finite number"
+        return None
+
+    def _restore(self, p: dict[str, Any]) -> None:
+        self._real = [bool(x) if kind == "Boolean" else float(x)
+                      for x, kind in zip(p["real"], self._types)]
+        self._mode = p["mode"]
+        self._time = float(p["time"])
+        self._stop_time = None if p["stop_time"] is None else float(p["stop_time"])
+        self._pending = [str(m) for m in p["pending"]]
+        self._restore_extra_state(p["extra"])
+        self._initialized = bool(p["initialized"])
+        self._dirty = True  # the next doStep rebuilds from the restored values
+        self._stale = True
+
+    @classmethod
+    def _fmu_state_to_bytes(cls, state: Any) -> bytes:
+        return fmistate.state_to_bytes(state, cls._class_fmu_id())
+
+    @classmethod
+    def _fmu_state_from_bytes(cls, data: bytes) -> Any:
+        return fmistate.state_from_bytes(data, cls._class_fmu_id())
+
+    @classmethod
+    def _class_fmu_id(cls) -> str:
+        return f"{cls.MODEL_NAME}@{cls.__module__.split('.')[0]}"

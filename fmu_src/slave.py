@@ -161,4 +161,7 @@ class DroneFlyLateral(SlaveBase):
         return {"x": list(self._x)}
 
     def _restore_extra_state(self, state: dict[str, Any]) -> None:
-        self._x = [float(v) for v in state["x"]]
+        x = [float(v) for v in state["x"]]
+        if len(x) != len(STATE_NAMES):
+            raise ValueError(f"the state holds {len(x)} plant states, expected {len(STATE_NAMES)}")
+        self._x = x

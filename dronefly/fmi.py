@@ -37,7 +37,7 @@ from typing import Any, ClassVar, Iterable, Sequence
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from . import fmistate
+from . import fmistate, fmivalues
 
 __all__ = ["UNITS", "SlaveBase", "Var"]
 
@@ -109,6 +109,7 @@ class SlaveBase(Fmi2Slave):
     UNITS: ClassVar[dict[str, tuple[dict[str, int], dict[str, float]]]] = UNITS
     #: outputs depend on inputs within a time instant (Modelica block semantics)
     DIRECT_FEEDTHROUGH: ClassVar[bool] = False
+    MODES: ClassVar[tuple[str, ...]] = _MODES
     log_categories = {
         "logStatusWarning": "Messages with status fmi2Warning.",
         "logStatusDiscard": "Messages with status fmi2Discard (refused steps).",
@@ -219,12 +220,6 @@ class SlaveBase(Fmi2Slave):
         except Exception as e:  # getters cannot fail: keep the outputs, say why
             self._report(f"outputs keep their last valid values: {e}", Fmi2Status.error)
 
-    def _reject(self, vr: int, value: Any, why: str) -> None:
-        name = self.VARIABLES[vr].name if 0 <= vr < len(self.VARIABLES) else f"valueReference {vr}"
-        msg = f"{name} = {value!r} rejected: {why}"
-        self._pending.append(msg)
-        self._report(msg, Fmi2Status.error)
-
     @staticmethod
     def _check_finite(names: Sequence[str], values: Sequence[float]) -> None:
         for n, x in zip(names, values):
@@ -312,150 +307,25 @@ class SlaveBase(Fmi2Slave):
         except Exception as e:  # never let an exception reach the wrapper
             return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
 
-    def get_real(self, vrs: list[int]) -> list[float]:
-        try:
-            if self._mode == "instantiated":
-                self._in_state("fmi2Get")
-            if self._stale:
-                self._update_if_stale()
-            r = self._real
-            # the wrapper passes value references as C int: 2**32 - 1 arrives as -1
-            if vrs and (min(vrs) < 0 or max(vrs) >= self._n_vars):
-                self._bad_get(vrs, "Real")
-                return [float(r[i]) if 0 <= i < len(r) else math.nan for i in vrs]
-            return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
-        except Exception as e:  # a getter cannot fail: log, answer NaN
-            self._report(f"fmi2GetReal failed: {e!r}", Fmi2Status.error)
-            return [math.nan for _ in vrs]
+    # value access and FMU state: functions of dronefly.fmivalues / dronefly.fmistate, bound
+    # here as methods (mixin classes would lengthen the MRO, and pythonfmu's findClass leaks
+    # memory per MRO entry on every instantiation)
+    get_real = fmivalues.get_real
+    get_boolean = fmivalues.get_boolean
+    get_integer = fmivalues.get_integer
+    get_string = fmivalues.get_string
+    set_real = fmivalues.set_real
+    set_boolean = fmivalues.set_boolean
+    set_integer = fmivalues.set_integer
+    set_string = fmivalues.set_string
+    _get_fmu_state = fmistate.get_fmu_state
+    _set_fmu_state = fmistate.set_fmu_state
+    _snapshot = fmistate.snapshot
 
-    def get_boolean(self, vrs: list[int]) -> list[bool]:
-        if self._mode == "instantiated":
-            self._in_state("fmi2Get")
-        if self._stale:
-            self._update_if_stale()
-        r, types = self._real, self._types
-        if any(not 0 <= i < len(r) or types[i] != "Boolean" for i in vrs):
-            self._bad_get(vrs, "Boolean")
-        return [bool(r[i]) if 0 <= i < len(r) else False for i in vrs]
-
-    def set_real(self, vrs: list[int], values: list[float]) -> None:
-        self._set(vrs, values, "Real")
-
-    def set_boolean(self, vrs: list[int], values: list[bool]) -> None:
-        self._set(vrs, [bool(x) for x in values], "Boolean")
-
-    def _set(self, vrs: list[int], values: list[Any], kind: str) -> None:
-        try:
-            ok = self._settable[(self._mode, kind)]
-            r = self._real
-            for i, x in zip(vrs, values):
-                if i in ok:
-                    r[i] = x
-                else:
-                    self._reject(i, x, self._why_not_settable(i, kind))
-            # outputs follow sets only before initialization ends or with direct feedthrough
-            if self.DIRECT_FEEDTHROUGH or not self._initialized:
-                self._stale = True
-            if not self._dirty and not self._param_vrs.isdisjoint(vrs):
-                self._dirty = True
-        except Exception as e:
-            self._pending.append(f"set{kind} failed: {e!r}")
-
-    def _why_not_settable(self, vr: int, kind: str) -> str:
-        if not 0 <= vr < len(self._types):
-            return "no such variable"
-        if self._types[vr] != kind:
-            return f"is a {self._types[vr]} variable, not {kind}"
-        return f"not settable in mode {self._mode!r}"
-
-    def _bad_get(self, vrs: list[int], kind: str) -> None:
-        """Log reads of unknown or wrongly typed variables (a getter cannot fail)."""
-        for i in vrs:
-            if not (0 <= i < len(self._types)) or self._types[i] != kind:
-                what = (f"valueReference {i}" if not 0 <= i < len(self._types)
-                        else f"{self.VARIABLES[i].name} (a {self._types[i]} variable)")
-                self._report(f"fmi2Get{kind} of {what}: not a {kind} variable of this FMU",
-                             Fmi2Status.error)
-
-    def get_integer(self, vrs: list[int]) -> list[int]:
-        self._bad_get(vrs, "Integer")
-        return [0 for _ in vrs]
-
-    def get_string(self, vrs: list[int]) -> list[str]:
-        self._bad_get(vrs, "String")
-        return ["" for _ in vrs]
-
-    def set_integer(self, vrs: list[int], values: list[int]) -> None:
-        for i, x in zip(vrs, values):
-            self._reject(i, x, "this FMU has no Integer variables")
-
-    def set_string(self, vrs: list[int], values: list[str]) -> None:
-        for i, x in zip(vrs, values):
-            self._reject(i, x, "this FMU has no String variables")
-
-    # -- FMU state (see fmistate) ------------------------------------------
-    def _snapshot(self) -> dict[str, Any]:
-        return {
-            "real": list(self._real),
-            "mode": self._mode,
-            "time": self._time,
-            "stop_time": self._stop_time,
-            "pending": list(self._pending),
-            "initialized": self._initialized,
-            "extra": self._extra_state(),
-        }
-
-    def _get_fmu_state(self) -> Any:
-        try:
-            return fmistate.StateHandle(self._fmu_id, self._snapshot())
-        except Exception as e:
-            self._report(f"fmi2GetFMUstate failed: {e!r}", Fmi2Status.error)
-            return fmistate.StateHandle(self._fmu_id, None, rejected=f"not saved: {e!r}")
-
-    def _set_fmu_state(self, state: Any) -> None:
-        try:
-            why = (state.problem(self._fmu_id) if isinstance(state, fmistate.StateHandle)
-                   else fmistate.foreign(state))
-            if why is None:
-                why = self._check_payload(state.payload)
-            if why is not None:
-                self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {why}",
-                             Fmi2Status.error)
-                return
-            before = self._snapshot()
-            try:
-                self._restore(state.payload)
-            except Exception as e:
-                self._restore(before)
-                self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {e}",
-                             Fmi2Status.error)
-        except Exception as e:  # never let an exception reach the wrapper
-            self._report(f"fmi2SetFMUstate failed: {e!r}", Fmi2Status.error)
-
-    def _check_payload(self, p: Any) -> str | None:
-        """Why a state payload does not fit this FMU (None if it does)."""
-        real = p.get("real")
-        if not isinstance(real, list) or len(real) != self._n_vars:
-            return f"it holds {len(real) if isinstance(real, list) else 'no'} values, this FMU " \
-                   f"has {self._n_vars} variables"
-        if p.get("mode") not in _MODES or not isinstance(p.get("pending"), list):
-            return f"unknown mode {p.get('mode')!r}"
-        t = p.get("time")
-        if not (isinstance(t, (int, float)) and math.isfinite(t)):
-            return f"time = {t!r} is not a finite number"
-        return None
-
-    def _restore(self, p: dict[str, Any]) -> None:
-        self._real = [bool(x) if kind == "Boolean" else float(x)
-                      for x, kind in zip(p["real"], self._types)]
-        self._mode = p["mode"]
-        self._time = float(p["time"])
-        self._stop_time = None if p["stop_time"] is None else float(p["stop_time"])
-        self._pending = [str(m) for m in p["pending"]]
-        self._restore_extra_state(p["extra"])
-        self._initialized = bool(p["initialized"])
-        self._dirty = True  # the next doStep rebuilds from the restored values
-        self._stale = True
+    @classmethod
+    def _class_fmu_id(cls) -> str:
+        """Model name and content-addressed package: which FMU and build a state belongs to."""
+        return f"{cls.MODEL_NAME}@{cls.__module__.split('.')[0]}"
 
     @classmethod
     def _fmu_state_to_bytes(cls, state: Any) -> bytes:
@@ -464,7 +334,3 @@ class SlaveBase(Fmi2Slave):
     @classmethod
     def _fmu_state_from_bytes(cls, data: bytes) -> Any:
         return fmistate.state_from_bytes(data, cls._class_fmu_id())
-
-    @classmethod
-    def _class_fmu_id(cls) -> str:
-        return f"{cls.MODEL_NAME}@{cls.__module__.split('.')[0]}"

@@ -26,10 +26,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from collections import deque
 from typing import Any
 
-__all__ = ["FORMAT", "MAGIC", "TOMBSTONES", "StateHandle", "state_from_bytes", "state_to_bytes"]
+from pythonfmu.enums import Fmi2Status
+
+__all__ = ["FORMAT", "MAGIC", "TOMBSTONES", "StateHandle", "foreign", "get_fmu_state", "set_fmu_state",
+           "snapshot", "state_from_bytes", "state_to_bytes"]
 
 MAGIC = b"DRONEFLY-FMU-STATE"
 FORMAT = 1
@@ -143,3 +147,72 @@ def _parse(data: bytes, fmu_id: str) -> dict[str, Any]:
     if not isinstance(state, dict):
         raise _Rejected("the payload is not a state")
     return state
+
+
+# -- the slave's side: functions of a SlaveBase (self), bound as its methods --------------
+def snapshot(self: Any) -> dict[str, Any]:
+    return {
+        "real": list(self._real),
+        "mode": self._mode,
+        "time": self._time,
+        "stop_time": self._stop_time,
+        "pending": list(self._pending),
+        "initialized": self._initialized,
+        "extra": self._extra_state(),
+    }
+
+
+def get_fmu_state(self: Any) -> Any:
+    try:
+        return StateHandle(self._fmu_id, snapshot(self))
+    except Exception as e:
+        self._report(f"fmi2GetFMUstate failed: {e!r}", Fmi2Status.error)
+        return StateHandle(self._fmu_id, None, rejected=f"not saved: {e!r}")
+
+
+def set_fmu_state(self: Any, state: Any) -> None:
+    try:
+        why = (state.problem(self._fmu_id) if isinstance(state, StateHandle)
+               else foreign(state))
+        if why is None:
+            why = _check_payload(self, state.payload)
+        if why is not None:
+            self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {why}",
+                         Fmi2Status.error)
+            return
+        before = snapshot(self)
+        try:
+            _restore(self, state.payload)
+        except Exception as e:
+            _restore(self, before)
+            self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {e}",
+                         Fmi2Status.error)
+    except Exception as e:  # never let an exception reach the wrapper
+        self._report(f"fmi2SetFMUstate failed: {e!r}", Fmi2Status.error)
+
+
+def _check_payload(self: Any, p: Any) -> str | None:
+    """Why a state payload does not fit this FMU (None if it does)."""
+    real = p.get("real")
+    if not isinstance(real, list) or len(real) != self._n_vars:
+        return f"it holds {len(real) if isinstance(real, list) else 'no'} values, this FMU " \
+               f"has {self._n_vars} variables"
+    if p.get("mode") not in self.MODES or not isinstance(p.get("pending"), list):
+        return f"unknown mode {p.get('mode')!r}"
+    t = p.get("time")
+    if not (isinstance(t, (int, float)) and math.isfinite(t)):
+        return f"time = {t!r} is not a finite number"
+    return None
+
+
+def _restore(self: Any, p: dict[str, Any]) -> None:
+    self._real = [bool(x) if kind == "Boolean" else float(x)
+                  for x, kind in zip(p["real"], self._types)]
+    self._mode = p["mode"]
+    self._time = float(p["time"])
+    self._stop_time = None if p["stop_time"] is None else float(p["stop_time"])
+    self._pending = [str(m) for m in p["pending"]]
+    self._restore_extra_state(p["extra"])
+    self._initialized = bool(p["initialized"])
+    self._dirty = True  # the next doStep rebuilds from the restored values
+    self._stale = True

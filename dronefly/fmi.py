@@ -198,11 +198,12 @@ class SlaveBase(Fmi2Slave):
         text = f"{self.instance_name}: {msg}".replace("%", "%%")
         self.log(text.encode("utf-8", "backslashreplace").decode("utf-8"), status)
 
-    def _in_state(self, call: str) -> bool:
-        """Whether ``call`` is allowed now; if not, log an error and keep it for doStep."""
+    def _in_state(self, call: str, name: str | None = None) -> bool:
+        """Whether ``call`` is allowed now; if not, log an error (naming the call as ``name``)
+        and keep it for doStep."""
         if self._mode in _ALLOWED[call]:
             return True
-        msg = (f"{call} is not allowed in state {self._mode!r} (FMI 2.0 co-simulation "
+        msg = (f"{name or call} is not allowed in state {self._mode!r} (FMI 2.0 co-simulation "
                f"call sequence: only in {', '.join(_ALLOWED[call])}); ignored")
         if call != "fmi2DoStep" and call != "fmi2Get":
             self._pending.append(msg)

@@ -25,9 +25,9 @@ def _vr_text(vr: int) -> str:
     return f"valueReference {vr & 0xFFFFFFFF}"  # the wrapper passes the unsigned reference as int
 
 
-def _reject(self: Any, vr: int, value: Any, why: str) -> None:
+def _reject(self: Any, vr: int, value: Any, why: str, kind: str) -> None:
     name = self.VARIABLES[vr].name if 0 <= vr < self._n_vars else _vr_text(vr)
-    msg = f"{name} = {value!r} rejected: {why}"
+    msg = f"fmi2Set{kind}: {name} = {value!r} rejected: {why}"
     self._pending.append(msg)
     self._report(msg, Fmi2Status.error)
 
@@ -36,7 +36,7 @@ def _read(self: Any, vrs: list[int], kind: str, convert: Any, fallback: Any) -> 
     """Values of ``vrs`` as ``kind``; wrong ones logged and answered with ``fallback``."""
     try:
         if self._mode == "instantiated":
-            self._in_state("fmi2Get")
+            self._in_state("fmi2Get", f"fmi2Get{kind}")
         if self._stale:
             self._update_if_stale()
         r, types, n = self._real, self._types, self._n_vars
@@ -98,7 +98,7 @@ def _set(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
             if i in ok:
                 r[i] = bool(x) if kind == "Boolean" else x
             else:
-                _reject(self, i, x, _why_not_settable(self, i, kind))
+                _reject(self, i, x, _why_not_settable(self, i, kind), kind)
         # outputs follow sets only before initialization ends or with direct feedthrough
         if self.DIRECT_FEEDTHROUGH or not self._initialized:
             self._stale = True

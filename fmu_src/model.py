@@ -163,11 +163,15 @@ class LateralParameters:
             raise ModelParameterError(
                 f"Ix_plus = {self.Ix_plus!r}, Iz_plus = {self.Iz_plus!r} must be > 0"
             )
-        det = self.Ix_plus * self.Iz_plus - self.Ixz_plus**2
+        det = self.Ix_plus * self.Iz_plus - self.Ixz_plus * self.Ixz_plus
+        if not math.isfinite(det):
+            raise ModelParameterError(
+                f"Ix_plus*Iz_plus - Ixz_plus^2 = {det!r} is not finite (Ix_plus = "
+                f"{self.Ix_plus!r}, Iz_plus = {self.Iz_plus!r}, Ixz_plus = {self.Ixz_plus!r})")
         if det <= 0.0:
             raise ModelParameterError(
                 f"Ix_plus*Iz_plus = {self.Ix_plus * self.Iz_plus!r} must exceed "
-                f"Ixz_plus^2 = {self.Ixz_plus**2!r} (Ixz_plus = {self.Ixz_plus!r})"
+                f"Ixz_plus^2 = {self.Ixz_plus * self.Ixz_plus!r} (Ixz_plus = {self.Ixz_plus!r})"
             )
 
     def with_values(self, **changes: float) -> "LateralParameters":
@@ -211,6 +215,14 @@ def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
     B = np.zeros((4, 3))
     for j, c in enumerate(("Phi_a", "alpha_1a", "alpha_2a")):
         B[0:3, j] = _rows(*(getattr(p, f"{F}_{c}_plus") for F in "YLN"))
+    for label, M in (("A", A), ("B", B)):
+        bad = np.argwhere(~np.isfinite(M))
+        if len(bad):
+            i, j = bad[0]
+            raise ModelParameterError(
+                f"{label}[{i + 1},{j + 1}] = {M[i, j]!r} is not finite: the parameters overflow "
+                f"Eqs. (10)-(11) (m_plus = {p.m_plus!r}, Ix_plus = {p.Ix_plus!r}, "
+                f"Iz_plus = {p.Iz_plus!r}, Ixz_plus = {p.Ixz_plus!r}, or a derivative)")
     return A, B
 
 

@@ -151,8 +151,9 @@ class DroneFlyLateral(SlaveBase):
         y = (x[0] * self._U, x[1] * n, x[2] * n, x[3])
         if not (math.isfinite(y[0]) and math.isfinite(y[1]) and math.isfinite(y[2])
                 and math.isfinite(y[3])):
-            raise ValueError(f"state overflow: outputs {y!r} after the step (the linear "
-                             "model is far outside its range)")
+            inputs = ", ".join(f"{n} = {v!r}" for n, v in zip(CONTROL_NAMES, u))
+            raise ValueError(f"state overflow: outputs {y!r} after a step of {h!r} s with "
+                             f"{inputs} (the linear model is far outside its range)")
         self._x = x
         for i, v in zip(self._out_vr, y):
             r[i] = v

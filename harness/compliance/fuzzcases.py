@@ -92,35 +92,39 @@ def _reals(fmu: FMU, *causalities: str) -> list[Any]:
             if v.type == "Real" and v.causality in causalities]
 
 
-def group_values(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]:
+Cases = list[tuple[str, Callable[[], dict[str, Any]]]]
+
+
+def group_values(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """Every bad value on every settable Real, in initialization and while stepping."""
-    out = []
     _, step = _experiment(fmu)
     targets = [v for v in _reals(fmu, "input", "parameter")
                if v.variability in ("continuous", "tunable", "fixed", "discrete")]
     outputs = [v.valueReference for v in _reals(fmu, "output")]
-    for v in targets:
-        for bad in BAD_VALUES[: n or None]:
-            with fmu.instantiate("fuzz") as inst:
-                c = _Case(f"{v.name} = {bad!r}", inst, ours)
-                _to_state(c, "stepping" if v.variability != "fixed" else "initialization")
-                if v.variability == "fixed":
-                    c.call("setReal", [v.valueReference], [bad])
-                    c.call("exitInitializationMode")
-                c.call("doStep", 0.0, step)
-                y0 = c.call("getReal", outputs)
-                since = len(inst.messages)
+
+    def case(v: Any, bad: float) -> dict[str, Any]:
+        with fmu.instantiate("fuzz") as inst:
+            c = _Case(f"{v.name} = {bad!r}", inst, ours)
+            _to_state(c, "stepping" if v.variability != "fixed" else "initialization")
+            if v.variability == "fixed":
                 c.call("setReal", [v.valueReference], [bad])
-                c.call("doStep", step, step)
-                if c.statuses[-1] != OK:  # refused (a bad value may also be acceptable)
-                    # a huge finite value is legal; what it causes must be said
-                    c.logged(since, v.name, *(() if math.isnan(bad) or math.isinf(bad)
-                                              else ("overflow",)))
-                    y1 = c.call("getReal", outputs)
-                    if y0 is not None and y1 is not None and list(y0) != list(y1):
-                        c.problems.append("outputs changed by a refused step")
-                out.append(c.result())
-    return out
+                c.call("exitInitializationMode")
+            c.call("doStep", 0.0, step)
+            y0 = c.call("getReal", outputs)
+            since = len(inst.messages)
+            c.call("setReal", [v.valueReference], [bad])
+            c.call("doStep", step, step)
+            if c.statuses[-1] != OK:  # refused (a bad value may also be acceptable)
+                # a huge finite value is legal; what it causes must be said
+                c.logged(since, v.name, *(() if math.isnan(bad) or math.isinf(bad)
+                                          else ("overflow",)))
+                y1 = c.call("getReal", outputs)
+                if y0 is not None and y1 is not None and list(y0) != list(y1):
+                    c.problems.append("outputs changed by a refused step")
+            return c.result()
+
+    return [(f"{v.name} = {bad!r}", lambda v=v, bad=bad: case(v, bad))
+            for v in targets for bad in BAD_VALUES]
 
 
 #: call name -> how to make it (with a fresh instance in a given state)
@@ -148,24 +152,27 @@ ILLEGAL = {
     ("fmi2GetReal", "instantiated"), ("fmi2SetReal", "terminated")}
 
 
-def group_sequence(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]:
+def group_sequence(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """Every call in every state; forbidden ones must be logged as errors and change nothing."""
-    out = []
     _, step = _experiment(fmu)
     vr_out = [v.valueReference for v in _reals(fmu, "output")]
     vr_in = [v.valueReference for v in _reals(fmu, "input")]
-    for state in _STATES:
-        for name, make in _calls(step, vr_out, vr_in).items():
-            with fmu.instantiate("fuzz") as inst:
-                c = _Case(f"{name} in {state}", inst, ours)
-                _to_state(c, state)
-                since = len(inst.messages)
-                make(c)
-                if (name, state) in ILLEGAL and (vr_in or name != "fmi2SetReal"):
-                    c.logged(since, name, name.replace("fmi2", ""))
-                    _probe_state(c, state, step)
-                out.append(c.result())
-    return out
+    calls = _calls(step, vr_out, vr_in)
+
+    def case(name: str, state: str) -> dict[str, Any]:
+        make = calls[name]
+        with fmu.instantiate("fuzz") as inst:
+            c = _Case(f"{name} in {state}", inst, ours)
+            _to_state(c, state)
+            since = len(inst.messages)
+            make(c)
+            if (name, state) in ILLEGAL and (vr_in or name != "fmi2SetReal"):
+                c.logged(since, name, name.replace("fmi2", ""))
+                _probe_state(c, state, step)
+            return c.result()
+
+    return [(f"{name} in {state}", lambda name=name, state=state: case(name, state))
+            for state in _STATES for name in calls]
 
 
 def _probe_state(c: _Case, state: str, step: float) -> None:
@@ -185,11 +192,10 @@ def _probe_state(c: _Case, state: str, step: float) -> None:
         c.problems.append(f"a forbidden call changed the state: {probe} is no longer allowed")
 
 
-def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]:
+def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """Corrupt, truncated, foreign and freed states are refused; the instance keeps its own."""
-    out = []
     if not fmu.model_description.coSimulation.canSerializeFMUstate:
-        return out
+        return []
     _, step = _experiment(fmu)
     rng = random.Random(seed)
     vr_out = [v.valueReference for v in _reals(fmu, "output")]
@@ -202,7 +208,8 @@ def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]
              "not UTF-8": b"\xff\xfe\xfd" * 30,
              "flipped byte": good[:-5] + bytes([good[-5] ^ 0x55]) + good[-4:],
              "extended": good + b"xx"}
-    for label, blob in blobs.items():
+
+    def case(label: str, blob: bytes) -> dict[str, Any]:
         with fmu.instantiate("fuzz") as inst:
             c = _Case(f"deserialize {label} ({len(blob)} bytes)", inst, ours)
             _to_state(c, "stepping")
@@ -218,36 +225,46 @@ def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]
             c.call("doStep", step, step)
             if c.statuses[-1] != OK:
                 c.problems.append("the instance did not continue after a refused state")
-            out.append(c.result())
-    with fmu.instantiate("fuzz") as inst:  # a freed state used again
-        c = _Case("setFMUstate of a freed state", inst, ours)
-        _to_state(c, "stepping")
-        st = c.call("getFMUstate")
-        c.call("freeFMUstate", st)
-        c.call("doStep", 0.0, step)
-        c.call("setFMUstate", st)
-        c.call("doStep", step, step)
-        out.append(c.result())
-    return out
+            return c.result()
+
+    def freed() -> dict[str, Any]:
+        with fmu.instantiate("fuzz") as inst:  # a freed state used again
+            c = _Case("setFMUstate of a freed state", inst, ours)
+            _to_state(c, "stepping")
+            st = c.call("getFMUstate")
+            c.call("freeFMUstate", st)
+            c.call("doStep", 0.0, step)
+            c.call("setFMUstate", st)
+            c.call("doStep", step, step)
+            return c.result()
+
+    return [*((f"deserialize {label}", lambda label=label, blob=blob: case(label, blob))
+              for label, blob in blobs.items()), ("setFMUstate of a freed state", freed)]
 
 
-def group_format(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]:
+def group_format(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """printf directives in instance names, values and unknown references reach the logger."""
-    out = []
     _, step = _experiment(fmu)
-    with fmu.instantiate("%s%s%s%s%n") as inst:
-        c = _Case("instance name '%s%s%s%s%n', bad reads", inst, ours)
-        _to_state(c, "stepping")
-        c.call("getReal", [2**31 - 1])
-        c.call("getString", [0])
-        c.call("setString", [0], ["%s%s%s%s%n%x%p"])
-        c.call("setInteger", [2**31 - 1], [7])
-        c.call("doStep", 0.0, step)
-        out.append(c.result())
-    return out
+
+    def case() -> dict[str, Any]:
+        with fmu.instantiate("%s%s%s%s%n") as inst:
+            c = _Case("instance name '%s%s%s%s%n', bad reads", inst, ours)
+            _to_state(c, "stepping")
+            c.call("getReal", [2**31 - 1])
+            c.call("getString", [0])
+            c.call("setString", [0], ["%s%s%s%s%n%x%p"])
+            c.call("setInteger", [2**31 - 1], [7])
+            c.call("doStep", 0.0, step)
+            return c.result()
+
+    return [("printf directives", case)]
 
 
-def group_random(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]:
+def group_random(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
+    return [(f"{n} random calls (seed {seed})", lambda: _random_calls(fmu, ours, seed, n))]
+
+
+def _random_calls(fmu: FMU, ours: bool, seed: int, n: int) -> dict[str, Any]:
     """``n`` random calls with random arguments on one instance (reset when stuck)."""
     rng = random.Random(seed)
     _, step = _experiment(fmu)
@@ -300,10 +317,14 @@ def group_random(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]
                         c.call("freeFMUstate", st2)
         for st in states:
             c.call("freeFMUstate", st)
-        return [c.result()]
+        return c.result()
 
 
-def group_churn(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]:
+def group_churn(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
+    return [(f"{n} interleaved instances", lambda: _churn(fmu, ours, seed, n))]
+
+
+def _churn(fmu: FMU, ours: bool, seed: int, n: int) -> dict[str, Any]:
     """``n`` instances created, stepped and freed in random order give the single run."""
     rng = random.Random(seed)
     _, step = _experiment(fmu)
@@ -332,20 +353,22 @@ def group_churn(fmu: FMU, ours: bool, seed: int, n: int) -> list[dict[str, Any]]
         got = run(inst, 3)  # a second extraction: another load of the same library
         if got is None or list(got) != expected:
             c.problems.append(f"a second load of the library gave {got}")
-    return [c.result()]
+    return c.result()
 
 
-GROUPS: dict[str, Callable[[FMU, bool, int, int], list[dict[str, Any]]]] = {
+GROUPS: dict[str, Callable[[FMU, bool, int, int], Cases]] = {
     "values": group_values, "sequence": group_sequence, "states": group_states,
     "format": group_format, "random": group_random, "churn": group_churn}
 
 
-def run_group(path: str, group: str, seed: int, n: int) -> list[dict[str, Any]]:
+def run_group(path: str, group: str, seed: int, n: int, start: int = 0) -> None:
+    """Print ``{"begin": label}`` before and the result after each case from ``start`` on."""
     with FMU(path) as fmu:
         ours = (fmu.model_description.generationTool or "").startswith("dronefly-fmu")
-        return GROUPS[group](fmu, ours, seed, n)
+        for label, run in GROUPS[group](fmu, ours, seed, n)[start:]:
+            print(json.dumps({"begin": label}), flush=True)
+            print(json.dumps(run()), flush=True)
 
 
 if __name__ == "__main__":
-    for row in run_group(sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])):
-        print(json.dumps(row), flush=True)
+    run_group(sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]))

@@ -1,0 +1,146 @@
+"""Fuzz an FMI 2.0 co-simulation FMU as a user of FMI tools would, crash-proof.
+
+Each group of cases (:mod:`.fuzzcases`) runs in its own Python process through fmpy's
+low-level API, so that a crash, an abort (also at process exit) or a hang of the FMU is
+counted, not fatal to the caller. After a crash the group continues with the next case in a
+new process. Works on any FMU, the project's and other people's (``dronefly check``).
+
+Result per case: the FMI statuses seen, problems (a Fatal status, a refusal without a log
+message or, for the project's own FMUs, without naming the variable or call, a state changed
+by a refused call) and, if the process died, how.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["FuzzCase", "FuzzReport", "GROUP_NAMES", "fuzz_fmu"]
+
+GROUP_NAMES = ("values", "sequence", "states", "format", "random", "churn")
+_STATUS = ("OK", "Warning", "Discard", "Error", "Fatal")
+
+
+@dataclass
+class FuzzCase:
+    group: str
+    case: str
+    statuses: list[int] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    crash: str | None = None  # how the process died during this case
+
+    @property
+    def passed(self) -> bool:
+        return self.crash is None and not self.problems
+
+
+@dataclass
+class FuzzReport:
+    path: Path
+    cases: list[FuzzCase]
+
+    @property
+    def crashes(self) -> list[FuzzCase]:
+        return [c for c in self.cases if c.crash is not None]
+
+    @property
+    def fatal(self) -> int:
+        return sum(4 in c.statuses for c in self.cases)
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.cases)
+
+    def status_counts(self) -> dict[str, int]:
+        """How many cases saw each FMI status."""
+        n: Counter[str] = Counter(_STATUS[s] for c in self.cases for s in c.statuses)
+        return dict(sorted(n.items(), key=lambda kv: _STATUS.index(kv[0])))
+
+    def summary(self) -> str:
+        failed = [c for c in self.cases if not c.passed]
+        text = (f"{len(self.cases)} cases, {len(self.crashes)} crashes, {self.fatal} with "
+                f"fmi2Fatal; statuses seen: {self.status_counts()}")
+        for c in failed[:5]:
+            text += f"\n  {c.group}: {c.case}: {c.crash or '; '.join(c.problems)}"
+        if len(failed) > 5:
+            text += f"\n  ... and {len(failed) - 5} more"
+        return text
+
+
+def _death(returncode: int) -> str:
+    if returncode < 0:
+        try:
+            return f"killed by {signal.Signals(-returncode).name}"
+        except ValueError:
+            return f"killed by signal {-returncode}"
+    return f"exit code {returncode}"
+
+
+def fuzz_fmu(path: str | Path, *, groups: tuple[str, ...] = GROUP_NAMES, seed: int = 0,
+             random_calls: int = 300, instances: int = 50,
+             timeout_s: float = 120.0) -> FuzzReport:
+    """Run the fuzz groups on one FMU; never raises for what the FMU does.
+
+    Parameters
+    ----------
+    path : str or Path
+        The FMU file.
+    groups : tuple of str
+        Which of :data:`GROUP_NAMES` to run.
+    seed : int
+        Seed of the random call sequences.
+    random_calls, instances : int
+        Length of the random call sequence; instances in the churn group.
+    timeout_s : float
+        Wall-clock limit of one process [s]; a process past it counts as a hang.
+    """
+    path = Path(path).resolve()
+    cases: list[FuzzCase] = []
+    for group in groups:
+        n = random_calls if group == "random" else instances
+        start = 0
+        while True:
+            done, died = _run(path, group, seed, n, start, timeout_s)
+            cases.extend(done)
+            if died is None:
+                break
+            cases.append(died)
+            if died.case in ("process exit", "loading the FMU"):
+                break
+            start += len(done) + 1  # go on after the case that killed the process
+    return FuzzReport(path, cases)
+
+
+def _run(path: Path, group: str, seed: int, n: int, start: int,
+         timeout_s: float) -> tuple[list[FuzzCase], FuzzCase | None]:
+    cmd = [sys.executable, "-m", "dronefly.harness.compliance.fuzzcases", str(path), group,
+           str(seed), str(n), str(start)]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
+        out, died = proc.stdout, (None if proc.returncode == 0 else _death(proc.returncode))
+    except subprocess.TimeoutExpired as e:
+        out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
+        died = f"hung for more than {timeout_s:g} s"
+    done: list[FuzzCase] = []
+    current: str | None = None
+    for line in out.splitlines():
+        try:
+            row = json.loads(line)
+        except ValueError:
+            continue
+        if "begin" in row:
+            current = row["begin"]
+        else:
+            done.append(FuzzCase(group, row["case"], row["statuses"], row["problems"]))
+            current = None
+    if died is None:
+        return done, None
+    if current is None and not done and start == 0 and died:
+        current = "loading the FMU"
+    # died inside `current`, or after the last case (at process exit)
+    return done, FuzzCase(group, current or "process exit", crash=died)

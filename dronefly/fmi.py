@@ -88,6 +88,69 @@ class Var:
     initial_dependencies: tuple[str, ...] | None = None
 
 
+_FINALIZE: set[str] = set()
+
+
+def _finalize_at_exit(resources: str | None, model: str) -> None:
+    """Release pythonfmu's interpreter guard of this FMU's binary before the process exits.
+
+    pythonfmu 0.7.0 keeps a static ``std::shared_ptr<PyState>`` and also resets it from an
+    ELF destructor (``finalizePythonInterpreter``). A library still loaded at exit has the
+    static destroyed first, then the destructor assigns to the destroyed pointer: a double
+    free, seen as "corrupted double-linked list" (valgrind: invalid read in
+    finalizePythonInterpreter). Calling the exported ``finalizePythonInterpreter`` from a
+    Python exit handler, while everything is alive, leaves both later steps nothing to free.
+    Only in a Python host on Linux (the exit handler runs on the process's main thread):
+    where pythonfmu started the interpreter itself (a C host), Python exits inside that
+    very destructor, and calling it again there would be the bug itself.
+    """
+    import os.path
+
+    if not resources or not sys.platform.startswith("linux"):
+        return
+    lib = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "linux64",
+                       f"{model}.so")
+    if lib in _FINALIZE:
+        return
+    _FINALIZE.add(lib)
+    import atexit
+
+    atexit.register(_finalize, lib)
+
+
+def _finalize(lib: str) -> None:
+    import ctypes
+    import os
+    import threading
+
+    if threading.get_native_id() != os.getpid():  # not the main thread: a C host's shutdown
+        return
+    try:
+        handle = ctypes.CDLL(lib, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if still loaded
+        handle.finalizePythonInterpreter()
+    except (OSError, AttributeError):
+        pass
+
+
+def _inside_fmpy_container(resources: str | None) -> bool:
+    """Whether this FMU runs nested in an FMPy container FMU (``resources/container.json``).
+
+    FMPy 0.3.32's container (its fmi-rs importer) gives a nested FMU's fmi2Instantiate a
+    pointer to a callbacks struct on its stack; pythonfmu 0.7.0 keeps that pointer and calls
+    its logger through it later, i.e. through freed stack memory: the host crashes on the
+    first message. Nested there, the FMU therefore logs nothing; the container still reports
+    each refused call with its status in its own log ("[plant] fmi2DoStep(...) ->
+    fmi2Discard"). See docs/interop.md.
+    """
+    if not resources:
+        return False
+    import os.path
+
+    outer = os.path.dirname(os.path.dirname(os.path.abspath(resources)))
+    return (os.path.basename(outer) == "resources"
+            and os.path.isfile(os.path.join(outer, "container.json")))
+
+
 class SlaveBase(Fmi2Slave):
     """Variable storage, model description and error containment.
 
@@ -143,6 +206,8 @@ class SlaveBase(Fmi2Slave):
         res = self.resources
         while res is not None and res in sys.path:
             sys.path.remove(res)
+        self._mute = _inside_fmpy_container(res)
+        _finalize_at_exit(res, self.MODEL_NAME)
 
     # -- subclass hooks ---------------------------------------------------
     def _refresh(self) -> None:  # pragma: no cover - abstract
@@ -195,6 +260,8 @@ class SlaveBase(Fmi2Slave):
 
     def _report(self, msg: str, status: Fmi2Status) -> None:
         """Log ``msg``: ``%`` escaped for the printf-style logger, valid UTF-8 guaranteed."""
+        if self._mute:
+            return
         text = f"{self.instance_name}: {msg}".replace("%", "%%")
         self.log(text.encode("utf-8", "backslashreplace").decode("utf-8"), status)
 

@@ -45,11 +45,11 @@ class _Spec:
 FMUS: dict[str, _Spec] = {
     "DroneFlyLateral": _Spec(
         module="plant.slave", cls="DroneFlyLateral",
-        files=("errors.py", "fmi.py", "fmistate.py", "fmivalues.py", "lateral.py", "plant/model.py", "plant/slave.py"),
+        files=("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py", "fmi/vars.py", "lateral.py", "plant/model.py", "plant/slave.py"),
         readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
     "StateFeedback": _Spec(
         module="controller.slave", cls="StateFeedback",
-        files=("errors.py", "fmi.py", "fmistate.py", "fmivalues.py", "lateral.py", "controller/law.py", "controller/slave.py"),
+        files=("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py", "fmi/vars.py", "lateral.py", "controller/law.py", "controller/slave.py"),
         readme="controller/README.md", reference="controller/StateFeedback_ref.csv"),
 }
 

@@ -6,7 +6,7 @@ pythonfmu does not give: a declarative variable table with units, display
 units and ModelStructure dependencies; a model description that passes
 ``fmpy validate`` (generated from it by :mod:`dronefly.modeldescription`, which
 the FMUs do not ship); value storage by value reference; full-state get/set and
-serialisation (:mod:`.fmistate`); the FMI 2.0 co-simulation state machine;
+serialisation (:mod:`.state`); the FMI 2.0 co-simulation state machine;
 and error containment (no Python exception ever reaches the wrapper, where it
 would become fmi2Fatal).
 
@@ -30,28 +30,19 @@ so it must import nothing from the project but relative siblings.
 from __future__ import annotations
 
 import math
-import sys
-from dataclasses import dataclass
 from typing import Any, ClassVar, Iterable, Sequence
 
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
-from . import fmistate, fmivalues
+from .host import finalize_at_exit, inside_fmpy_container, leave_sys_path
+from .state import (get_fmu_state, set_fmu_state, snapshot, state_from_bytes,
+                    state_to_bytes)
+from .values import (get_boolean, get_integer, get_real, get_string, set_boolean, set_integer,
+                     set_real, set_string)
+from .vars import UNITS, Var
 
 __all__ = ["UNITS", "SlaveBase", "Var"]
-
-_DEG = 180.0 / math.pi
-
-#: unit name -> (base-unit exponents, {display unit: factor})
-UNITS: dict[str, tuple[dict[str, int], dict[str, float]]] = {
-    "1": ({}, {}),
-    "s": ({"s": 1}, {}),
-    "Hz": ({"s": -1}, {}),
-    "m/s": ({"m": 1, "s": -1}, {}),
-    "rad": ({"rad": 1}, {"deg": _DEG}),
-    "rad/s": ({"rad": 1, "s": -1}, {"deg/s": _DEG}),
-}
 
 _MODES = ("instantiated", "initialization", "stepping", "terminated")
 #: FMI 2.0 CS call-sequence table (section 4.2.4): the states in which each call is allowed
@@ -64,91 +55,6 @@ _ALLOWED = {
     "fmi2DoStep": ("stepping",),
     "fmi2Get": ("initialization", "stepping", "terminated"),
 }
-
-
-@dataclass(frozen=True)
-class Var:
-    """One scalar variable of an FMU's interface.
-
-    ``dependencies`` is for outputs and calculated parameters: a tuple of the
-    names of the knowns the value depends on (``()`` = none), or ``None`` for
-    "all knowns" (the attribute is then omitted).
-    """
-
-    name: str
-    causality: str
-    variability: str
-    description: str
-    unit: str | None = "1"
-    display_unit: str | None = None
-    start: float | bool | None = None
-    initial: str | None = None
-    type: str = "Real"
-    dependencies: tuple[str, ...] | None = None
-    initial_dependencies: tuple[str, ...] | None = None
-
-
-_FINALIZE: set[str] = set()
-
-
-def _finalize_at_exit(resources: str | None, model: str) -> None:
-    """Release pythonfmu's interpreter guard of this FMU's binary before the process exits.
-
-    pythonfmu 0.7.0 keeps a static ``std::shared_ptr<PyState>`` and also resets it from an
-    ELF destructor (``finalizePythonInterpreter``). A library still loaded at exit has the
-    static destroyed first, then the destructor assigns to the destroyed pointer: a double
-    free, seen as "corrupted double-linked list" (valgrind: invalid read in
-    finalizePythonInterpreter). Calling the exported ``finalizePythonInterpreter`` from a
-    Python exit handler, while everything is alive, leaves both later steps nothing to free.
-    Only in a Python host on Linux (the exit handler runs on the process's main thread):
-    where pythonfmu started the interpreter itself (a C host), Python exits inside that
-    very destructor, and calling it again there would be the bug itself.
-    """
-    import os.path
-
-    if not resources or not sys.platform.startswith("linux"):
-        return
-    lib = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "linux64",
-                       f"{model}.so")
-    if lib in _FINALIZE:
-        return
-    _FINALIZE.add(lib)
-    import atexit
-
-    atexit.register(_finalize, lib)
-
-
-def _finalize(lib: str) -> None:
-    import ctypes
-    import os
-    import threading
-
-    if threading.get_native_id() != os.getpid():  # not the main thread: a C host's shutdown
-        return
-    try:
-        handle = ctypes.CDLL(lib, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if still loaded
-        handle.finalizePythonInterpreter()
-    except (OSError, AttributeError):
-        pass
-
-
-def _inside_fmpy_container(resources: str | None) -> bool:
-    """Whether this FMU runs nested in an FMPy container FMU (``resources/container.json``).
-
-    FMPy 0.3.32's container (its fmi-rs importer) gives a nested FMU's fmi2Instantiate a
-    pointer to a callbacks struct on its stack; pythonfmu 0.7.0 keeps that pointer and calls
-    its logger through it later, i.e. through freed stack memory: the host crashes on the
-    first message. Nested there, the FMU therefore logs nothing; the container still reports
-    each refused call with its status in its own log ("[plant] fmi2DoStep(...) ->
-    fmi2Discard"). See docs/interop.md.
-    """
-    if not resources:
-        return False
-    import os.path
-
-    outer = os.path.dirname(os.path.dirname(os.path.abspath(resources)))
-    return (os.path.basename(outer) == "resources"
-            and os.path.isfile(os.path.join(outer, "container.json")))
 
 
 class SlaveBase(Fmi2Slave):
@@ -203,11 +109,9 @@ class SlaveBase(Fmi2Slave):
         self._fmu_id = self._class_fmu_id()
         # The wrapper puts the resources folder at the front of sys.path on every
         # instantiation; the FMU's package is imported by then, so take it out again.
-        res = self.resources
-        while res is not None and res in sys.path:
-            sys.path.remove(res)
-        self._mute = _inside_fmpy_container(res)
-        _finalize_at_exit(res, self.MODEL_NAME)
+        leave_sys_path(self.resources)
+        self._mute = inside_fmpy_container(self.resources)
+        finalize_at_exit(self.resources, self.MODEL_NAME)
 
     # -- subclass hooks ---------------------------------------------------
     def _refresh(self) -> None:  # pragma: no cover - abstract
@@ -375,20 +279,20 @@ class SlaveBase(Fmi2Slave):
         except Exception as e:  # never let an exception reach the wrapper
             return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
 
-    # value access and FMU state: functions of dronefly.fmivalues / dronefly.fmistate, bound
+    # value access and FMU state: functions of .values and .state, bound
     # here as methods (mixin classes would lengthen the MRO, and pythonfmu's findClass leaks
     # memory per MRO entry on every instantiation)
-    get_real = fmivalues.get_real
-    get_boolean = fmivalues.get_boolean
-    get_integer = fmivalues.get_integer
-    get_string = fmivalues.get_string
-    set_real = fmivalues.set_real
-    set_boolean = fmivalues.set_boolean
-    set_integer = fmivalues.set_integer
-    set_string = fmivalues.set_string
-    _get_fmu_state = fmistate.get_fmu_state
-    _set_fmu_state = fmistate.set_fmu_state
-    _snapshot = fmistate.snapshot
+    get_real = get_real
+    get_boolean = get_boolean
+    get_integer = get_integer
+    get_string = get_string
+    set_real = set_real
+    set_boolean = set_boolean
+    set_integer = set_integer
+    set_string = set_string
+    _get_fmu_state = get_fmu_state
+    _set_fmu_state = set_fmu_state
+    _snapshot = snapshot
 
     @classmethod
     def _class_fmu_id(cls) -> str:
@@ -397,8 +301,8 @@ class SlaveBase(Fmi2Slave):
 
     @classmethod
     def _fmu_state_to_bytes(cls, state: Any) -> bytes:
-        return fmistate.state_to_bytes(state, cls._class_fmu_id())
+        return state_to_bytes(state, cls._class_fmu_id())
 
     @classmethod
     def _fmu_state_from_bytes(cls, data: bytes) -> Any:
-        return fmistate.state_from_bytes(data, cls._class_fmu_id())
+        return state_from_bytes(data, cls._class_fmu_id())

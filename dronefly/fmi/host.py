@@ -1,0 +1,86 @@
+"""What the host process needs from an FMU of :class:`dronefly.fmi.SlaveBase`.
+
+pythonfmu 0.7.0 runs every FMU of a process in one interpreter and leaves three things for
+the FMU to repair: the resources folder it puts on ``sys.path`` at every instantiation,
+the double release of its interpreter guard at process exit, and (nested in FMPy's
+container) a logger that points into freed memory. Shipped inside every FMU.
+"""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["finalize_at_exit", "inside_fmpy_container", "leave_sys_path"]
+
+
+def leave_sys_path(resources: str | None) -> None:
+    """Remove the resources folder that the wrapper put at the front of ``sys.path``.
+
+    The FMU's package is imported by the time the slave is created; without this,
+    ``sys.path`` grows by one entry per instantiation.
+    """
+    while resources is not None and resources in sys.path:
+        sys.path.remove(resources)
+
+
+_FINALIZE: set[str] = set()
+
+
+def finalize_at_exit(resources: str | None, model: str) -> None:
+    """Release pythonfmu's interpreter guard of this FMU's binary before the process exits.
+
+    pythonfmu 0.7.0 keeps a static ``std::shared_ptr<PyState>`` and also resets it from an
+    ELF destructor (``finalizePythonInterpreter``). A library still loaded at exit has the
+    static destroyed first, then the destructor assigns to the destroyed pointer: a double
+    free, seen as "corrupted double-linked list" (valgrind: invalid read in
+    finalizePythonInterpreter). Calling the exported ``finalizePythonInterpreter`` from a
+    Python exit handler, while everything is alive, leaves both later steps nothing to free.
+    Only in a Python host on Linux (the exit handler runs on the process's main thread):
+    where pythonfmu started the interpreter itself (a C host), Python exits inside that
+    very destructor, and calling it again there would be the bug itself.
+    """
+    import os.path
+
+    if not resources or not sys.platform.startswith("linux"):
+        return
+    lib = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "linux64",
+                       f"{model}.so")
+    if lib in _FINALIZE:
+        return
+    _FINALIZE.add(lib)
+    import atexit
+
+    atexit.register(_finalize, lib)
+
+
+def _finalize(lib: str) -> None:
+    import ctypes
+    import os
+    import threading
+
+    if threading.get_native_id() != os.getpid():  # not the main thread: a C host's shutdown
+        return
+    try:
+        handle = ctypes.CDLL(lib, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if still loaded
+        handle.finalizePythonInterpreter()
+    except (OSError, AttributeError):
+        pass
+
+
+def inside_fmpy_container(resources: str | None) -> bool:
+    """Whether this FMU runs nested in an FMPy container FMU (``resources/container.json``).
+
+    FMPy 0.3.32's container (its fmi-rs importer) gives a nested FMU's fmi2Instantiate a
+    pointer to a callbacks struct on its stack; pythonfmu 0.7.0 keeps that pointer and calls
+    its logger through it later, i.e. through freed stack memory: the host crashes on the
+    first message. Nested there, the FMU therefore logs nothing; the container still reports
+    each refused call with its status in its own log ("[plant] fmi2DoStep(...) ->
+    fmi2Discard"). See docs/interop.md.
+    """
+    if not resources:
+        return False
+    import os.path
+
+    outer = os.path.dirname(os.path.dirname(os.path.abspath(resources)))
+    return (os.path.basename(outer) == "resources"
+            and os.path.isfile(os.path.join(outer, "container.json")))

@@ -1,0 +1,128 @@
+"""Value access of :class:`dronefly.fmi.SlaveBase`: fmi2Get/fmi2Set of every type.
+
+Functions of the slave (``self``), bound as methods in ``SlaveBase``. A getter
+cannot fail in pythonfmu 0.7.0 (an exception would be fmi2Fatal): reads of
+unknown value references or of a type the FMU does not have are logged with
+status fmi2Error and answered with NaN / false / 0 / "". A value that may not
+be set is logged at once and kept for the next doStep, which is refused.
+
+Shipped inside every FMU with the rest of :mod:`dronefly.fmi`; imports only the standard library
+and pythonfmu.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from pythonfmu.enums import Fmi2Status
+
+__all__ = ["get_boolean", "get_integer", "get_real", "get_string", "set_boolean", "set_integer",
+           "set_real", "set_string"]
+
+
+def _vr_text(vr: int) -> str:
+    return f"valueReference {vr & 0xFFFFFFFF}"  # the wrapper passes the unsigned reference as int
+
+
+def _reject(self: Any, vr: int, value: Any, why: str, kind: str) -> None:
+    name = self.VARIABLES[vr].name if 0 <= vr < self._n_vars else _vr_text(vr)
+    msg = f"fmi2Set{kind}: {name} = {value!r} rejected: {why}"
+    self._pending.append(msg)
+    self._report(msg, Fmi2Status.error)
+
+
+def _read(self: Any, vrs: list[int], kind: str, convert: Any, fallback: Any) -> list[Any]:
+    """Values of ``vrs`` as ``kind``; wrong ones logged and answered with ``fallback``."""
+    try:
+        if self._mode == "instantiated":
+            self._in_state("fmi2Get", f"fmi2Get{kind}")
+        if self._stale:
+            self._update_if_stale()
+        r, types, n = self._real, self._types, self._n_vars
+        # the wrapper passes value references as C int: 2**32 - 1 arrives as -1
+        if vrs and (min(vrs) < 0 or max(vrs) >= n or any(types[i] != kind for i in vrs)):
+            _bad_get(self, vrs, kind)
+            return [convert(r[i]) if 0 <= i < n and types[i] == kind else fallback for i in vrs]
+        return [convert(r[i]) for i in vrs]
+    except Exception as e:  # a getter cannot fail: log, answer the fallback
+        self._report(f"fmi2Get{kind} failed: {e!r}", Fmi2Status.error)
+        return [fallback for _ in vrs]
+
+
+def get_real(self: Any, vrs: list[int]) -> list[float]:
+    if self._stale or self._mode == "instantiated":
+        return _read(self, vrs, "Real", float, math.nan)
+    r = self._real
+    try:  # the hot path of every co-simulation step: no per-element checks
+        if vrs and (min(vrs) < 0 or max(vrs) >= self._n_vars):
+            raise IndexError
+        return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
+    except Exception:
+        return _read(self, vrs, "Real", float, math.nan)
+
+
+def get_boolean(self: Any, vrs: list[int]) -> list[bool]:
+    return _read(self, vrs, "Boolean", bool, False)
+
+
+def get_integer(self: Any, vrs: list[int]) -> list[int]:
+    return _read(self, vrs, "Integer", int, 0)
+
+
+def get_string(self: Any, vrs: list[int]) -> list[str]:
+    return _read(self, vrs, "String", str, "")
+
+
+def set_real(self: Any, vrs: list[int], values: list[float]) -> None:
+    _set(self, vrs, values, "Real")
+
+
+def set_boolean(self: Any, vrs: list[int], values: list[bool]) -> None:
+    _set(self, vrs, values, "Boolean")
+
+
+def set_integer(self: Any, vrs: list[int], values: list[int]) -> None:
+    _set(self, vrs, values, "Integer")
+
+
+def set_string(self: Any, vrs: list[int], values: list[str]) -> None:
+    _set(self, vrs, values, "String")
+
+
+def _set(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
+    try:
+        ok = self._settable.get((self._mode, kind), ())
+        r = self._real
+        for i, x in zip(vrs, values):
+            if i in ok:
+                r[i] = bool(x) if kind == "Boolean" else x
+            else:
+                _reject(self, i, x, _why_not_settable(self, i, kind), kind)
+        # outputs follow sets only before initialization ends or with direct feedthrough
+        if self.DIRECT_FEEDTHROUGH or not self._initialized:
+            self._stale = True
+        if not self._dirty and not self._param_vrs.isdisjoint(vrs):
+            self._dirty = True
+    except Exception as e:  # never let an exception reach the wrapper
+        msg = f"fmi2Set{kind} failed: {e!r}"
+        self._pending.append(msg)
+        self._report(msg, Fmi2Status.error)
+
+
+def _why_not_settable(self: Any, vr: int, kind: str) -> str:
+    if not 0 <= vr < self._n_vars:
+        return "no such variable"
+    if self._types[vr] != kind:
+        return f"is a {self._types[vr]} variable, not {kind}"
+    return f"not settable in state {self._mode!r}"
+
+
+def _bad_get(self: Any, vrs: list[int], kind: str) -> None:
+    """Log reads of unknown or wrongly typed variables (a getter cannot fail)."""
+    for i in vrs:
+        if not (0 <= i < self._n_vars) or self._types[i] != kind:
+            what = (_vr_text(i) if not 0 <= i < self._n_vars
+                    else f"{self.VARIABLES[i].name} (a {self._types[i]} variable)")
+            self._report(f"fmi2Get{kind} of {what}: not a {kind} variable of this FMU",
+                         Fmi2Status.error)

@@ -82,7 +82,7 @@ def _death(returncode: int) -> str:
 
 
 def fuzz_fmu(path: str | Path, *, groups: tuple[str, ...] = GROUP_NAMES, seed: int = 0,
-             random_calls: int = 300, instances: int = 50,
+             random_calls: int = 300, instances: int = 50, logging: tuple[bool, ...] = (True, False),
              timeout_s: float = 120.0) -> FuzzReport:
     """Run the fuzz groups on one FMU; never raises for what the FMU does.
 
@@ -96,30 +96,33 @@ def fuzz_fmu(path: str | Path, *, groups: tuple[str, ...] = GROUP_NAMES, seed: i
         Seed of the random call sequences.
     random_calls, instances : int
         Length of the random call sequence; instances in the churn group.
+    logging : tuple of bool
+        Run every group with the FMU's logging on, off, or both (the default).
     timeout_s : float
         Wall-clock limit of one process [s]; a process past it counts as a hang.
     """
     path = Path(path).resolve()
     cases: list[FuzzCase] = []
-    for group in groups:
+    for group, log in ((g, log) for log in logging for g in groups):
         n = random_calls if group == "random" else instances
         start = 0
         while True:
-            done, died = _run(path, group, seed, n, start, timeout_s)
+            done, died = _run(path, group, seed, n, start, log, timeout_s)
             cases.extend(done)
             if died is None:
                 break
             cases.append(died)
-            if died.case in ("process exit", "loading the FMU"):
+            if died.case.startswith(("process exit", "loading the FMU")):
                 break
             start += len(done) + 1  # go on after the case that killed the process
     return FuzzReport(path, cases)
 
 
-def _run(path: Path, group: str, seed: int, n: int, start: int,
+def _run(path: Path, group: str, seed: int, n: int, start: int, logging: bool,
          timeout_s: float) -> tuple[list[FuzzCase], FuzzCase | None]:
     cmd = [sys.executable, "-m", "dronefly.harness.compliance.fuzzcases", str(path), group,
-           str(seed), str(n), str(start)]
+           str(seed), str(n), str(start), "1" if logging else "0"]
+    label = "" if logging else " (logging off)"
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
         out, died = proc.stdout, (None if proc.returncode == 0 else _death(proc.returncode))
@@ -136,11 +139,11 @@ def _run(path: Path, group: str, seed: int, n: int, start: int,
         if "begin" in row:
             current = row["begin"]
         else:
-            done.append(FuzzCase(group, row["case"], row["statuses"], row["problems"]))
+            done.append(FuzzCase(group, row["case"] + label, row["statuses"], row["problems"]))
             current = None
     if died is None:
         return done, None
     if current is None and not done and start == 0 and died:
         current = "loading the FMU"
     # died inside `current`, or after the last case (at process exit)
-    return done, FuzzCase(group, current or "process exit", crash=died)
+    return done, FuzzCase(group, (current or "process exit") + label, crash=died)

@@ -1,0 +1,102 @@
+"""Reliability of the built FMUs in a host process: the fuzz, and processes that must exit 0.
+
+Every case runs in a child process (a crash is counted, never fatal to pytest). The fuzz runs
+on every FMU that ``dronefly build`` produces, so a new FMU is covered from its first build.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+from dronefly.build import FMUS
+from dronefly.harness.compliance.fuzz import fuzz_fmu
+
+pytestmark = pytest.mark.integration
+
+BUILT = [*FMUS, "DroneFlyClosedLoop"]
+
+
+@pytest.mark.parametrize("name", BUILT)
+def test_fuzz_finds_no_crash_no_fatal_no_silent_refusal(built_fmus, name):
+    report = fuzz_fmu(built_fmus[name], seed=1, random_calls=300, instances=50)
+    assert not report.crashes, report.summary()
+    assert report.fatal == 0, report.summary()
+    assert report.passed, report.summary()
+    counts = report.status_counts()
+    # the fuzz did reach refusals (not a run of OKs), with logging on and off
+    assert counts.get("Discard", 0) + counts.get("Error", 0) > 50, counts
+    assert any(c.case.endswith("(logging off)") for c in report.cases)
+    assert len(report.cases) > 200
+
+
+_CHILD = textwrap.dedent("""
+    import math, sys
+    from dronefly.harness.cosim.fmu import FMU
+    paths, err = sys.argv[1:4], sys.argv[4] == "1"
+    for path in paths:
+        with FMU(path) as f, f.instantiate("x", logging=err) as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            if err:
+                s.setReal([f.vr(f.names("input")[0])], [math.nan])
+            s.exitInitializationMode()
+            try:
+                s.doStep(0.0, 1e-3)
+            except Exception:
+                pass
+""")
+
+
+def test_fifty_processes_using_the_fmus_exit_cleanly(built_fmus):
+    """Plant, controller, plant again in one process, with and without errors: exit code 0,
+    every time (no abort in pythonfmu's finalizePythonInterpreter at exit)."""
+    paths = [str(built_fmus[n]) for n in ("DroneFlyLateral", "StateFeedback", "DroneFlyLateral")]
+
+    def run(k: int) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", _CHILD, *paths, str(k % 2)],
+                              capture_output=True, text=True, timeout=120)
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        results = list(pool.map(run, range(50)))
+    bad = [(r.returncode, r.stderr[-300:]) for r in results if r.returncode != 0]
+    assert not bad, f"{len(bad)} of 50 processes failed: {bad[:3]}"
+
+
+_CRASHING = textwrap.dedent('''
+    import ctypes
+    from pythonfmu import Fmi2Slave, Real, Fmi2Causality, Fmi2Variability
+
+
+    class Crashing(Fmi2Slave):
+        """doStep dereferences a null pointer: a real segfault of the host."""
+
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            self.u = 0.0
+            self.register_variable(Real("u", causality=Fmi2Causality.input,
+                                        variability=Fmi2Variability.continuous))
+
+        def do_step(self, t, h):
+            ctypes.string_at(0)
+            return True
+''')
+
+
+def test_the_fuzz_survives_and_counts_a_crashing_fmu(tmp_path):
+    from pythonfmu import FmuBuilder
+
+    src = tmp_path / "Crashing.py"
+    src.write_text(_CRASHING)
+    fmu = FmuBuilder.build_FMU(src, dest=tmp_path)
+    report = fuzz_fmu(fmu, groups=("sequence",), logging=(False,), timeout_s=60)
+    crashed = {c.case for c in report.crashes}
+    assert any("fmi2DoStep in stepping" in c for c in crashed), report.summary()
+    assert "killed by SIGSEGV" in {c.crash for c in report.crashes}
+    # the group went on after each crash: later cases ran and were recorded
+    assert any(c.case.startswith("fmi2GetReal") and c.crash is None for c in report.cases)

@@ -260,7 +260,7 @@ class LateralModel:
         self.params = params
         self.A, self.B = system_matrices(params)
         self._cache: dict[float, tuple[Array, Array]] = {}
-        self._rows: dict[float, tuple[tuple[float, ...], ...]] = {}
+        self._rows: dict[float, tuple[tuple[float, ...], ...] | None] = {}
 
     def transition(self, h_plus: float) -> tuple[Array, Array]:
         """(Phi, Gamma) for a step of ``h_plus`` wing beats (cached)."""
@@ -284,10 +284,22 @@ class LateralModel:
         """
         rows = self._rows.get(h_plus)
         if rows is None:
-            Phi, Gamma = self.transition(h_plus)
+            with np.errstate(all="ignore"):
+                Phi, Gamma = self.transition(h_plus)
+                M = np.hstack([Phi, Gamma])
             if len(self._rows) >= self._CACHE_SIZE:
                 self._rows.pop(next(iter(self._rows)))
-            rows = self._rows[h_plus] = tuple(map(tuple, np.hstack([Phi, Gamma]).tolist()))
+            rows = self._rows[h_plus] = (tuple(map(tuple, M.tolist()))
+                                         if np.all(np.isfinite(M)) else None)
+        if rows is None:  # exp(A1 h) overflows: only the zero solution is representable
+            if not any(x) and not any(u):
+                return [0.0, 0.0, 0.0, 0.0]
+            growth = float(np.max(np.real(np.linalg.eigvals(self.A))))
+            raise ValueError(
+                f"a step of {h_plus!r} wing beats overflows exp(A1 h) (fastest growth "
+                f"{growth:.4f} per wing beat; exp({growth * h_plus:.0f}) is beyond the float "
+                f"range), so only the zero state has a representable result; take steps of at "
+                f"most {math.log(1e300) / max(growth, 1e-300):.0f} wing beats")
         x0, x1, x2, x3 = x
         u0, u1, u2 = u
         return [a * x0 + b * x1 + c * x2 + d * x3 + e * u0 + f * u1 + g * u2

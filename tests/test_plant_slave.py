@@ -138,3 +138,17 @@ def test_misused_getters_are_logged(slave, call, fragment):
     call(slave)
     assert fragment in slave.log_queue[-1].msg
     assert int(slave.log_queue[-1].status) == 3  # fmi2Error
+
+
+def test_long_step_is_exact_or_refused_with_the_reason(slave):
+    """exp(A1 h) overflows beyond about 9000 wing beats: the zero state stays exactly zero,
+    any other state is refused with the reason and the largest step that works."""
+    slave.exit_initialization_mode()
+    assert slave.do_step(0.0, 100.0) is True
+    assert _get(slave, *M.STATE_NAMES) == [0.0, 0.0, 0.0, 0.0]
+    _set(slave, delta_Phi_a=0.01)
+    assert slave.do_step(100.0, 100.0) is False
+    text = " ".join(m.msg for m in slave.log_queue)
+    assert "overflows exp(A1 h)" in text and "take steps of at most" in text
+    assert _get(slave, *M.STATE_NAMES) == [0.0, 0.0, 0.0, 0.0]  # refused: nothing changed
+    assert slave.do_step(100.0, 1.0) is True  # a shorter step works

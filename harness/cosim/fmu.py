@@ -18,7 +18,7 @@ from typing import Any, Sequence
 
 from dronefly.errors import DroneflyError
 
-__all__ = ["FMU", "FMUError", "Instance", "LogMessage", "start_values"]
+__all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "start_values"]
 
 # fmpy's native logger proxy keeps ONE Python logger per process (the last one
 # installed), so every instance shares one dispatcher that routes messages by
@@ -64,6 +64,45 @@ def start_values(md: Any) -> dict[str, float]:
             if v.type == "Real" and v.start is not None}
 
 
+def check_archive(path: Path) -> None:
+    """Refuse an FMU that could not be loaded safely, before anything of it is loaded.
+
+    Checks that the file is a zip with a modelDescription.xml of FMI version 2.0, a
+    co-simulation binary for this platform, and, for a pythonfmu FMU (``slavemodule.txt``,
+    also nested ones), the Python module it names: pythonfmu crashes the host on a missing
+    one. Raises :class:`FMUError` with one line naming what is missing.
+    """
+    import re
+
+    from fmpy import platform, sharedLibraryExtension
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = set(z.namelist())
+            head = z.read("modelDescription.xml")[:4096].decode("utf-8", "replace")
+            modules = {n: z.read(n).decode("utf-8", "replace").strip()
+                       for n in names if n.endswith("resources/slavemodule.txt")}
+    except (zipfile.BadZipFile, OSError) as e:
+        raise FMUError(f"{str(path)!r} is not an FMU (not a zip archive: {e})") from e
+    except KeyError:
+        raise FMUError(f"{str(path)!r} is not an FMU (no modelDescription.xml)") from None
+    version = re.search(r'fmiVersion\s*=\s*"([^"]*)"', head)
+    if version is None or version.group(1) != "2.0":
+        found = version.group(1) if version else "unknown"
+        raise FMUError(f"{str(path)!r} is an FMI {found} FMU; dronefly co-simulates FMI 2.0 "
+                       "co-simulation FMUs")
+    ident = re.search(r'<CoSimulation[^>]*modelIdentifier\s*=\s*"([^"]*)"', head)
+    if ident is not None:
+        lib = f"binaries/{platform}/{ident.group(1)}{sharedLibraryExtension}"
+        if lib not in names:
+            raise FMUError(f"{str(path)!r} has no binary for this platform ({lib} is missing)")
+    for txt, module in modules.items():
+        folder = txt[: -len("slavemodule.txt")]
+        if f"{folder}{module}.py" not in names:
+            raise FMUError(f"{str(path)!r} is incomplete: {folder}{module}.py, named in {txt}, "
+                           "is missing (the FMU's Python sources)")
+
+
 class FMU:
     """An FMI 2.0 CS FMU, read and extracted once.
 
@@ -85,13 +124,15 @@ class FMU:
         if not self.path.is_file():
             raise FMUError(f"FMU file {str(self.path)!r} " + (
                 "is a folder, not an FMU file" if self.path.is_dir() else "does not exist"))
+        check_archive(self.path)
         try:
             self.model_description = fmpy.read_model_description(str(self.path))
-        except (zipfile.BadZipFile, OSError, KeyError, Exception) as e:
-            raise FMUError(f"{str(self.path)!r} is not a readable FMU: {e}") from e
+        except Exception as e:  # fmpy's schema errors span many lines: the first says it
+            first = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
+            raise FMUError(f"{str(self.path)!r} is not a readable FMU: {first}") from e
         md = self.model_description
-        if md.fmiVersion != "2.0" or md.coSimulation is None:
-            raise FMUError(f"{str(self.path)!r} is not an FMI 2.0 co-simulation FMU")
+        if md.coSimulation is None:
+            raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU (model exchange only)")
         self.name = md.modelName
         self.variables = {v.name: v for v in md.modelVariables}
         self._unzipdir: str | None = tempfile.mkdtemp(prefix=f"dronefly_{self.name}_")

@@ -187,6 +187,11 @@ def default_parameters() -> LateralParameters:
     )
 
 
+#: (Y, L, N) derivative names per column of A1 (v, p, r) and of B1 (the three controls)
+_STABILITY = tuple(tuple(f"{F}{s}_plus" for F in "YLN") for s in "vpr")
+_CONTROL = tuple(tuple(f"{F}_{c}_plus" for F in "YLN") for c in ("Phi_a", "alpha_1a", "alpha_2a"))
+
+
 def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
     """A1 and B1 of Eq. (9) by Eqs. (10)-(11).
 
@@ -208,13 +213,13 @@ def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
         )
 
     A = np.zeros((4, 4))
-    for j, s in enumerate("vpr"):
-        A[0:3, j] = _rows(*(getattr(p, f"{F}{s}_plus") for F in "YLN"))
+    for j, names in enumerate(_STABILITY):
+        A[0:3, j] = _rows(*(getattr(p, n) for n in names))
     A[0, 3] = p.g_plus
     A[3, 1] = 1.0
     B = np.zeros((4, 3))
-    for j, c in enumerate(("Phi_a", "alpha_1a", "alpha_2a")):
-        B[0:3, j] = _rows(*(getattr(p, f"{F}_{c}_plus") for F in "YLN"))
+    for j, names in enumerate(_CONTROL):
+        B[0:3, j] = _rows(*(getattr(p, n) for n in names))
     for label, M in (("A", A), ("B", B)):
         bad = np.argwhere(~np.isfinite(M))
         if len(bad):

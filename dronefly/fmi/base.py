@@ -297,7 +297,11 @@ class SlaveBase(Fmi2Slave):
     @classmethod
     def _class_fmu_id(cls) -> str:
         """Model name and content-addressed package: which FMU and build a state belongs to."""
-        return f"{cls.MODEL_NAME}@{cls.__module__.split('.')[0]}"
+        fmu_id = cls.__dict__.get("_FMU_ID")
+        if fmu_id is None:  # one string per class, shared by all its instances and states
+            fmu_id = f"{cls.MODEL_NAME}@{cls.__module__.split('.')[0]}"
+            cls._FMU_ID = fmu_id
+        return fmu_id
 
     @classmethod
     def _fmu_state_to_bytes(cls, state: Any) -> bytes:

@@ -16,7 +16,7 @@ leaves the instance unusable, so nothing in this module raises:
   legal way left: pythonfmu offers no non-Fatal failure of
   ``fmi2DeSerializeFMUstate`` itself).
 - A handle the host frees with ``fmi2FreeFMUstate`` is kept alive, emptied,
-  as a tombstone (the last :data:`TOMBSTONES` of them), so that a host that
+  as a tombstone (the last :data:`TOMBSTONES` = 256 of them, about 25 kB), so that a host that
   passes a freed state again gets a refusal instead of a use-after-free.
 
 Shipped inside every FMU with the rest of :mod:`dronefly.fmi`; imports only the standard library.
@@ -38,7 +38,7 @@ __all__ = ["FORMAT", "MAGIC", "TOMBSTONES", "StateHandle", "foreign", "get_fmu_s
 MAGIC = b"DRONEFLY-FMU-STATE"
 FORMAT = 1
 #: freed handles kept alive so that their reuse is detected (about 100 bytes each)
-TOMBSTONES = 4096
+TOMBSTONES = 256
 _MAX_HEADER = 4096
 
 _freed: deque["StateHandle"] = deque(maxlen=TOMBSTONES)

@@ -7,6 +7,7 @@ on every FMU that ``dronefly build`` produces, so a new FMU is covered from its 
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import textwrap
@@ -144,3 +145,45 @@ def test_instantiate_and_free_leave_the_interpreter_as_found(built_fmus, name):
     got = json.loads(r.stdout.strip().splitlines()[-1])
     assert got["path"] == 0
     assert got["ours"] < 2048, got  # bytes over 300 cycles: a bounded cache at most
+
+
+_CONTAINER_REFUSAL = textwrap.dedent("""
+    import math, sys
+    from fmpy.fmi1 import FMICallException
+    from dronefly.harness.cosim.fmu import FMU
+    with FMU(sys.argv[1]) as f:
+        h = float(f.model_description.defaultExperiment.stepSize)
+        with f.instantiate("c", logging=sys.argv[2] == "1") as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0); s.enterInitializationMode(); s.exitInitializationMode()
+            s.doStep(0.0, h)
+            s.setReal([f.vr("K[1,1]")], [math.nan])
+            try:
+                s.doStep(h, h)
+                print("not refused")
+            except FMICallException as e:
+                print("refused", e.status, len(inst.messages))
+        with f.instantiate("c2", logging=False) as inst:  # a new instance in the same process
+            s = inst.slave
+            s.setupExperiment(startTime=0.0); s.enterInitializationMode(); s.exitInitializationMode()
+            for k in range(5):
+                s.doStep(k * h, h)
+            print("usable", s.getReal([f.vr("delta_gamma")])[0])
+""")
+
+
+@pytest.mark.parametrize("logging", ["1", "0"])
+def test_container_refuses_a_bad_gain_and_the_host_survives(built_fmus, logging):
+    """K[1,1] = NaN in the container: the step is refused with a status (and, logging on, a
+    message), the host process lives on and exits 0, and a new container instance works.
+    (FMPy's container stays stopped after such a refusal even through fmi2Reset: see
+    docs/fmi-limits.md.)"""
+    r = subprocess.run([sys.executable, "-c", _CONTAINER_REFUSAL,
+                        str(built_fmus["DroneFlyClosedLoop"]), logging],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-500:]
+    lines = [ln.split() for ln in r.stdout.splitlines() if ln.startswith(("refused", "usable", "not"))]
+    assert lines[0][0] == "refused" and int(lines[0][1]) >= 2, r.stdout
+    if logging == "1":
+        assert int(lines[0][2]) > 0, r.stdout
+    assert lines[1][0] == "usable" and math.isfinite(float(lines[1][1])), r.stdout

@@ -240,3 +240,19 @@ def test_freed_state_is_refused():
     handle.__del__()  # what the host's fmi2FreeFMUstate leads to (the last reference dropped)
     s._set_fmu_state(handle)
     assert any("freed" in text for _, text in _messages(s))
+
+
+def test_ctrl_c_inside_a_step_is_a_refusal_not_fatal(monkeypatch):
+    """SIGINT delivered while the FMU's Python code runs must not escape into the wrapper
+    (where it would be fmi2Fatal and crash the host later)."""
+    s = _stepping()
+
+    def interrupted(t, h):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(s, "_advance", interrupted)
+    assert s.do_step(0.0, H) is False
+    assert any("interrupted (SIGINT)" in text for _, text in _messages(s))
+    assert s._time == 0.0
+    monkeypatch.undo()
+    assert s.do_step(0.0, H) is True

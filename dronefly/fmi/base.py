@@ -189,7 +189,7 @@ class SlaveBase(Fmi2Slave):
         self._stale = False
         try:
             self._update_outputs()
-        except Exception as e:  # getters cannot fail: keep the outputs, say why
+        except BaseException as e:  # getters cannot fail: keep the outputs, say why
             self._report(f"outputs keep their last valid values: {e}", Fmi2Status.error)
 
     @staticmethod
@@ -216,12 +216,15 @@ class SlaveBase(Fmi2Slave):
                 return
             self._time = float(start_time)
             self._stop_time = None if stop_time is None else float(stop_time)
-        except Exception as e:  # never let an exception reach the wrapper
+        except BaseException as e:  # never let an exception reach the wrapper
             self._report(f"fmi2SetupExperiment failed: {e!r}", Fmi2Status.error)
 
     def enter_initialization_mode(self) -> None:
-        if self._in_state("fmi2EnterInitializationMode"):
-            self._mode = "initialization"
+        try:
+            if self._in_state("fmi2EnterInitializationMode"):
+                self._mode = "initialization"
+        except BaseException as e:  # never let an exception reach the wrapper
+            self._pending.append(f"fmi2EnterInitializationMode failed: {e!r}")
 
     def exit_initialization_mode(self) -> None:
         if not self._in_state("fmi2ExitInitializationMode"):
@@ -231,12 +234,15 @@ class SlaveBase(Fmi2Slave):
             self._initialize()
             self._initialized = True
             self._dirty = False
-        except Exception as e:  # retried, and reported, by every doStep until fixed
+        except BaseException as e:  # retried, and reported, by every doStep until fixed
             self._report(f"initialization: {e}", Fmi2Status.error)
 
     def terminate(self) -> None:
-        if self._in_state("fmi2Terminate"):
-            self._mode = "terminated"
+        try:
+            if self._in_state("fmi2Terminate"):
+                self._mode = "terminated"
+        except BaseException as e:  # never let an exception reach the wrapper
+            self._pending.append(f"fmi2Terminate failed: {e!r}")
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         try:
@@ -276,7 +282,10 @@ class SlaveBase(Fmi2Slave):
             return True
         except ValueError as e:
             return self._refuse(f"step refused at t = {current_time!r} s: {e}")
-        except Exception as e:  # never let an exception reach the wrapper
+        except KeyboardInterrupt:  # Ctrl-C landed in this FMU's code: refuse, never Fatal
+            return self._refuse(f"step from t = {current_time!r} s interrupted (SIGINT); "
+                                "nothing changed")
+        except BaseException as e:  # never let an exception reach the wrapper
             return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
 
     # value access and FMU state: functions of .values and .state, bound

@@ -97,7 +97,7 @@ def state_to_bytes(state: Any, fmu_id: str) -> bytes:
         header = json.dumps({"format": FORMAT, "fmu": fmu_id, "length": len(payload),
                              "sha256": hashlib.sha256(payload).hexdigest()}).encode("utf-8")
         return MAGIC + b"\n" + header + b"\n" + payload
-    except Exception:
+    except BaseException:
         return b""
 
 
@@ -108,7 +108,7 @@ def state_from_bytes(data: Any, fmu_id: str) -> StateHandle:
         return StateHandle(fmu_id, _parse(bytes(data), fmu_id))
     except _Rejected as e:
         return StateHandle(fmu_id, None, rejected=f"serialized state refused: {e}")
-    except Exception as e:  # never let anything reach the wrapper
+    except BaseException as e:  # never let anything reach the wrapper
         return StateHandle(fmu_id, None, rejected=f"serialized state refused: {e!r}")
 
 
@@ -165,7 +165,7 @@ def snapshot(self: Any) -> dict[str, Any]:
 def get_fmu_state(self: Any) -> Any:
     try:
         return StateHandle(self._fmu_id, snapshot(self))
-    except Exception as e:
+    except BaseException as e:
         self._report(f"fmi2GetFMUstate failed: {e!r}", Fmi2Status.error)
         return StateHandle(self._fmu_id, None, rejected=f"not saved: {e!r}")
 
@@ -183,11 +183,11 @@ def set_fmu_state(self: Any, state: Any) -> None:
         before = snapshot(self)
         try:
             _restore(self, state.payload)
-        except Exception as e:
+        except BaseException as e:
             _restore(self, before)
             self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {e}",
                          Fmi2Status.error)
-    except Exception as e:  # never let an exception reach the wrapper
+    except BaseException as e:  # never let an exception reach the wrapper
         self._report(f"fmi2SetFMUstate failed: {e!r}", Fmi2Status.error)
 
 

@@ -45,7 +45,7 @@ def _read(self: Any, vrs: list[int], kind: str, convert: Any, fallback: Any) -> 
             _bad_get(self, vrs, kind)
             return [convert(r[i]) if 0 <= i < n and types[i] == kind else fallback for i in vrs]
         return [convert(r[i]) for i in vrs]
-    except Exception as e:  # a getter cannot fail: log, answer the fallback
+    except BaseException as e:  # a getter cannot fail: log, answer the fallback
         self._report(f"fmi2Get{kind} failed: {e!r}", Fmi2Status.error)
         return [fallback for _ in vrs]
 
@@ -58,7 +58,7 @@ def get_real(self: Any, vrs: list[int]) -> list[float]:
         if vrs and (min(vrs) < 0 or max(vrs) >= self._n_vars):
             raise IndexError
         return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
-    except Exception:
+    except BaseException:
         return _read(self, vrs, "Real", float, math.nan)
 
 
@@ -104,7 +104,7 @@ def _set(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
             self._stale = True
         if not self._dirty and not self._param_vrs.isdisjoint(vrs):
             self._dirty = True
-    except Exception as e:  # never let an exception reach the wrapper
+    except BaseException as e:  # never let an exception reach the wrapper
         msg = f"fmi2Set{kind} failed: {e!r}"
         self._pending.append(msg)
         self._report(msg, Fmi2Status.error)

@@ -69,18 +69,15 @@ def _variables() -> tuple[Var, ...]:
     for name, text, (unit, disp) in zip(STATE_NAMES, STATE_DESCRIPTIONS, STATE_UNITS):
         out.append(Var(f"{name}_start", "parameter", "fixed", f"initial {text}", unit, disp,
                        start=0.0))
-    for i in range(4):
-        for j in range(4):
-            out.append(Var(f"A[{i + 1},{j + 1}]", "calculatedParameter", "tunable",
-                           f"system matrix A1 of Eq. (9), row {i + 1} column {j + 1} "
-                           "(per wing beat)", "1", initial="calculated",
-                           initial_dependencies=_matrix_dependencies(i, j, False)))
-    for i in range(4):
-        for j in range(3):
-            out.append(Var(f"B[{i + 1},{j + 1}]", "calculatedParameter", "tunable",
-                           f"control matrix B1 of Eq. (9), row {i + 1} column {j + 1} "
-                           "(per wing beat per rad)", "1", initial="calculated",
-                           initial_dependencies=_matrix_dependencies(i, j, True)))
+    for M, what, cols, per in (("A", "system matrix A1", len(STATE_NAMES), "per wing beat"),
+                               ("B", "control matrix B1", len(CONTROL_NAMES),
+                                "per wing beat per rad")):
+        for i in range(len(STATE_NAMES)):
+            for j in range(cols):
+                out.append(Var(f"{M}[{i + 1},{j + 1}]", "calculatedParameter", "tunable",
+                               f"{what} of Eq. (9), row {i + 1} column {j + 1} ({per})", "1",
+                               initial="calculated",
+                               initial_dependencies=_matrix_dependencies(i, j, M == "B")))
     return tuple(out)
 
 

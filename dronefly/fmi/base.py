@@ -219,12 +219,16 @@ class SlaveBase(Fmi2Slave):
         except BaseException as e:  # never let an exception reach the wrapper
             self._report(f"fmi2SetupExperiment failed: {e!r}", Fmi2Status.error)
 
-    def enter_initialization_mode(self) -> None:
+    def _enter(self, call: str, mode: str) -> None:
+        """Go to ``mode`` if ``call`` is allowed now (else logged and ignored)."""
         try:
-            if self._in_state("fmi2EnterInitializationMode"):
-                self._mode = "initialization"
+            if self._in_state(call):
+                self._mode = mode
         except BaseException as e:  # never let an exception reach the wrapper
-            self._pending.append(f"fmi2EnterInitializationMode failed: {e!r}")
+            self._pending.append(f"{call} failed: {e!r}")
+
+    def enter_initialization_mode(self) -> None:
+        self._enter("fmi2EnterInitializationMode", "initialization")
 
     def exit_initialization_mode(self) -> None:
         if not self._in_state("fmi2ExitInitializationMode"):
@@ -238,11 +242,7 @@ class SlaveBase(Fmi2Slave):
             self._report(f"initialization: {e}", Fmi2Status.error)
 
     def terminate(self) -> None:
-        try:
-            if self._in_state("fmi2Terminate"):
-                self._mode = "terminated"
-        except BaseException as e:  # never let an exception reach the wrapper
-            self._pending.append(f"fmi2Terminate failed: {e!r}")
+        self._enter("fmi2Terminate", "terminated")
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         try:

@@ -18,9 +18,13 @@ import tempfile
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import DroneflyError
 from .files import write_zip
+
+if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
+    from .harness.interop.closedloop import ClosedLoopSpec
 
 __all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "fmu_sources",
            "project_fmus"]

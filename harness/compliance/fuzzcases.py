@@ -24,120 +24,29 @@ import math
 import os
 import random
 import sys
-import tempfile
 from typing import Any, Callable
 
+from dronefly.harness.compliance.fuzzkit import (BAD_VALUES, ERROR, LOGGING, OK, PRINTED, STATES,
+                                                 Case, experiment, instantiate, reals,
+                                                 to_state)
 from dronefly.harness.cosim.fmu import FMU, Instance
 
 __all__ = ["GROUPS", "run_group"]
-
-OK, WARNING, DISCARD, ERROR, FATAL = range(5)
-BAD_VALUES = (math.nan, math.inf, -math.inf, 1e308, -1e308)
-_STATES = ("instantiated", "initialization", "stepping", "terminated")
-
-
-class _Printed:
-    """What the FMU's binary writes to the process's standard output (fd 1): some binaries
-    (FMPy's container) report errors there instead of through the FMI logger."""
-
-    def __init__(self) -> None:
-        self.file = tempfile.TemporaryFile()
-        self.seen = 0
-
-    def new(self) -> bytes:
-        self.file.seek(self.seen)
-        data = self.file.read()
-        self.seen += len(data)
-        return data
-
-
-PRINTED = _Printed()
-#: whether instances are created with logging on (the logger must then never crash the host)
-LOGGING = [True]
-
-
-def _instantiate(fmu: FMU, name: str) -> Instance:
-    return fmu.instantiate(name, logging=LOGGING[0])
-
-
-class _Case:
-    """Statuses and problems of one case; ``call`` runs one FMI call and records its status."""
-
-    def __init__(self, name: str, inst: Instance, ours: bool) -> None:
-        self.name, self.inst, self.ours = name, inst, ours
-        self.statuses: list[int] = []
-        self.problems: list[str] = []
-
-    def call(self, fname: str, *args: Any) -> Any:
-        from fmpy.fmi1 import FMICallException
-
-        before = len(self.inst.messages)
-        PRINTED.new()
-        try:
-            out = getattr(self.inst.slave, fname)(*args)
-            self.statuses.append(OK)
-            return out
-        except FMICallException as e:
-            self.statuses.append(int(e.status))
-            if e.status == FATAL:
-                self.problems.append(f"{fname} returned fmi2Fatal")
-            elif not self.inst.messages[before:] and not PRINTED.new() and self.inst.logging:
-                self.problems.append(f"{fname} returned status {e.status} without a log message")
-            return None
-
-    def logged(self, since: int, *fragments: str) -> None:
-        """Require (for our FMUs, logging on) an error/discard message naming a fragment."""
-        if not self.ours or not self.inst.logging:
-            return
-        texts = [m.message for m in self.inst.messages[since:] if m.status >= DISCARD]
-        if not any(f in t for t in texts for f in fragments):
-            self.problems.append(f"no error message naming {' or '.join(fragments)} "
-                                 f"(got {texts[-2:]})")
-
-    def result(self) -> dict[str, Any]:
-        return {"case": self.name, "statuses": sorted(set(self.statuses)),
-                "problems": self.problems}
-
-
-def _experiment(fmu: FMU) -> tuple[float, float]:
-    de = fmu.model_description.defaultExperiment
-    stop = float(de.stopTime) if de is not None and de.stopTime is not None else 1.0
-    step = float(de.stepSize) if de is not None and de.stepSize is not None else stop / 100
-    return stop, step
-
-
-def _to_state(c: _Case, state: str) -> None:
-    """Bring a fresh instance into ``state`` with legal calls."""
-    if state == "instantiated":
-        return
-    c.call("setupExperiment", None, 0.0)
-    c.call("enterInitializationMode")
-    if state == "initialization":
-        return
-    c.call("exitInitializationMode")
-    if state == "terminated":
-        c.call("terminate")
-
-
-def _reals(fmu: FMU, *causalities: str) -> list[Any]:
-    return [v for v in fmu.model_description.modelVariables
-            if v.type == "Real" and v.causality in causalities]
-
 
 Cases = list[tuple[str, Callable[[], dict[str, Any]]]]
 
 
 def group_values(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """Every bad value on every settable Real, in initialization and while stepping."""
-    _, step = _experiment(fmu)
-    targets = [v for v in _reals(fmu, "input", "parameter")
+    _, step = experiment(fmu)
+    targets = [v for v in reals(fmu, "input", "parameter")
                if v.variability in ("continuous", "tunable", "fixed", "discrete")]
-    outputs = [v.valueReference for v in _reals(fmu, "output")]
+    outputs = [v.valueReference for v in reals(fmu, "output")]
 
     def case(v: Any, bad: float) -> dict[str, Any]:
-        with _instantiate(fmu, "fuzz") as inst:
-            c = _Case(f"{v.name} = {bad!r}", inst, ours)
-            _to_state(c, "stepping" if v.variability != "fixed" else "initialization")
+        with instantiate(fmu, "fuzz") as inst:
+            c = Case(f"{v.name} = {bad!r}", inst, ours)
+            to_state(c, "stepping" if v.variability != "fixed" else "initialization")
             if v.variability == "fixed":
                 c.call("setReal", [v.valueReference], [bad])
                 c.call("exitInitializationMode")
@@ -160,7 +69,7 @@ def group_values(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
 
 
 #: call name -> how to make it (with a fresh instance in a given state)
-def _calls(step: float, vr_out: list[int], vr_in: list[int]) -> dict[str, Callable[[_Case], Any]]:
+def _calls(step: float, vr_out: list[int], vr_in: list[int]) -> dict[str, Callable[[Case], Any]]:
     return {
         "fmi2SetupExperiment": lambda c: c.call("setupExperiment", None, 0.0),
         "fmi2EnterInitializationMode": lambda c: c.call("enterInitializationMode"),
@@ -186,16 +95,16 @@ ILLEGAL = {
 
 def group_sequence(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """Every call in every state; forbidden ones must be logged as errors and change nothing."""
-    _, step = _experiment(fmu)
-    vr_out = [v.valueReference for v in _reals(fmu, "output")]
-    vr_in = [v.valueReference for v in _reals(fmu, "input")]
+    _, step = experiment(fmu)
+    vr_out = [v.valueReference for v in reals(fmu, "output")]
+    vr_in = [v.valueReference for v in reals(fmu, "input")]
     calls = _calls(step, vr_out, vr_in)
 
     def case(name: str, state: str) -> dict[str, Any]:
         make = calls[name]
-        with _instantiate(fmu, "fuzz") as inst:
-            c = _Case(f"{name} in {state}", inst, ours)
-            _to_state(c, state)
+        with instantiate(fmu, "fuzz") as inst:
+            c = Case(f"{name} in {state}", inst, ours)
+            to_state(c, state)
             since = len(inst.messages)
             make(c)
             if (name, state) in ILLEGAL and (vr_in or name != "fmi2SetReal"):
@@ -204,10 +113,10 @@ def group_sequence(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
             return c.result()
 
     return [(f"{name} in {state}", lambda name=name, state=state: case(name, state))
-            for state in _STATES for name in calls]
+            for state in STATES for name in calls]
 
 
-def _probe_state(c: _Case, state: str, step: float) -> None:
+def _probe_state(c: Case, state: str, step: float) -> None:
     """After a forbidden call: the instance is still in ``state`` (its legal next call works)."""
     if not c.ours:
         return
@@ -228,12 +137,12 @@ def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """Corrupt, truncated, foreign and freed states are refused; the instance keeps its own."""
     if not fmu.model_description.coSimulation.canSerializeFMUstate:
         return []
-    _, step = _experiment(fmu)
+    _, step = experiment(fmu)
     rng = random.Random(seed)
-    vr_out = [v.valueReference for v in _reals(fmu, "output")]
-    with _instantiate(fmu, "donor") as donor:
-        d = _Case("donor", donor, ours)
-        _to_state(d, "stepping")
+    vr_out = [v.valueReference for v in reals(fmu, "output")]
+    with instantiate(fmu, "donor") as donor:
+        d = Case("donor", donor, ours)
+        to_state(d, "stepping")
         good = bytes(donor.slave.serializeFMUstate(donor.slave.getFMUstate()))
     blobs = {"empty": b"", "truncated": good[: len(good) // 2], "one byte": good[:1],
              "random": bytes(rng.randrange(256) for _ in range(200)),
@@ -242,9 +151,9 @@ def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
              "extended": good + b"xx"}
 
     def case(label: str, blob: bytes) -> dict[str, Any]:
-        with _instantiate(fmu, "fuzz") as inst:
-            c = _Case(f"deserialize {label} ({len(blob)} bytes)", inst, ours)
-            _to_state(c, "stepping")
+        with instantiate(fmu, "fuzz") as inst:
+            c = Case(f"deserialize {label} ({len(blob)} bytes)", inst, ours)
+            to_state(c, "stepping")
             c.call("doStep", 0.0, step)
             y0 = c.call("getReal", vr_out)
             st = c.call("deSerializeFMUstate", blob)
@@ -260,9 +169,9 @@ def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
             return c.result()
 
     def freed() -> dict[str, Any]:
-        with _instantiate(fmu, "fuzz") as inst:  # a freed state used again
-            c = _Case("setFMUstate of a freed state", inst, ours)
-            _to_state(c, "stepping")
+        with instantiate(fmu, "fuzz") as inst:  # a freed state used again
+            c = Case("setFMUstate of a freed state", inst, ours)
+            to_state(c, "stepping")
             st = c.call("getFMUstate")
             c.call("freeFMUstate", st)
             c.call("doStep", 0.0, step)
@@ -276,12 +185,12 @@ def group_states(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
 
 def group_format(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
     """printf directives in instance names, values and unknown references reach the logger."""
-    _, step = _experiment(fmu)
+    _, step = experiment(fmu)
 
     def case() -> dict[str, Any]:
-        with _instantiate(fmu, "%s%s%s%s%n") as inst:
-            c = _Case("instance name '%s%s%s%s%n', bad reads", inst, ours)
-            _to_state(c, "stepping")
+        with instantiate(fmu, "%s%s%s%s%n") as inst:
+            c = Case("instance name '%s%s%s%s%n', bad reads", inst, ours)
+            to_state(c, "stepping")
             c.call("getReal", [2**31 - 1])
             c.call("getString", [0])
             c.call("setString", [0], ["%s%s%s%s%n%x%p"])
@@ -299,13 +208,13 @@ def group_random(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
 def _random_calls(fmu: FMU, ours: bool, seed: int, n: int) -> dict[str, Any]:
     """``n`` random calls with random arguments on one instance (reset when stuck)."""
     rng = random.Random(seed)
-    _, step = _experiment(fmu)
+    _, step = experiment(fmu)
     reals = [v.valueReference for v in fmu.model_description.modelVariables if v.type == "Real"]
     bools = [v.valueReference for v in fmu.model_description.modelVariables
              if v.type == "Boolean"]
     values = [0.0, 1.0, -1.0, math.nan, math.inf, 1e300, 0.1, -0.4]
-    with _instantiate(fmu, "fuzz") as inst:
-        c = _Case(f"{n} random calls (seed {seed})", inst, ours)
+    with instantiate(fmu, "fuzz") as inst:
+        c = Case(f"{n} random calls (seed {seed})", inst, ours)
         t = 0.0
         states: list[Any] = []
         for _ in range(n):
@@ -359,20 +268,20 @@ def group_churn(fmu: FMU, ours: bool, seed: int, n: int) -> Cases:
 def _churn(fmu: FMU, ours: bool, seed: int, n: int) -> dict[str, Any]:
     """``n`` instances created, stepped and freed in random order give the single run."""
     rng = random.Random(seed)
-    _, step = _experiment(fmu)
-    vr_out = [v.valueReference for v in _reals(fmu, "output")]
+    _, step = experiment(fmu)
+    vr_out = [v.valueReference for v in reals(fmu, "output")]
 
     def run(inst: Instance, steps: int) -> Any:
-        c = _Case("run", inst, ours)
-        _to_state(c, "stepping")
+        c = Case("run", inst, ours)
+        to_state(c, "stepping")
         for k in range(steps):
             c.call("doStep", k * step, step)
         return c.call("getReal", vr_out)
 
-    with _instantiate(fmu, "ref") as ref:
+    with instantiate(fmu, "ref") as ref:
         expected = list(run(ref, 3) or [])
-    c = _Case(f"{n} interleaved instances", ref, ours)
-    live = [_instantiate(fmu, f"i{k}") for k in range(n)]
+    c = Case(f"{n} interleaved instances", ref, ours)
+    live = [instantiate(fmu, f"i{k}") for k in range(n)]
     rng.shuffle(live)
     for inst in live:
         got = run(inst, 3)
@@ -381,7 +290,7 @@ def _churn(fmu: FMU, ours: bool, seed: int, n: int) -> dict[str, Any]:
     rng.shuffle(live)
     for inst in live:
         inst.free()
-    with FMU(fmu.path) as again, _instantiate(again, "second load") as inst:
+    with FMU(fmu.path) as again, instantiate(again, "second load") as inst:
         got = run(inst, 3)  # a second extraction: another load of the same library
         if got is None or list(got) != expected:
             c.problems.append(f"a second load of the library gave {got}")

@@ -84,10 +84,11 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    from .harness.paper.reproduction import run_analyze
+    from .harness.paper.report import render
+    from .harness.paper.reproduction import analyze
 
-    text = run_analyze(as_json=args.json, markdown=args.markdown, targets=args.targets,
-                       design_input=args.input)
+    result = analyze(targets=args.targets, design_input=args.input)
+    text = render(result, "json" if args.json else "markdown" if args.markdown else "text")
     if args.out:
         from .files import write_text_atomic
 

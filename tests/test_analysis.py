@@ -19,7 +19,8 @@ from dronefly.cli import main
 from dronefly.harness.paper import analysis as an
 from dronefly.harness.paper import values as pv
 from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabilising_designs
-from dronefly.harness.paper.reproduction import reproduction_table, run_analyze
+from dronefly.harness.paper.report import render
+from dronefly.harness.paper.reproduction import analyze, reproduction_table
 from dronefly.plant import model
 
 ROWS = {(r.source, r.quantity): r for r in reproduction_table()}
@@ -227,5 +228,5 @@ def test_cli_text_and_custom_design(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_docs_reproduction_md_is_current() -> None:
     doc = Path(__file__).resolve().parents[1] / "docs" / "reproduction.md"
-    assert doc.read_text(encoding="utf-8") == run_analyze(markdown=True), \
+    assert doc.read_text(encoding="utf-8") == render(analyze(), "markdown"), \
         "regenerate: dronefly analyze --markdown --out docs/reproduction.md"

@@ -36,7 +36,7 @@ from dronefly.controller.law import U_MAX_LINEAR_RANGE, default_gains
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
 
-__all__ = ["AXES", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
+__all__ = ["AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
            "gain_matrix", "parse_floats", "parse_int", "parse_names", "parse_slices"]
 
@@ -55,7 +55,7 @@ class SweepInputError(DroneflyError):
     """Bad sweep input; the message names the offending value."""
 
 
-def _one_line(text: str) -> str:
+def one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 

@@ -13,26 +13,25 @@ One figure per slice (and bound scale); one panel per gain set and step.
 from __future__ import annotations
 
 import csv
-import io
 import math
-import os
 from collections import defaultdict
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.files import write_text_atomic
+from dronefly.files import atomic_path, write_csv_atomic
 from dronefly.harness.sweep.cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
 
-__all__ = ["COLUMNS", "format_summary", "read_rows", "summarize", "write_maps"]
+__all__ = ["COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
+           "summarize", "write_maps", "write_results"]
 
 _CASE_COLS = ["case", "key", "family", "label", "amplitude", *(f"x0_{a}" for a in AXES), "gains",
               "step_wb", "scale", "stop_wb", "n_steps", "master"]
 _PEAKS = [*(f"peak_{a}" for a in AXES), "peak_u", "peak"]
-_RESULT_COLS = [*_PEAKS, "t_exit_wb", "verdict", *(f"final_{a}" for a in AXES), "error"]
+RESULT_COLUMNS = [*_PEAKS, "t_exit_wb", "verdict", *(f"final_{a}" for a in AXES), "error"]
 #: Columns of ``sweep.csv``: the case, then its result.
-COLUMNS = _CASE_COLS + _RESULT_COLS
+COLUMNS = _CASE_COLS + RESULT_COLUMNS
 
 _AXIS_LABEL = {"dv": "dv+ = dv/U", "dp": "dp+ = dp t_w", "dr": "dr+ = dr t_w",
                "dgamma": "dgamma [rad]"}
@@ -47,20 +46,17 @@ def _fmt(v: Any) -> str:
     return "" if math.isnan(f) else repr(f)
 
 
-def _row(case: Case, result: dict[str, Any]) -> dict[str, str]:
+def result_row(case: Case, result: dict[str, Any]) -> dict[str, str]:
     vals = [case.case, case.key, case.family, case.label, case.amplitude, *case.x0, case.gains,
             case.step_wb, case.scale, case.stop_wb, case.n_steps, case.master]
     row = {c: _fmt(v) for c, v in zip(_CASE_COLS, vals)}
-    row.update({c: _fmt(result[c]) for c in _RESULT_COLS})
+    row.update({c: _fmt(result[c]) for c in RESULT_COLUMNS})
     return row
 
 
-def _write_csv(path: Path, rows: list[dict[str, str]]) -> None:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
-    w.writeheader()
-    w.writerows(sorted(rows, key=lambda r: int(r["case"])))
-    write_text_atomic(path, buf.getvalue())
+def write_results(path: Path, rows: list[dict[str, str]]) -> None:
+    """``sweep.csv``: the rows in case order, atomically (the one CSV writer of the project)."""
+    write_csv_atomic(path, COLUMNS, sorted(rows, key=lambda r: int(r["case"])))
 
 
 def read_rows(path: str | Path) -> list[dict[str, str]]:
@@ -76,7 +72,7 @@ def read_rows(path: str | Path) -> list[dict[str, str]]:
         raise SweepInputError(f"cannot read {str(path)!r}: {e}") from e
 
 
-def _load_done(path: Path, keys: set[str]) -> dict[str, dict[str, Any]]:
+def load_done(path: Path, keys: set[str]) -> dict[str, dict[str, Any]]:
     """Results already in ``path`` by key; refuses a file from a different sweep."""
     if not path.exists():
         return {}
@@ -87,7 +83,7 @@ def _load_done(path: Path, keys: set[str]) -> dict[str, dict[str, Any]]:
                                   "is not in this sweep; use another output folder or --fresh")
         done[row["key"]] = {c: (row[c] if c in ("verdict", "error")
                                 else (float(row[c]) if row[c] else math.nan))
-                            for c in _RESULT_COLS}
+                            for c in RESULT_COLUMNS}
     return done
 
 
@@ -237,8 +233,7 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
                          "black line: peak = bound", fontsize=10)
             name = f"map_{sx}_{sy}" + (f"_scale{s:g}" if len(scales) > 1 or s != 1.0 else "")
             path = Path(out_dir) / f"{name}.png"
-            tmp = path.with_name(path.name + ".part")
-            fig.savefig(tmp, format="png")
-            os.replace(tmp, path)
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, format="png")
             written.append(path)
     return written

@@ -25,11 +25,12 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 
-from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec, _one_line
+from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec, one_line
 from dronefly.files import write_text_atomic
-from dronefly.harness.sweep.results import (COLUMNS, _load_done, _row, _write_csv, read_rows,
+from dronefly.harness.sweep.results import (COLUMNS, load_done, result_row, write_results, read_rows,
                          summarize, write_maps)
-from dronefly.harness.sweep.worker import FmuRef, _blas_threads, _close_all, _init_worker, _loop, run_chunk
+from dronefly.harness.sweep.worker import (FmuRef, blas_single_thread, close_all, init_worker,
+                                           loop_for, run_chunk)
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
 
@@ -67,13 +68,13 @@ def _connect(address: str, timeout_s: float) -> Any:
             parse_host_port(location)
     except Exception as e:
         raise SweepInputError(f"scheduler address {address!r} is malformed: "
-                              f"{_one_line(str(e))}") from None
+                              f"{one_line(str(e))}") from None
     try:
         from distributed import Client
 
         return Client(address, timeout=timeout_s, set_as_default=False)
     except Exception as e:
-        raise SweepInputError(f"scheduler {address!r} unreachable: {_one_line(str(e))}") from None
+        raise SweepInputError(f"scheduler {address!r} unreachable: {one_line(str(e))}") from None
 
 
 def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
@@ -163,7 +164,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         raise SweepInputError(f"output folder {str(out)!r} is a file")
     csv_path, json_path = out / "sweep.csv", out / "sweep.json"
     keys = {c.key for c in all_cases}
-    done = {} if fresh else _load_done(csv_path, keys)
+    done = {} if fresh else load_done(csv_path, keys)
     resumed = len(keys & done.keys())
     client = _connect(scheduler, connect_timeout_s) if scheduler is not None else None
     todo = list({c.key: c for c in reversed(all_cases) if c.key not in done}.values())[::-1]
@@ -176,7 +177,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     last_flush = [time.perf_counter()]
 
     def flush() -> None:
-        _write_csv(csv_path, [_row(c, done[c.key]) for c in all_cases if c.key in done])
+        write_results(csv_path, [result_row(c, done[c.key]) for c in all_cases if c.key in done])
         last_flush[0] = time.perf_counter()
 
     def collect(res: tuple[list, float, float]) -> None:
@@ -204,7 +205,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
             client.close()
         if stats["computed"] or fresh or not csv_path.exists():
             flush()
-    rows = [_row(c, done[c.key]) for c in all_cases]
+    rows = [result_row(c, done[c.key]) for c in all_cases]
     maps = write_maps(rows, out) if plot else []
     summary = summarize(rows, all_cases)
     summary.update(elapsed_s=time.perf_counter() - t_start, workers=n_workers,
@@ -238,15 +239,14 @@ def _isatty() -> bool:
 
 
 def _run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Callable) -> None:
-    restore = _blas_threads(1)
+    limiter = blas_single_thread()
     try:
-        _loop(refs, (None, None))  # instantiate once, before any case is timed
+        loop_for(refs, (None, None))  # instantiate once, before any case is timed
         for ch in chunks:
             collect(run_chunk(refs, ch))
     finally:
-        _close_all()
-        for put, n in restore:
-            put(n)
+        close_all()
+        limiter.restore_original_limits()
 
 
 def _run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
@@ -258,7 +258,7 @@ def _run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
     # workers drop the inherited caches and open their own FMUs in the initializer
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     ctx = multiprocessing.get_context(method)
-    with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init_worker,
+    with ProcessPoolExecutor(n, mp_context=ctx, initializer=init_worker,
                              initargs=(refs,)) as ex:
         futs = [ex.submit(run_chunk, refs, ch) for ch in chunks]
         try:
@@ -282,10 +282,10 @@ def _run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]]
         name = "dronefly-sweep-cleanup"
 
         def setup(self, worker: Any) -> None:
-            _blas_threads(1)
+            blas_single_thread()
 
         def teardown(self, worker: Any) -> None:
-            _close_all()
+            close_all()
 
     client.register_plugin(Cleanup())
     data = client.scatter([Path(r.path).read_bytes() for r in refs], broadcast=True)

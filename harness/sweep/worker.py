@@ -21,11 +21,11 @@ import numpy as np
 
 from dronefly.lateral import plant_scales
 
-from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, _one_line)
-from dronefly.harness.sweep.results import (_RESULT_COLS)
+from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line)
+from dronefly.harness.sweep.results import (RESULT_COLUMNS)
 
 
-__all__ = ["FmuRef", "run_chunk"]
+__all__ = ["FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk"]
 
 _TOL = 1e-9  # a ratio up to 1 + _TOL counts as on the bound (a = 1 starts on the face)
 _CONTROL_SHORT = {"delta_Phi_a": "dPhi_a", "delta_alpha_1a": "dalpha_1a",
@@ -68,7 +68,7 @@ def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
         return _FMUS[ref.digest]
 
 
-def _loop(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
+def loop_for(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
     """(Loop, plant instance, controller instance, x+ scale) of this thread, made once."""
     from dronefly.harness.cosim.master import Loop
 
@@ -81,7 +81,7 @@ def _loop(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) 
     return _LOOPS[key]
 
 
-def _close_all() -> None:
+def close_all() -> None:
     """Free every cached instance and delete every extraction (worker exit)."""
     import shutil
 
@@ -100,40 +100,18 @@ def _close_all() -> None:
     _TMP.clear()
 
 
-def _blas_threads(n: int) -> list[tuple[Any, int]]:
-    """Set every loaded OpenBLAS to ``n`` threads; returns (setter, previous) pairs.
+def blas_single_thread() -> Any:
+    """Limit BLAS to one thread (threadpoolctl); returns the limiter (``.restore_original_limits()``).
 
-    The plant steps call BLAS on 4x4 matrices; an idle OpenBLAS thread spins on the
-    other core after each call, so two worker processes would fight over 2 cores.
+    The plant steps call BLAS on 4x4 matrices; an idle OpenBLAS thread spins on the other
+    core after each call, so two worker processes would fight over 2 cores.
     """
-    import ctypes
+    from threadpoolctl import threadpool_limits
 
-    try:
-        with open("/proc/self/maps", encoding="utf-8") as fh:
-            libs = {ln.split()[-1] for ln in fh if "openblas" in ln.rsplit("/", 1)[-1].lower()}
-    except OSError:  # pragma: no cover - not Linux
-        return []
-    done = []
-    for path in sorted(libs):
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:  # pragma: no cover
-            continue
-        for stem in ("scipy_openblas", "openblas"):
-            for suffix in ("64_", "_64_", ""):
-                get = getattr(lib, f"{stem}_get_num_threads{suffix}", None)
-                put = getattr(lib, f"{stem}_set_num_threads{suffix}", None)
-                if get is not None and put is not None:
-                    done.append((put, int(get())))
-                    put(ctypes.c_int(n))
-                    break
-            else:
-                continue
-            break
-    return done
+    return threadpool_limits(limits=1, user_api="blas")
 
 
-def _init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
+def init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
     """Process-pool initializer: ignore Ctrl-C (the parent handles it), open the FMUs once."""
     import atexit
     import signal
@@ -143,10 +121,10 @@ def _init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
     _LOOPS.clear()  # forked: these belong to the parent (which also deletes its extractions)
     _FMUS.clear()
     _TMP.clear()
-    atexit.register(_close_all)
-    util.Finalize(None, _close_all, exitpriority=10)
-    _blas_threads(1)
-    _loop(refs, (None, None))
+    atexit.register(close_all)
+    util.Finalize(None, close_all, exitpriority=10)
+    blas_single_thread()
+    loop_for(refs, (None, None))
 
 
 def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, Any]:
@@ -173,13 +151,13 @@ def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, An
     else:
         out["verdict"] = "within"
     if not run.complete:
-        out["verdict"], out["error"] = "error", _one_line(str(run.failure))
+        out["verdict"], out["error"] = "error", one_line(str(run.failure))
     return out
 
 
 def _failed(case: Case, e: BaseException) -> dict[str, Any]:
-    out: dict[str, Any] = {c: math.nan for c in _RESULT_COLS}
-    out.update(verdict="error", error=_one_line(f"{type(e).__name__}: {e}"))
+    out: dict[str, Any] = {c: math.nan for c in RESULT_COLUMNS}
+    out.update(verdict="error", error=one_line(f"{type(e).__name__}: {e}"))
     return out
 
 
@@ -201,7 +179,7 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     loop_s, out = 0.0, []
     for case in cases:
         try:
-            loop, p, c, scale = _loop(refs, data)
+            loop, p, c, scale = loop_for(refs, data)
             start = {f"{s}_start": float(v)
                      for s, v in zip(("delta_v", "delta_p", "delta_r", "delta_gamma"),
                                      np.asarray(case.x0) * scale)}

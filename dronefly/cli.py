@@ -1,135 +1,42 @@
-"""The ``dronefly`` command line.
+"""The ``dronefly`` command line: the parser, argument converters and exit codes.
 
-Each subcommand maps onto one Python function; imports are lazy so that
-``dronefly --help`` is instant. Exit codes: 0 success, 1 a check failed,
-2 bad input (one-line message on stderr, no traceback, no partial files).
+Each subcommand maps onto one function of :mod:`dronefly.commands`, which calls one Python
+function. Exit codes: 0 success; 1 a check failed or a run stopped early (its partial result
+is kept); 2 bad input (a :class:`~dronefly.errors.DroneflyError` or an ``OSError`` on a file:
+one line naming the value, nothing written); 130 interrupted (Ctrl-C). Any other exception is
+a bug: one line saying so and exit 1 (``--debug`` shows the traceback).
+
+Units: options that are times of the co-simulation are in wing beats (t_w = 1/n); initial
+states given with ``--x0`` are non-dimensional (x+ of Sect. 2.1); ``--gamma0`` and ``--set``
+values are SI (the FMU's own unit: rad, m/s, rad/s, Hz).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from typing import Callable, Sequence
+import traceback
+from typing import Any, Callable, Sequence
+
+from dronefly import __version__, commands
+from dronefly.commands import EXIT_FAILED, EXIT_USAGE
+from dronefly.errors import DroneflyError
+from dronefly.interrupt import EXIT_INTERRUPTED
 
 __all__ = ["main"]
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
-
-
-class UsageError(ValueError):
-    """Bad command-line input; reported in one line with exit code 2."""
-
-
-def _cmd_build(args: argparse.Namespace) -> int:
-    from .build import build_all
-
-    for path in build_all(args.out):
-        print(path)
-    return EXIT_OK
-
-
-def _cmd_simulate(args: argparse.Namespace) -> int:
-    from .simulate import simulate_plant
-
-    result = simulate_plant(stop_wingbeats=args.stop, step_wingbeats=args.step,
-                            gamma0=args.gamma0, out_dir=args.out)
-    print(result.summary())
-    return EXIT_OK if result.complete else EXIT_FAILED
-
-
-def _cmd_cosim(args: argparse.Namespace) -> int:
-    import json
-
-    from .harness.cosim.run import cosimulate
-
-    result = cosimulate(args.plant, args.controller, gains=args.gains, x0=args.x0,
-                        step_wingbeats=args.step, stop_wingbeats=args.stop, master=args.master,
-                        out_dir=args.out, plot=not args.no_plot)
-    print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
-    if not result.run.complete:
-        print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
-
-
-def _cmd_check(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
-    from .harness.compliance.checker import check_fmu, format_reports
-
-    paths = [Path(p) for p in args.fmus]
-    if not paths:
-        from .build import build_all
-
-        paths = [p for p in build_all(args.build) if p.suffix == ".fmu"]
-    for p in paths:
-        if not p.is_file():
-            raise UsageError(f"FMU {str(p)!r} " + ("is a folder, not an FMU file" if p.is_dir()
-                                                  else "does not exist"))
-    reports = [check_fmu(p) for p in paths]
-    if args.json:
-        print(json.dumps([{"fmu": str(r.path), "passed": r.passed,
-                           "checks": [c.__dict__ for c in r.checks]} for r in reports], indent=2))
-    else:
-        print(format_reports(reports))
-    return EXIT_OK if all(r.passed for r in reports) else EXIT_FAILED
-
-
-def _cmd_demo(args: argparse.Namespace) -> int:
-    from .harness.cosim.demo import verdict_table
-
-    print(verdict_table(out_dir=args.out))
-    return EXIT_OK
-
-
-def _cmd_analyze(args: argparse.Namespace) -> int:
-    from .harness.paper.report import render
-    from .harness.paper.reproduction import analyze
-
-    result = analyze(targets=args.targets, design_input=args.input)
-    text = render(result, "json" if args.json else "markdown" if args.markdown else "text")
-    if args.out:
-        from .files import write_text_atomic
-
-        print(write_text_atomic(args.out, text))
-    else:
-        print(text, end="" if text.endswith("\n") else "\n")
-    return EXIT_OK
-
-
-def _cmd_sweep(args: argparse.Namespace) -> int:
-    import json
-
-    from .harness.sweep.run import run_sweep
-    from .harness.sweep.cases import SweepSpec, parse_floats, parse_int
-    from .harness.sweep.results import format_summary
-
-    spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices, grid=args.grid,
-                               lhs=args.lhs, directions=args.directions,
-                               amplitudes=args.amplitudes, gains=args.gains, steps=args.steps,
-                               scales=args.scales, stop=args.stop, master=args.master,
-                               seed=args.seed)
-    workers = None if args.workers is None else parse_int(args.workers, "workers", 1)
-    timeout = parse_floats(args.connect_timeout, "connect timeout")[0]
-    result = run_sweep(spec, args.out, plant=args.plant, controller=args.controller,
-                       workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
-                       fresh=args.fresh, plot=not args.no_plot,
-                       progress_bar=False if args.no_progress else None)
-    print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
-    if result.summary["errors"]:
-        print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "
-              f"'error' column of {result.csv})", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
-
-
+_UNITS = ("\nunits: --step/--stop in wing beats (1 wing beat = 1/n = 6.1 ms); --x0 non-dimensional "
+          "x+ = (dv/U, dp/n, dr/n, dgamma); --gains non-dimensional (rad per unit of x+); --set "
+          "values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
 _EPILOG = {
     "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
              "  dronefly cosim --gains=-0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
              "  (a value starting with '-' needs the form --gains=... or --x0=...)\n"
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
-             "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input",
+             "  dronefly cosim --gains 'k11,k12,k13,k14;k21,k22,k23,k24;k31,k32,k33,k34'\n"
+             "  dronefly cosim --gains my_gains.json --set plant.Lv_plus=0.25 --set u_max=0.3\n"
+             "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input, "
+             "130 interrupted" + _UNITS,
     "demo": "examples:\n  dronefly demo",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
              "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
@@ -142,9 +49,12 @@ _EPILOG = {
              "  dronefly sweep --disturbances lhs --lhs 500 --scales 1,1.5,2 --out build/lhs\n"
              "  dronefly sweep --scheduler tcp://10.0.0.5:8786\n"
              "rerun with the same --out to resume an interrupted sweep (--fresh starts over)\n"
-             "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input",
+             "  dronefly sweep --gains paper,my_gains.csv --set plant.Nr_plus=-5\n"
+             "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
+             "130 interrupted (rerun to resume)" + _UNITS,
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
-    "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50",
+    "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50\n"
+                "units: --stop/--step in wing beats; --gamma0 in rad (SI)",
 }
 
 
@@ -160,8 +70,13 @@ def _parser() -> argparse.ArgumentParser:
         prog="dronefly",
         description="FMUs and analysis of the lateral stabilization control of a hovering "
                     "model drone fly (Zhang & Sun).",
-        epilog="examples:\n  dronefly build\n  dronefly simulate --stop 100",
+        epilog="examples:\n  dronefly build\n  dronefly simulate --stop 100\n  dronefly cosim --json\n"
+               "exit codes: 0 ok, 1 a check failed or a run stopped early, 2 bad input, "
+               "130 interrupted; an internal error (a bug) exits 1",
         formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"dronefly {__version__}")
+    p.add_argument("--debug", action="store_true",
+                   help="show the traceback of an internal error (a bug) or of bad input")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def add(name: str, helptext: str, fn: Callable[[argparse.Namespace], int]) -> argparse.ArgumentParser:
@@ -170,26 +85,36 @@ def _parser() -> argparse.ArgumentParser:
         sp.set_defaults(func=fn)
         return sp
 
-    b = add("build", "build every FMU of the project", _cmd_build)
+    b = add("build", "build every FMU of the project", commands.build)
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
 
     s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance",
-            _cmd_simulate)
+            commands.simulate)
     s.add_argument("--stop", type=_positive, default=30.0, help="stop time in wing beats (default 30)")
     s.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
-    s.add_argument("--gamma0", type=_finite, default=0.1, help="initial roll angle in rad (default 0.1)")
+    s.add_argument("--gamma0", type=_finite, default=0.1,
+                   help="initial roll angle delta_gamma in rad, SI (default 0.1)")
     s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
 
     c = add("cosim", "co-simulate plant and controller FMUs with fmpy and check neutral stability",
-            _cmd_cosim)
+            commands.cosim)
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: build/StateFeedback.fmu, built on demand)")
-    c.add_argument("--gains", default="paper", metavar="paper|open|k1,k2,k3,k4",
-                   help="Eq. (27) gains, no control, or four gains on delta_Phi_a (default paper)")
-    c.add_argument("--x0", default="0,0,0,0.1", metavar="dv,dp,dr,dgamma",
-                   help="non-dimensional initial state (default 0,0,0,0.1: a 0.1 rad roll)")
+    c.add_argument("--gains", type=_converter(parse_gains), default="paper", metavar="GAINS",
+                   help="non-dimensional 3x4 gain matrix u = K x+: paper (Eq. 27), stabilising, "
+                        "open, 'k1,k2,k3,k4' (delta_Phi_a only), 'row1;row2;row3', or a .csv/.json "
+                        "file (default paper)")
+    c.add_argument("--x0", type=_converter(parse_x0), default="0,0,0,0.1",
+                   metavar="dv+,dp+,dr+,dgamma",
+                   help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll)")
+    c.add_argument("--set", dest="set_values", action="append", default=[],
+                   type=_converter(parse_assignment), metavar="NAME=VALUE",
+                   help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "
+                        "controller.NAME=VALUE, or NAME=VALUE if only one FMU has NAME; SI units")
+    c.add_argument("--build", default="build", metavar="DIR",
+                   help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
     c.add_argument("--stop", type=_positive, default=300.0, help="stop time in wing beats (default 300)")
     c.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
@@ -199,18 +124,18 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
 
     k = add("check", "FMI 2.0 co-simulation compliance suite (fmpy validate, call sequence, reset, "
-            "state, bad input, reference results)", _cmd_check)
+            "state, bad input, reference results)", commands.check)
     k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
                    "into --build and check every FMU there)")
     k.add_argument("--build", default="build", metavar="DIR", help="where to build (default build/)")
     k.add_argument("--json", action="store_true", help="machine-readable report")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
-            _cmd_demo)
+            commands.demo)
     d.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSVs and plots")
 
     a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model",
-            _cmd_analyze)
+            commands.analyze)
     a.add_argument("--json", action="store_true", help="print JSON (table, matrices, eigenvalues, gains)")
     a.add_argument("--markdown", action="store_true", help="print the Markdown report (docs/reproduction.md)")
     a.add_argument("--targets", default=None, metavar="LIST",
@@ -221,7 +146,7 @@ def _parser() -> argparse.ArgumentParser:
                         "delta_alpha_2a")
     a.add_argument("--out", default=None, metavar="FILE", help="write to FILE instead of stdout")
     w = add("sweep", "co-simulate many disturbed closed loops: where do they stay within the "
-            "Sect. 3.6 bounds?", _cmd_sweep)
+            "Sect. 3.6 bounds?", commands.sweep)
     w.add_argument("--out", default="build/sweep", metavar="DIR",
                    help="folder of sweep.csv, sweep.json and map_*.png; rerun to resume "
                         "(default build/sweep)")
@@ -242,8 +167,12 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--amplitudes", default="10", metavar="N",
                    help="amplitudes 1/N..1 of the box per direction (default 10)")
     w.add_argument("--gains", default="paper,stabilising", metavar="LIST",
-                   help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open "
-                        "(default paper,stabilising)")
+                   help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open, or a "
+                        ".csv/.json file with a 3x4 matrix (default paper,stabilising)")
+    w.add_argument("--set", dest="set_values", action="append", default=[],
+                   type=_converter(parse_assignment), metavar="NAME=VALUE",
+                   help="set a parameter of the plant or controller for every case (repeatable; "
+                        "SI units)")
     w.add_argument("--steps", default="0.1,1,3", metavar="LIST",
                    help="communication steps = how often the insect senses and acts, wing beats "
                         "(default 0.1,1,3)")
@@ -263,6 +192,37 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.add_argument("--json", action="store_true", help="print the JSON summary")
     return p
+
+
+def _converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
+    """An argparse ``type=`` from a parser that raises :class:`DroneflyError` (one line)."""
+
+    def convert(text: str) -> Any:
+        try:
+            return fn(text)
+        except DroneflyError as e:
+            raise argparse.ArgumentTypeError(str(e)) from e
+
+    convert.__name__ = fn.__name__
+    return convert
+
+
+def parse_gains(text: str) -> Any:
+    from dronefly.harness.cosim.params import parse_gains as parse
+
+    return parse(text)
+
+
+def parse_x0(text: str) -> Any:
+    from dronefly.harness.cosim.run import parse_x0 as parse
+
+    return parse(text)
+
+
+def parse_assignment(text: str) -> Any:
+    from dronefly.harness.cosim.params import parse_assignment as parse
+
+    return parse(text)
 
 
 def _finite(text: str) -> float:
@@ -289,16 +249,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as e:  # argparse already printed its one-line error or the help
+    except SystemExit as e:  # argparse already printed its one-line error, the help or version
         return int(e.code or 0)
     try:
         return int(args.func(args))
-    except (UsageError, ValueError, OSError) as e:
-        print(f"dronefly {args.command}: error: {e}", file=sys.stderr)
+    except (DroneflyError, OSError) as e:
+        if args.debug:
+            traceback.print_exc()
+        text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        print(f"dronefly {args.command}: error: {text}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"dronefly {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except Exception as e:  # a bug, never reported as bad input
+        if args.debug:
+            traceback.print_exc()
+        print(f"dronefly {args.command}: internal error (a bug, please report it): "
+              f"{type(e).__name__}: {e}" + ("" if args.debug else " (--debug shows the traceback)"),
+              file=sys.stderr)
+        return EXIT_FAILED
 
 
 if __name__ == "__main__":  # pragma: no cover

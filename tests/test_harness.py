@@ -125,8 +125,16 @@ def test_cli_json(fmus, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, fragment", [
-    (["--gains", "1,2,3"], "gains = '1,2,3'"),
-    (["--gains", "nan,0,0,0"], "gains = 'nan,0,0,0'"),
+    (["--gains", "1,2,3"], "gains '1,2,3': row 1 has 3 values, expected 4"),
+    (["--gains", "nan,0,0,0"], "gains 'nan,0,0,0': K[1,1] = nan is not finite"),
+    (["--gains", "1,2,3,4;5,6,7,8"], "2 rows, expected 3"),
+    (["--gains", "missing.json"], "gains file 'missing.json'"),
+    (["--set", "plant.Lv_plus"], "expected NAME=VALUE"),
+    (["--set", "Lv_plus=abc"], "Lv_plus = 'abc' is not a number"),
+    (["--set", "plant.nope=1"], "plant has no variable 'nope'"),
+    (["--set", "n=164"], "'n' is a variable of plant and controller"),
+    (["--set", "plant.delta_v=1"], "only parameters and inputs can be set"),
+    (["--set", "controller.limit_enabled=1"], "a Boolean parameter takes true or false"),
     (["--x0", "0,0,x,0"], "x0 = '0,0,x,0'"),
     (["--x0", "0,0,0,inf"], "x0 = '0,0,0,inf'"),
     (["--step", "0"], "'0' must be > 0"),

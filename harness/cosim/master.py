@@ -216,7 +216,10 @@ class Loop:
                 inst.slave.setupExperiment(startTime=0.0, stopTime=n_steps * step)
                 inst.slave.enterInitializationMode()
                 for name, value in (values or {}).items():
-                    inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
+                    if isinstance(value, bool):
+                        inst.slave.setBoolean([inst.fmu.vr(name)], [value])
+                    else:
+                        inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
             who = p
             p.slave.exitInitializationMode()
             who, call = p, "fmi2GetReal"

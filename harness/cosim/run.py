@@ -12,7 +12,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -20,32 +20,14 @@ from dronefly.lateral import plant_scales
 from dronefly.controller.law import default_gains, gain_name
 from dronefly.plant.model import STATE_NAMES, discretize_zoh
 from dronefly.harness.cosim.fmu import FMU
+from dronefly.harness.cosim.params import parse_gains, resolve_assignments
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
     sort_eigenvalues
 
-__all__ = ["CosimResult", "cosimulate", "parse_gains", "parse_x0"]
+__all__ = ["CosimResult", "cosimulate", "parse_x0"]
 
 _ID_STEPS = 20  # steps per identification run
-
-
-def parse_gains(text: str) -> np.ndarray:
-    """``paper`` | ``open`` | ``k1,k2,k3,k4`` -> 3x4 gain matrix (rows 2-3 zero unless paper)."""
-    t = text.strip().lower()
-    if t == "paper":
-        return np.array(default_gains(), dtype=float)
-    if t == "open":
-        return np.zeros((3, 4))
-    parts = text.split(",")
-    try:
-        k = [float(p) for p in parts]
-    except ValueError:
-        raise CoSimError(f"gains = {text!r}: expected paper, open or k1,k2,k3,k4") from None
-    if len(k) != 4 or not all(math.isfinite(v) for v in k):
-        raise CoSimError(f"gains = {text!r}: expected four finite numbers k1,k2,k3,k4")
-    K = np.zeros((3, 4))
-    K[0] = k
-    return K
 
 
 def parse_x0(text: str | Sequence[float]) -> np.ndarray:
@@ -128,14 +110,16 @@ def _fmt_complex(z: complex) -> str:
     return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
-def _read_plant_matrices(loop: Loop) -> tuple[np.ndarray, np.ndarray]:
-    """A1 and B1 as the plant FMU computes them (calculated parameters)."""
+def _read_plant_matrices(loop: Loop, values: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """A1 and B1 as the plant FMU computes them (calculated parameters) with ``values`` set."""
     p = loop.plant
     ns, nu = len(loop.states), len(loop.controls)
     with p.instantiate(logging=False) as inst:
         s = inst.slave
         s.setupExperiment(startTime=0.0)
         s.enterInitializationMode()
+        for name, value in values.items():
+            (s.setBoolean if isinstance(value, bool) else s.setReal)([p.vr(name)], [value])
         s.exitInitializationMode()
         A = s.getReal(inst.vrs([f"A[{i + 1},{j + 1}]" for i in range(ns) for j in range(ns)]))
         B = s.getReal(inst.vrs([f"B[{i + 1},{j + 1}]" for i in range(ns) for j in range(nu)]))
@@ -157,7 +141,9 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
                gains: str | np.ndarray = "paper", x0: str | Sequence[float] = (0, 0, 0, 0.1),
                step_wingbeats: float = 0.1, stop_wingbeats: float = 300.0,
                master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
-               plot: bool = True, name: str | None = None) -> CosimResult:
+               plot: bool = True, name: str | None = None,
+               set_values: Mapping[str, float | bool] | None = None,
+               build_dir: str | Path = "build") -> CosimResult:
     """Co-simulate the loop, identify its eigenvalues and classify its stability.
 
     Parameters
@@ -165,8 +151,11 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     plant, controller : path, optional
         FMUs with the DroneFlyLateral / StateFeedback interface (default: the
         project's, built into ``build/`` on demand).
-    gains : str or (3, 4) array
-        ``paper`` (Eq. 27), ``open`` (no control) or ``k1,k2,k3,k4`` (first row).
+    gains : str or (3, 4) array_like
+        Non-dimensional gains u = K x+ (rows: delta_Phi_a, delta_alpha_1a, delta_alpha_2a;
+        columns: dv+, dp+, dr+, dgamma): a named set ``paper`` (Eq. 27), ``stabilising`` or
+        ``open``, an inline matrix, a ``.csv``/``.json`` file (see
+        :func:`~dronefly.harness.cosim.params.parse_gains`) or an array.
     x0 : str or sequence
         Non-dimensional initial state (dv+, dp+, dr+, dgamma).
     step_wingbeats, stop_wingbeats : float
@@ -174,35 +163,47 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     master : {'gauss-seidel', 'jacobi'}
     out_dir : path or None
         Where the CSV (and PNG) go; None writes nothing.
+    set_values : mapping, optional
+        ``{"plant.Lv_plus": 0.2, "controller.u_max": 0.3, ...}``: parameter (or input) values
+        in each FMU's unit, set in initialization mode; a bare name that only one FMU has is
+        enough. Checked against the model descriptions before anything runs.
+    build_dir : path
+        Where the project's FMUs are built when ``plant`` or ``controller`` is not given.
     """
-    K = gains if isinstance(gains, np.ndarray) else parse_gains(gains)
+    K = (parse_gains(gains) if isinstance(gains, str)
+         else parse_gains(";".join(",".join(repr(float(v)) for v in row)
+                                   for row in np.atleast_2d(np.asarray(gains, dtype=float)))))
     x0v = parse_x0(x0)
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
     from dronefly.build import project_fmus
 
-    plant, controller = project_fmus(plant, controller)
+    plant, controller = project_fmus(plant, controller, build_dir)
     with FMU(plant) as pf, FMU(controller) as cf:
         loop = Loop(pf, cf)
+        values = resolve_assignments(dict(set_values or {}), {
+            "plant": pf.model_description, "controller": cf.model_description})
         return _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir, plot,
-                           name)
+                           name, values)
 
 
 def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
-                name: str | None) -> CosimResult:
+                name: str | None, values: Mapping[str, Mapping[str, Any]]) -> CosimResult:
     pf, cf = loop.plant, loop.controller
-    scale = np.array(plant_scales(pf.start_values()))
+    plant_values, ctrl_values = dict(values.get("plant", {})), dict(values.get("controller", {}))
+    scale = np.array(plant_scales({**pf.start_values(), **plant_values}))
     n = scale[1]
     h = step_wb / n
     n_steps = step_count(stop_wb, step_wb)
     stop_wb = round(n_steps * step_wb, 12)  # what is run and reported: whole steps, never past
-    gains = {gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}
+    gains = {**ctrl_values,
+             **{gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}}
     jacobi = master == "jacobi"
 
     def start(x: np.ndarray) -> dict[str, float]:
-        return {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x * scale)}
+        return {**plant_values, **{f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x * scale)}}
 
     with pf.instantiate() as p, cf.instantiate() as c:
         run = loop.run(h, n_steps, master=master, plant_start=start(x0),
@@ -221,11 +222,12 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
             id_runs.append(np.vstack([x_prev, xs]) if jacobi else xs)
         open_run = None
         if plot and out_dir is not None and K.any():  # the open loop, for comparison
-            zero = {g: 0.0 for g in gains}
+            zero = {**gains, **{gain_name(i, j): 0.0 for i in range(K.shape[0])
+                                for j in range(K.shape[1])}}
             open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
                                 controller_params=zero, instances=(p, c))
     ident = identify(id_runs, step_wb, delay=jacobi)
-    A, B = _read_plant_matrices(loop)
+    A, B = _read_plant_matrices(loop, plant_values)
     cont = sort_eigenvalues(np.linalg.eigvals(A + B @ K))
     F = _sampled_closed_loop(A, B, K, step_wb, jacobi)
     sampled = rates_from_transition(F, step_wb)

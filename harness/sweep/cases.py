@@ -26,13 +26,14 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass, field
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from dronefly.errors import DroneflyError
 
-from dronefly.controller.law import U_MAX_LINEAR_RANGE, default_gains
+from dronefly.controller.law import U_MAX_LINEAR_RANGE
+from dronefly.harness.cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
 
@@ -44,11 +45,9 @@ __all__ = ["AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GA
 STATE_BOUNDS_SECT36: tuple[float, float, float, float] = (0.15, 0.15, 0.15, 0.22)
 #: Short names of the non-dimensional state components (x+ order).
 AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
-GAIN_SETS: tuple[str, ...] = ("paper", "stabilising", "open")
 DISTURBANCES: tuple[str, ...] = ("grid", "lhs", "directions")
 DEFAULT_DIRECTIONS: tuple[str, ...] = tuple(f"{s}{a}" for a in (*AXES, "mode1") for s in "+-")
 #: Where the ``stabilising`` gain set moves the unstable root, per wing beat.
-STABILISING_LAMBDA1: float = -0.1
 
 
 class SweepInputError(DroneflyError):
@@ -93,8 +92,9 @@ def parse_names(text: str | Iterable[str], name: str, allowed: Sequence[str]) ->
     if not items or items == [""]:
         raise SweepInputError(f"{name} = {text!r} is empty")
     for p in items:
-        if p not in allowed:
-            raise SweepInputError(f"{name}: unknown {p!r}; choose from {', '.join(allowed)}")
+        if p not in allowed and not (name == "gains" and p.lower().endswith((".csv", ".json"))):
+            raise SweepInputError(f"{name}: unknown {p!r}; choose from {', '.join(allowed)}"
+                                  + (" or a .csv/.json gain matrix" if name == "gains" else ""))
     return tuple(dict.fromkeys(items))
 
 
@@ -111,23 +111,6 @@ def parse_slices(text: str | Iterable[Sequence[str]]) -> tuple[tuple[str, str], 
                                   f"of {', '.join(AXES)} as X:Y")
         out.append((pair[0], pair[1]))
     return tuple(dict.fromkeys(out))
-
-
-def gain_matrix(name: str) -> np.ndarray:
-    """The 3x4 non-dimensional gain matrix of a named gain set (rad per unit x+)."""
-    if name == "paper":
-        return np.array(default_gains(), dtype=float)
-    if name == "open":
-        return np.zeros((3, 4))
-    if name == "stabilising":
-        A, B = model.system_matrices(model.default_parameters())
-        from dronefly.harness.paper.design import move_lambda1_gains
-
-        k = np.asarray(move_lambda1_gains(A, B, model.CONTROL_NAMES[0], STABILISING_LAMBDA1))
-        K = np.zeros((3, 4))
-        K[0] = k
-        return K
-    raise SweepInputError(f"unknown gain set {name!r}; choose from {', '.join(GAIN_SETS)}")
 
 
 def _mode1_direction() -> np.ndarray:
@@ -163,11 +146,16 @@ class Case:
     scale: float
     stop_wb: float
     master: str = "gauss-seidel"
+    #: ``--set`` values (name, value) of the plant and of the controller, in their units
+    plant_values: tuple[tuple[str, Any], ...] = ()
+    controller_values: tuple[tuple[str, Any], ...] = ()
     key: str = field(init=False)
 
     def __post_init__(self) -> None:
         ident = repr((tuple(map(float, self.x0)), tuple(tuple(map(float, r)) for r in self.K),
-                      float(self.step_wb), float(self.scale), self.n_steps, self.master))
+                      float(self.step_wb), float(self.scale), self.n_steps, self.master)
+                     + ((self.plant_values, self.controller_values)
+                        if self.plant_values or self.controller_values else ()))
         object.__setattr__(self, "key", hashlib.sha1(ident.encode()).hexdigest()[:16])
 
     @property
@@ -280,19 +268,28 @@ class SweepSpec:
                     out.append(("direction", name, a, a * d * box))
         return out
 
-    def cases(self) -> list[Case]:
-        """Every case, numbered: gain set x step x scale x disturbance (that nesting)."""
+    def cases(self, values: Mapping[str, Mapping[str, Any]] | None = None) -> list[Case]:
+        """Every case, numbered: gain set x step x scale x disturbance (that nesting).
+
+        ``values``: ``--set`` values by instance (``plant``, ``controller``), as resolved by
+        :func:`dronefly.harness.cosim.params.resolve_assignments`.
+        """
         self.validate()
         x0s = self.initial_states()
+        pv = tuple(sorted((values or {}).get("plant", {}).items()))
+        cv = tuple(sorted((values or {}).get("controller", {}).items()))
         out: list[Case] = []
         for g in self.gains:
-            K = tuple(tuple(float(v) for v in row) for row in gain_matrix(g))
+            try:
+                K = tuple(tuple(float(v) for v in row) for row in parse_gains(g))
+            except DroneflyError as e:
+                raise SweepInputError(str(e)) from e
             for h in self.steps_wb:
                 for s in self.scales:
                     for family, label, amp, x in x0s:
                         out.append(Case(len(out), family, label, amp,
                                         tuple(float(v) for v in x), g, K, float(h), float(s),
-                                        float(self.stop_wb), self.master))
+                                        float(self.stop_wb), self.master, pv, cv))
         return out
 
 

@@ -22,7 +22,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 
 from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec, one_line
@@ -89,6 +89,21 @@ def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
         raise SweepInputError(str(e)) from e
 
 
+def _resolve_values(refs: tuple[FmuRef, FmuRef],
+                    set_values: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+    from fmpy import read_model_description
+
+    from dronefly.harness.cosim.params import resolve_assignments
+
+    if not set_values:
+        return {}
+    mds = {k: read_model_description(str(r.path)) for k, r in zip(("plant", "controller"), refs)}
+    try:
+        return resolve_assignments(dict(set_values), mds)
+    except ValueError as e:
+        raise SweepInputError(str(e)) from e
+
+
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
     from dronefly.build import BuildError, project_fmus
 
@@ -105,7 +120,8 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
               connect_timeout_s: float = 10.0, cases: Sequence[Case] | None = None,
               fresh: bool = False, plot: bool = True, progress_bar: bool | None = None,
               on_chunk: Callable[[int, int], None] | None = None, chunk_steps: int | None = None,
-              flush_s: float = 5.0) -> SweepResult:
+              flush_s: float = 5.0,
+              set_values: Mapping[str, float | bool] | None = None) -> SweepResult:
     """Run (or resume) a sweep and write ``sweep.csv``, ``sweep.json`` and ``map_*.png``.
 
     Parameters
@@ -136,6 +152,9 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         Communication steps per chunk (default: about total / (16 workers)).
     flush_s : float
         Rewrite ``sweep.csv`` at most this often while running, s.
+    set_values : mapping, optional
+        ``{"plant.Lv_plus": 0.2, ...}``: parameter values in each FMU's unit for every case
+        (as ``dronefly sweep --set``); checked against the model descriptions first.
 
     Raises
     ------
@@ -146,7 +165,10 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         After the finished cases have been written (rerun to resume).
     """
     t_start = time.perf_counter()
-    all_cases = list(cases) if cases is not None else (spec or SweepSpec()).cases()
+    refs = _fmu_paths(plant, controller)
+    _check_pair(refs)
+    values = _resolve_values(refs, set_values)
+    all_cases = list(cases) if cases is not None else (spec or SweepSpec()).cases(values)
     if not all_cases:
         raise SweepInputError("the sweep has no cases")
     if workers is None:
@@ -155,8 +177,6 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         raise SweepInputError(f"workers = {workers!r} must be an integer >= 1")
     if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
         raise SweepInputError(f"connect timeout = {connect_timeout_s!r} s must be finite and > 0")
-    refs = _fmu_paths(plant, controller)
-    _check_pair(refs)
     if scheduler is not None and not scheduler.strip():
         raise SweepInputError("scheduler address is empty")
     out = Path(out_dir)

@@ -180,14 +180,18 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     for case in cases:
         try:
             loop, p, c, scale = loop_for(refs, data)
-            start = {f"{s}_start": float(v)
+            if case.plant_values:  # n or U may be among them
+                scale = np.array(plant_scales({**loop.plant.start_values(),
+                                               **dict(case.plant_values)}))
+            start = {**dict(case.plant_values), **{f"{s}_start": float(v)
                      for s, v in zip(("delta_v", "delta_p", "delta_r", "delta_gamma"),
-                                     np.asarray(case.x0) * scale)}
+                                     np.asarray(case.x0) * scale)}}
             t0 = time.perf_counter()
             run = loop.run(case.step_wb / scale[2], case.n_steps, master=case.master,
                            plant_start=start,
-                           controller_params={gain_name(i, j): v for i, row in enumerate(case.K)
-                                              for j, v in enumerate(row)},
+                           controller_params={**dict(case.controller_values),
+                                              **{gain_name(i, j): v for i, row in enumerate(case.K)
+                                                 for j, v in enumerate(row)}},
                            instances=(p, c))
             loop_s += time.perf_counter() - t0
             out.append((case.key, _measure(run, loop, scale, case)))

@@ -1,0 +1,134 @@
+"""The ``dronefly`` subcommands: one function per subcommand, each calling one Python function.
+
+Each takes the parsed arguments and returns the exit code; :mod:`dronefly.cli` parses and
+maps errors to exit codes. Imports are lazy so that ``dronefly --help`` is instant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from dronefly.errors import DroneflyError
+from dronefly.extras import require
+
+__all__ = ["EXIT_FAILED", "EXIT_OK", "EXIT_USAGE", "analyze", "build", "check", "cosim", "demo",
+           "simulate", "sweep"]
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def build(args: argparse.Namespace) -> int:
+    from dronefly.build import build_all
+
+    for path in build_all(args.out):
+        print(path)
+    return EXIT_OK
+
+
+def simulate(args: argparse.Namespace) -> int:
+    from dronefly.simulate import simulate_plant
+
+    result = simulate_plant(stop_wingbeats=args.stop, step_wingbeats=args.step,
+                            gamma0=args.gamma0, out_dir=args.out)
+    print(result.summary())
+    return EXIT_OK if result.complete else EXIT_FAILED
+
+
+def cosim(args: argparse.Namespace) -> int:
+    import json
+
+    from dronefly.harness.cosim.run import cosimulate
+
+    if not args.no_plot:
+        require("matplotlib", "pass --no-plot")
+    result = cosimulate(args.plant, args.controller, gains=args.gains, x0=args.x0,
+                        step_wingbeats=args.step, stop_wingbeats=args.stop, master=args.master,
+                        out_dir=args.out, plot=not args.no_plot,
+                        set_values=dict(args.set_values), build_dir=args.build)
+    print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
+    if not result.run.complete:
+        print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def check(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from dronefly.harness.compliance.checker import check_fmu, format_reports
+
+    paths = [Path(p) for p in args.fmus]
+    if not paths:
+        from dronefly.build import build_all
+
+        paths = [p for p in build_all(args.build) if p.suffix == ".fmu"]
+    for p in paths:
+        if not p.is_file():
+            raise DroneflyError(f"FMU {str(p)!r} " + ("is a folder, not an FMU file" if p.is_dir()
+                                                  else "does not exist"))
+    reports = [check_fmu(p) for p in paths]
+    if args.json:
+        print(json.dumps([{"fmu": str(r.path), "passed": r.passed,
+                           "checks": [c.__dict__ for c in r.checks]} for r in reports], indent=2))
+    else:
+        print(format_reports(reports))
+    return EXIT_OK if all(r.passed for r in reports) else EXIT_FAILED
+
+
+def demo(args: argparse.Namespace) -> int:
+    from dronefly.harness.cosim.demo import verdict_table
+
+    require("matplotlib")
+    print(verdict_table(out_dir=args.out))
+    return EXIT_OK
+
+
+def analyze(args: argparse.Namespace) -> int:
+    from dronefly.harness.paper.report import render
+    from dronefly.harness.paper.reproduction import analyze
+
+    result = analyze(targets=args.targets, design_input=args.input)
+    text = render(result, "json" if args.json else "markdown" if args.markdown else "text")
+    if args.out:
+        from dronefly.files import write_text_atomic
+
+        print(write_text_atomic(args.out, text))
+    else:
+        print(text, end="" if text.endswith("\n") else "\n")
+    return EXIT_OK
+
+
+def sweep(args: argparse.Namespace) -> int:
+    import json
+
+    from dronefly.harness.sweep.run import run_sweep
+    from dronefly.harness.sweep.cases import SweepSpec, parse_floats, parse_int
+    from dronefly.harness.sweep.results import format_summary
+
+    require("threadpoolctl")
+    if not args.no_progress:
+        require("tqdm", "pass --no-progress")
+    if not args.no_plot:
+        require("matplotlib", "pass --no-plot")
+    if args.scheduler is not None:
+        require("distributed")
+    spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices, grid=args.grid,
+                               lhs=args.lhs, directions=args.directions,
+                               amplitudes=args.amplitudes, gains=args.gains, steps=args.steps,
+                               scales=args.scales, stop=args.stop, master=args.master,
+                               seed=args.seed)
+    workers = None if args.workers is None else parse_int(args.workers, "workers", 1)
+    timeout = parse_floats(args.connect_timeout, "connect timeout")[0]
+    result = run_sweep(spec, args.out, plant=args.plant, controller=args.controller,
+                       workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
+                       fresh=args.fresh, plot=not args.no_plot,
+                       progress_bar=False if args.no_progress else None,
+                       set_values=dict(args.set_values))
+    print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
+    if result.summary["errors"]:
+        print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "
+              f"'error' column of {result.csv})", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK

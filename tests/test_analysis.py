@@ -89,10 +89,10 @@ def test_row(key: tuple[str, str]) -> None:
     expected = key not in MISMATCHES
     assert r.match is expected, f"{source}: match changed to {r.match}; note: {r.note}"
     if expected:
-        assert_allclose(r.computed, pv.value(r.printed), rtol=0, atol=r.tolerance + 1e-12, err_msg=source)
+        assert_allclose(r.computed, float(r.printed), rtol=0, atol=r.tolerance + 1e-12, err_msg=source)
         assert r.reason == ""
     else:
-        assert abs(r.computed - pv.value(r.printed)) > r.tolerance, source
+        assert abs(r.computed - float(r.printed)) > r.tolerance, source
         assert r.reason == MISMATCHES[key] and r.reason in REASONS, source
         assert r.note.endswith(".") and len(r.note) > 40, source
 
@@ -126,11 +126,11 @@ def test_tables_2_and_3_within_rounding() -> None:
 def test_eq27_recovered_from_the_papers_targets() -> None:
     """Eq. (27) to 4 decimals (atol 5e-5) from Eq. (19)'s eigenvalues and Eq. (24)'s b, three ways."""
     A, B = an.lateral_system()
-    b = np.array([pv.value(t) for t in pv.EQ24_B_COLUMN])
-    e = [[pv.value(t) for t in r] for r in pv.EQ19_A_LNN]
+    b = np.array([float(t) for t in pv.EQ24_B_COLUMN])
+    e = [[float(t) for t in r] for r in pv.EQ19_A_LNN]
     t = [0.0, complex(e[1][1], e[1][2]), complex(e[1][1], -e[1][2]), e[3][3]]
     k = an.coefficient_matching_gains(A, b, t)
-    assert_allclose(k, [pv.value(g) for g in pv.EQ27_GAINS], rtol=0, atol=5e-5, err_msg="Eq. (27)")
+    assert_allclose(k, [float(g) for g in pv.EQ27_GAINS], rtol=0, atol=5e-5, err_msg="Eq. (27)")
     assert_allclose(an.place_poles_gains(A, b, t), k, rtol=0, atol=1e-10)
     assert_allclose(an.ackermann_gains(A, b, t), k, rtol=0, atol=1e-10)
     assert_allclose(np.sort_complex(np.linalg.eigvals(an.closed_loop_matrix(A, b, k))), np.sort_complex(t),
@@ -156,7 +156,7 @@ def test_eq24_b_interval_by_vertices() -> None:
             [1][1, 0] for sg in itertools.product((-1, 1), repeat=7)]
     lo, hi = ROWS[("Eq. (24)", "b(2) [B1 column of delta_Phi_a]")].interval
     assert_allclose([min(vals), max(vals)], [lo, hi], rtol=0, atol=2e-5)
-    assert min(vals) <= pv.value(pv.EQ24_B_COLUMN[1]) <= max(vals)
+    assert min(vals) <= float(pv.EQ24_B_COLUMN[1]) <= max(vals)
 
 
 def test_characteristic_coefficients_are_affine_in_k() -> None:
@@ -183,7 +183,7 @@ def test_single_input_designs_stabilise() -> None:
         assert np.min(np.abs(ev + 0.1)) < 1e-9 and ev.real.max() < 0, u
         assert np.linalg.eigvals(an.closed_loop_matrix(A, B[:, model.CONTROL_NAMES.index(u)],
                                                        lqr_gains(A, B, u))).real.max() < 0, u
-    paper = [d for d in stabilising_designs(extra={"Eq. (27)": [pv.value(g) for g in pv.EQ27_GAINS]})
+    paper = [d for d in stabilising_designs(extra={"Eq. (27)": [float(g) for g in pv.EQ27_GAINS]})
              if d.method == "Eq. (27)"][0]
     # Sect. 3.4: 0.5 rad roll along mode 1 needs "only a few degrees" of dPhi_a (4.05 deg over 100
     # wing beats; with model.py's b the printed gains leave lambda1 = +1e-4, so |u| creeps up slowly).

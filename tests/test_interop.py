@@ -185,7 +185,7 @@ def test_ssp_run_is_the_delayed_loop(ssp, harness_loop):
 
 
 def test_ssp_verdict_is_neutral(ssp):
-    ident, _ = ssp_verdict(ssp)
+    ident = ssp_verdict(ssp).identification
     assert ident.verdict == "neutral"
     assert_allclose(ident.eigenvalues[:4], PAPER_TARGETS, atol=1e-3)
     assert ident.fit_residual < 1e-10
@@ -232,7 +232,7 @@ def test_container_is_the_gauss_seidel_loop(container, harness_loop):
 
 
 def test_container_verdict_is_neutral(container):
-    ident, _ = container_verdict(container)
+    ident = container_verdict(container).identification
     assert ident.verdict == "neutral"
     assert_allclose(ident.eigenvalues[:4], PAPER_TARGETS, atol=1e-3)
     assert ident.fit_residual < 1e-10

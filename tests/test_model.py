@@ -13,9 +13,9 @@ from dronefly.harness.paper import values as pv
 from dronefly.plant import model as M
 
 #: Eq. (24): first column of B1 as printed (the delta Phi_a column).
-B1_COL1_EQ24 = tuple(pv.value(t) for t in pv.EQ24_B_COLUMN)
+B1_COL1_EQ24 = tuple(float(t) for t in pv.EQ24_B_COLUMN)
 #: Table 2: eigenvalues of A1 per wing beat, printed to three decimals.
-_T2 = {k: pv.value(t) for k, t in pv.TABLE2.items()}
+_T2 = {k: float(t) for k, t in pv.TABLE2.items()}
 EIG_TABLE2 = (_T2["lambda1"], complex(_T2["lambda23_re"], _T2["lambda23_im"]),
               complex(_T2["lambda23_re"], -_T2["lambda23_im"]), _T2["lambda4"])
 

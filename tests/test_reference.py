@@ -39,7 +39,8 @@ def test_reference_files_follow_cross_check_rules(model):
 
 
 def test_a_wrong_reference_is_detected(built_fmus, tmp_path):
-    """The comparison can fail: a reference off by 1 % outside the band is reported."""
+    """The comparison can fail: a reference whose delta_gamma is 1.5 times the true value from
+    row 100 on (far outside fmpy's cross-check band) is reported."""
     model = "DroneFlyLateral"
     for p in reference_paths(model):
         shutil.copy(p, tmp_path / p.name)

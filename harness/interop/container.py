@@ -23,6 +23,7 @@ import json
 import tempfile
 import uuid
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -37,7 +38,7 @@ from dronefly.harness.cosim.stability import Identification, identify
 from dronefly.harness.cosim.fmu import start_values
 from dronefly.lateral import STATE_NAMES, plant_scales
 
-__all__ = ["container_configuration", "container_verdict", "fix_connection_types", "run_container",
+__all__ = ["Verdict", "container_configuration", "container_verdict", "fix_connection_types", "run_container",
            "write_container"]
 
 
@@ -170,6 +171,19 @@ def _container_files(config, fix: bool = True) -> dict[str, bytes]:
     return files
 
 
+@dataclass(frozen=True)
+class Verdict:
+    """How an importer ran the closed loop: the identification and the runs it used."""
+
+    identification: Identification
+    runs: list[np.ndarray]  # non-dimensional state trajectories, one per unit initial state
+
+    @property
+    def verdict(self) -> str:
+        """``unstable``, ``neutral`` or ``stable`` (see :mod:`dronefly.harness.cosim.stability`)."""
+        return self.identification.verdict
+
+
 def write_container(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
                     spec: ClosedLoopSpec = ClosedLoopSpec(), *, fix: bool = True,
                     name: str = CLOSED_LOOP) -> Path:
@@ -193,16 +207,14 @@ def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None =
                                      if v.causality == "output"])
 
 
-def container_verdict(fmu: str | Path,
-                      n_steps: int = 20) -> tuple[Identification, list[np.ndarray]]:
+def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
     """Identify and classify the loop as the container runs it (one run per unit x+_0).
 
-    The container's master, measured (``tests/test_interop.py``): the plant's first step
-    uses u_0 = 0 (nothing is transferred before it); after every step the connections are
-    applied in order, plant -> controller then controller -> plant, and the controller is
-    direct feedthrough, so from then on u_k = K x_k. Rows 1, 2, ... are thus exactly the
-    Gauss-Seidel loop started from x_1 (``Loop.run(master="gauss-seidel")`` from x_1 agrees
-    bit for bit), and the identification uses them without delay.
+    The container's master, measured (``tests/test_interop.py``,
+    ``test_container_is_the_gauss_seidel_loop``): it resolves its connections in
+    initialization, where the plant's outputs already hold x_0, so u_0 = K x_0, and after every
+    step (plant -> controller -> plant; the controller is direct feedthrough): u_k = K x_k. The
+    rows are the Gauss-Seidel loop from x_0, and the identification uses them without delay.
     """
     md = read_model_description(fmu)
     scale = np.array(plant_scales(start_values(md)))
@@ -213,9 +225,8 @@ def container_verdict(fmu: str | Path,
         res = run_container(fmu, start_values={f"{x}_start": float(v)
                                                for x, v in zip(STATE_NAMES, e * scale)},
                             stop_time=(n_steps + 1) * step)
-        xs = np.column_stack([res[x] for x in STATE_NAMES]) / scale
-        runs.append(xs[1:])
-    return identify(runs, step * n, delay=False), runs
+        runs.append(np.column_stack([res[x] for x in STATE_NAMES]) / scale)
+    return Verdict(identify(runs, step * n, delay=False), runs)
 
 
 # -----------------------------------------------------------------------------

@@ -29,7 +29,8 @@ from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT,
                         parameter_values, reference_scales)
 from dronefly.harness.cosim.master import CoSimError
 from dronefly.harness.cosim.master import connect_by_name
-from dronefly.harness.cosim.stability import Identification, identify
+from dronefly.harness.cosim.stability import identify
+from dronefly.harness.interop.container import Verdict
 from dronefly.lateral import STATE_NAMES
 
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
@@ -171,7 +172,7 @@ def run_ssp(ssp: str | Path, *, step: float | None = None, stop_time: float | No
                         step_size=step, parameter_set=pset)
 
 
-def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, list[np.ndarray]]:
+def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
     """Identify and classify the loop as fmpy's SSP simulation runs it.
 
     One run per unit initial state x+_0 = e_i (the SSP's gains). By the master described in
@@ -188,7 +189,7 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> tuple[Identification, lis
                                  for s, v in zip(STATE_NAMES, e * scale)})
         xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([np.zeros(len(STATE_NAMES)), xs]))
-    return identify(runs, d_step * n, delay=True), runs
+    return Verdict(identify(runs, d_step * n, delay=True), runs)
 
 
 # -----------------------------------------------------------------------------

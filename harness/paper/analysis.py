@@ -48,8 +48,8 @@ def lateral_system(params: model.LateralParameters | None = None) -> tuple[Array
 
 def longitudinal_system() -> tuple[Array, Array]:
     """A (4x4) and B (4x4) of Sect. 3.5 as printed (state du+, dw+, dq+, dtheta)."""
-    return (np.array([[pv.value(t) for t in r] for r in pv.SECT35_A]),
-            np.array([[pv.value(t) for t in r] for r in pv.SECT35_B]))
+    return (np.array([[float(t) for t in r] for r in pv.SECT35_A]),
+            np.array([[float(t) for t in r] for r in pv.SECT35_B]))
 
 
 def ordered_eigen(A: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:

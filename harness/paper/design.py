@@ -183,7 +183,7 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
     c0, G = characteristic_affine(A, B[:, 0])
     Al, Bl = longitudinal_system()
     ml = modal_decomposition(Al, Bl, LONGITUDINAL_CONVENTION)
-    k27 = np.array([pv.value(t) for t in pv.EQ27_GAINS])
+    k27 = np.array([float(t) for t in pv.EQ27_GAINS])
     out: dict = {
         "lateral": {"A1": A.tolist(), "B1": B.tolist(), "eigenvalues": _cx(w),
                     "eigenvectors_table3": {"magnitude": mag.tolist(), "phase_deg": ph.tolist()},

@@ -28,12 +28,12 @@ class Notes:
     def __init__(self, lat: Ctx, lon: Ctx) -> None:
         A, B = lat["A"], lat["B"]
         B24 = B.copy()
-        B24[:, 0] = [pv.value(t) for t in pv.EQ24_B_COLUMN]
+        B24[:, 0] = [float(t) for t in pv.EQ24_B_COLUMN]
         w = lat["w"]
-        e19 = [[pv.value(t) for t in r] for r in pv.EQ19_A_LNN]
+        e19 = [[float(t) for t in r] for r in pv.EQ19_A_LNN]
         t19 = [0.0, complex(e19[1][1], e19[1][2]), complex(e19[1][1], -e19[1][2]), e19[3][3]]
-        t2 = [0.0, complex(pv.value(pv.TABLE2["lambda23_re"]), pv.value(pv.TABLE2["lambda23_im"]))]
-        t2 += [t2[1].conjugate(), pv.value(pv.TABLE2["lambda4"])]
+        t2 = [0.0, complex(float(pv.TABLE2["lambda23_re"]), float(pv.TABLE2["lambda23_im"]))]
+        t2 += [t2[1].conjugate(), float(pv.TABLE2["lambda4"])]
         exact = [0.0, w[1], w[2], w[3]]
         self.alt = {
             "Bn_last": modal_decomposition(A, B, ModalConvention((0, 1, 2, 3), norm="last")).B_n,
@@ -61,7 +61,7 @@ class Notes:
         if src == "Eq. (27)":
             inputs += " and the Table 2 targets to 3 decimals"
         lo, hi = iv if iv else (x, x)
-        p, tol = pv.value(text), pv.half_unit(text, None if "." in text or src < "Eq. (1" else 4)
+        p, tol = float(text), pv.half_unit(text, None if "." in text or src < "Eq. (1" else 4)
         inside = lo <= p + tol and p - tol <= hi
         msg = (f"{'Rounding' if inside else 'Not explained by rounding'}: computed {x:.6g}; moving every "
                f"printed input ({inputs}) by +/- half a unit of its last digit gives [{lo:.6g}, {hi:.6g}] "
@@ -78,8 +78,8 @@ class Notes:
         if src == "Table 3":
             parts = []
             if qty == "|dp+| mode 2":
-                t2 = complex(pv.value(pv.TABLE2["lambda23_re"]), pv.value(pv.TABLE2["lambda23_im"]))
-                e19 = complex(pv.value(pv.EQ19_A_LNN[1][1]), pv.value(pv.EQ19_A_LNN[1][2]))
+                t2 = complex(float(pv.TABLE2["lambda23_re"]), float(pv.TABLE2["lambda23_im"]))
+                e19 = complex(float(pv.EQ19_A_LNN[1][1]), float(pv.EQ19_A_LNN[1][2]))
                 parts.append(f"|dp+| = |lambda2| exactly (dgamma' = dp+ with dgamma = 1); Table 2's lambda2 "
                              f"gives {abs(t2):.5f} and Eq. (19)'s {abs(e19):.5f}, both consistent with the "
                              "print, while Eq. (12)'s exact |lambda2| is just below the rounding boundary.")
@@ -120,7 +120,7 @@ class Notes:
         return ""
 
     def _special(self, src: str, qty: str, text: str, x: float, iv) -> tuple[str, str] | None:
-        a, p = self.alt, pv.value(text)
+        a, p = self.alt, float(text)
         tol = pv.half_unit(text, 4 if src.startswith("Eq. (3") else None)
         if src.startswith("Eq. (26") and qty.endswith("constant") and abs(x + p) <= tol:
             return ("error in print", f"Error in print (sign): e = det(A1) = lambda1 lambda2 lambda3 lambda4 "

@@ -42,13 +42,13 @@ def lateral_inputs() -> list[tuple[str, float, float]]:
            for i in range(4) for j in range(4) if (i, j) not in pv.EQ12_STRUCTURAL]
     out += [(k, model.INERTIAS_SECT21[k], 0.5 * 10.0 ** -d) for k, d in pv.SECT21_DECIMALS.items()]
     out += [(k, v, 0.5 * 10.0 ** -pv.TABLE1_DECIMALS) for k, v in model.CONTROL_DERIVATIVES_TABLE1.items()]
-    out += [(f"Table 2 {k}", pv.value(t), pv.half_unit(t)) for k, t in pv.TABLE2.items() if k != "lambda1"]
+    out += [(f"Table 2 {k}", float(t), pv.half_unit(t)) for k, t in pv.TABLE2.items() if k != "lambda1"]
     return out
 
 
 def longitudinal_inputs() -> list[tuple[str, float, float]]:
     """(name, printed value, half unit) of every rounded entry of the Sect. 3.5 A and B."""
-    return [(f"{m}({i + 1},{j + 1})", pv.value(tab[i][j]), pv.half_unit(tab[i][j], 4))
+    return [(f"{m}({i + 1},{j + 1})", float(tab[i][j]), pv.half_unit(tab[i][j], 4))
             for m, tab in (("A", pv.SECT35_A), ("B", pv.SECT35_B)) for i in range(4) for j in range(4)
             if (i, j) not in pv.LONGITUDINAL_STRUCTURAL[m]]
 
@@ -150,7 +150,7 @@ def _longitudinal_specs() -> list[tuple[str, str, str, int | None, Callable[[Ctx
 def _make(spec, computed: float, interval, note_fn) -> Row:
     src, qty, text, dec, _ = spec
     tol = pv.half_unit(text, dec)
-    match = abs(computed - pv.value(text)) <= tol + 1e-12
+    match = abs(computed - float(text)) <= tol + 1e-12
     reason, note = note_fn(src, qty, text, computed, match, interval)
     return Row(src, qty, text, float(computed), tol, bool(match), reason, note, interval)
 
@@ -181,7 +181,7 @@ def _build() -> tuple[tuple[Row, ...], "Notes"]:
 # --- output ---------------------------------------------------------------------------------
 def _gains(notes: Notes) -> dict:
     a = notes.alt
-    return {"eq27_printed": [pv.value(t) for t in pv.EQ27_GAINS],
+    return {"eq27_printed": [float(t) for t in pv.EQ27_GAINS],
             "eq27_paper_inputs (Eq. 19 targets, Eq. 24 b)": a["k_paper"].tolist(),
             "eq27_paper_inputs place_poles": a["k_paper_pp"].tolist(),
             "eq27_paper_inputs Ackermann": a["k_paper_ack"].tolist(),

@@ -21,11 +21,11 @@ from dronefly.plant.model import A1_EQ12
 
 __all__ = [
     "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
-    "EQ24_A", "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS",
+    "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS",
     "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
     "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE",
     "TABLE3_PHASE_DEG",
-    "half_unit", "value",
+    "half_unit",
 ]
 
 #: Eq. (12), from the model module (4 decimals as printed).
@@ -33,8 +33,6 @@ EQ12_A1 = A1_EQ12
 EQ12_DECIMALS = 4
 #: Entries of Eq. (12) fixed by the structure of Eq. (10) (exact 0 and 1), 0-based.
 EQ12_STRUCTURAL = ((1, 3), (2, 3), (3, 0), (3, 1), (3, 2), (3, 3))
-#: Eq. (24), first term: "A1' = [Eq. (12) as printed] + b k" (identical print).
-EQ24_A = A1_EQ12
 
 #: Table 2: eigenvalues of A1 (per wing beat).
 TABLE2 = {"lambda1": "0.079", "lambda23_re": "-0.089", "lambda23_im": "0.057",
@@ -108,11 +106,6 @@ EQ32_B_N = (("0.0004", "-0.0008", "-0.2201", "0.0742"),
             ("0.0055", "0.0092", "-0.4312", "0.0012"),
             ("0.0005", "0.0034", "0.4413", "-0.1488"),
             ("-0.0181", "-0.0267", "-0.0011", "0"))
-
-
-def value(text: str) -> float:
-    """The printed number ``text`` as a float."""
-    return float(text)
 
 
 def half_unit(text: str, decimals: int | None = None) -> float:

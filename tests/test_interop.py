@@ -101,7 +101,7 @@ def test_libcosim_equals_the_jacobi_harness(libcosim, fmus, harness_loop):
     """
     h = step_ns(0.1, N_HZ)
     n = 3000
-    r = run_libcosim(*fmus, step=h, n_steps=n, plant_start=_start(X0))
+    r = run_libcosim(*fmus, step_ns=h, n_steps=n, plant_start=_start(X0))
     assert r.complete, r.error
     assert r.names == [*STATES, *CONTROLS]
     assert_allclose(r.time, np.arange(n + 1) * h * 1e-9, rtol=0, atol=1e-15)
@@ -143,7 +143,7 @@ def test_libcosim_runs_the_ssp(libcosim, fmus, ssp):
     last = obs.last_real_values(infos["plant"], [pv[s] for s in STATES])
     params = {p.name.split(".", 1)[1]: float(p.value) for p in ssp_parameter_set(ssp).parameters
               if p.name.startswith("plant.")}
-    direct = run_libcosim(*fmus, step=h, n_steps=n, plant_start=params)
+    direct = run_libcosim(*fmus, step_ns=h, n_steps=n, plant_start=params)
     assert_allclose(last, direct.states()[-1], rtol=1e-12, atol=0)
     assert params["delta_gamma_start"] == 0.1
     assert abs(last[3]) > 1e-3  # the bound initial state was applied (else all would stay 0)
@@ -259,11 +259,11 @@ def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path
     assert {c["variableType"] for c in ours["connections"]} == {"Float64"}
     if types == {"Real"}:
         with pytest.raises(Exception, match="instantiate"):
-            run_container(raw, stop_time=5 * H)
+            run_container(raw, stop_s=5 * H)
     else:
         assert types == {"Float64"}
-        run_container(raw, stop_time=5 * H)
-    assert len(run_container(container, stop_time=5 * H)) == 6
+        run_container(raw, stop_s=5 * H)
+    assert len(run_container(container, stop_s=5 * H)) == 6
 
 
 def test_closed_loop_artefacts_are_reproducible(fmus, ssp, container, tmp_path):

@@ -162,12 +162,12 @@ class Loop:
         self.sensed = controller.names("input")  # subset of states, controller order
         self.names = [*self.states, *self.controls]
 
-    def run(self, step: float, n_steps: int, *, master: str = "gauss-seidel",
+    def run(self, step_s: float, n_steps: int, *, master: str = "gauss-seidel",
             plant_start: Mapping[str, float] | None = None,
             controller_params: Mapping[str, float] | None = None,
             u_source0: Sequence[float] | None = None,
             instances: tuple[Instance, Instance] | None = None) -> LoopRun:
-        """Co-simulate ``n_steps`` communication steps of ``step`` seconds from t = 0.
+        """Co-simulate ``n_steps`` communication steps of ``step_s`` seconds from t = 0.
 
         ``plant_start`` and ``controller_params`` are set in initialization mode.
         ``u_source0`` (Jacobi only) is what the controller is fed before the first step
@@ -176,18 +176,18 @@ class Loop:
         """
         if master not in MASTERS:
             raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
-        if not (math.isfinite(step) and step > 0.0):
-            raise CoSimError(f"step = {step!r} s must be finite and > 0")
+        if not (math.isfinite(step_s) and step_s > 0.0):
+            raise CoSimError(f"step = {step_s!r} s must be finite and > 0")
         if not 1 <= n_steps <= MAX_STEPS:
             raise CoSimError(f"n_steps = {n_steps!r} must be in 1..{MAX_STEPS}")
         if instances is None:
             with self.plant.instantiate() as p, self.controller.instantiate() as c:
-                return self._run(p, c, step, n_steps, master, plant_start, controller_params,
+                return self._run(p, c, step_s, n_steps, master, plant_start, controller_params,
                                  u_source0)
         p, c = instances
         p.slave.reset()
         c.slave.reset()
-        return self._run(p, c, step, n_steps, master, plant_start, controller_params, u_source0)
+        return self._run(p, c, step_s, n_steps, master, plant_start, controller_params, u_source0)
 
     # -------------------------------------------------------------------------
     def _run(self, p: Instance, c: Instance, step: float, n_steps: int, master: str,

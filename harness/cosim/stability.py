@@ -34,11 +34,11 @@ def sort_eigenvalues(ev: np.ndarray) -> np.ndarray:
     return np.array(lateral.sort_eigenvalues(np.ravel(ev)), dtype=complex)
 
 
-def rates_from_transition(F: np.ndarray, h_plus: float) -> np.ndarray:
+def rates_from_transition(F: np.ndarray, step_wb: float) -> np.ndarray:
     """Continuous eigenvalues per wing beat of a one-step transition matrix."""
     mu = np.linalg.eigvals(F)
     mu = mu[np.abs(mu) > _DELAY_MODE]
-    return sort_eigenvalues(np.log(mu.astype(complex)) / h_plus)
+    return sort_eigenvalues(np.log(mu.astype(complex)) / step_wb)
 
 
 def classify(rates: np.ndarray, tol: float = TOL_PER_WINGBEAT) -> str:
@@ -61,7 +61,7 @@ class Identification:
     fit_residual: float  # max |z_(k+1) - F z_k| / |z_k| over all pairs
 
 
-def identify(runs: list[np.ndarray], h_plus: float, delay: bool) -> Identification:
+def identify(runs: list[np.ndarray], step_wb: float, delay: bool) -> Identification:
     """Fit F from state trajectories (each (N, 4), non-dimensional) and classify.
 
     Parameters
@@ -70,7 +70,7 @@ def identify(runs: list[np.ndarray], h_plus: float, delay: bool) -> Identificati
         Non-dimensional state trajectories x+_k of the loop; for ``delay`` the
         first row of each run is x+_(-1), the state the controller was fed
         before the first step.
-    h_plus : float
+    step_wb : float
         Communication step in wing beats.
     delay : bool
         Jacobi ordering (z stacks the current and the previous state).
@@ -86,5 +86,5 @@ def identify(runs: list[np.ndarray], h_plus: float, delay: bool) -> Identificati
     Ft, *_ = np.linalg.lstsq(A, B, rcond=None)
     F = Ft.T
     resid = float(np.max(np.linalg.norm(B - A @ Ft, axis=1)))
-    rates = rates_from_transition(F, h_plus)
+    rates = rates_from_transition(F, step_wb)
     return Identification(F, rates, float(np.max(rates.real)), classify(rates), resid)

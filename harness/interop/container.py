@@ -194,13 +194,13 @@ def write_container(plant: str | Path, controller: str | Path, out_dir: str | Pa
 
 
 def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None = None,
-                  stop_time: float | None = None) -> np.ndarray:
+                  stop_s: float | None = None) -> np.ndarray:
     """``fmpy.simulate_fmu`` with the container's default experiment (output every step)."""
     import fmpy
 
     md = read_model_description(fmu)
     step = float(md.defaultExperiment.stepSize)
-    stop = float(md.defaultExperiment.stopTime) if stop_time is None else stop_time
+    stop = float(md.defaultExperiment.stopTime) if stop_s is None else stop_s
     return fmpy.simulate_fmu(str(fmu), stop_time=stop, output_interval=step,
                              start_values=dict(start_values or {}),
                              output=[v.name for v in md.modelVariables
@@ -224,7 +224,7 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
     for e in np.eye(len(STATE_NAMES)):
         res = run_container(fmu, start_values={f"{x}_start": float(v)
                                                for x, v in zip(STATE_NAMES, e * scale)},
-                            stop_time=(n_steps + 1) * step)
+                            stop_s=(n_steps + 1) * step)
         runs.append(np.column_stack([res[x] for x in STATE_NAMES]) / scale)
     return Verdict(identify(runs, step * n, delay=False), runs)
 

@@ -93,7 +93,7 @@ def _variables(execution, index: int) -> dict[str, tuple[int, int]]:
     return {v.name.decode(): (v.reference, v.causality) for v in execution.slave_variables(index)}
 
 
-def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_steps: int,
+def run_libcosim(plant: str | Path, controller: str | Path, *, step_ns: int, n_steps: int,
                  plant_start: Mapping[str, float] | None = None,
                  controller_params: Mapping[str, float] | None = None,
                  log_level: str = "WARNING") -> InteropRun:
@@ -103,7 +103,7 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_step
     ----------
     plant, controller : path
         FMI 2.0 co-simulation FMUs, connected by variable name.
-    step : int
+    step_ns : int
         Communication step in nanoseconds (see :func:`step_ns`).
     n_steps : int
         Number of steps from t = 0.
@@ -127,8 +127,8 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_step
     from libcosimpy.CosimSlave import CosimLocalSlave
     from libcosimpy._internal import get_last_error_message
 
-    if int(step) != step or step < 1:
-        raise CoSimError(f"step = {step!r} ns must be a positive integer")
+    if int(step_ns) != step_ns or step_ns < 1:
+        raise CoSimError(f"step_ns = {step_ns!r} ns must be a positive integer")
     if n_steps < 1:
         raise CoSimError(f"n_steps = {n_steps!r} must be >= 1")
     for label, path in (("plant", plant), ("controller", controller)):
@@ -136,7 +136,7 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_step
             raise CoSimError(f"{label} FMU {str(path)!r} does not exist")
     log_output_level(CosimLogLevel[log_level])
 
-    ex = CosimExecution.from_step_size(int(step))
+    ex = CosimExecution.from_step_size(int(step_ns))
     slaves = []  # keep the slave objects alive as long as the execution
     idx = {}
     for role, path in (("plant", plant), ("controller", controller)):
@@ -180,7 +180,7 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_step
         obs.start_time_series(s, vr, CosimVariableType.REAL)
     ok = ex.step(n_steps)
     error = "" if ok else get_last_error_message()
-    steps_done = int(round(ex.status().current_time / step))
+    steps_done = int(round(ex.status().current_time / step_ns))
     cols, times = [], None
     for s, vr, _ in series:
         t0, _, v0 = obs.time_series_real_samples(s, vr, 0, steps_done + 1)  # loses the last
@@ -196,7 +196,7 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step: int, n_step
         _, _, v = obs.time_series_real_samples(c, cv[name][0], 0, 2)  # step 0 (and 1)
         inputs0[name] = float(v[0]) if v else math.nan
     del obs, ex, slaves
-    return InteropRun([*states, *controls], time, signals, int(step), complete=ok,
+    return InteropRun([*states, *controls], time, signals, int(step_ns), complete=ok,
                       error=error, controller_inputs0=inputs0)
 
 
@@ -221,7 +221,7 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
     runs = []
     for x_now in np.eye(len(STATE_NAMES)):
         r = run_libcosim(
-            plant, controller, step=h, n_steps=n_steps,
+            plant, controller, step_ns=h, n_steps=n_steps,
             plant_start={f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x_now * scale)},
             controller_params=gains)
         if not r.complete:

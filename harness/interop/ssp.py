@@ -141,7 +141,7 @@ def _md_from_bytes(data: bytes):
         return read_model_description(p)
 
 
-def run_ssp(ssp: str | Path, *, step: float | None = None, stop_time: float | None = None,
+def run_ssp(ssp: str | Path, *, step_s: float | None = None, stop_s: float | None = None,
             overrides: Mapping[str, float] | None = None) -> np.ndarray:
     """Simulate the SSP with fmpy's ``simulate_ssp`` and the SSP's own parameter values.
 
@@ -164,8 +164,8 @@ def run_ssp(ssp: str | Path, *, step: float | None = None, stop_time: float | No
             raise CoSimError(f"the SSP binds no parameter {name!r}")
         for p in hits:
             p.value = repr(float(value))
-    step = d_step if step is None else step
-    stop = d_stop if stop_time is None else stop_time
+    step = d_step if step_s is None else step_s
+    stop = d_stop if stop_s is None else stop_s
     # fmpy steps while time < stop; stop half a step early so that float accumulation of
     # the time cannot add one step
     return simulate_ssp(str(ssp), start_time=0.0, stop_time=stop - 0.5 * step,
@@ -184,7 +184,7 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
         n, scale = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
     runs = []
     for e in np.eye(len(STATE_NAMES)):
-        res = run_ssp(ssp, stop_time=(n_steps + 0.5) * d_step,
+        res = run_ssp(ssp, stop_s=(n_steps + 0.5) * d_step,
                       overrides={f"plant.{s}_start": float(v)
                                  for s, v in zip(STATE_NAMES, e * scale)})
         xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale

@@ -31,6 +31,7 @@ __all__ = [
     "N_HZ",
     "NONDIMENSIONAL",
     "STATE_DESCRIPTIONS",
+    "STATE_BOUNDS_SECT36",
     "STATE_NAMES",
     "STATE_UNITS",
     "U_M_PER_S",
@@ -66,6 +67,10 @@ CONTROL_DESCRIPTIONS: tuple[str, ...] = (
     "anti-symmetric change of both angles of attack (left minus right)",
     "anti-symmetric differential change of down/upstroke angles of attack",
 )
+
+#: Sect. 3.6: the linear analysis holds while |dv+|, |dp+|, |dr+| <= 0.15 and |dgamma| <= 0.22 rad
+#: (x+, non-dimensional; the controls stay within +/-0.4 rad).
+STATE_BOUNDS_SECT36: tuple[float, float, float, float] = (0.15, 0.15, 0.15, 0.22)
 
 #: Sect. 2.4: flight data of the model drone fly, SI units.
 FLIGHT_DATA: dict[str, float] = {

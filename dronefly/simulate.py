@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .lateral import N_HZ, STATE_NAMES, scale_vector
+from .errors import DroneflyError
+from .files import write_csv_atomic
+from .lateral import N_HZ, STATE_NAMES, STATE_UNITS, scale_vector
 from .plant.model import LateralModel, default_parameters
 
-__all__ = ["PlantRun", "exact_open_loop", "simulate_plant", "write_csv_atomic"]
+__all__ = ["PlantRun", "exact_open_loop", "simulate_plant"]
 
 
 @dataclass(frozen=True)
@@ -23,13 +25,18 @@ class PlantRun:
     max_rel_error: float  # against the exact solution, relative to max |x|
     csv: Path
     complete: bool = True  # False: the FMU refused a step before the stop time
+    requested_stop_wb: float | None = None  # when the stop is not a whole number of steps
 
     def summary(self) -> str:
         wb = self.time[-1] * N_HZ
-        final = ", ".join(f"{n} = {v:.6g}" for n, v in zip(STATE_NAMES, self.states[-1]))
-        text = (f"DroneFlyLateral open loop, {len(self.time) - 1} steps to {wb:.6g} wing beats: "
-                f"{final}\nmax relative deviation from the exact solution: "
-                f"{self.max_rel_error:.2e}\nresult: {self.csv}")
+        final = ", ".join(f"{n} = {v:.6g} {unit}"
+                          for n, v, (unit, _) in zip(STATE_NAMES, self.states[-1], STATE_UNITS))
+        text = (f"DroneFlyLateral open loop, {len(self.time) - 1} steps to {wb:.6g} wing beats "
+                f"({self.time[-1]:.6g} s): {final}\nmax relative deviation from the exact "
+                f"solution: {self.max_rel_error:.2e}\nresult: {self.csv}")
+        if self.requested_stop_wb is not None:
+            text += (f"\nnote: stop {wb:.6g} wing beats = {len(self.time) - 1} whole steps; the "
+                     f"requested {self.requested_stop_wb:g} is not a whole number of steps")
         if not self.complete:
             text += (f"\nINCOMPLETE: the FMU refused the step after {wb:.6g} wing beats (run "
                      "with fmpy's debug logging for its message); the CSV holds what was computed")
@@ -58,14 +65,6 @@ def exact_open_loop(x0_dim: np.ndarray, t: np.ndarray, u: np.ndarray | None = No
     return np.real(modal @ V.T) * scale
 
 
-def write_csv_atomic(path: Path, header: list[str], rows: np.ndarray) -> None:
-    """Write a CSV next to its final name, then rename: never a half-written file."""
-    from .files import write_text_atomic
-
-    lines = [",".join(header), *(",".join(repr(float(v)) for v in row) for row in rows)]
-    write_text_atomic(path, "\n".join(lines) + "\n")
-
-
 def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, gamma0: float = 0.1,
                    out_dir: str | Path = "build") -> PlantRun:
     """Build the plant FMU if needed, simulate it with fmpy and write a CSV.
@@ -84,8 +83,9 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     from .harness.cosim.master import step_count
 
     if not math.isfinite(gamma0):
-        raise ValueError(f"gamma0 = {gamma0!r} is not finite")
+        raise DroneflyError(f"gamma0 = {gamma0!r} rad is not finite")
     n_steps = step_count(stop_wingbeats, step_wingbeats)
+    requested = stop_wingbeats
     stop_wingbeats = n_steps * step_wingbeats
     out = Path(out_dir)
     fmu = build_fmu("DroneFlyLateral", out)
@@ -101,5 +101,6 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
         ok = np.isfinite(ref).all(axis=1)
         err = float(np.max(np.abs(x[ok] - ref[ok])) / max(np.max(np.abs(ref[ok])), 1e-300))
     csv = out / "DroneFlyLateral_open_loop.csv"
-    write_csv_atomic(csv, ["time", *STATE_NAMES], np.column_stack([t, x]))
-    return PlantRun(t, x, err, csv, complete)
+    write_csv_atomic(csv, ["time", *STATE_NAMES], np.column_stack([t, x]).tolist())
+    return PlantRun(t, x, err, csv, complete,
+                    None if math.isclose(stop_wingbeats, requested, rel_tol=1e-9) else requested)

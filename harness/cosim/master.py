@@ -54,7 +54,11 @@ def step_count(stop: float, step: float, unit: str = "wing beats") -> int:
     for label, v in (("step", step), ("stop", stop)):
         if not (math.isfinite(v) and v > 0.0):
             raise CoSimError(f"{label} = {v!r} {unit} must be finite and > 0")
-    n = math.floor(stop / step * (1.0 + 1e-12))
+    ratio = stop / step * (1.0 + 1e-12)
+    if not math.isfinite(ratio) or ratio > MAX_STEPS + 1:
+        raise CoSimError(f"stop / step = {stop!r} / {step!r} {unit} is more than {MAX_STEPS} "
+                         "communication steps (the limit: 8 bytes per signal and step)")
+    n = math.floor(ratio)
     if n < 1:
         raise CoSimError(f"stop = {stop!r} is shorter than one step ({step!r}) ({unit})")
     if n > MAX_STEPS:

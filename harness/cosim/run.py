@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -94,9 +93,16 @@ class CosimResult:
             f"identified eigenvalues per wing beat: {ev}",
             f"eig(A1 + B1 K): {', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
             f"{self.master} master, step {self.step_wingbeats:g} wing beats, "
-            f"{len(self.run.time) - 1} steps; max deviation from the exact sampled-data "
-            f"solution {self.trajectory_error:.1e}",
+            f"{len(self.run.time) - 1} steps to {self.stop_wingbeats:g} wing beats; max deviation "
+            f"from the exact sampled-data solution {self.trajectory_error:.1e}",
         ]
+        requested = self.extra.get("requested_stop_wb")
+        if requested is not None and not math.isclose(requested, self.stop_wingbeats,
+                                                      rel_tol=1e-9):
+            lines.append(f"note: the requested stop {requested:g} wing beats is not a whole "
+                         f"number of steps; the run stops at {self.stop_wingbeats:g}")
+        if self.extra.get("built_into"):
+            lines.append(f"FMUs built into {self.extra['built_into']}")
         if not self.run.complete:
             lines.append(f"INCOMPLETE: {self.run.failure}")
         if self.csv:
@@ -179,13 +185,18 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
     from dronefly.build import project_fmus
 
+    built = None if plant is not None and controller is not None else Path(build_dir).resolve()
     plant, controller = project_fmus(plant, controller, build_dir)
     with FMU(plant) as pf, FMU(controller) as cf:
         loop = Loop(pf, cf)
         values = resolve_assignments(dict(set_values or {}), {
             "plant": pf.model_description, "controller": cf.model_description})
-        return _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir, plot,
-                           name, values)
+        result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
+                             plot, name, values)
+    result.extra["requested_stop_wb"] = stop_wingbeats
+    if built is not None:
+        result.extra["built_into"] = str(built)
+    return result
 
 
 def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
@@ -241,6 +252,7 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
     peak = np.maximum(np.abs(ref).max(axis=0), 1e-300)
     err = float(np.max(np.abs(xs - ref) / peak)) if len(xs) else math.nan
     result = CosimResult(run, K, master, step_wb, stop_wb, ident, cont, sampled, err)
+    result.extra["scale"] = scale.tolist()
     if open_run is not None:
         result.extra["open_loop"] = open_run
     if out_dir is not None:
@@ -259,27 +271,24 @@ def _default_name(K: np.ndarray, master: str) -> str:
 
 
 def _write_outputs(result: CosimResult, out: Path, name: str, plot: bool) -> None:
-    """CSV, PNG and JSON next to their final names, then renamed: never half-written."""
-    from fmpy.util import write_csv
+    """CSV, PNG and JSON: all written next to their final names and renamed together."""
+    import contextlib
+
+    from dronefly.files import atomic_path, format_cell, write_csv_atomic
 
     out.mkdir(parents=True, exist_ok=True)
-    csv = out / f"{name}.csv"
-    parts: list[tuple[Path, Path]] = []
-    tmp = csv.with_name(csv.name + ".part")
-    write_csv(str(tmp), result.run.structured())
-    parts.append((tmp, csv))
-    result.csv = csv
-    if plot:
-        from dronefly.harness.cosim.plot import plot_loop
+    run = result.run
+    with contextlib.ExitStack() as stack:
+        csv = out / f"{name}.csv"
+        write_csv_atomic(stack.enter_context(atomic_path(csv)), ["time", *run.names],
+                         np.column_stack([run.time, run.signals]).tolist())
+        result.csv = csv
+        if plot:
+            from dronefly.harness.cosim.plot import plot_loop
 
-        png = out / f"{name}.png"
-        tmp_png = png.with_name(png.name + ".part")
-        if plot_loop(result, tmp_png):
-            parts.append((tmp_png, png))
+            png = out / f"{name}.png"
+            plot_loop(result, stack.enter_context(atomic_path(png)))
             result.plot = png
-    summary = out / f"{name}.json"
-    tmp_json = summary.with_name(summary.name + ".part")
-    tmp_json.write_text(json.dumps(result.to_json(), indent=2) + "\n", encoding="utf-8")
-    parts.append((tmp_json, summary))
-    for src, dst in parts:
-        os.replace(src, dst)
+        summary = out / f"{name}.json"
+        stack.enter_context(atomic_path(summary)).write_text(
+            json.dumps(result.to_json(), indent=2, default=format_cell) + "\n", encoding="utf-8")

@@ -33,6 +33,7 @@ import numpy as np
 from dronefly.errors import DroneflyError
 
 from dronefly.controller.law import U_MAX_LINEAR_RANGE
+from dronefly.lateral import STATE_BOUNDS_SECT36
 from dronefly.harness.cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
@@ -41,8 +42,6 @@ __all__ = ["AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GA
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
            "gain_matrix", "parse_floats", "parse_int", "parse_names", "parse_slices"]
 
-#: Sect. 3.6: bounds of dv+, dp+, dr+ and dgamma within which the linear theory holds.
-STATE_BOUNDS_SECT36: tuple[float, float, float, float] = (0.15, 0.15, 0.15, 0.22)
 #: Short names of the non-dimensional state components (x+ order).
 AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
 DISTURBANCES: tuple[str, ...] = ("grid", "lhs", "directions")

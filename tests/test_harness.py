@@ -171,6 +171,8 @@ def test_plot_is_written(fmus, tmp_path):
 @pytest.mark.parametrize("args, fragment", [
     (["--stop", "1e12"], "exceeds the limit of 1000000"),
     (["--step", "1e-300", "--stop", "1"], "exceeds the limit of 1000000"),
+    (["--stop=1e308"], "exceeds the limit of 1000000"),
+    (["--step=1e-320"], "exceeds the limit of 1000000"),
 ])
 def test_cli_refuses_runs_too_long_to_record(fmus, tmp_path, capsys, args, fragment):
     argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]),

@@ -56,8 +56,8 @@ def step_count(stop: float, step: float, unit: str = "wing beats") -> int:
             raise CoSimError(f"{label} = {v!r} {unit} must be finite and > 0")
     ratio = stop / step * (1.0 + 1e-12)
     if not math.isfinite(ratio) or ratio > MAX_STEPS + 1:
-        raise CoSimError(f"stop / step = {stop!r} / {step!r} {unit} is more than {MAX_STEPS} "
-                         "communication steps (the limit: 8 bytes per signal and step)")
+        raise CoSimError(f"stop / step = {stop!r} / {step!r} = {ratio:.3g} communication steps "
+                         f"exceeds the limit of {MAX_STEPS}")
     n = math.floor(ratio)
     if n < 1:
         raise CoSimError(f"stop = {stop!r} is shorter than one step ({step!r}) ({unit})")

@@ -181,6 +181,10 @@ def test_cli_sweep(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     (["--directions", "+roll"], "+roll"),
     (["--workers", "zero"], "workers"),
     (["--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "0.5"], "tcp://127.0.0.1:1"),
+    (["--grid", "100000"], "exceed the limit of 200000"),
+    (["--disturbances", "lhs", "--lhs", "100000000"], "exceed the limit of 200000"),
+    (["--set", "plant.nope=1"], "plant has no variable 'nope'"),
+    (["--gains", "paper,missing.json"], "gains file 'missing.json'"),
 ])
 def test_cli_bad_input(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
                        named: str) -> None:
@@ -197,3 +201,18 @@ def test_cli_bad_input(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str],
     assert len(err.strip().splitlines()) == 1 and err.startswith("dronefly sweep: error:")
     assert named in err
     assert _snapshot(tmp_path) == before
+
+
+def test_summary_accounts_for_every_case(fmus, tmp_path):
+    """cases = run + resumed + identical to another case (the default grid and directions
+    overlap where a direction point is also a grid point)."""
+    spec = SweepSpec(disturbances=("grid", "directions"), slices=(("dgamma", "dv"),),
+                     grid_points=3, directions=("+dgamma", "-dgamma"), amplitudes=1,
+                     gains=("open",), steps_wb=(1.0,), stop_wb=2.0)
+    r = run_sweep(spec, tmp_path, workers=1, plot=False, progress_bar=False, **fmus)
+    s = r.summary
+    assert s["duplicate_cases"] > 0
+    assert s["cases"] == s["computed_cases"] + s["resumed_cases"] + s["duplicate_cases"]
+    from dronefly.harness.sweep.results import format_summary
+
+    assert f"{s['duplicate_cases']} identical to another case" in format_summary(s)

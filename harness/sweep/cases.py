@@ -38,9 +38,12 @@ from dronefly.harness.cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_m
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
 
-__all__ = ["AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
+__all__ = ["MAX_CASES", "AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
            "gain_matrix", "parse_floats", "parse_int", "parse_names", "parse_slices"]
+
+#: Cases per sweep at most (rows of sweep.csv, about 1 kB each, and their results in memory).
+MAX_CASES = 200_000
 
 #: Short names of the non-dimensional state components (x+ order).
 AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
@@ -239,6 +242,24 @@ class SweepSpec:
         for s in parse_floats(self.scales, "scales"):
             if s <= 0:
                 raise SweepInputError(f"scale = {s!r} must be > 0")
+        n = self.case_count()
+        if n > MAX_CASES:
+            raise SweepInputError(
+                f"{n} cases (grid {self.grid_points} x {self.grid_points} per slice, lhs "
+                f"{self.lhs_points}, directions x amplitudes, times gains, steps and scales) exceed "
+                f"the limit of {MAX_CASES}: one row of sweep.csv each (about 1 kB) and their "
+                "results are held in memory; split the sweep")
+
+    def case_count(self) -> int:
+        """The number of cases, counted before any is made (no allocation)."""
+        per = 0
+        if "grid" in self.disturbances:
+            per += len(tuple(self.slices)) * int(self.grid_points) ** 2
+        if "lhs" in self.disturbances:
+            per += int(self.lhs_points)
+        if "directions" in self.disturbances:
+            per += len(tuple(self.directions)) * int(self.amplitudes)
+        return per * len(tuple(self.gains)) * len(tuple(self.steps_wb)) * len(tuple(self.scales))
 
     def initial_states(self) -> list[tuple[str, str, float, np.ndarray]]:
         """(family, label, amplitude, x+(0)) of every disturbance, in a fixed order."""

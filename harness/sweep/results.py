@@ -151,8 +151,12 @@ def summarize(rows: Sequence[dict[str, str]], cases: Sequence[Case]) -> dict[str
 def format_summary(summary: dict[str, Any]) -> str:
     """A few lines for the terminal: totals, per-group fractions, per-direction limits."""
     s = summary
-    lines = [f"sweep: {s['cases']} cases ({s['computed_cases']} run, {s['resumed_cases']} resumed) "
-             f"in {s['elapsed_s']:.1f} s on {s['workers']} worker(s) ({s['backend']})",
+    dup = s.get("duplicate_cases", 0)
+    lines = [f"sweep: {s['cases']} cases: {s['computed_cases']} run, {s['resumed_cases']} resumed "
+             f"from an earlier run"
+             + (f", {dup} identical to another case (same initial state, gains, step, stop "
+                "and bounds: run once, recorded for each)" if dup else "")
+             + f"; {s['elapsed_s']:.1f} s on {s['workers']} worker(s) ({s['backend']})",
              f"within bounds: {s['within_bounds']}/{s['cases']} "
              f"({100 * (s['fraction_within_bounds'] or 0):.1f} %), errors: {s['errors']}"]
     for g in s["groups"]:

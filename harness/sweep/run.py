@@ -231,6 +231,9 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     summary.update(elapsed_s=time.perf_counter() - t_start, workers=n_workers,
                    backend="dask" if client else ("in-process" if n_workers == 1 else "processes"),
                    scheduler=scheduler, computed_cases=stats["computed"], resumed_cases=resumed,
+                   # cases identical to an earlier one (same initial state, gains, step, stop,
+                   # bounds, master: e.g. a direction case that is also a grid point) run once
+                   duplicate_cases=len(all_cases) - len(keys),
                    loop_run_s=stats["loop_s"], worker_case_s=stats["wall_s"],
                    per_case_overhead=(stats["wall_s"] / stats["loop_s"] - 1.0
                                       if stats["loop_s"] > 0 else None),

@@ -328,3 +328,17 @@ def test_c_host_with_libpython_preloaded_runs_the_loop(c_host, harness_loop):
     gs = harness_loop.run(H, 300, master="gauss-seidel", plant_start=_start(X0))
     assert_allclose(rows[:, 0], gs.time, rtol=1e-15)
     assert _rel_dev(rows[:, 1:], gs.signals) <= 1e-12
+
+
+def test_container_declares_only_platforms_all_its_fmus_have(container, fmus):
+    """The container's binaries are exactly the platforms of the container binary that every
+    nested FMU also ships (the nested FMUs have no darwin64 binary)."""
+    import zipfile as zf
+
+    def platforms(path):
+        with zf.ZipFile(path) as z:
+            return {n.split("/")[1] for n in z.namelist()
+                    if n.startswith("binaries/") and n.count("/") >= 2 and not n.endswith("/")}
+
+    nested = set.intersection(*(platforms(f) for f in fmus))
+    assert platforms(container) == nested == {"linux64", "win64"}

@@ -156,17 +156,22 @@ def _container_files(config, fix: bool = True) -> dict[str, bytes]:
     if fix:
         fix_connection_types(data)
     files["resources/container.json"] = (json.dumps(data, indent=4) + "\n").encode()
+    nested: list[set[str]] = []
     for comp in config.components:
         with zipfile.ZipFile(comp.filename) as z:
+            nested.append({n.split("/")[1] for n in z.namelist()
+                           if n.startswith("binaries/") and n.count("/") >= 2 and not n.endswith("/")})
             for info in z.infolist():
                 if not info.is_dir():
                     files[f"resources/{Path(comp.filename).stem}/{info.filename}"] = z.read(info)
+    # a platform only where the container binary AND every nested FMU can run
+    platforms = set.intersection(*nested) if nested else set()
     bins = Path(cfmu.__file__).parent / "binaries"
     for tup, fmi2, lib in (("aarch64-darwin", "darwin64", "container_fmu.dylib"),
                            ("x86_64-darwin", "darwin64", "container_fmu.dylib"),
                            ("x86_64-linux", "linux64", "container_fmu.so"),
                            ("x86_64-windows", "win64", "container_fmu.dll")):
-        if (bins / tup / lib).is_file():
+        if fmi2 in platforms and (bins / tup / lib).is_file():
             files[f"binaries/{fmi2}/{lib}"] = (bins / tup / lib).read_bytes()
     return files
 

@@ -129,6 +129,9 @@ def _parser() -> argparse.ArgumentParser:
                    "into --build and check every FMU there)")
     k.add_argument("--build", default="build", metavar="DIR", help="where to build (default build/)")
     k.add_argument("--json", action="store_true", help="machine-readable report")
+    k.add_argument("--verbose", action="store_true",
+                   help="also show what the FMU's binaries printed while checked")
+    k.add_argument("--no-fuzz", action="store_true", help="skip the short fuzz (faster)")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
             commands.demo)

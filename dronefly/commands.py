@@ -68,12 +68,12 @@ def check(args: argparse.Namespace) -> int:
         if not p.is_file():
             raise DroneflyError(f"FMU {str(p)!r} " + ("is a folder, not an FMU file" if p.is_dir()
                                                   else "does not exist"))
-    reports = [check_fmu(p) for p in paths]
+    reports = [check_fmu(p, fuzz=not args.no_fuzz) for p in paths]
     if args.json:
-        print(json.dumps([{"fmu": str(r.path), "passed": r.passed,
+        print(json.dumps([{"fmu": str(r.path), "passed": r.passed, "output": r.output,
                            "checks": [c.__dict__ for c in r.checks]} for r in reports], indent=2))
     else:
-        print(format_reports(reports))
+        print(format_reports(reports, verbose=args.verbose))
     return EXIT_OK if all(r.passed for r in reports) else EXIT_FAILED
 
 

@@ -19,8 +19,10 @@ def _status(report) -> dict[str, bool]:
 
 @pytest.mark.parametrize("model", ["DroneFlyLateral", "StateFeedback"])
 def test_project_fmus_pass(built_fmus, model):
-    report = check_fmu(built_fmus[model])
+    """The fuzz itself is tested in test_reliability.py; here once, on the controller."""
+    report = check_fmu(built_fmus[model], fuzz=model == "StateFeedback")
     assert report.passed, report.checks
+    assert ("fuzz" in {c.name for c in report.checks}) == (model == "StateFeedback")
 
 
 def _rewrite_md(src: Path, dst: Path, old: bytes, new: bytes) -> Path:
@@ -44,7 +46,7 @@ def test_broken_model_description_fails_validate(built_fmus, tmp_path, capsys):
     report = check_fmu(broken)
     status = _status(report)
     assert not report.passed and status["validate"] is False and status["reset"] is True
-    assert main(["check", str(broken)]) == 1
+    assert main(["check", "--no-fuzz", str(broken)]) == 1
     out = capsys.readouterr().out
     assert "FAIL" in out and "validate" in out and "0 of 1 FMUs passed" in out
 
@@ -98,3 +100,44 @@ def test_container_fmu_passes_with_fmi_status_checks(built_fmus):
     assert report.passed, report.checks
     detail = {c.name: c.detail for c in report.checks}
     assert "not applicable" in detail["state"] and "messages not checked" in detail["bad-input"]
+
+
+def test_container_binary_output_is_captured(built_fmus, capfd):
+    """FMPy's container prints container::logError(...) lines itself (fd 1); the check keeps
+    them in the report and shows them only with --verbose (or when a check fails)."""
+    path = str(built_fmus["DroneFlyClosedLoop"])
+    assert main(["check", "--no-fuzz", path]) == 0
+    out = capfd.readouterr()
+    assert "container::" not in out.out + out.err and "1 of 1 FMUs passed" in out.out
+    assert main(["check", "--no-fuzz", "--verbose", path]) == 0
+    assert "container::logError" in capfd.readouterr().out
+
+
+def test_a_crashing_fmu_is_a_failed_check_not_a_crash(tmp_path, capsys):
+    """An FMU that segfaults its host in doStep: dronefly check reports it and goes on."""
+    from pythonfmu import FmuBuilder
+
+    src = tmp_path / "Crashing.py"
+    src.write_text(CRASHING)
+    fmu = FmuBuilder.build_FMU(src, dest=tmp_path)
+    report = check_fmu(fmu, fuzz=False)
+    died = [c for c in report.checks if "the checking process died (killed by SIGSEGV)" in c.detail]
+    assert died and died[0].name == "call-sequence" and not report.passed
+
+
+CRASHING = """
+import ctypes
+from pythonfmu import Fmi2Slave, Real, Fmi2Causality, Fmi2Variability
+
+
+class Crashing(Fmi2Slave):
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.y = 0.0
+        self.register_variable(Real("y", causality=Fmi2Causality.output,
+                                    variability=Fmi2Variability.continuous))
+
+    def do_step(self, t, h):
+        ctypes.string_at(0)
+        return True
+"""

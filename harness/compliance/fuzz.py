@@ -20,7 +20,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["FuzzCase", "FuzzReport", "GROUP_NAMES", "fuzz_fmu"]
+__all__ = ["FuzzCase", "FuzzReport", "GROUP_NAMES", "describe_exit", "fuzz_fmu"]
 
 GROUP_NAMES = ("values", "sequence", "states", "format", "random", "churn")
 _STATUS = ("OK", "Warning", "Discard", "Error", "Fatal")
@@ -72,7 +72,8 @@ class FuzzReport:
         return text
 
 
-def _death(returncode: int) -> str:
+def describe_exit(returncode: int) -> str:
+    """How a process ended: ``killed by SIGSEGV`` or ``exit code 3``."""
     if returncode < 0:
         try:
             return f"killed by {signal.Signals(-returncode).name}"
@@ -125,7 +126,7 @@ def _run(path: Path, group: str, seed: int, n: int, start: int, logging: bool,
     label = "" if logging else " (logging off)"
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
-        out, died = proc.stdout, (None if proc.returncode == 0 else _death(proc.returncode))
+        out, died = proc.stdout, (None if proc.returncode == 0 else describe_exit(proc.returncode))
     except subprocess.TimeoutExpired as e:
         out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
         died = f"hung for more than {timeout_s:g} s"

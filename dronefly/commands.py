@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from dronefly.errors import DroneflyError
 from dronefly.extras import require
@@ -89,6 +90,8 @@ def analyze(args: argparse.Namespace) -> int:
     from dronefly.harness.paper.report import render
     from dronefly.harness.paper.reproduction import analyze
 
+    if args.out and Path(args.out).is_dir():
+        raise DroneflyError(f"--out {args.out!r} is a folder; give the file to write")
     result = analyze(targets=args.targets, design_input=args.input)
     text = render(result, "json" if args.json else "markdown" if args.markdown else "text")
     if args.out:

@@ -230,3 +230,23 @@ def test_docs_reproduction_md_is_current() -> None:
     doc = Path(__file__).resolve().parents[1] / "docs" / "reproduction.md"
     assert doc.read_text(encoding="utf-8") == render(analyze(), "markdown"), \
         "regenerate: dronefly analyze --markdown --out docs/reproduction.md"
+
+
+@pytest.mark.parametrize("targets", ["-0.1,-0.1,-0.1,-0.1", "0,0,0,0"])
+def test_repeated_targets_are_placed_and_said_so(targets):
+    """Coefficient matching places a repeated root (the characteristic polynomial is the
+    target one); the report says why place_poles is skipped."""
+    from dronefly.harness.paper.design import analysis_report
+
+    c = analysis_report(targets, "delta_Phi_a")["custom_design"]
+    A, B = model.system_matrices(model.default_parameters())
+    k = np.array(c["gains"])
+    want = np.poly([complex(t) for t in targets.split(",")]).real
+    assert_allclose(np.poly(A + np.outer(B[:, 0], k)), want, atol=1e-12)
+    assert c["gains_place_poles"] is None and "repeated targets" in c["note"]
+
+
+def test_analyze_out_naming_a_folder_is_refused(tmp_path, capsys):
+    assert main(["analyze", "--out", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [] and not list(tmp_path.parent.glob("*.part"))

@@ -212,5 +212,13 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
             "gains_ackermann": ackermann_gains(A, B, custom, u).tolist(),
             "gains_place_poles": place_poles_gains(A, B, custom, u).tolist() if distinct else None,
             "closed_loop_eigenvalues": _cx(np.linalg.eigvals(closed_loop_matrix(A, b, k))),
-            "peak_control_deg": {"roll": roll.peak_control_deg, "mode1": mode.peak_control_deg}}
+            "char_poly_error": float(np.max(np.abs(np.poly(closed_loop_matrix(A, b, k))
+                                                   - np.real(np.poly(custom))))),
+            "peak_control_deg": {"roll": roll.peak_control_deg, "mode1": mode.peak_control_deg},
+            "note": "" if distinct else (
+                "repeated targets: placed by coefficient matching and Ackermann (the closed-loop "
+                "characteristic polynomial equals the target one, char_poly_error); scipy's "
+                "place_poles cannot place a target more often than rank(b) = 1 and is skipped. "
+                "The computed eigenvalues of a repeated root scatter around it by about "
+                "eps^(1/multiplicity): numerical sensitivity, not a wrong design.")}
     return out

@@ -50,7 +50,10 @@ def render_text(rows: Sequence[Row], report: dict, gains: dict) -> str:
                      f"{r['roll']['peak_control_deg']:.2f} / {r['mode1']['peak_control_deg']:.2f} deg")
     if "custom_design" in report:
         c = report["custom_design"]
-        lines += ["", f"Design for the given targets with {c['input']}: k = {format_vector(np.array(c['gains']), 6)}"]
+        lines += ["", f"Design for the given targets with {c['input']}: "
+                  f"k = {format_vector(np.array(c['gains']), 6)}"]
+        if c.get("note"):
+            lines += textwrap.wrap(c["note"], 100, initial_indent="  ", subsequent_indent="  ")
     return "\n".join(lines) + "\n"
 
 

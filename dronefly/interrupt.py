@@ -38,9 +38,11 @@ class Deferred:
 
 @contextlib.contextmanager
 def deferred_sigint() -> Iterator[Deferred]:
-    """Defer SIGINT to the caller's next check (main thread only; elsewhere a no-op)."""
+    """Defer SIGINT to the caller's next check (main thread only, and only where SIGINT is not
+    ignored, as it is in the sweep's worker processes; elsewhere a no-op)."""
     state = Deferred()
-    if threading.current_thread() is not threading.main_thread():
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is signal.SIG_IGN):  # e.g. a pool worker
         yield state
         return
     previous = signal.signal(signal.SIGINT, state._handler)

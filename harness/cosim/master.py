@@ -18,6 +18,7 @@ Every instance is terminated and freed on every exit path.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from ctypes import c_double, c_uint
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from dronefly.errors import DroneflyError
+from dronefly.interrupt import deferred_sigint
 
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
@@ -36,6 +38,10 @@ MASTERS = ("gauss-seidel", "jacobi")
 #: Communication steps per run at most: the recorded signals take 8 bytes per signal and step
 #: (about 56 MB here) and a run about 15 s.
 MAX_STEPS = 1_000_000
+
+
+class _Interrupted(Exception):
+    """SIGINT arrived during a run (raised between steps, turned into KeyboardInterrupt)."""
 
 
 class CoSimError(DroneflyError):
@@ -214,6 +220,8 @@ class Loop:
         ys = (c_double * len(self.sensed))()
         u = (c_double * nu)()
         who, call, t = p, "initialization", 0.0
+        interrupt_scope = contextlib.ExitStack()
+        interrupt = interrupt_scope.enter_context(deferred_sigint())
         try:
             for inst, values in ((p, plant_start), (c, controller_params)):
                 who = inst
@@ -247,6 +255,8 @@ class Loop:
                 s_idx = []
             for k in range(n_steps + 1):
                 t = k * step
+                if interrupt.requested:  # Ctrl-C: stop between steps, never inside an FMU
+                    raise _Interrupted
                 who, call = p, "fmi2GetReal"
                 pg(pc, y_vr, ns, y)
                 if gauss:
@@ -286,7 +296,16 @@ class Loop:
                     pass
             keep = int(np.argmax(np.isnan(rec).any(axis=1))) if np.isnan(rec).any() else len(rec)
             run.time, run.signals = time[:keep], rec[:keep]
+        except _Interrupted:
+            for inst in (p, c):
+                try:
+                    inst.slave.terminate()
+                except FMICallException:
+                    pass
+            raise KeyboardInterrupt from None  # the instances are freed on the way out
         except (FMUError, OSError) as e:
             raise CoSimError(str(e)) from e
+        finally:
+            interrupt_scope.close()
         run.messages = [m.message for inst in (p, c) for m in inst.messages]
         return run

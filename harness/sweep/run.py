@@ -27,10 +27,10 @@ from typing import Any, Callable, Mapping, Sequence
 
 from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec, one_line
 from dronefly.files import write_text_atomic
-from dronefly.harness.sweep.results import (COLUMNS, load_done, result_row, write_results, read_rows,
-                         summarize, write_maps)
-from dronefly.harness.sweep.worker import (FmuRef, blas_single_thread, close_all, init_worker,
-                                           loop_for, run_chunk)
+from dronefly.harness.sweep.results import (COLUMNS, load_done, read_rows, result_row,
+                                            summarize, write_maps, write_results)
+from dronefly.harness.sweep.worker import (ChunkInterrupted, FmuRef, blas_single_thread,
+                                           close_all, init_worker, loop_for, run_chunk)
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
 
@@ -266,7 +266,11 @@ def _run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Ca
     try:
         loop_for(refs, (None, None))  # instantiate once, before any case is timed
         for ch in chunks:
-            collect(run_chunk(refs, ch))
+            try:
+                collect(run_chunk(refs, ch))
+            except ChunkInterrupted as e:  # keep the finished cases of this chunk
+                collect(e.partial)
+                raise KeyboardInterrupt from None
     finally:
         close_all()
         limiter.restore_original_limits()

@@ -25,7 +25,7 @@ from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT
 from dronefly.harness.sweep.results import (RESULT_COLUMNS)
 
 
-__all__ = ["FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk"]
+__all__ = ["ChunkInterrupted", "FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk"]
 
 _TOL = 1e-9  # a ratio up to 1 + _TOL counts as on the bound (a = 1 starts on the face)
 _CONTROL_SHORT = {"delta_Phi_a": "dPhi_a", "delta_alpha_1a": "dalpha_1a",
@@ -195,10 +195,20 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
                            instances=(p, c))
             loop_s += time.perf_counter() - t0
             out.append((case.key, _measure(run, loop, scale, case)))
+        except KeyboardInterrupt:  # Ctrl-C between steps: hand back what is finished
+            raise ChunkInterrupted((out, loop_s, time.perf_counter() - t_chunk)) from None
         except Exception as e:  # recorded; the sweep goes on with fresh instances
             out.append((case.key, _failed(case, e)))
             _drop_thread_loop(refs)
     return out, loop_s, time.perf_counter() - t_chunk
+
+
+class ChunkInterrupted(KeyboardInterrupt):
+    """SIGINT during a chunk run in this process; ``partial`` is what finished before it."""
+
+    def __init__(self, partial: tuple[list, float, float]) -> None:
+        super().__init__("interrupted")
+        self.partial = partial
 
 
 def _drop_thread_loop(refs: tuple[FmuRef, FmuRef]) -> None:

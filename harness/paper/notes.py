@@ -51,7 +51,11 @@ class Notes:
             special = self._special(src, qty, text, x, iv)
         if match:
             return "", conv
-        if special:
+        erratum = pv.ERRATA.get((src, qty))
+        if erratum is not None:  # classified from the errata table, the one home of errors
+            note = special[1] if special else f"Error in print ({erratum[2]})."
+            return "error in print", " ".join(filter(None, [note, conv]))
+        if special and special[0] != "error in print":
             return special[0], " ".join(filter(None, [special[1], conv]))
         return (*self._rounding(src, text, x, iv, conv),)
 

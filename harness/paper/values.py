@@ -21,7 +21,7 @@ from dronefly.plant.model import A1_EQ12
 
 __all__ = [
     "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
-    "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS",
+    "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS", "ERRATA",
     "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
     "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE",
     "TABLE3_PHASE_DEG",
@@ -106,6 +106,27 @@ EQ32_B_N = (("0.0004", "-0.0008", "-0.2201", "0.0742"),
             ("0.0055", "0.0092", "-0.4312", "0.0012"),
             ("0.0005", "0.0034", "0.4413", "-0.1488"),
             ("-0.0181", "-0.0267", "-0.0011", "0"))
+
+
+#: Errors in the print, once: (source, quantity of the reproduction row) -> what was
+#: printed, the corrected value and why. ``dronefly analyze`` classifies a mismatch as
+#: "error in print" exactly for these rows; tests/test_analysis.py recomputes each correction.
+ERRATA: dict[tuple[str, str], tuple[str, str, str]] = {
+    ("Eq. (26c)", "d: coefficient of k4"): (
+        EQ26["d"][4], "-8.279e-2",
+        "exponent: the k4 coefficient of d equals the k2 coefficient of c (dgamma' = dp+), "
+        "printed -8.2789e-2 in Eq. (26b)"),
+    ("Eq. (26d)", "e: constant"): (
+        EQ26["e"][0], "-4.4567e-4",
+        "sign: e = det(A1) = lambda1 lambda2 lambda3 lambda4 < 0, exactly one eigenvalue "
+        "(lambda1 = 0.0786) being positive"),
+    ("Eq. (31)", "A_nn(1,2)"): (
+        EQ31_A_NN[0][1], "0.0977",
+        "sign: the modal transformation that reproduces Eq. (32) gives +omega here"),
+    ("Eq. (31)", "A_nn(2,1)"): (
+        EQ31_A_NN[1][0], "-0.0977",
+        "sign: the same transformation gives -omega here"),
+}
 
 
 def half_unit(text: str, decimals: int | None = None) -> float:

@@ -259,3 +259,22 @@ def test_analyze_out_naming_a_folder_is_refused(tmp_path, capsys):
     assert main(["analyze", "--out", str(tmp_path)]) == 2
     assert "is a folder" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == [] and not list(tmp_path.parent.glob("*.part"))
+
+
+def test_pole_placement_agrees_with_python_control():
+    """Our hand-written Ackermann formula and Kalman rank against python-control (u = -K x in
+    python-control, u = K x here)."""
+    control = pytest.importorskip("control")
+    A, B = an.lateral_system()
+    for j in range(B.shape[1]):
+        b = B[:, [j]]
+        targets = [-0.1, -0.2, complex(-0.089, 0.057), complex(-0.089, -0.057)]
+        ours = an.ackermann_gains(A, B, targets, j)
+        theirs = -np.asarray(control.acker(A, b, targets)).ravel()
+        assert_allclose(ours, theirs, rtol=1e-8, atol=1e-12)
+        rank, _ = an.kalman_rank(A, b)
+        assert rank == np.linalg.matrix_rank(control.ctrb(A, b)) == 4
+    A_lon, B_lon = an.longitudinal_system()
+    for j in range(B_lon.shape[1]):
+        assert an.kalman_rank(A_lon, B_lon[:, [j]])[0] == np.linalg.matrix_rank(
+            control.ctrb(A_lon, B_lon[:, [j]]))

@@ -19,6 +19,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from dronefly.harness.paper import values as pv
+from dronefly.lateral import scale_vector
 from dronefly.harness.interop.closedloop import CLOSED_LOOP
 from dronefly.harness.interop.container import (container_verdict, fix_connection_types, run_container,
                                         write_container)
@@ -36,9 +38,9 @@ CONTROLS = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
 N_HZ = 164.0
 H = 0.1 / N_HZ  # 0.1 wing beat
 #: non-dimensional -> dimensional state (U, n, n, 1), U as the plant FMU's default
-SCALE = np.array([3.776777449211438, N_HZ, N_HZ, 1.0])
+SCALE = np.array(scale_vector())
 X0 = np.array([0.02, 0.05, -0.03, 0.1])  # non-dimensional initial state for the comparisons
-PAPER_TARGETS = [0.0, complex(-0.089, 0.057), complex(-0.089, -0.057), -0.510]
+PAPER_TARGETS = list(pv.eq27_targets())
 
 
 def _start(x: np.ndarray) -> dict[str, float]:
@@ -123,7 +125,7 @@ def test_libcosim_verdicts(libcosim, fmus):
     zero = {f"K[{i},{j}]": 0.0 for i in range(1, 4) for j in range(1, 5)}
     open_loop, _ = libcosim_verdict(*fmus, gains=zero)
     assert open_loop.verdict == "unstable"
-    assert_allclose(open_loop.dominant_growth_rate, 0.0786, atol=1e-3)
+    assert_allclose(open_loop.dominant_growth_rate, float(pv.EQ19_A_LNN[0][0]), atol=1e-3)
 
 
 def test_libcosim_runs_the_ssp(libcosim, fmus, ssp):

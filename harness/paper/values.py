@@ -25,7 +25,7 @@ __all__ = [
     "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
     "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE",
     "TABLE3_PHASE_DEG",
-    "half_unit",
+    "eq27_targets", "half_unit", "table2_eigenvalues",
 ]
 
 #: Eq. (12), from the model module (4 decimals as printed).
@@ -127,6 +127,18 @@ ERRATA: dict[tuple[str, str], tuple[str, str, str]] = {
         EQ31_A_NN[1][0], "-0.0977",
         "sign: the same transformation gives -omega here"),
 }
+
+
+def table2_eigenvalues() -> tuple[complex, ...]:
+    """Table 2 as numbers: lambda1, lambda2,3 = re +/- i im, lambda4 (per wing beat)."""
+    re_, im = float(TABLE2["lambda23_re"]), float(TABLE2["lambda23_im"])
+    return (complex(float(TABLE2["lambda1"])), complex(re_, im), complex(re_, -im),
+            complex(float(TABLE2["lambda4"])))
+
+
+def eq27_targets() -> tuple[complex, ...]:
+    """The closed-loop eigenvalues Eq. (27) aims at: Table 2 with lambda1 moved to 0."""
+    return (0j, *table2_eigenvalues()[1:])
 
 
 def half_unit(text: str, decimals: int | None = None) -> float:

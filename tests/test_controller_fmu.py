@@ -1,16 +1,9 @@
-"""Tests of the StateFeedback controller (issue 3): the law, the slave class, and the real FMU.
-
-Unit tests call :mod:`dronefly.controller.law` and the slave class directly; the integration
-tests run the FMU built by the session fixture ``built_fmus`` through fmpy's FMU2Slave API.
-
-The reference result (FMI cross-check files) is checked in tests/test_reference.py.
-"""
+"""The built StateFeedback FMU through fmpy: interface, feedthrough, saturation, closed loop,
+bad input, state; and with the plant FMU."""
 
 from __future__ import annotations
 
 import math
-import re
-from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
@@ -19,168 +12,11 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.controller import law as L
-from dronefly.controller.slave import StateFeedback
 from dronefly.plant import model as M
+
+from controller_common import (B1_COL1_EQ24, CONTROLS, EIG_EQ27, GAINS, H, STATES, dimensional,
+                               expected_controls, random_gains)
 from fmu_helpers import model_description, set_values, start
-
-ROOT = Path(__file__).resolve().parents[1]
-STATES = list(M.STATE_NAMES)
-CONTROLS = list(M.CONTROL_NAMES)
-GAINS = [L.gain_name(i, j) for i in range(3) for j in range(4)]
-H = 0.1 / M.N_HZ  # communication step: 0.1 wing beat
-
-#: Printed closed-loop eigenvalues (Sect. 3.4: lambda1 = 0, the others as in Table 2).
-EIG_EQ27 = (0.0, complex(-0.089, 0.057), complex(-0.089, -0.057), -0.510)
-#: Eq. (24): the delta_Phi_a column of B1 as printed.
-B1_COL1_EQ24 = (-0.0005, 0.4993, -0.3296, 0.0)
-
-
-def _dimensional(xp: np.ndarray, n: float = M.N_HZ, U: float = M.U_M_PER_S) -> list[float]:
-    return [float(v) for v in M.to_dimensional(np.asarray(xp, dtype=float), U, n)]
-
-
-def _expected(K: np.ndarray, x: list[float], n: float = M.N_HZ, U: float = M.U_M_PER_S,
-              u_max: float | None = None) -> tuple[np.ndarray, bool]:
-    u = np.asarray(K, dtype=float) @ M.to_nondimensional(np.array(x), U, n)
-    if u_max is None:
-        return u, False
-    return np.clip(u, -u_max, u_max), bool(np.any(np.abs(u) > u_max))
-
-
-def _random_gains(seed: int = 3) -> np.ndarray:
-    return np.random.default_rng(seed).uniform(-2.0, 2.0, (3, 4))
-
-
-# --------------------------------------------------------------------------- the law (no FMU)
-
-def test_paper_gains_and_defaults():
-    assert L.PAPER_GAINS_EQ27 == (-0.3192, -0.2879, -0.1969, -0.0643)
-    K = np.array(L.default_gains())
-    assert K.shape == (3, 4)
-    assert_allclose(K[0], L.PAPER_GAINS_EQ27, rtol=0, atol=0)
-    assert not K[1:].any()
-    assert L.FeedbackLaw(L.default_gains()).limit_enabled is False
-
-
-def test_eq27_gains_defined_once_in_the_project():
-    """The gains are numbers in exactly one source file: controller/law.py.
-
-    (Quoted digit strings, kept elsewhere to analyse the printed precision, are not numbers;
-    they are checked against the definition below.)
-    """
-    hits = []
-    for folder in ("dronefly", "fmu_src", "controller", "harness"):
-        for f in (ROOT / folder).rglob("*.py"):
-            if re.search(r"(?<![\d.\"'])0\.3192\b(?![\"'])", f.read_text()):
-                hits.append(f.relative_to(ROOT).as_posix())
-    assert hits == ["controller/law.py"]
-
-
-def test_printed_gain_strings_agree_with_the_definition():
-    paper = pytest.importorskip("dronefly.harness.paper.values")
-    printed = getattr(paper, "EQ27_GAINS", None)
-    if printed is None:
-        pytest.skip("no printed-string copy of Eq. (27)")
-    assert tuple(float(v) for v in printed) == L.PAPER_GAINS_EQ27
-
-
-@pytest.mark.parametrize("K", [np.array(L.default_gains()), _random_gains()],
-                         ids=["eq27", "random"])
-def test_law_equals_K_x_plus(K):
-    rng = np.random.default_rng(7)
-    law = L.FeedbackLaw(tuple(map(tuple, K.tolist())))
-    law.validate()
-    for xp in rng.normal(0.0, 0.3, (20, 4)):
-        x = _dimensional(xp)
-        u, sat = law.evaluate(x)
-        assert_allclose(u, K @ xp, rtol=1e-12, atol=1e-15)
-        assert sat is False
-
-
-def test_law_saturation_is_per_output_and_symmetric():
-    K = ((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, -1.0), (0.0, 0.0, 0.0, 0.0))
-    law = L.FeedbackLaw(K, u_max=0.2, limit_enabled=True)
-    u, sat = law.evaluate(_dimensional([0.5, 0.0, 0.0, 0.1]))
-    assert u == pytest.approx((0.2, -0.1, 0.0), rel=1e-15) and sat is True
-    u, sat = law.evaluate(_dimensional([-0.1, 0.0, 0.0, 0.3]))
-    assert u == pytest.approx((-0.1, -0.2, 0.0), rel=1e-15) and sat is True
-    u, sat = law.evaluate(_dimensional([0.15, 0.0, 0.0, -0.15]))
-    assert u == pytest.approx((0.15, 0.15, 0.0), rel=1e-14) and sat is False
-    u, sat = law.evaluate([0.0, 0.0, 0.0, 0.2])  # exactly at the limit: not limited
-    assert u == (0.0, -0.2, 0.0) and sat is False
-
-
-@pytest.mark.parametrize("changes, fragment", [
-    ({"K": ((math.nan, 0, 0, 0), (0, 0, 0, 0), (0, 0, 0, 0))}, "K[1,1] = nan"),
-    ({"K": ((0, 0, 0, 0), (0, 0, 0, 0), (0, 0, math.inf, 0))}, "K[3,3] = inf"),
-    ({"n": 0.0}, "n = 0.0"),
-    ({"U": -1.0}, "U = -1.0"),
-    ({"u_max": 0.0}, "u_max = 0.0"),
-    ({"u_max": math.nan, "limit_enabled": True}, "u_max = nan"),
-])
-def test_law_validation_names_the_value(changes, fragment):
-    law = L.FeedbackLaw(**{"K": L.default_gains(), **changes})
-    with pytest.raises(L.LawParameterError, match=re.escape(fragment)):
-        law.validate()
-
-
-def test_law_refuses_non_finite_state():
-    with pytest.raises(L.LawParameterError, match=re.escape("delta_r = -inf is not finite")):
-        L.FeedbackLaw(L.default_gains()).evaluate([0.0, 0.0, -math.inf, 0.0])
-
-
-# --------------------------------------------------------------------------- slave class, direct
-
-def _messages(s: StateFeedback) -> list[str]:
-    return [m.msg for m in s.log_queue]
-
-
-@pytest.fixture
-def slave() -> StateFeedback:
-    s = StateFeedback(instance_name="unit")
-    s.setup_experiment(0.0)
-    s.enter_initialization_mode()
-    s.exit_initialization_mode()
-    return s
-
-
-def _set(s: StateFeedback, values: dict[str, float]) -> None:
-    s.set_real([s._vr[n] for n in values], list(values.values()))
-
-
-def _get(s: StateFeedback, names: list[str]) -> list[float]:
-    return s.get_real([s._vr[n] for n in names])
-
-
-def test_slave_outputs_follow_inputs_without_step(slave):
-    x = _dimensional([0.01, -0.02, 0.03, 0.4])
-    _set(slave, dict(zip(STATES, x)))
-    assert_allclose(_get(slave, CONTROLS), _expected(np.array(L.default_gains()), x)[0],
-                    rtol=1e-12)
-    _set(slave, {"K[2,4]": 0.5})  # a tunable parameter takes effect at once
-    assert _get(slave, ["delta_alpha_1a"]) == [pytest.approx(0.5 * 0.4, rel=1e-15)]
-    assert slave.do_step(0.0, H)
-
-
-def test_slave_bad_input_keeps_outputs_and_refuses_step(slave):
-    _set(slave, {"delta_gamma": 0.5})
-    before = _get(slave, CONTROLS)
-    _set(slave, {"delta_p": math.nan})
-    assert _get(slave, CONTROLS) == before
-    assert "delta_p = nan is not finite" in _messages(slave)[-1]
-    assert slave.do_step(0.0, H) is False
-    assert "delta_p = nan" in _messages(slave)[-1]
-    _set(slave, {"delta_p": 0.0})
-    assert slave.do_step(0.0, H) is True
-    assert _get(slave, CONTROLS) == before
-
-
-def test_slave_has_no_module_level_state():
-    a, b = StateFeedback(instance_name="a"), StateFeedback(instance_name="b")
-    _set(a, {"K[1,4]": 1.0, "delta_gamma": 0.1})
-    _set(b, {"delta_gamma": 0.1})
-    assert _get(a, ["delta_Phi_a"]) == [0.1]
-    assert _get(b, ["delta_Phi_a"]) == [pytest.approx(-0.00643, rel=1e-14)]
 
 
 # --------------------------------------------------------------------------- the real FMU
@@ -287,7 +123,7 @@ def test_plant_and_controller_connect_by_name_and_the_plant_breaks_the_loop(buil
 @pytest.mark.parametrize("gains", ["eq27", "random"])
 @pytest.mark.parametrize("mode", ["initialization", "stepping"])
 def test_outputs_follow_inputs_without_do_step(controller, gains, mode):
-    K = np.array(L.default_gains()) if gains == "eq27" else _random_gains()
+    K = np.array(L.default_gains()) if gains == "eq27" else random_gains()
     rng = np.random.default_rng(11)
     with controller.instantiate() as inst:
         s = inst.slave
@@ -298,7 +134,7 @@ def test_outputs_follow_inputs_without_do_step(controller, gains, mode):
         if mode == "stepping":
             s.exitInitializationMode()
         for xp in rng.normal(0.0, 0.2, (5, 4)):
-            x = _dimensional(xp)
+            x = dimensional(xp)
             s.setReal(inst.vrs(STATES), x)
             u, sat = _outputs(inst)
             assert_allclose(u, K @ xp, rtol=1e-12, atol=1e-300, err_msg="u = K x+")
@@ -308,17 +144,17 @@ def test_outputs_follow_inputs_without_do_step(controller, gains, mode):
 
 @pytest.mark.integration
 def test_saturation_through_fmpy(controller):
-    K = _random_gains(5)
+    K = random_gains(5)
     u_max = 0.3
     with controller.instantiate() as inst:
         start(inst, {"limit_enabled": True, "u_max": u_max})
         inst.slave.setReal(inst.vrs(GAINS), K.ravel().tolist())
         seen = set()
         for k, xp in enumerate(np.random.default_rng(2).normal(0.0, 0.15, (40, 4))):
-            x = _dimensional(xp)
+            x = dimensional(xp)
             inst.slave.setReal(inst.vrs(STATES), x)
             u, sat = _outputs(inst)
-            ref, ref_sat = _expected(K, x, u_max=u_max)
+            ref, ref_sat = expected_controls(K, x, u_max=u_max)
             assert_allclose(u, ref, rtol=1e-12, atol=1e-300)
             assert max(abs(v) for v in u) <= u_max
             assert sat is ref_sat
@@ -327,7 +163,7 @@ def test_saturation_through_fmpy(controller):
         assert seen == {True, False}, "both regimes exercised"
         inst.slave.setBoolean([inst.fmu.vr("limit_enabled")], [False])  # tunable: off again
         u, sat = _outputs(inst)
-        assert_allclose(u, _expected(K, x)[0], rtol=1e-12)
+        assert_allclose(u, expected_controls(K, x)[0], rtol=1e-12)
         assert sat is False
 
 
@@ -387,7 +223,7 @@ BAD_CASES = [
 @pytest.mark.integration
 @pytest.mark.parametrize("bad, fragment", BAD_CASES, ids=[c[1] for c in BAD_CASES])
 def test_bad_values_are_refused_and_the_instance_recovers(controller, bad, fragment):
-    x = _dimensional([0.02, -0.03, 0.01, 0.3])
+    x = dimensional([0.02, -0.03, 0.01, 0.3])
     with controller.instantiate() as inst:
         start(inst, dict(zip(STATES, x)))
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
@@ -404,7 +240,7 @@ def test_bad_values_are_refused_and_the_instance_recovers(controller, bad, fragm
         set_values(inst, good)
         inst.slave.doStep(currentCommunicationPoint=H, communicationStepSize=H)  # usable again
         u, sat = _outputs(inst)
-        assert_allclose(u, _expected(np.array(L.default_gains()), x)[0], rtol=1e-12)
+        assert_allclose(u, expected_controls(np.array(L.default_gains()), x)[0], rtol=1e-12)
 
 
 @pytest.mark.integration
@@ -415,7 +251,7 @@ def test_bad_value_in_initialization_mode(controller):
         assert "U = -1.0" in _discarded(inst, 0.0, H)
         set_values(inst, {"U": M.U_M_PER_S, "delta_v": 0.1})
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
-        assert_allclose(_outputs(inst)[0][0], -0.3192 * 0.1 / M.U_M_PER_S, rtol=1e-12)
+        assert_allclose(_outputs(inst)[0][0], L.PAPER_GAINS_EQ27[0] * 0.1 / M.U_M_PER_S, rtol=1e-12)
 
 
 @pytest.mark.integration
@@ -455,7 +291,7 @@ def test_state_get_set_serialize_and_reset(controller):
     with controller.instantiate() as inst:
         s = inst.slave
         start(inst, {"limit_enabled": True, "u_max": 0.01})
-        s.setReal(inst.vrs(STATES), _dimensional([0.1, 0.0, 0.0, 0.2]))
+        s.setReal(inst.vrs(STATES), dimensional([0.1, 0.0, 0.0, 0.2]))
         s.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         saved = _outputs(inst)
         assert saved[1] is True
@@ -475,7 +311,7 @@ def test_state_get_set_serialize_and_reset(controller):
         s.freeFMUstate(restored)
         s.freeFMUstate(state)
         s.reset()
-        assert s.getReal([controller.vr("K[1,1]")]) == [-0.3192]
+        assert s.getReal([controller.vr("K[1,1]")]) == [L.PAPER_GAINS_EQ27[0]]
         start(inst)
         assert _outputs(inst) == ([0.0, 0.0, 0.0], False)
 
@@ -499,7 +335,12 @@ def test_closed_loop_cosimulation_with_the_plant(plant, controller):
             p.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
             c.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
     A, B = M.system_matrices(M.default_parameters())
-    Phi, Gamma = M.discretize_zoh(A, B, 1.0)
+    # the exact one-wing-beat transition by the eigendecomposition of A1 (independent of the
+    # FMU's matrix exponential): Phi = V e^(Lambda) V^-1, Gamma = V (e^Lambda - 1)/Lambda V^-1 B
+    lam, V = np.linalg.eig(A)
+    Vi = np.linalg.inv(V)
+    Phi = np.real((V * np.exp(lam)) @ Vi)
+    Gamma = np.real((V * ((np.exp(lam) - 1.0) / lam)) @ Vi @ B)
     F = Phi + Gamma @ np.array(L.default_gains())
     ref = [np.array(x0)]
     for _ in range(steps - 1):

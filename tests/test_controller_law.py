@@ -1,0 +1,88 @@
+"""The feedback law u = K x+ (dronefly.controller.law), without any FMU."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from dronefly.controller import law as L
+
+from controller_common import ROOT, dimensional, random_gains
+
+
+# --------------------------------------------------------------------------- the law (no FMU)
+
+def test_paper_gains_and_defaults():
+    """Eq. (27) in row 1 (its digits are checked against the paper's own inputs in
+    test_analysis.py::test_eq27_recovered_from_the_papers_targets), zeros elsewhere."""
+    K = np.array(L.default_gains())
+    assert K.shape == (3, 4)
+    assert_allclose(K[0], L.PAPER_GAINS_EQ27, rtol=0, atol=0)
+    assert not K[1:].any()
+    assert L.FeedbackLaw(L.default_gains()).limit_enabled is False
+
+
+def test_eq27_gains_defined_once_in_the_project():
+    """The gains are numbers in exactly one source file: controller/law.py.
+
+    (Quoted digit strings, kept elsewhere to analyse the printed precision, are not numbers;
+    they are checked against the definition below.)
+    """
+    hits = []
+    for folder in ("dronefly", "fmu_src", "controller", "harness"):
+        for f in (ROOT / folder).rglob("*.py"):
+            if re.search(r"(?<![\d.\"'])0\.3192\b(?![\"'])", f.read_text()):
+                hits.append(f.relative_to(ROOT).as_posix())
+    assert hits == ["controller/law.py"]
+
+
+@pytest.mark.parametrize("K", [np.array(L.default_gains()), random_gains()],
+                         ids=["eq27", "random"])
+def test_law_equals_K_x_plus(K):
+    rng = np.random.default_rng(7)
+    law = L.FeedbackLaw(tuple(map(tuple, K.tolist())))
+    law.validate()
+    for xp in rng.normal(0.0, 0.3, (20, 4)):
+        x = dimensional(xp)
+        u, sat = law.evaluate(x)
+        assert_allclose(u, K @ xp, rtol=1e-12, atol=1e-15)
+        assert sat is False
+
+
+def test_law_saturation_is_per_output_and_symmetric():
+    K = ((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, -1.0), (0.0, 0.0, 0.0, 0.0))
+    law = L.FeedbackLaw(K, u_max=0.2, limit_enabled=True)
+    u, sat = law.evaluate(dimensional([0.5, 0.0, 0.0, 0.1]))
+    assert u == pytest.approx((0.2, -0.1, 0.0), rel=1e-15) and sat is True
+    u, sat = law.evaluate(dimensional([-0.1, 0.0, 0.0, 0.3]))
+    assert u == pytest.approx((-0.1, -0.2, 0.0), rel=1e-15) and sat is True
+    u, sat = law.evaluate(dimensional([0.15, 0.0, 0.0, -0.15]))
+    assert u == pytest.approx((0.15, 0.15, 0.0), rel=1e-14) and sat is False
+    u, sat = law.evaluate([0.0, 0.0, 0.0, 0.2])  # exactly at the limit: not limited
+    assert u == (0.0, -0.2, 0.0) and sat is False
+
+
+@pytest.mark.parametrize("changes, fragment", [
+    ({"K": ((math.nan, 0, 0, 0), (0, 0, 0, 0), (0, 0, 0, 0))}, "K[1,1] = nan"),
+    ({"K": ((0, 0, 0, 0), (0, 0, 0, 0), (0, 0, math.inf, 0))}, "K[3,3] = inf"),
+    ({"n": 0.0}, "n = 0.0"),
+    ({"U": -1.0}, "U = -1.0"),
+    ({"u_max": 0.0}, "u_max = 0.0"),
+    ({"u_max": math.nan, "limit_enabled": True}, "u_max = nan"),
+])
+def test_law_validation_names_the_value(changes, fragment):
+    law = L.FeedbackLaw(**{"K": L.default_gains(), **changes})
+    with pytest.raises(L.LawParameterError, match=re.escape(fragment)):
+        law.validate()
+
+
+def test_law_refuses_non_finite_state():
+    with pytest.raises(L.LawParameterError, match=re.escape("delta_r = -inf is not finite")):
+        L.FeedbackLaw(L.default_gains()).evaluate([0.0, 0.0, -math.inf, 0.0])
+
+
+

@@ -19,7 +19,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 from typing import Mapping
-from xml.sax.saxutils import quoteattr
+from xml.etree import ElementTree as ET
 
 import numpy as np
 from fmpy import read_model_description
@@ -36,71 +36,64 @@ from dronefly.lateral import STATE_NAMES
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
 
 
+_SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+_SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+_SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+ET.register_namespace("ssd", _SSD)
+ET.register_namespace("ssc", _SSC)
+ET.register_namespace("ssv", _SSV)
+
+
+def _xml(root: ET.Element) -> bytes:
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
+
+
 def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
               spec: ClosedLoopSpec = ClosedLoopSpec()) -> Path:
     """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path."""
     pmd, cmd = read_model_description(plant), read_model_description(controller)
     n, _ = reference_scales(pmd)
     params = parameter_values(pmd, spec)
-
-    def connectors(md) -> str:
-        rows = [f'          <ssd:Connector name={quoteattr(v.name)} kind="{v.causality}">'
-                f"<ssc:Real/></ssd:Connector>"
-                for v in md.modelVariables if v.causality in ("input", "output")
-                and v.type == "Real"]
-        return "\n".join(rows)
-
-    cons = "\n".join(
-        f"      <ssd:Connection startElement={quoteattr(a)} startConnector={quoteattr(x)} "
-        f"endElement={quoteattr(b)} endConnector={quoteattr(y)}/>"
-        for a, x, b, y in connect_by_name(pmd, cmd))
     step = spec.step_wingbeats / n
-    ssd = f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssd:SystemStructureDescription xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
-    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
-    version="1.0" name="{CLOSED_LOOP}">
-  <ssd:System name="{CLOSED_LOOP}" description="DroneFlyLateral plant with StateFeedback controller (Zhang &amp; Sun, Eq. 27); communication step {spec.step_wingbeats:g} wing beat = {repr(float(step))} s">
-    <ssd:Elements>
-      <ssd:Component name="plant" source="resources/{PLANT}.fmu" type="application/x-fmu-sharedlibrary">
-        <ssd:Connectors>
-{connectors(pmd)}
-        </ssd:Connectors>
-        <ssd:ParameterBindings>
-          <ssd:ParameterBinding source="resources/plant.ssv"/>
-        </ssd:ParameterBindings>
-      </ssd:Component>
-      <ssd:Component name="controller" source="resources/{CONTROLLER}.fmu" type="application/x-fmu-sharedlibrary">
-        <ssd:Connectors>
-{connectors(cmd)}
-        </ssd:Connectors>
-        <ssd:ParameterBindings>
-          <ssd:ParameterBinding source="resources/controller.ssv"/>
-        </ssd:ParameterBindings>
-      </ssd:Component>
-    </ssd:Elements>
-    <ssd:Connections>
-{cons}
-    </ssd:Connections>
-  </ssd:System>
-  <ssd:DefaultExperiment startTime="0.0" stopTime="{repr(float(spec.stop_wingbeats / n))}"/>
-</ssd:SystemStructureDescription>
-"""
-    files = {"SystemStructure.ssd": ssd.encode(),
+    root = ET.Element(f"{{{_SSD}}}SystemStructureDescription",
+                      {"version": "1.0", "name": CLOSED_LOOP})
+    system = ET.SubElement(root, f"{{{_SSD}}}System", {
+        "name": CLOSED_LOOP,
+        "description": f"DroneFlyLateral plant with StateFeedback controller (Zhang & Sun, "
+                       f"Eq. 27); communication step {spec.step_wingbeats:g} wing beat = "
+                       f"{float(step)!r} s"})
+    elements = ET.SubElement(system, f"{{{_SSD}}}Elements")
+    for comp, fmu, md in (("plant", PLANT, pmd), ("controller", CONTROLLER, cmd)):
+        c = ET.SubElement(elements, f"{{{_SSD}}}Component", {
+            "name": comp, "source": f"resources/{fmu}.fmu",
+            "type": "application/x-fmu-sharedlibrary"})
+        connectors = ET.SubElement(c, f"{{{_SSD}}}Connectors")
+        for v in md.modelVariables:
+            if v.causality in ("input", "output") and v.type == "Real":
+                con = ET.SubElement(connectors, f"{{{_SSD}}}Connector",
+                                    {"name": v.name, "kind": v.causality})
+                ET.SubElement(con, f"{{{_SSC}}}Real")
+        bindings = ET.SubElement(c, f"{{{_SSD}}}ParameterBindings")
+        ET.SubElement(bindings, f"{{{_SSD}}}ParameterBinding", {"source": f"resources/{comp}.ssv"})
+    connections = ET.SubElement(system, f"{{{_SSD}}}Connections")
+    for a, x, b, y in connect_by_name(pmd, cmd):
+        ET.SubElement(connections, f"{{{_SSD}}}Connection", {
+            "startElement": a, "startConnector": x, "endElement": b, "endConnector": y})
+    ET.SubElement(root, f"{{{_SSD}}}DefaultExperiment", {
+        "startTime": "0.0", "stopTime": repr(float(spec.stop_wingbeats / n))})
+    files = {"SystemStructure.ssd": _xml(root),
              f"resources/{PLANT}.fmu": Path(plant).read_bytes(),
              f"resources/{CONTROLLER}.fmu": Path(controller).read_bytes()}
     for comp in ("plant", "controller"):
-        rows = "\n".join(
-            f"    <ssv:Parameter name={quoteattr(k.split('.', 1)[1])}>"
-            f"<ssv:Real value=\"{repr(float(v))}\"/></ssv:Parameter>"
-            for k, v in params.items() if k.split(".", 1)[0] == comp)
-        files[f"resources/{comp}.ssv"] = f"""<?xml version="1.0" encoding="UTF-8"?>
-<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-    version="1.0" name="{comp}">
-  <ssv:Parameters>
-{rows}
-  </ssv:Parameters>
-</ssv:ParameterSet>
-""".encode()
+        pset = ET.Element(f"{{{_SSV}}}ParameterSet", {"version": "1.0", "name": comp})
+        plist = ET.SubElement(pset, f"{{{_SSV}}}Parameters")
+        for k, v in params.items():
+            owner, _, name = k.partition(".")
+            if owner == comp:
+                p = ET.SubElement(plist, f"{{{_SSV}}}Parameter", {"name": name})
+                ET.SubElement(p, f"{{{_SSV}}}Real", {"value": repr(float(v))})
+        files[f"resources/{comp}.ssv"] = _xml(pset)
     return write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
 
 
@@ -123,12 +116,9 @@ def ssp_parameter_set(ssp: str | Path):
 
 
 def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
-    from lxml import etree
-
     with zipfile.ZipFile(ssp) as z:
-        root = etree.fromstring(z.read("SystemStructure.ssd"))
-    ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
-    stop = float(root.find("ssd:DefaultExperiment", ns).get("stopTime"))
+        root = ET.fromstring(z.read("SystemStructure.ssd"))
+    stop = float(root.find(f"{{{_SSD}}}DefaultExperiment").get("stopTime"))
     with zipfile.ZipFile(ssp) as z:
         n = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
     return 0.1 / n, stop

@@ -58,7 +58,7 @@ def check(args: argparse.Namespace) -> int:
     import json
     from pathlib import Path
 
-    from dronefly.harness.compliance.checker import check_fmu, format_reports
+    from dronefly.harness.compliance.suite import check_fmu, format_reports
 
     paths = [Path(p) for p in args.fmus]
     if not paths:

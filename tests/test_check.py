@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from dronefly.cli import main
-from dronefly.harness.compliance.checker import check_fmu
+from dronefly.harness.compliance.suite import check_fmu
 
 pytestmark = pytest.mark.integration
 

@@ -18,19 +18,13 @@ Checks, each reported as passed or failed with a reason:
   corrupt states, printf characters, random calls, instance churn; logging on and off): no
   crash, no fmi2Fatal, and for the project's FMUs every refusal logged and harmless.
 
-The checks of one FMU run in a child process (and the fuzz in its own), so an FMU that
-crashes its host is reported, not fatal to ``dronefly check``; what the FMU's binaries print
-(FMPy's container writes ``container::logError(...)`` lines) is kept in
-``FMUReport.output``, shown with ``--verbose`` or when a check fails.
+The checks run in this process; :mod:`.suite` runs them in a child process (so a crashing
+FMU is a failed check) and adds the fuzz.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import subprocess
-import sys
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -39,7 +33,7 @@ import numpy as np
 
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
-__all__ = ["CheckResult", "FMUReport", "check_fmu", "format_reports"]
+__all__ = ["CheckResult", "FMUReport", "run_checks"]
 
 
 @dataclass(frozen=True)
@@ -269,28 +263,9 @@ _CHECKS: list[tuple[str, Callable[[FMU], str]]] = [
 ]
 
 
-def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True) -> FMUReport:
-    """Run every check on one FMU; never raises (nor crashes) for a non-compliant FMU.
-
-    Parameters
-    ----------
-    path : str or Path
-        The FMU file.
-    fuzz : bool
-        Add the short fuzz (``fuzz`` check).
-    isolate : bool
-        Run the checks in a child process (default): a crash is a failed check.
-    """
-    report = _check_isolated(Path(path)) if isolate else _check_here(Path(path))
-    if fuzz and report.checks and report.checks[0].name != "load":
-        from dronefly.harness.compliance.fuzz import fuzz_fmu
-
-        f = fuzz_fmu(path, random_calls=100, instances=5)
-        report.checks.append(CheckResult("fuzz", f.passed, f.summary().replace("\n", ";")))
-    return report
-
-
-def _check_here(path: Path, progress: Callable[[dict], None] | None = None) -> FMUReport:
+def run_checks(path: Path, progress: Callable[[dict], None] | None = None) -> FMUReport:
+    """Every check of this module on one FMU, in this process; ``progress`` is called with
+    ``{"begin": name}`` before and the result (as a dict) after each check."""
     report = FMUReport(path)
     try:
         fmu = FMU(path)
@@ -313,59 +288,3 @@ def _check_here(path: Path, progress: Callable[[dict], None] | None = None) -> F
             if progress:
                 progress(asdict(result))
     return report
-
-
-def _check_isolated(path: Path, timeout_s: float = 600.0) -> FMUReport:
-    from dronefly.harness.compliance.fuzz import describe_exit
-
-    with tempfile.TemporaryDirectory(prefix="dronefly_check_") as tmp:
-        rows = Path(tmp, "checks.jsonl")
-        try:
-            proc = subprocess.run([sys.executable, "-m", "dronefly.harness.compliance.checker",
-                                   str(path), str(rows)], capture_output=True, text=True,
-                                  timeout=timeout_s)
-            died = None if proc.returncode == 0 else describe_exit(proc.returncode)
-            output = (proc.stdout + proc.stderr).strip()
-        except subprocess.TimeoutExpired:
-            died, output = f"hung for more than {timeout_s:g} s", ""
-        report = FMUReport(path, output=output)
-        current = None
-        for line in rows.read_text(encoding="utf-8").splitlines() if rows.exists() else []:
-            row = json.loads(line)
-            if "begin" in row:
-                current = row["begin"]
-            else:
-                report.checks.append(CheckResult(**row))
-                current = None
-    if died is not None:
-        report.checks.append(CheckResult(current or "process exit", False,
-                                         f"the checking process died ({died})"))
-    return report
-
-
-def _child(path: str, rows: str) -> None:
-    with open(rows, "w", encoding="utf-8") as fh:
-        def progress(row: dict) -> None:
-            fh.write(json.dumps(row) + "\n")
-            fh.flush()
-
-        _check_here(Path(path), progress)
-
-
-def format_reports(reports: list[FMUReport], verbose: bool = False) -> str:
-    """The report for a terminal; what the binaries printed only if ``verbose`` or failed."""
-    lines = []
-    for r in reports:
-        lines.append(f"{r.path}: {'PASS' if r.passed else 'FAIL'}")
-        for c in r.checks:
-            lines.append(f"  [{'ok' if c.passed else 'FAIL':>4}] {c.name:<14} {c.detail}")
-        if r.output and (verbose or not r.passed):
-            lines.append("  printed by the FMU's binaries while checked:")
-            lines += [f"    {ln}" for ln in r.output.splitlines()]
-    ok = sum(r.passed for r in reports)
-    lines.append(f"{ok} of {len(reports)} FMUs passed")
-    return "\n".join(lines)
-
-
-if __name__ == "__main__":  # the child process of check_fmu
-    _child(sys.argv[1], sys.argv[2])

@@ -1,0 +1,124 @@
+"""The documents run verbatim and their numbers are the code's.
+
+Every fenced ``sh``/``bash`` block of README.md and docs/*.md runs as written (cwd: the
+checkout, the virtual environment's bin first on PATH) and must leave the checkout as it was;
+every ``python`` block runs in a scratch folder. A block is skipped only with a reason: a
+``<!-- doc-test: skip (why) -->`` line right before it, or ``make`` targets (they run this
+suite). The numbers the README and docs quote are compared with what the code computes.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+_FENCE = re.compile(r"(?:^<!-- doc-test: (?P<mark>[^\n]*?) -->\n)?^```(?P<lang>sh|bash|python)\n"
+                    r"(?P<body>.*?)^```$", re.M | re.S)
+
+
+def _blocks() -> list:
+    out = []
+    for doc in DOCS:
+        text = doc.read_text(encoding="utf-8")
+        for k, m in enumerate(_FENCE.finditer(text)):
+            line = text[:m.start("body")].count("\n")
+            out.append(pytest.param(doc, m.group("lang"), m.group("body"), m.group("mark") or "",
+                                    id=f"{doc.name}:{line}"))
+    return out
+
+
+def _status() -> str:
+    return subprocess.run(["git", "status", "--porcelain", "--untracked-files=all"], cwd=ROOT,
+                          capture_output=True, text=True).stdout
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    env.pop("PYTHONPATH", None)
+    return env
+
+
+def test_every_block_is_run_or_skipped_with_a_reason():
+    blocks = _blocks()
+    assert len(blocks) >= 8
+    for p in blocks:
+        _, lang, body, mark = p.values
+        if mark and not mark.startswith(("skip (", "needs ")):
+            raise AssertionError(f"{p.id}: unknown doc-test mark {mark!r}")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("doc, lang, body, mark", _blocks())
+def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
+    if mark.startswith("skip ("):
+        pytest.skip(mark)
+    if lang != "python" and all(ln.startswith("make ") for ln in body.splitlines() if ln.strip()):
+        pytest.skip("make targets: they run this very suite (CI runs `make test`)")
+    if mark.startswith("needs gcc"):
+        from dronefly.harness.interop.libcosim import libpython_path
+
+        if shutil.which("gcc") is None or libpython_path() is None:
+            pytest.skip("no gcc or no shared libpython (.ci/setup-c-host.sh installs them)")
+    before = _status()
+    if lang == "python":
+        script = tmp_path / "block.py"
+        script.write_text(body)
+        r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=_env(),
+                           capture_output=True, text=True, timeout=300)
+    else:
+        r = subprocess.run(["bash", "-c", body], cwd=ROOT, env=_env(), capture_output=True,
+                           text=True, timeout=300)
+    assert r.returncode == 0, f"{doc.name}: exit {r.returncode}\n{r.stdout[-1500:]}\n{r.stderr[-1500:]}"
+    assert _status() == before, f"{doc.name}: the block changed the checkout"
+
+
+# --- numbers ---------------------------------------------------------------------------------
+def test_readme_verdict_table_is_what_demo_prints(tmp_path):
+    from dronefly.harness.cosim.demo import verdict_table
+
+    table = verdict_table(out_dir=tmp_path / "cosim")
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    for gains in ("open", "paper"):
+        got = next(ln for ln in table.splitlines() if ln.startswith(gains + " "))
+        want = next(ln for ln in readme.splitlines() if ln.startswith(gains + " "))
+        assert got.split("  ")[:3] == want.split("  ")[:3], (got, want)
+
+
+def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
+    from dronefly.harness.cosim.run import cosimulate
+    from dronefly.harness.paper.reproduction import reproduction_table
+    from dronefly.harness.paper.rows import summary
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    r = cosimulate(out_dir=None, plot=False, build_dir=tmp_path)
+    assert f"leave {r.identification.dominant_growth_rate:.1e} per wing beat".replace(
+        "e-05", "e-5") in readme
+    s = summary(reproduction_table())
+    by = s["mismatches_by_reason"]
+    assert (f"all {s['rows']} numbers" in readme and f"{s['matches']} match" in readme
+            and f"{by['rounding']} differ" in readme and f"{by['error in print']} are errors" in readme)
+
+
+def test_simulate_deviation_quoted_in_readme(tmp_path):
+    from dronefly.simulate import simulate_plant
+
+    run = simulate_plant(out_dir=tmp_path)
+    assert run.max_rel_error < 1e-13  # README: "about 1e-14"
+    assert "(about 1e-14)" in (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def test_sweep_case_counts_quoted_in_docs():
+    from dronefly.harness.sweep.cases import SweepSpec
+
+    cases = SweepSpec().cases()
+    text = (ROOT / "docs" / "sweep.md").read_text(encoding="utf-8")
+    assert f"{len(cases):,} cases ({len({c.key for c in cases}):,} distinct" in text

@@ -43,7 +43,7 @@ def test_broken_model_description_fails_validate(built_fmus, tmp_path, capsys):
     start = md.index(b"<InitialUnknowns>")
     end = md.index(b"</InitialUnknowns>") + len(b"</InitialUnknowns>")
     broken = _rewrite_md(src, tmp_path / "NoInitialUnknowns.fmu", md[start:end], b"")
-    report = check_fmu(broken)
+    report = check_fmu(broken, fuzz=False)
     status = _status(report)
     assert not report.passed and status["validate"] is False and status["reset"] is True
     assert main(["check", "--no-fuzz", str(broken)]) == 1
@@ -69,7 +69,7 @@ def test_state_that_is_not_captured_fails(tmp_path, monkeypatch):
 
     monkeypatch.setattr(build, "_source_path", patched)
     fmu = build.build_fmu("DroneFlyLateral", tmp_path / "bad")
-    status = _status(check_fmu(fmu))
+    status = _status(check_fmu(fmu, fuzz=False))
     assert status["state"] is False and status["validate"] is True
 
 
@@ -79,7 +79,7 @@ def test_do_nothing_fmu_fails_bad_input(tmp_path):
 
     src = Path(__file__).resolve().parents[1] / "benchmarks" / "null_fmus" / "NullPlant.py"
     fmu = Path(FmuBuilder.build_FMU(src, dest=tmp_path))
-    report = check_fmu(fmu)
+    report = check_fmu(fmu, fuzz=False)
     status = _status(report)
     assert status["validate"] is False and status["bad-input"] is False
     detail = {c.name: c.detail for c in report.checks}["bad-input"]
@@ -90,13 +90,13 @@ def test_missing_and_corrupt_files(tmp_path, capsys):
     assert main(["check", str(tmp_path / "nope.fmu")]) == 2
     bad = tmp_path / "corrupt.fmu"
     bad.write_bytes(b"PK\x03\x04 garbage")
-    report = check_fmu(bad)
+    report = check_fmu(bad, fuzz=False)
     assert not report.passed and report.checks[0].name == "load"
 
 
 def test_container_fmu_passes_with_fmi_status_checks(built_fmus):
     """The container's binary is fmpy's: statuses and recovery are checked, its messages not."""
-    report = check_fmu(built_fmus["DroneFlyClosedLoop"])
+    report = check_fmu(built_fmus["DroneFlyClosedLoop"], fuzz=False)
     assert report.passed, report.checks
     detail = {c.name: c.detail for c in report.checks}
     assert "not applicable" in detail["state"] and "messages not checked" in detail["bad-input"]

@@ -56,15 +56,20 @@ def format_cell(value: Any) -> str:
 
 
 def write_csv_atomic(path: str | Path, header: Sequence[str],
-                     rows: Iterable[Sequence[Any] | Mapping[str, Any]]) -> Path:
+                     rows: Iterable[Sequence[Any] | Mapping[str, Any]], *,
+                     quote_header: bool = False) -> Path:
     """Write a CSV table (header line, then one line per row) atomically.
 
     Rows are sequences in ``header`` order or mappings by column name; floats are
-    written with ``repr``, so the file reads back to the same numbers.
+    written with ``repr``, so the file reads back to the same numbers. ``quote_header``
+    quotes every column name (the FMI cross-check files' convention).
     """
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
+    if quote_header:
+        buf.write(",".join(f'"{h}"' for h in header) + "\n")
+    else:
+        w.writerow(header)
     for row in rows:
         cells = [row.get(c) for c in header] if isinstance(row, Mapping) else row
         w.writerow([format_cell(c) for c in cells])

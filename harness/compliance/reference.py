@@ -17,13 +17,12 @@ from typing import Callable
 
 import numpy as np
 
-from dronefly.files import write_text_atomic
+from dronefly.files import write_csv_atomic, write_text_atomic
 from dronefly.plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
            "write_reference"]
 
-_PKG = Path(__file__).resolve().parent.parent
 
 
 def _plant_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
@@ -119,12 +118,11 @@ def _input_table(model: str) -> np.ndarray:
     return table
 
 
-def _csv_text(table: np.ndarray) -> str:
-    lines = [",".join(f'"{n}"' for n in table.dtype.names)]
-    for row in table:
-        lines.append(",".join(repr(float(v)) if isinstance(v, (float, np.floating))
-                              else str(int(v)) for v in row))
-    return "\n".join(lines) + "\n"
+def _write_table(path: Path, table: np.ndarray) -> None:
+    """A structured array as a cross-check CSV: quoted names, floats exact, flags as 0/1."""
+    rows = [[float(v) if isinstance(v, (float, np.floating)) else int(v) for v in row]
+            for row in table]
+    write_csv_atomic(path, table.dtype.names, rows, quote_header=True)
 
 
 def write_reference(model: str, fmu: Path) -> tuple[Path, Path, Path]:
@@ -133,9 +131,9 @@ def write_reference(model: str, fmu: Path) -> tuple[Path, Path, Path]:
     table = _input_table(model)
     result = _simulate(fmu, model, table)
     if len(table.dtype.names) > 1:  # an _in.csv only for a model with inputs
-        write_text_atomic(inp, _csv_text(table))
+        _write_table(inp, table)
     write_text_atomic(opt, "".join(f"{k},{v!r}\n" for k, v in _opt(REFERENCES[model]).items()))
-    write_text_atomic(ref, _csv_text(result))
+    _write_table(ref, result)
     return inp, opt, ref
 
 

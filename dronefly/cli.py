@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence
 from dronefly import __version__, commands
 from dronefly.commands import EXIT_FAILED, EXIT_USAGE
 from dronefly.errors import DroneflyError
-from dronefly.interrupt import EXIT_INTERRUPTED
+from dronefly.interrupt import EXIT_INTERRUPTED, deferred_sigint
 
 __all__ = ["main"]
 
@@ -161,13 +161,15 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--slices", default="dgamma:dv,dgamma:dp,dr:dp", metavar="X:Y,...",
                    help="2-D slices of the box for grid (axes dv, dp, dr, dgamma; "
                         "default dgamma:dv,dgamma:dp,dr:dp)")
-    w.add_argument("--grid", default="21", metavar="N", help="grid points per axis (default 21)")
-    w.add_argument("--lhs", default="200", metavar="N", help="Latin-hypercube samples (default 200)")
+    w.add_argument("--grid", type=_int("grid", 2), default=21, metavar="N",
+                   help="grid points per axis (default 21)")
+    w.add_argument("--lhs", type=_int("lhs", 1), default=200, metavar="N",
+                   help="Latin-hypercube samples (default 200)")
     w.add_argument("--directions", default=",".join(f"{s}{a}" for a in ("dv", "dp", "dr", "dgamma",
                                                                         "mode1") for s in "+-"),
                    metavar="LIST", help="directions for 'directions' (default: +-dv, +-dp, +-dr, "
                                         "+-dgamma, +-mode1 = the unstable eigenvector)")
-    w.add_argument("--amplitudes", default="10", metavar="N",
+    w.add_argument("--amplitudes", type=_int("amplitudes", 1), default=10, metavar="N",
                    help="amplitudes 1/N..1 of the box per direction (default 10)")
     w.add_argument("--gains", default="paper,stabilising", metavar="LIST",
                    help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open, or a "
@@ -176,19 +178,22 @@ def _parser() -> argparse.ArgumentParser:
                    type=_converter(parse_assignment), metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller for every case (repeatable; "
                         "SI units)")
-    w.add_argument("--steps", default="0.1,1,3", metavar="LIST",
+    w.add_argument("--steps", type=_floats("steps"), default="0.1,1,3", metavar="LIST",
                    help="communication steps = how often the insect senses and acts, wing beats "
                         "(default 0.1,1,3)")
-    w.add_argument("--scales", default="1", metavar="LIST", help="factors on the bounds (default 1)")
-    w.add_argument("--stop", default="200", metavar="WB", help="wing beats per case (default 200)")
+    w.add_argument("--scales", type=_floats("scales"), default="1", metavar="LIST",
+                   help="factors on the bounds (default 1)")
+    w.add_argument("--stop", type=_floats("stop"), default="200", metavar="WB",
+                   help="wing beats per case (default 200)")
     w.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
                    help="ordering of the FMU calls (default gauss-seidel)")
-    w.add_argument("--seed", default="0", metavar="N", help="seed of the Latin hypercube")
-    w.add_argument("--workers", default=None, metavar="N",
+    w.add_argument("--seed", type=_int("seed", 0), default=0, metavar="N",
+                   help="seed of the Latin hypercube")
+    w.add_argument("--workers", type=_int("workers", 1), default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 = in this process)")
     w.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on an existing Dask cluster, e.g. tcp://host:8786")
-    w.add_argument("--connect-timeout", default="10", metavar="S",
+    w.add_argument("--connect-timeout", type=_positive, default=10.0, metavar="S",
                    help="seconds to reach the scheduler (default 10)")
     w.add_argument("--fresh", action="store_true", help="discard earlier results in --out")
     w.add_argument("--no-plot", action="store_true", help="do not write the PNG maps")
@@ -208,6 +213,24 @@ def _converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
 
     convert.__name__ = fn.__name__
     return convert
+
+
+def _int(name: str, lo: int) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        from dronefly.harness.sweep.cases import parse_int
+
+        return parse_int(text, name, lo)
+
+    return _converter(parse)
+
+
+def _floats(name: str) -> Callable[[str], tuple[float, ...]]:
+    def parse(text: str) -> tuple[float, ...]:
+        from dronefly.harness.sweep.cases import parse_floats
+
+        return parse_floats(text, name)
+
+    return _converter(parse)
 
 
 def parse_gains(text: str) -> Any:
@@ -255,7 +278,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as e:  # argparse already printed its one-line error, the help or version
         return int(e.code or 0)
     try:
-        return int(args.func(args))
+        with deferred_sigint() as interrupt:  # Ctrl-C lands between steps, never in an FMU
+            code = int(args.func(args))
+        if interrupt.requested:
+            raise KeyboardInterrupt
+        return code
     except (DroneflyError, OSError) as e:
         if args.debug:
             traceback.print_exc()

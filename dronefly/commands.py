@@ -107,7 +107,7 @@ def sweep(args: argparse.Namespace) -> int:
     import json
 
     from dronefly.harness.sweep.run import run_sweep
-    from dronefly.harness.sweep.cases import SweepSpec, parse_floats, parse_int
+    from dronefly.harness.sweep.cases import SweepSpec
     from dronefly.harness.sweep.results import format_summary
 
     require("threadpoolctl")
@@ -122,8 +122,7 @@ def sweep(args: argparse.Namespace) -> int:
                                amplitudes=args.amplitudes, gains=args.gains, steps=args.steps,
                                scales=args.scales, stop=args.stop, master=args.master,
                                seed=args.seed)
-    workers = None if args.workers is None else parse_int(args.workers, "workers", 1)
-    timeout = parse_floats(args.connect_timeout, "connect timeout")[0]
+    workers, timeout = args.workers, args.connect_timeout
     result = run_sweep(spec, args.out, plant=args.plant, controller=args.controller,
                        workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
                        fresh=args.fresh, plot=not args.no_plot,

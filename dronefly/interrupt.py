@@ -36,17 +36,25 @@ class Deferred:
             raise KeyboardInterrupt
 
 
+_ACTIVE: list[Deferred] = []
+
+
 @contextlib.contextmanager
 def deferred_sigint() -> Iterator[Deferred]:
     """Defer SIGINT to the caller's next check (main thread only, and only where SIGINT is not
     ignored, as it is in the sweep's worker processes; elsewhere a no-op)."""
+    if _ACTIVE and threading.current_thread() is threading.main_thread():
+        yield _ACTIVE[-1]  # already deferred (e.g. by the command line): the same flag
+        return
     state = Deferred()
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is signal.SIG_IGN):  # e.g. a pool worker
         yield state
         return
     previous = signal.signal(signal.SIGINT, state._handler)
+    _ACTIVE.append(state)
     try:
         yield state
     finally:
+        _ACTIVE.pop()
         signal.signal(signal.SIGINT, previous)

@@ -179,6 +179,8 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     loop_s, out = 0.0, []
     for case in cases:
         try:
+            if _interrupt_requested():
+                raise KeyboardInterrupt
             loop, p, c, scale = loop_for(refs, data)
             if case.plant_values:  # n or U may be among them
                 scale = np.array(plant_scales({**loop.plant.start_values(),
@@ -201,6 +203,14 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
             out.append((case.key, _failed(case, e)))
             _drop_thread_loop(refs)
     return out, loop_s, time.perf_counter() - t_chunk
+
+
+def _interrupt_requested() -> bool:
+    """Whether a deferred SIGINT (the command line's) waits to be honoured."""
+    from dronefly.interrupt import deferred_sigint
+
+    with deferred_sigint() as stop:
+        return stop.requested
 
 
 class ChunkInterrupted(KeyboardInterrupt):

@@ -187,3 +187,82 @@ def test_container_refuses_a_bad_gain_and_the_host_survives(built_fmus, logging)
     if logging == "1":
         assert int(lines[0][2]) > 0, r.stdout
     assert lines[1][0] == "usable" and math.isfinite(float(lines[1][1])), r.stdout
+
+
+_CONTAINER_CASES = textwrap.dedent('''
+    import json, math, sys
+    from fmpy.fmi1 import FMICallException
+    from dronefly.harness.cosim.fmu import FMU
+    from dronefly.harness.compliance.fuzzkit import PRINTED
+    import os
+    rows = os.fdopen(os.dup(1), "w")
+    os.dup2(PRINTED.file.fileno(), 1)  # what the container binary prints counts as a message
+    logging = sys.argv[2] == "1"
+    with FMU(sys.argv[1]) as f:
+        h = float(f.model_description.defaultExperiment.stepSize)
+        vr = f.vr
+
+        def run(name, body):
+            with f.instantiate("c", logging=logging) as inst:
+                s, seen = inst.slave, []
+
+                def call(fn, *args):
+                    n0 = len(inst.messages)
+                    PRINTED.new()
+                    try:
+                        getattr(s, fn)(*args)
+                        seen.append((fn, 0, True))
+                    except FMICallException as e:
+                        said = len(inst.messages) > n0 or bool(PRINTED.new())
+                        seen.append((fn, int(e.status), said))
+
+                def init(values=()):
+                    call("setupExperiment", None, 0.0)
+                    call("enterInitializationMode")
+                    for k, v in values:
+                        call("setReal", [vr(k)], [v])
+                    call("exitInitializationMode")
+
+                body(call, init)
+                print(json.dumps({"case": name, "seen": seen}), file=rows, flush=True)
+
+        run("doStep before initialization", lambda call, init: call("doStep", 0.0, h))
+        for k, v in (("K[1,1]", math.nan), ("K[1,1]", math.inf), ("n", -1.0), ("U", 0.0),
+                     ("delta_gamma_start", 0.5)):
+            run(f"{k} = {v} while stepping", lambda call, init, k=k, v=v: (
+                init(), call("doStep", 0.0, h), call("setReal", [vr(k)], [v]),
+                call("doStep", h, h), call("doStep", 2 * h, h)))
+        for k, v in (("n", math.nan), ("U", -3.0), ("delta_gamma_start", math.nan)):
+            run(f"{k} = {v} before initialization", lambda call, init, k=k, v=v: (
+                init([(k, v)]), call("doStep", 0.0, h)))
+        run("unknown value references", lambda call, init: (
+            init(), call("getReal", [10**6]), call("setReal", [10**6], [1.0]),
+            call("doStep", 0.0, h)))
+        run("refusal, retry, reset", lambda call, init: (
+            init(), call("setReal", [vr("K[1,1]")], [math.nan]), call("doStep", 0.0, h),
+            call("setReal", [vr("K[1,1]")], [-0.3]), call("doStep", 0.0, h), call("reset"),
+            init(), call("doStep", 0.0, h)))
+        run("call-sequence misuse", lambda call, init: (
+            call("exitInitializationMode"), call("terminate"), init(), call("terminate"),
+            call("terminate"), call("doStep", 0.0, h)))
+''')
+
+
+@pytest.mark.parametrize("logging", ["1", "0"])
+def test_the_container_cases_of_issue_16(built_fmus, logging):
+    """The container FMU cases that killed the host with logging on: doStep before
+    initialization; bad K, n, U, delta_gamma_start while stepping and before initialization;
+    unknown value references; a refusal, retry and reset; call-sequence misuse. The process
+    survives and exits 0; with logging on, every non-OK status comes with a message (logged, or
+    printed by the container binary). No fmi2Fatal."""
+    r = subprocess.run([sys.executable, "-c", _CONTAINER_CASES,
+                        str(built_fmus["DroneFlyClosedLoop"]), logging],
+                       capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr[-800:]
+    cases = [json.loads(ln) for ln in r.stdout.splitlines() if ln.startswith("{")]
+    assert len(cases) == 12
+    statuses = [st for c in cases for _, st, _ in c["seen"]]
+    assert 4 not in statuses and any(st >= 2 for st in statuses)
+    if logging == "1":
+        silent = [(c["case"], fn) for c in cases for fn, st, said in c["seen"] if st and not said]
+        assert not silent, silent

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
-__all__ = ["model_description", "set_values", "start"]
+__all__ = ["build_crashing_fmu", "model_description", "set_values", "start"]
 
 
 def model_description(path: Path) -> ET.Element:
@@ -32,3 +32,36 @@ def start(inst: Any, values: dict[str, Any] | None = None, t0: float = 0.0) -> N
     s.enterInitializationMode()
     set_values(inst, values or {})
     s.exitInitializationMode()
+
+
+_CRASHING = """
+import ctypes
+from pythonfmu import Fmi2Slave, Real, Fmi2Causality, Fmi2Variability
+
+
+class Crashing(Fmi2Slave):
+    \"\"\"doStep dereferences a null pointer: a real segfault of the host.\"\"\"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.u = 0.0
+        self.y = 0.0
+        self.register_variable(Real("u", causality=Fmi2Causality.input,
+                                    variability=Fmi2Variability.continuous))
+        self.register_variable(Real("y", causality=Fmi2Causality.output,
+                                    variability=Fmi2Variability.continuous))
+
+    def do_step(self, t, h):
+        ctypes.string_at(0)
+        return True
+"""
+
+
+def build_crashing_fmu(folder: Path) -> Path:
+    """A pythonfmu FMU (not ours) whose fmi2DoStep segfaults the host."""
+    from pythonfmu import FmuBuilder
+
+    src = folder / "Crashing.py"
+    src.write_text(_CRASHING)
+    return Path(FmuBuilder.build_FMU(src, dest=folder))
+

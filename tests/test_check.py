@@ -9,6 +9,7 @@ import pytest
 
 from dronefly.cli import main
 from dronefly.harness.compliance.suite import check_fmu
+from fmu_helpers import build_crashing_fmu
 
 pytestmark = pytest.mark.integration
 
@@ -113,31 +114,8 @@ def test_container_binary_output_is_captured(built_fmus, capfd):
     assert "container::logError" in capfd.readouterr().out
 
 
-def test_a_crashing_fmu_is_a_failed_check_not_a_crash(tmp_path, capsys):
+def test_a_crashing_fmu_is_a_failed_check_not_a_crash(tmp_path):
     """An FMU that segfaults its host in doStep: dronefly check reports it and goes on."""
-    from pythonfmu import FmuBuilder
-
-    src = tmp_path / "Crashing.py"
-    src.write_text(CRASHING)
-    fmu = FmuBuilder.build_FMU(src, dest=tmp_path)
-    report = check_fmu(fmu, fuzz=False)
+    report = check_fmu(build_crashing_fmu(tmp_path), fuzz=False)
     died = [c for c in report.checks if "the checking process died (killed by SIGSEGV)" in c.detail]
     assert died and died[0].name == "call-sequence" and not report.passed
-
-
-CRASHING = """
-import ctypes
-from pythonfmu import Fmi2Slave, Real, Fmi2Causality, Fmi2Variability
-
-
-class Crashing(Fmi2Slave):
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.y = 0.0
-        self.register_variable(Real("y", causality=Fmi2Causality.output,
-                                    variability=Fmi2Variability.continuous))
-
-    def do_step(self, t, h):
-        ctypes.string_at(0)
-        return True
-"""

@@ -17,6 +17,7 @@ import pytest
 
 from dronefly.build import FMUS
 from dronefly.harness.compliance.fuzz import fuzz_fmu
+from fmu_helpers import build_crashing_fmu
 
 pytestmark = pytest.mark.integration
 
@@ -70,32 +71,8 @@ def test_fifty_processes_using_the_fmus_exit_cleanly(built_fmus):
     assert not bad, f"{len(bad)} of 50 processes failed: {bad[:3]}"
 
 
-_CRASHING = textwrap.dedent('''
-    import ctypes
-    from pythonfmu import Fmi2Slave, Real, Fmi2Causality, Fmi2Variability
-
-
-    class Crashing(Fmi2Slave):
-        """doStep dereferences a null pointer: a real segfault of the host."""
-
-        def __init__(self, **kwargs):
-            super().__init__(**kwargs)
-            self.u = 0.0
-            self.register_variable(Real("u", causality=Fmi2Causality.input,
-                                        variability=Fmi2Variability.continuous))
-
-        def do_step(self, t, h):
-            ctypes.string_at(0)
-            return True
-''')
-
-
 def test_the_fuzz_survives_and_counts_a_crashing_fmu(tmp_path):
-    from pythonfmu import FmuBuilder
-
-    src = tmp_path / "Crashing.py"
-    src.write_text(_CRASHING)
-    fmu = FmuBuilder.build_FMU(src, dest=tmp_path)
+    fmu = build_crashing_fmu(tmp_path)
     report = fuzz_fmu(fmu, groups=("sequence",), logging=(False,), timeout_s=60)
     crashed = {c.case for c in report.crashes}
     assert any("fmi2DoStep in stepping" in c for c in crashed), report.summary()

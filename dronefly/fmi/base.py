@@ -254,20 +254,24 @@ class SlaveBase(Fmi2Slave):
                 msg = "; ".join(self._pending)
                 self._pending.clear()
                 return self._refuse(f"step refused at t = {current_time!r} s: {msg}")
-            if not math.isfinite(current_time):
-                return self._refuse(f"currentCommunicationPoint = {current_time!r} s must be finite")
-            if not (math.isfinite(step_size) and step_size > 0.0
-                    and math.isfinite(current_time + step_size)):
-                return self._refuse(f"communicationStepSize = {step_size!r} s must be finite and > "
-                                    f"0, with a finite end (from {current_time!r} s)")
+            end = current_time + step_size
+            # x - x == 0 is false exactly for inf and nan (cheaper than math.isfinite here)
+            if not (current_time - current_time == 0.0 and end - end == 0.0
+                    and step_size > 0.0):
+                if not math.isfinite(current_time):
+                    return self._refuse(f"currentCommunicationPoint = {current_time!r} s must be "
+                                        "finite")
+                return self._refuse(f"communicationStepSize = {step_size!r} s must be finite and "
+                                    f"> 0, with a finite end (from {current_time!r} s)")
             # float accumulation of the master's time: relative to the times, never to the step
-            tol = 1e-9 * max(abs(current_time), abs(self._time), 1e-300)
-            if not (abs(current_time - self._time) <= tol):
+            last = self._time
+            tol = 1e-9 * (abs(current_time) + abs(last)) + 1e-300
+            if not (abs(current_time - last) <= tol):
                 return self._refuse(
                     f"currentCommunicationPoint = {current_time!r} s does not continue "
                     f"from the last communication point {self._time!r} s")
             stop = self._stop_time
-            if stop is not None and current_time + step_size > stop + tol:
+            if stop is not None and end > stop + tol:
                 return self._refuse(f"a step of {step_size!r} s from {current_time!r} s goes "
                                     f"past stopTime = {stop!r} s (fmi2SetupExperiment)")
             if not self._initialized:
@@ -278,7 +282,7 @@ class SlaveBase(Fmi2Slave):
                 self._refresh()
                 self._dirty = False
             self._advance(current_time, step_size)
-            self._time = current_time + step_size
+            self._time = end
             return True
         except ValueError as e:
             return self._refuse(f"step refused at t = {current_time!r} s: {e}")

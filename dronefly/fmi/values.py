@@ -51,14 +51,14 @@ def _read(self: Any, vrs: list[int], kind: str, convert: Any, fallback: Any) -> 
 
 
 def get_real(self: Any, vrs: list[int]) -> list[float]:
-    if self._stale or self._mode == "instantiated":
-        return _read(self, vrs, "Real", float, math.nan)
-    r = self._real
     try:  # the hot path of every co-simulation step: no per-element checks
-        if vrs and (min(vrs) < 0 or max(vrs) >= self._n_vars):
-            raise IndexError
-        return [r[i] for i in vrs]  # the wrapper converts with PyFloat_AsDouble
-    except BaseException:
+        if self._stale:  # a direct-feedthrough FMU after a set: recompute the outputs once
+            self._update_if_stale()
+        r = self._real
+        if self._mode == "instantiated" or min(vrs) < 0:
+            raise IndexError  # (a reference >= 2**31 arrives negative and would wrap around)
+        return [r[i] for i in vrs]  # an index past the end raises; PyFloat_AsDouble converts
+    except BaseException:  # also min() of no references: answered (empty) by _read
         return _read(self, vrs, "Real", float, math.nan)
 
 
@@ -94,9 +94,10 @@ def _set(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
     try:
         ok = self._settable.get((self._mode, kind), ())
         r = self._real
+        boolean = kind == "Boolean"
         for i, x in zip(vrs, values):
             if i in ok:
-                r[i] = bool(x) if kind == "Boolean" else x
+                r[i] = bool(x) if boolean else x
             else:
                 _reject(self, i, x, _why_not_settable(self, i, kind), kind)
         # outputs follow sets only before initialization ends or with direct feedthrough

@@ -255,7 +255,7 @@ class Loop:
                 s_idx = []
             for k in range(n_steps + 1):
                 t = k * step
-                if interrupt.requested:  # Ctrl-C: stop between steps, never inside an FMU
+                if interrupt.count:  # Ctrl-C: stop between steps, never inside an FMU
                     raise _Interrupted
                 who, call = p, "fmi2GetReal"
                 pg(pc, y_vr, ns, y)

@@ -124,26 +124,29 @@ def _check_validate(fmu: FMU) -> str:
     return "no problems"
 
 
-def _check_call_sequence(fmu: FMU) -> str:
+def _whole_run(inst: Instance, fmu: FMU) -> np.ndarray:
+    """Initialize, run the default experiment, terminate: the recorded outputs."""
     start, stop, step = _experiment(fmu)
+    _init(inst, start, stop)
+    data = _run(inst, start, stop, step)
+    inst.slave.terminate()
+    return data
+
+
+def _check_call_sequence(fmu: FMU) -> str:
     with fmu.instantiate("check") as inst:
-        _init(inst, start, stop)
-        data = _run(inst, start, stop, step)
-        inst.slave.terminate()
+        data = _whole_run(inst, fmu)
     _require(bool(np.isfinite(data).all()), "non-finite outputs")
     _require(float(np.ptp(data)) > 0.0, "outputs do not respond to the inputs")
+    _, stop, step = _experiment(fmu)
     return f"{len(data) - 1} steps of {step:.6g} s to {stop:.6g} s"
 
 
 def _check_reset(fmu: FMU) -> str:
-    start, stop, step = _experiment(fmu)
     with fmu.instantiate("check") as inst:
-        _init(inst, start, stop)
-        first = _run(inst, start, stop, step)
-        inst.slave.terminate()
+        first = _whole_run(inst, fmu)
         inst.slave.reset()
-        _init(inst, start, stop)
-        second = _run(inst, start, stop, step)
+        second = _whole_run(inst, fmu)
     _require(np.array_equal(first, second), "the run after fmi2Reset differs")
     return "identical after fmi2Reset"
 

@@ -232,6 +232,3 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
                             stop_s=(n_steps + 1) * step)
         runs.append(np.column_stack([res[x] for x in STATE_NAMES]) / scale)
     return Verdict(identify(runs, step * n, delay=False), runs)
-
-
-# -----------------------------------------------------------------------------

@@ -180,7 +180,3 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
         xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([np.zeros(len(STATE_NAMES)), xs]))
     return Verdict(identify(runs, d_step * n, delay=True), runs)
-
-
-# -----------------------------------------------------------------------------
-# container FMU

@@ -9,7 +9,8 @@ Execution: each worker process extracts each FMU once and instantiates plant and
 controller once (module-level cache keyed by the FMUs' digests, one pair of
 instances per thread); every case reuses them through fmi2Reset. Cases run in
 chunks, in-process (``workers=1``), on a local process pool, or on an existing
-Dask cluster (``scheduler=ADDRESS``); the rows are the same whichever backend.
+Dask cluster (``scheduler=ADDRESS``; see :mod:`harness.sweep.backends`); the rows are the
+same whichever backend.
 Results go to ``sweep.csv`` (one row per case, sorted by case number), rewritten
 atomically after chunks complete; a rerun with the same ``out_dir`` resumes:
 finished cases (matched by key) are not run again.
@@ -25,12 +26,13 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 
-from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec, one_line
+from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec
 from dronefly.files import write_text_atomic
 from dronefly.harness.sweep.results import (COLUMNS, load_done, read_rows, result_row,
                                             summarize, write_maps, write_results)
-from dronefly.harness.sweep.worker import (ChunkInterrupted, FmuRef, blas_single_thread,
-                                           close_all, init_worker, loop_for, run_chunk)
+from dronefly.harness.sweep.backends import (chunk_cases, connect_scheduler, make_progress_bar,
+                                             run_dask, run_here, run_pool, stderr_is_tty)
+from dronefly.harness.sweep.worker import FmuRef
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
 
@@ -43,38 +45,6 @@ class SweepResult:
     csv: Path
     json: Path
     maps: list[Path]
-
-
-def _chunks(cases: list[Case], workers: int, chunk_steps: int | None) -> list[list[Case]]:
-    total = sum(c.n_steps for c in cases)
-    target = chunk_steps or min(max(total / (workers * 16), 4000), 60000)
-    chunks: list[list[Case]] = [[]]
-    cost = 0
-    for c in cases:
-        if cost >= target:
-            chunks.append([])
-            cost = 0
-        chunks[-1].append(c)
-        cost += c.n_steps
-    return [ch for ch in chunks if ch]
-
-
-def _connect(address: str, timeout_s: float) -> Any:
-    from distributed.comm import parse_address, parse_host_port
-
-    try:  # a malformed address fails here, before a Client exists to be torn down
-        scheme, location = parse_address(address)
-        if scheme in ("tcp", "tls"):
-            parse_host_port(location)
-    except Exception as e:
-        raise SweepInputError(f"scheduler address {address!r} is malformed: "
-                              f"{one_line(str(e))}") from None
-    try:
-        from distributed import Client
-
-        return Client(address, timeout=timeout_s, set_as_default=False)
-    except Exception as e:
-        raise SweepInputError(f"scheduler {address!r} unreachable: {one_line(str(e))}") from None
 
 
 def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
@@ -186,14 +156,14 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     keys = {c.key for c in all_cases}
     done = {} if fresh else load_done(csv_path, keys)
     resumed = len(keys & done.keys())
-    client = _connect(scheduler, connect_timeout_s) if scheduler is not None else None
+    client = connect_scheduler(scheduler, connect_timeout_s) if scheduler is not None else None
     todo = list({c.key: c for c in reversed(all_cases) if c.key not in done}.values())[::-1]
     n_workers = len(client.scheduler_info()["workers"]) if client else min(workers, max(1, len(todo)))
-    chunks = _chunks(todo, n_workers, chunk_steps)
+    chunks = chunk_cases(todo, n_workers, chunk_steps)
     stats = {"loop_s": 0.0, "wall_s": 0.0, "computed": 0}
     out.mkdir(parents=True, exist_ok=True)
-    bar = _Bar(total=len(todo), unit="case", desc="sweep", dynamic_ncols=True,
-               disable=(not _isatty()) if progress_bar is None else not progress_bar)
+    bar = make_progress_bar(total=len(todo), unit="case", desc="sweep", dynamic_ncols=True,
+                            disable=(not stderr_is_tty()) if progress_bar is None else not progress_bar)
     last_flush = [time.perf_counter()]
 
     def flush() -> None:
@@ -214,11 +184,11 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
 
     try:
         if client is not None:
-            _run_dask(client, refs, chunks, collect)
+            run_dask(client, refs, chunks, collect)
         elif n_workers == 1:
-            _run_here(refs, chunks, collect)
+            run_here(refs, chunks, collect)
         else:
-            _run_pool(refs, chunks, n_workers, collect)
+            run_pool(refs, chunks, n_workers, collect)
     finally:
         bar.close()
         if client is not None:
@@ -243,83 +213,3 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
 
     write_text_atomic(json_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return SweepResult(rows, summary, csv_path, json_path, maps)
-
-
-def _Bar(**kw: Any) -> Any:
-    """A tqdm bar without tqdm's monitor thread (the pool forks after it exists)."""
-    from tqdm import tqdm
-
-    class Bar(tqdm):
-        monitor_interval = 0
-
-    return Bar(**kw)
-
-
-def _isatty() -> bool:
-    import sys
-
-    return bool(getattr(sys.stderr, "isatty", lambda: False)())
-
-
-def _run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Callable) -> None:
-    limiter = blas_single_thread()
-    try:
-        loop_for(refs, (None, None))  # instantiate once, before any case is timed
-        for ch in chunks:
-            try:
-                collect(run_chunk(refs, ch))
-            except ChunkInterrupted as e:  # keep the finished cases of this chunk
-                collect(e.partial)
-                raise KeyboardInterrupt from None
-    finally:
-        close_all()
-        limiter.restore_original_limits()
-
-
-def _run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
-              collect: Callable) -> None:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    # fork: no re-import of __main__ (``python -m dronefly`` has no main guard); the
-    # workers drop the inherited caches and open their own FMUs in the initializer
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    ctx = multiprocessing.get_context(method)
-    with ProcessPoolExecutor(n, mp_context=ctx, initializer=init_worker,
-                             initargs=(refs,)) as ex:
-        futs = [ex.submit(run_chunk, refs, ch) for ch in chunks]
-        try:
-            for f in as_completed(futs):
-                collect(f.result())
-        except BaseException:
-            for f in futs:
-                f.cancel()
-            raise
-
-
-def _run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]],
-              collect: Callable) -> None:
-    from distributed import as_completed
-
-    from distributed.diagnostics.plugin import WorkerPlugin
-
-    class Cleanup(WorkerPlugin):
-        """Deletes the worker's FMU extractions when the Dask worker closes."""
-
-        name = "dronefly-sweep-cleanup"
-
-        def setup(self, worker: Any) -> None:
-            blas_single_thread()
-
-        def teardown(self, worker: Any) -> None:
-            close_all()
-
-    client.register_plugin(Cleanup())
-    data = client.scatter([Path(r.path).read_bytes() for r in refs], broadcast=True)
-    futs = [client.submit(run_chunk, refs, ch, tuple(data), pure=False) for ch in chunks]
-    try:
-        for f in as_completed(futs, loop=client.loop):
-            collect(f.result())
-    except BaseException:
-        client.cancel(futs)
-        raise

@@ -229,6 +229,3 @@ def _drop_thread_loop(refs: tuple[FmuRef, FmuRef]) -> None:
             inst.free()
         except Exception:  # pragma: no cover - already broken
             pass
-
-
-# ----------------------------------------------------------------------------- runner

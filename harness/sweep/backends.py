@@ -1,0 +1,129 @@
+"""Where the chunks of a sweep run: in this process, a process pool or a Dask cluster.
+
+Each backend calls ``collect((results, loop_s, wall_s))`` once per finished chunk; every
+worker limits BLAS to one thread and frees its FMU instances at the end.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+from dronefly.harness.sweep.cases import Case, SweepInputError, one_line
+from dronefly.harness.sweep.worker import (ChunkInterrupted, FmuRef, blas_single_thread,
+                                           close_all, init_worker, loop_for, run_chunk)
+
+__all__ = ["chunk_cases", "connect_scheduler", "make_progress_bar", "run_dask", "run_here", "run_pool",
+           "stderr_is_tty"]
+
+
+def chunk_cases(cases: list[Case], workers: int, chunk_steps: int | None) -> list[list[Case]]:
+    total = sum(c.n_steps for c in cases)
+    target = chunk_steps or min(max(total / (workers * 16), 4000), 60000)
+    chunks: list[list[Case]] = [[]]
+    cost = 0
+    for c in cases:
+        if cost >= target:
+            chunks.append([])
+            cost = 0
+        chunks[-1].append(c)
+        cost += c.n_steps
+    return [ch for ch in chunks if ch]
+
+
+def connect_scheduler(address: str, timeout_s: float) -> Any:
+    from distributed.comm import parse_address, parse_host_port
+
+    try:  # a malformed address fails here, before a Client exists to be torn down
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls"):
+            parse_host_port(location)
+    except Exception as e:
+        raise SweepInputError(f"scheduler address {address!r} is malformed: "
+                              f"{one_line(str(e))}") from None
+    try:
+        from distributed import Client
+
+        return Client(address, timeout=timeout_s, set_as_default=False)
+    except Exception as e:
+        raise SweepInputError(f"scheduler {address!r} unreachable: {one_line(str(e))}") from None
+
+
+def make_progress_bar(**kw: Any) -> Any:
+    """A tqdm bar without tqdm's monitor thread (the pool forks after it exists)."""
+    from tqdm import tqdm
+
+    class Bar(tqdm):
+        monitor_interval = 0
+
+    return Bar(**kw)
+
+
+def stderr_is_tty() -> bool:
+    import sys
+
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+def run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Callable) -> None:
+    limiter = blas_single_thread()
+    try:
+        loop_for(refs, (None, None))  # instantiate once, before any case is timed
+        for ch in chunks:
+            try:
+                collect(run_chunk(refs, ch))
+            except ChunkInterrupted as e:  # keep the finished cases of this chunk
+                collect(e.partial)
+                raise KeyboardInterrupt from None
+    finally:
+        close_all()
+        limiter.restore_original_limits()
+
+
+def run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
+              collect: Callable) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    # fork: no re-import of __main__ (``python -m dronefly`` has no main guard); the
+    # workers drop the inherited caches and open their own FMUs in the initializer
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    ctx = multiprocessing.get_context(method)
+    with ProcessPoolExecutor(n, mp_context=ctx, initializer=init_worker,
+                             initargs=(refs,)) as ex:
+        futs = [ex.submit(run_chunk, refs, ch) for ch in chunks]
+        try:
+            for f in as_completed(futs):
+                collect(f.result())
+        except BaseException:
+            for f in futs:
+                f.cancel()
+            raise
+
+
+def run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]],
+              collect: Callable) -> None:
+    from distributed import as_completed
+
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class Cleanup(WorkerPlugin):
+        """Deletes the worker's FMU extractions when the Dask worker closes."""
+
+        name = "dronefly-sweep-cleanup"
+
+        def setup(self, worker: Any) -> None:
+            blas_single_thread()
+
+        def teardown(self, worker: Any) -> None:
+            close_all()
+
+    client.register_plugin(Cleanup())
+    data = client.scatter([Path(r.path).read_bytes() for r in refs], broadcast=True)
+    futs = [client.submit(run_chunk, refs, ch, tuple(data), pure=False) for ch in chunks]
+    try:
+        for f in as_completed(futs, loop=client.loop):
+            collect(f.result())
+    except BaseException:
+        client.cancel(futs)
+        raise

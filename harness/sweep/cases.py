@@ -31,12 +31,13 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from dronefly.errors import DroneflyError
-
 from dronefly.controller.law import U_MAX_LINEAR_RANGE
-from dronefly.lateral import STATE_BOUNDS_SECT36
+from dronefly.lateral import STATE_BOUNDS_SECT36, eigen_order
 from dronefly.harness.cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
+from dronefly.harness.sweep.parse import (SweepInputError, one_line, parse_floats, parse_int,
+                                          parse_names)
 
 __all__ = ["MAX_CASES", "AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
@@ -49,55 +50,6 @@ MAX_CASES = 200_000
 AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
 DISTURBANCES: tuple[str, ...] = ("grid", "lhs", "directions")
 DEFAULT_DIRECTIONS: tuple[str, ...] = tuple(f"{s}{a}" for a in (*AXES, "mode1") for s in "+-")
-#: Where the ``stabilising`` gain set moves the unstable root, per wing beat.
-
-
-class SweepInputError(DroneflyError):
-    """Bad sweep input; the message names the offending value."""
-
-
-def one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
-def parse_floats(text: str | Iterable[float], name: str) -> tuple[float, ...]:
-    """``"0.1,1,3"`` (or numbers) -> finite floats; empty or non-finite raises."""
-    items = [p.strip() for p in text.split(",")] if isinstance(text, str) else list(text)
-    if not items or items == [""]:
-        raise SweepInputError(f"{name} = {text!r} is empty")
-    out = []
-    for p in items:
-        try:
-            v = float(p)
-        except (TypeError, ValueError):
-            raise SweepInputError(f"{name} = {text!r}: {p!r} is not a number") from None
-        if not math.isfinite(v):
-            raise SweepInputError(f"{name} = {text!r}: {p!r} is not finite")
-        out.append(v)
-    return tuple(out)
-
-
-def parse_int(text: str | int, name: str, lo: int) -> int:
-    """``"17"`` -> 17; not an integer or below ``lo`` raises."""
-    try:
-        v = int(str(text).strip())
-    except ValueError:
-        raise SweepInputError(f"{name} = {text!r} is not an integer") from None
-    if v < lo:
-        raise SweepInputError(f"{name} = {v} must be >= {lo}")
-    return v
-
-
-def parse_names(text: str | Iterable[str], name: str, allowed: Sequence[str]) -> tuple[str, ...]:
-    """``"paper,open"`` -> names, each one of ``allowed`` (duplicates dropped, order kept)."""
-    items = [p.strip() for p in text.split(",")] if isinstance(text, str) else list(text)
-    if not items or items == [""]:
-        raise SweepInputError(f"{name} = {text!r} is empty")
-    for p in items:
-        if p not in allowed and not (name == "gains" and p.lower().endswith((".csv", ".json"))):
-            raise SweepInputError(f"{name}: unknown {p!r}; choose from {', '.join(allowed)}"
-                                  + (" or a .csv/.json gain matrix" if name == "gains" else ""))
-    return tuple(dict.fromkeys(items))
 
 
 def parse_slices(text: str | Iterable[Sequence[str]]) -> tuple[tuple[str, str], ...]:
@@ -119,7 +71,7 @@ def _mode1_direction() -> np.ndarray:
     """Unstable open-loop eigenvector in box units (max component 1, dgamma > 0)."""
     A, _ = model.system_matrices(model.default_parameters())
     w, V = np.linalg.eig(A)
-    v = np.real(V[:, int(np.argmax(w.real))]) / np.array(STATE_BOUNDS_SECT36)
+    v = np.real(V[:, eigen_order(w)[0]]) / np.array(STATE_BOUNDS_SECT36)
     v = v / np.max(np.abs(v))
     return v if v[3] >= 0 else -v
 

@@ -35,8 +35,7 @@ from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CO
                         parameter_values, reference_scales)
 from dronefly.harness.cosim.master import connect_by_name
 from dronefly.harness.cosim.stability import Identification, identify
-from dronefly.harness.cosim.fmu import start_values
-from dronefly.lateral import STATE_NAMES, plant_scales
+from dronefly.lateral import STATE_NAMES
 
 __all__ = ["Verdict", "container_configuration", "container_verdict", "fix_connection_types", "run_container",
            "write_container"]
@@ -222,8 +221,7 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
     rows are the Gauss-Seidel loop from x_0, and the identification uses them without delay.
     """
     md = read_model_description(fmu)
-    scale = np.array(plant_scales(start_values(md)))
-    n = scale[1]
+    n, scale = reference_scales(md)
     step = float(md.defaultExperiment.stepSize)
     runs = []
     for e in np.eye(len(STATE_NAMES)):

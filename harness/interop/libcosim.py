@@ -40,8 +40,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from dronefly.harness.cosim.fmu import start_values
-from dronefly.lateral import STATE_NAMES, plant_scales
+from dronefly.harness.interop.closedloop import reference_scales
+from dronefly.lateral import STATE_NAMES
 from dronefly.harness.cosim.master import CoSimError
 from dronefly.harness.cosim.stability import Identification, identify
 
@@ -214,8 +214,7 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
     import fmpy
 
     md = fmpy.read_model_description(str(plant))
-    scale = np.array(plant_scales(start_values(md)))
-    n_hz = scale[1]
+    n_hz, scale = reference_scales(md)
     h = step_ns(step_wingbeats, n_hz)
     h_wb = h * 1e-9 * n_hz
     runs = []

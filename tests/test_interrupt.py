@@ -50,7 +50,11 @@ def test_ctrl_c_during_an_in_process_run_stops_cleanly(built_fmus, tmp_path, arg
     for _ in range(3):
         proc = subprocess.Popen([sys.executable, "-m", "dronefly", *argv, *extra],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(4.0 if argv[0] == "sweep" else 2.0)  # the sweep: a few cases done by then
+        if argv[0] == "sweep":  # its output folder appears once the cases start running
+            deadline = time.monotonic() + 60
+            while not out.is_dir() and time.monotonic() < deadline and proc.poll() is None:
+                time.sleep(0.1)
+        time.sleep(2.0)  # some steps (and for the sweep, some cases) done by then
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
         assert proc.returncode == 130, (proc.returncode, err[-400:])

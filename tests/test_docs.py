@@ -1,10 +1,12 @@
 """The documents run verbatim and their numbers are the code's.
 
-Every fenced ``sh``/``bash`` block of README.md and docs/*.md runs as written (cwd: the
-checkout, the virtual environment's bin first on PATH) and must leave the checkout as it was;
-every ``python`` block runs in a scratch folder. A block is skipped only with a reason: a
-``<!-- doc-test: skip (why) -->`` line right before it, or ``make`` targets (they run this
-suite). The numbers the README and docs quote are compared with what the code computes.
+Every fenced ``sh``/``bash``/``console`` block of README.md and docs/*.md runs as written with
+bash, and every ``python`` block in a fresh interpreter, each in a scratch folder (cwd: a tmp dir;
+the virtual environment's bin first on PATH; ``DRONEFLY_REPO`` = the checkout, for the one block
+that compiles a source file of it). Each must exit 0 and leave the checkout as it was. A block
+is skipped only with a reason: a ``<!-- doc-test: skip (why) -->`` line right before it, counted
+below, so a new block runs by default. The numbers the README and docs quote are compared with
+what the code computes.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-_FENCE = re.compile(r"(?:^<!-- doc-test: (?P<mark>[^\n]*?) -->\n)?^```(?P<lang>sh|bash|python)\n"
+_FENCE = re.compile(r"(?:^<!-- doc-test: (?P<mark>[^\n]*?) -->\n)?^```(?P<lang>sh|bash|console|python)\n"
                     r"(?P<body>.*?)^```$", re.M | re.S)
 
 
@@ -44,16 +46,26 @@ def _env() -> dict[str, str]:
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     env.pop("PYTHONPATH", None)
+    env["DRONEFLY_REPO"] = str(ROOT)
     return env
+
+
+# The blocks marked skip, by document: a new skip must be added here on purpose.
+SKIPPED = {"README.md": 2, "sweep.md": 1}
 
 
 def test_every_block_is_run_or_skipped_with_a_reason():
     blocks = _blocks()
-    assert len(blocks) >= 8
+    skipped: dict[str, int] = {}
     for p in blocks:
-        _, lang, body, mark = p.values
+        doc, _, _, mark = p.values
         if mark and not mark.startswith(("skip (", "needs ")):
             raise AssertionError(f"{p.id}: unknown doc-test mark {mark!r}")
+        if mark.startswith("skip ("):
+            assert mark.endswith(")") and len(mark) > len("skip ()") + 3, f"{p.id}: no reason"
+            skipped[doc.name] = skipped.get(doc.name, 0) + 1
+    assert skipped == SKIPPED
+    assert len(blocks) - sum(SKIPPED.values()) >= 7
 
 
 @pytest.mark.integration
@@ -61,8 +73,6 @@ def test_every_block_is_run_or_skipped_with_a_reason():
 def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
     if mark.startswith("skip ("):
         pytest.skip(mark)
-    if lang != "python" and all(ln.startswith("make ") for ln in body.splitlines() if ln.strip()):
-        pytest.skip("make targets: they run this very suite (CI runs `make test`)")
     if mark.startswith("needs gcc"):
         from dronefly.harness.interop.libcosim import libpython_path
 
@@ -75,7 +85,7 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
         r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=_env(),
                            capture_output=True, text=True, timeout=300)
     else:
-        r = subprocess.run(["bash", "-c", body], cwd=ROOT, env=_env(), capture_output=True,
+        r = subprocess.run(["bash", "-c", body], cwd=tmp_path, env=_env(), capture_output=True,
                            text=True, timeout=300)
     assert r.returncode == 0, f"{doc.name}: exit {r.returncode}\n{r.stdout[-1500:]}\n{r.stderr[-1500:]}"
     assert _status() == before, f"{doc.name}: the block changed the checkout"
@@ -99,9 +109,16 @@ def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
     from dronefly.harness.paper.rows import summary
 
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
+
     r = cosimulate(out_dir=None, plot=False, build_dir=tmp_path)
     assert f"leave {r.identification.dominant_growth_rate:.1e} per wing beat".replace(
         "e-05", "e-5") in readme
+    assert f"neutral tolerance of {TOL_PER_WINGBEAT:.0e}".replace("e-03", "e-3") in readme
+    open_rate = cosimulate(gains="open", out_dir=None, plot=False,
+                           build_dir=tmp_path).identification.dominant_growth_rate
+    share = 100 * TOL_PER_WINGBEAT / open_rate  # 1.27 %: "under 1.3 %"
+    assert 1.2 < share < 1.3 and "under 1.3 % of the open-loop divergence rate" in readme
     s = summary(reproduction_table())
     by = s["mismatches_by_reason"]
     assert (f"all {s['rows']} numbers" in readme and f"{s['matches']} match" in readme

@@ -68,9 +68,11 @@ def test_erratum_26d_sign_of_e() -> None:
     """e = det(A1') at k = 0 = det(A1): negative, since exactly one eigenvalue is positive."""
     A1 = np.array(pv.EQ12_A1, dtype=float)
     e = _char_poly(A1)[4]
+    assert e == pytest.approx(np.linalg.det(A1), rel=1e-12)
     assert e < 0 and np.sum(np.linalg.eigvals(A1).real > 0) == 1
     printed, corrected, _ = pv.ERRATA[("Eq. (26d)", "e: constant")]
-    assert abs(e - float(corrected)) < 5e-6 < abs(e - float(printed))
+    assert abs(e - float(corrected)) <= pv.half_unit(corrected)
+    assert np.sign(float(printed)) != np.sign(e)
 
 
 def test_erratum_26c_exponent_of_d_k4() -> None:
@@ -93,18 +95,43 @@ def test_erratum_26c_exponent_of_d_k4() -> None:
 
 
 def test_erratum_31_sign_of_the_oscillatory_pair() -> None:
-    """The oscillatory pair sigma +/- i omega of the Sect. 3.5 A (numpy): in the modal basis that
-    reproduces Eq. (32), A_nn(1,2) = +omega and A_nn(2,1) = -omega; the print has both signs
-    swapped (see the row's note for the transformation)."""
-    r12, r21 = ROWS[("Eq. (31)", "A_nn(1,2)")], ROWS[("Eq. (31)", "A_nn(2,1)")]
-    A, _ = an.longitudinal_system()
-    w = np.linalg.eigvals(A)
-    omega = float(np.max(w.imag))
-    assert r12.computed == pytest.approx(omega, rel=1e-9)
-    assert r21.computed == pytest.approx(-omega, rel=1e-9)
-    for key, sign in ((("Eq. (31)", "A_nn(1,2)"), 1.0), (("Eq. (31)", "A_nn(2,1)"), -1.0)):
+    """Eq. (31) against Eq. (32), from the Sect. 3.5 A, B with numpy only.
+
+    With v the eigenvector of sigma + i omega and any complex scale z, the real basis
+    [Re(z v), Im(z v)] gives the block [[sigma, +omega], [-omega, sigma]], and the rows 1-2 of
+    B_n satisfy B_n(1,j) - i B_n(2,j) = (2/z) c_j, c_j the v-coordinate of column j of B. The
+    other orientation [Re(z v), -Im(z v)] gives [[sigma, -omega], [omega, sigma]] (as Eq. 31 is
+    printed) and B_n(1,j) + i B_n(2,j) = (2/z) c_j. Eq. (32) fits only the first.
+    """
+    A, B = (np.array(t, dtype=float) for t in (pv.SECT35_A, pv.SECT35_B))
+    w, V = np.linalg.eig(A)
+    i = int(np.argmax(w.imag))
+    omega = w[i].imag
+    c = (np.linalg.inv(V) @ B)[i]
+    Bn = np.array(pv.EQ32_B_N, dtype=float)
+
+    def misfit(z: np.ndarray) -> float:  # relative residual of z = (2/zeta) c, best zeta
+        return float(np.linalg.norm(z - np.vdot(c, z) / np.vdot(c, c) * c) / np.linalg.norm(z))
+
+    plus, minus = misfit(Bn[0] - 1j * Bn[1]), misfit(Bn[0] + 1j * Bn[1])
+    assert plus < 1e-3 < 0.1 < minus, (plus, minus)
+    # the similarity transform of that orientation
+    others = [j for j in range(4) if abs(w[j].imag) == 0.0]
+    M = np.column_stack([V[:, i].real, V[:, i].imag, *(V[:, j].real for j in others)])
+    A_nn = np.linalg.solve(M, A @ M)
+    assert A_nn[0, 1] == pytest.approx(omega, rel=1e-9) and A_nn[1, 0] == pytest.approx(-omega, rel=1e-9)
+    # |omega| moves by at most `spread` when each rounded entry of A moves by half a unit (first order)
+    h = pv.half_unit(pv.SECT35_A[0][0])  # printed to 4 decimals
+    spread = 0.0
+    for r, col in itertools.product(range(4), range(4)):
+        if (r, col) not in pv.LONGITUDINAL_STRUCTURAL["A"]:
+            d = np.zeros((4, 4))
+            d[r, col] = h
+            spread += abs(np.linalg.eigvals(A + d).imag.max() - np.linalg.eigvals(A - d).imag.max()) / 2
+    for key, want in ((("Eq. (31)", "A_nn(1,2)"), omega), (("Eq. (31)", "A_nn(2,1)"), -omega)):
         printed, corrected, _ = pv.ERRATA[key]
-        assert np.sign(float(corrected)) == sign and np.sign(float(printed)) == -sign
+        assert abs(float(corrected) - want) <= spread + pv.half_unit(corrected), key
+        assert abs(float(printed) - want) > 1.9 * omega, key
 
 
 def test_every_printed_number_has_a_row() -> None:
@@ -159,8 +186,10 @@ def test_json_output_has_rows_matrices_and_exact_gains(capsys: pytest.CaptureFix
 def test_eq24_b_interval_by_vertices() -> None:
     """The first-order interval of b(2) agrees with all 2^7 corners of the input box (Sect. 2.1, Table 1)."""
     p0 = model.default_parameters()
-    names = ["m_plus", "Ix_plus", "Iz_plus", "Ixz_plus", "Y_Phi_a_plus", "L_Phi_a_plus", "N_Phi_a_plus"]
-    h = [0.05, 0.005, 0.005, 0.005, 5e-4, 5e-4, 5e-4]
+    decimals = {**pv.SECT21_DECIMALS, "Y_Phi_a_plus": pv.TABLE1_DECIMALS, "L_Phi_a_plus": pv.TABLE1_DECIMALS,
+                "N_Phi_a_plus": pv.TABLE1_DECIMALS}
+    names = list(decimals)
+    h = [0.5 * 10.0 ** -decimals[n] for n in names]
     vals = [model.system_matrices(p0.with_values(**{n: getattr(p0, n) + s * d for n, s, d in zip(names, sg, h)}))
             [1][1, 0] for sg in itertools.product((-1, 1), repeat=7)]
     lo, hi = ROWS[("Eq. (24)", "b(2) [B1 column of delta_Phi_a]")].interval

@@ -19,8 +19,6 @@ from controller_common import (B1_COL1_EQ24, CONTROLS, EIG_EQ27, GAINS, H, STATE
 from fmu_helpers import model_description, set_values, start
 
 
-# --------------------------------------------------------------------------- the real FMU
-
 def _outputs(inst: Any) -> tuple[list[float], bool]:
     u = inst.slave.getReal(inst.vrs(CONTROLS))
     (sat,) = inst.slave.getBoolean([inst.fmu.vr("saturated")])

@@ -14,8 +14,6 @@ from dronefly.controller import law as L
 from controller_common import ROOT, dimensional, random_gains
 
 
-# --------------------------------------------------------------------------- the law (no FMU)
-
 def test_paper_gains_and_defaults():
     """Eq. (27) in row 1 (its digits are checked against the paper's own inputs in
     test_analysis.py::test_eq27_recovered_from_the_papers_targets), zeros elsewhere."""
@@ -83,6 +81,3 @@ def test_law_validation_names_the_value(changes, fragment):
 def test_law_refuses_non_finite_state():
     with pytest.raises(L.LawParameterError, match=re.escape("delta_r = -inf is not finite")):
         L.FeedbackLaw(L.default_gains()).evaluate([0.0, 0.0, -math.inf, 0.0])
-
-
-

@@ -14,8 +14,6 @@ from dronefly.controller.slave import StateFeedback
 from controller_common import CONTROLS, H, STATES, dimensional, expected_controls
 
 
-# --------------------------------------------------------------------------- slave class, direct
-
 def _messages(s: StateFeedback) -> list[str]:
     return [m.msg for m in s.log_queue]
 
@@ -66,5 +64,3 @@ def test_slave_has_no_module_level_state():
     _set(b, {"delta_gamma": 0.1})
     assert _get(a, ["delta_Phi_a"]) == [0.1]
     assert _get(b, ["delta_Phi_a"]) == [pytest.approx(-0.00643, rel=1e-14)]
-
-

@@ -31,10 +31,11 @@ def test_derived_stability_derivatives_values():
     """Documented derivation: [L; N] = [[Ix, -Ixz], [-Ixz, Iz]] [A1 row 2; row 3], Y = m A1 row 1."""
     d = M.derive_stability_derivatives()
     a = np.array(M.A1_EQ12)
-    # hand evaluation for the v column: Lv = 10.00*0.1741 - (-8.36)*(-0.1117)
-    assert_allclose(d["Lv_plus"], 10.00 * a[1, 0] + 8.36 * a[2, 0], rtol=1e-14)
-    assert_allclose(d["Nv_plus"], 8.36 * a[1, 0] + 12.69 * a[2, 0], rtol=1e-14)
-    assert_allclose(d["Yp_plus"], 92.7 * a[0, 1], rtol=1e-14)
+    i = M.INERTIAS_SECT21
+    # hand evaluation for the v column: Lv = Ix a21 - Ixz a31, Nv = -Ixz a21 + Iz a31
+    assert_allclose(d["Lv_plus"], i["Ix_plus"] * a[1, 0] - i["Ixz_plus"] * a[2, 0], rtol=1e-14)
+    assert_allclose(d["Nv_plus"], -i["Ixz_plus"] * a[1, 0] + i["Iz_plus"] * a[2, 0], rtol=1e-14)
+    assert_allclose(d["Yp_plus"], i["m_plus"] * a[0, 1], rtol=1e-14)
     assert d["Yr_plus"] == 0.0
 
 
@@ -46,27 +47,23 @@ def _rounding_box(value: float, decimals: int) -> tuple[float, float]:
 def test_b1_first_column_agrees_with_eq24_within_rounding():
     """Eq. (24) vs B1 of Eq. (11) from Table 1 and the Sect. 2.1 inertias.
 
-    Computed: (-0.000529, 0.498740, -0.329115); printed (-0.0005, 0.4993, -0.3296).
-    The rows differ by 5.6e-4 and 4.9e-4, ten times Eq. (24)'s own rounding, but inside the
-    range spanned by the printed rounding of the inputs: Ixz+ = -8.36 +/- 0.005 alone moves
-    Ix+ Iz+ - Ixz+^2 = 57.01 by +/-0.084 (0.15 %). The authors evidently used unrounded
-    inertias. Checked by evaluating Eq. (11) at every corner of the rounding box.
+    Rows 2 and 3 differ from the print by about ten times Eq. (24)'s own rounding, but lie
+    inside the range spanned by the printed rounding of the inputs: the rounding of Ixz+ alone
+    moves Ix+ Iz+ - Ixz+^2 by 0.15 %. The authors evidently used unrounded inertias. Checked by
+    evaluating Eq. (11) at every corner of the rounding box (Sect. 2.1 and Table 1 digits).
     """
     _, B = M.system_matrices(M.default_parameters())
     assert_allclose(B[:, 0], B1_COL1_EQ24, atol=6e-4, rtol=0,
                     err_msg="Eq. (24) B column: same to 6e-4")
-    boxes = {
-        "m_plus": _rounding_box(92.7, 1), "Ix_plus": _rounding_box(10.00, 2),
-        "Iz_plus": _rounding_box(12.69, 2), "Ixz_plus": _rounding_box(-8.36, 2),
-        "Y_Phi_a_plus": _rounding_box(-0.049, 3), "L_Phi_a_plus": _rounding_box(2.236, 3),
-        "N_Phi_a_plus": _rounding_box(-0.007, 3),
-    }
+    boxes = {k: _rounding_box(M.INERTIAS_SECT21[k], d) for k, d in pv.SECT21_DECIMALS.items()}
+    boxes |= {k: _rounding_box(M.CONTROL_DERIVATIVES_TABLE1[k], pv.TABLE1_DECIMALS)
+              for k in ("Y_Phi_a_plus", "L_Phi_a_plus", "N_Phi_a_plus")}
     base = M.default_parameters()
     cols = np.array([M.system_matrices(base.with_values(**dict(zip(boxes, corner))))[1][:, 0]
                      for corner in itertools.product(*boxes.values())])
     lo, hi = cols.min(axis=0), cols.max(axis=0)
     printed = np.array(B1_COL1_EQ24)
-    half = 5e-5  # Eq. (24) is printed to four decimals
+    half = np.array([pv.half_unit(t, 4) for t in pv.EQ24_B_COLUMN])  # printed to four decimals
     assert np.all(printed >= lo - half) and np.all(printed <= hi + half), (lo, hi, printed)
 
 
@@ -81,31 +78,24 @@ def test_eigenvalues_match_table2():
 # Ixz+ -8.3506 vs -8.36 (-0.11 %), g+ 0.015838 vs 0.0158 (within its rounding).
 # The four mass properties are all ~0.1 % low, consistent with Ref. [8] having used a slightly
 # smaller reference velocity U (the data of Sect. 2.4 are themselves rounded, e.g. r2 = 0.55 R).
-@pytest.mark.parametrize("name, printed, computed_rel_diff", [
-    ("m_plus", 92.7, -0.00099),
-    ("Ix_plus", 10.00, -0.00142),
-    ("Iz_plus", 12.69, -0.00145),
-    ("Ixz_plus", -8.36, -0.00113),
-    ("g_plus", 0.0158, 0.00241),
+@pytest.mark.parametrize("name, computed_rel_diff", [
+    ("m_plus", -0.00099),
+    ("Ix_plus", -0.00142),
+    ("Iz_plus", -0.00145),
+    ("Ixz_plus", -0.00113),
+    ("g_plus", 0.00241),
 ])
-def test_sect24_data_reproduce_sect21_values(name, printed, computed_rel_diff):
-    assert M.INERTIAS_SECT21[name] == printed
+def test_sect24_data_reproduce_sect21_values(name, computed_rel_diff):
+    printed = M.INERTIAS_SECT21[name]
     computed = M.reference_scales()[name]
     assert_allclose(computed / printed - 1.0, computed_rel_diff, atol=1e-5,
                     err_msg=f"{name}: documented difference from Sect. 2.4 data")
 
 
 def test_g_plus_within_printed_rounding():
-    lo, hi = _rounding_box(0.0158, 4)
+    """g+ is printed to 4 decimals (Sect. 2.1; the same digits are A1(1,4) of Eq. 12)."""
+    lo, hi = _rounding_box(M.INERTIAS_SECT21["g_plus"], pv.EQ12_DECIMALS)
     assert lo <= M.reference_scales()["g_plus"] <= hi
-
-
-def test_reference_scales():
-    s = M.reference_scales()
-    assert s["n"] == 164.0
-    # U = 2 Phi n r2 = 2 * 107.1 deg * 164 Hz * 0.55 * 11.2 mm
-    assert_allclose(s["U"], 2 * math.radians(107.1) * 164 * 0.55 * 11.2e-3, rtol=1e-15)
-    assert_allclose(M.U_M_PER_S, 3.7768, atol=1e-4)
 
 
 @pytest.mark.parametrize("change, fragment", [

@@ -30,12 +30,13 @@ def require(module: str, alternative: str = "") -> None:
     """Raise :class:`MissingExtra` naming the extra if ``module`` cannot be imported."""
     import sys
 
-    if module in sys.modules and sys.modules[module] is not None:
-        return
-    try:
-        found = importlib.util.find_spec(module) is not None and sys.modules.get(module, 0) is not None
-    except (ImportError, ValueError):
-        found = False
+    if module in sys.modules:  # imported already, or blocked (None: as if not installed)
+        found = sys.modules[module] is not None
+    else:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except (ImportError, ValueError):
+            found = False
     if not found:
         extra, what = EXTRAS[module]
         raise MissingExtra(f"{module} is not installed ({what}): pip install 'dronefly-fmu[{extra}]'"

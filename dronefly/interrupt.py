@@ -14,7 +14,7 @@ import signal
 import threading
 from typing import Any, Iterator
 
-__all__ = ["EXIT_INTERRUPTED", "Deferred", "deferred_sigint"]
+__all__ = ["EXIT_INTERRUPTED", "Deferred", "deferred_sigint", "pending"]
 
 #: exit code of a command stopped by SIGINT (128 + 2, as shells report it)
 EXIT_INTERRUPTED = 130
@@ -37,6 +37,11 @@ class Deferred:
 
 
 _ACTIVE: list[Deferred] = []
+
+
+def pending() -> bool:
+    """Whether a deferred SIGINT waits to be honoured (False when nothing is deferred)."""
+    return bool(_ACTIVE) and _ACTIVE[-1].requested
 
 
 @contextlib.contextmanager

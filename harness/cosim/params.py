@@ -20,7 +20,8 @@ from dronefly.controller.law import default_gains
 from dronefly.errors import DroneflyError
 from dronefly.lateral import CONTROL_NAMES, STATE_NAMES
 
-__all__ = ["GAIN_SETS", "STABILISING_LAMBDA1", "ParameterError", "gain_matrix", "parse_assignment",
+__all__ = ["GAIN_SETS", "STABILISING_LAMBDA1", "ParameterError", "as_gain_matrix", "gain_matrix",
+           "parse_assignment",
            "parse_gains", "resolve_assignments"]
 
 #: Named gain sets (rows: controls, columns: x+; rad per unit of x+).
@@ -69,6 +70,14 @@ def _matrix(rows: Any, what: str) -> np.ndarray:
             if not math.isfinite(v):
                 raise ParameterError(f"gains {what}: K[{i + 1},{j + 1}] = {v!r} is not finite")
     return np.array(rows)  # (3, 4): a single row of 4 was padded above
+
+
+def as_gain_matrix(gains: str | Any) -> np.ndarray:
+    """A 3x4 gain matrix from text (see :func:`parse_gains`) or an array_like (a row of 4 is
+    delta_Phi_a's), checked the same way."""
+    if isinstance(gains, str):
+        return parse_gains(gains)
+    return _matrix(np.atleast_2d(np.asarray(gains, dtype=float)).tolist(), "array")
 
 
 def parse_gains(text: str) -> np.ndarray:

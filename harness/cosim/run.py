@@ -19,7 +19,7 @@ from dronefly.lateral import plant_scales
 from dronefly.controller.law import default_gains, gain_name
 from dronefly.plant.model import STATE_NAMES, discretize_zoh
 from dronefly.harness.cosim.fmu import FMU
-from dronefly.harness.cosim.params import parse_gains, resolve_assignments
+from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
     sort_eigenvalues
@@ -176,9 +176,7 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     build_dir : path
         Where the project's FMUs are built when ``plant`` or ``controller`` is not given.
     """
-    K = (parse_gains(gains) if isinstance(gains, str)
-         else parse_gains(";".join(",".join(repr(float(v)) for v in row)
-                                   for row in np.atleast_2d(np.asarray(gains, dtype=float)))))
+    K = as_gain_matrix(gains)
     x0v = parse_x0(x0)
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:

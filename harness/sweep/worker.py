@@ -19,7 +19,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.lateral import plant_scales
+from dronefly.interrupt import pending as interrupt_pending
+from dronefly.lateral import STATE_NAMES, plant_scales
 
 from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line)
 from dronefly.harness.sweep.results import (RESULT_COLUMNS)
@@ -179,15 +180,14 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     loop_s, out = 0.0, []
     for case in cases:
         try:
-            if _interrupt_requested():
+            if interrupt_pending():  # the command line's deferred Ctrl-C
                 raise KeyboardInterrupt
             loop, p, c, scale = loop_for(refs, data)
             if case.plant_values:  # n or U may be among them
                 scale = np.array(plant_scales({**loop.plant.start_values(),
                                                **dict(case.plant_values)}))
             start = {**dict(case.plant_values), **{f"{s}_start": float(v)
-                     for s, v in zip(("delta_v", "delta_p", "delta_r", "delta_gamma"),
-                                     np.asarray(case.x0) * scale)}}
+                     for s, v in zip(STATE_NAMES, np.asarray(case.x0) * scale)}}
             t0 = time.perf_counter()
             run = loop.run(case.step_wb / scale[2], case.n_steps, master=case.master,
                            plant_start=start,
@@ -203,14 +203,6 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
             out.append((case.key, _failed(case, e)))
             _drop_thread_loop(refs)
     return out, loop_s, time.perf_counter() - t_chunk
-
-
-def _interrupt_requested() -> bool:
-    """Whether a deferred SIGINT (the command line's) waits to be honoured."""
-    from dronefly.interrupt import deferred_sigint
-
-    with deferred_sigint() as stop:
-        return stop.requested
 
 
 class ChunkInterrupted(KeyboardInterrupt):

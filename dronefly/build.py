@@ -46,15 +46,29 @@ class _Spec:
     reference: str
 
 
+_FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/host.py", "fmi/state.py",
+        "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
+_PLANT = (*_FMI, "linear.py", "linear_slave.py")
+_CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/slave.py")
+
 FMUS: dict[str, _Spec] = {
     "DroneFlyLateral": _Spec(
         module="plant.slave", cls="DroneFlyLateral",
-        files=("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py", "fmi/vars.py", "lateral.py", "plant/model.py", "plant/slave.py"),
+        files=(*_PLANT, "plant/model.py", "plant/slave.py"),
         readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
     "StateFeedback": _Spec(
-        module="controller.slave", cls="StateFeedback",
-        files=("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py", "fmi/vars.py", "lateral.py", "controller/law.py", "controller/slave.py"),
+        module="controller.slave", cls="StateFeedback", files=_CONTROLLER,
         readme="controller/README.md", reference="controller/StateFeedback_ref.csv"),
+    "DroneFlyLongitudinal": _Spec(
+        module="plant_longitudinal.slave", cls="DroneFlyLongitudinal",
+        files=(*_PLANT, "longitudinal.py", "plant_longitudinal/model.py",
+               "plant_longitudinal/slave.py"),
+        readme="plant_longitudinal/README.md",
+        reference="plant_longitudinal/DroneFlyLongitudinal_ref.csv"),
+    "StateFeedbackLongitudinal": _Spec(
+        module="controller.slave", cls="StateFeedbackLongitudinal", files=_CONTROLLER,
+        readme="controller/README.md",
+        reference="controller/StateFeedbackLongitudinal_ref.csv"),
 }
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from typing import Iterable, Mapping, Sequence
 
+from .axes import Axis
 from .errors import DroneflyError
 
 __all__ = [
@@ -28,6 +29,8 @@ __all__ = [
     "CONTROL_NAMES",
     "CONTROL_UNIT",
     "FLIGHT_DATA",
+    "INERTIAS_SECT21",
+    "LATERAL",
     "N_HZ",
     "NONDIMENSIONAL",
     "STATE_DESCRIPTIONS",
@@ -59,14 +62,17 @@ STATE_DESCRIPTIONS: tuple[str, ...] = (
     "yaw rate disturbance (about z)",
     "roll angle disturbance (y-axis to horizontal)",
 )
-#: How each component of x+ is formed from the dimensional state.
-NONDIMENSIONAL: tuple[str, ...] = (
-    "x+1 = delta_v/U", "x+2 = delta_p/n", "x+3 = delta_r/n", "x+4 = delta_gamma")
 CONTROL_DESCRIPTIONS: tuple[str, ...] = (
     "anti-symmetric stroke-amplitude change (left minus right)",
     "anti-symmetric change of both angles of attack (left minus right)",
     "anti-symmetric differential change of down/upstroke angles of attack",
 )
+
+#: The lateral axis: state, controls, units and non-dimensionalisation in one object.
+LATERAL = Axis("lateral", STATE_NAMES, CONTROL_NAMES, STATE_UNITS, CONTROL_UNIT,
+               STATE_DESCRIPTIONS, CONTROL_DESCRIPTIONS, ("U", "n", "n", "1"))
+#: How each component of x+ is formed from the dimensional state ("x+1 = delta_v/U", ...).
+NONDIMENSIONAL: tuple[str, ...] = LATERAL.nondimensional
 
 #: Sect. 3.6: the linear analysis holds while |dv+|, |dp+|, |dr+| <= 0.15 and |dgamma| <= 0.22 rad
 #: (x+, non-dimensional; the controls stay within +/-0.4 rad).
@@ -81,12 +87,23 @@ FLIGHT_DATA: dict[str, float] = {
     "r2_over_R": 0.55,
     "S_wing": 33.34e-6,  # m^2, one wing
     "Ix": 657.7e-12,  # kg m^2 (657.7 mg mm^2)
+    "Iy": 1308.5e-12,
     "Iz": 834.6e-12,
     "Ixz": -550.0e-12,
     "Phi_deg": 107.1,  # stroke amplitude
     "n": 164.0,  # Hz
     "rho": 1.25,  # kg/m^3
     "g": 9.81,  # m/s^2
+}
+
+
+#: End of Sect. 2.1: non-dimensional mass, inertias and gravity (from Ref. [8]).
+INERTIAS_SECT21: dict[str, float] = {
+    "m_plus": 92.7,
+    "Ix_plus": 10.00,
+    "Iz_plus": 12.69,
+    "Ixz_plus": -8.36,
+    "g_plus": 0.0158,
 }
 
 
@@ -103,7 +120,8 @@ def reference_scales(data: Mapping[str, float] = FLIGHT_DATA) -> dict[str, float
     dict
         ``n`` [Hz], ``t_w`` [s], ``U`` [m/s] (U = 2 Phi n r2), and the
         non-dimensional ``m_plus``, ``Ix_plus``, ``Iz_plus``, ``Ixz_plus``,
-        ``g_plus`` as defined at the end of Sect. 2.1.
+        ``g_plus`` as defined at the end of Sect. 2.1, and ``Iy_plus`` (pitch, Sect. 3.5)
+        in the same non-dimensionalisation.
     """
     n = data["n"]
     t_w = 1.0 / n
@@ -120,6 +138,7 @@ def reference_scales(data: Mapping[str, float] = FLIGHT_DATA) -> dict[str, float
         "Ix_plus": data["Ix"] / q_inertia,
         "Iz_plus": data["Iz"] / q_inertia,
         "Ixz_plus": data["Ixz"] / q_inertia,
+        "Iy_plus": data["Iy"] / q_inertia,
         "g_plus": data["g"] * t_w / U,
     }
 

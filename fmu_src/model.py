@@ -25,11 +25,10 @@ from typing import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import expm
-
 from ..errors import DroneflyError
-from ..lateral import (CONTROL_NAMES, FLIGHT_DATA, N_HZ, STATE_NAMES, U_M_PER_S, reference_scales,
-                       sort_eigenvalues, to_dimensional, to_nondimensional)
+from ..linear import ZohModel, discretize_zoh
+from ..lateral import (CONTROL_NAMES, FLIGHT_DATA, INERTIAS_SECT21, N_HZ, STATE_NAMES, U_M_PER_S,
+                       reference_scales, to_dimensional, to_nondimensional)
 
 __all__ = [
     "A1_EQ12",
@@ -61,15 +60,6 @@ A1_EQ12: tuple[tuple[float, ...], ...] = (
     (-0.1117, 0.1551, -0.3500, 0.0),
     (0.0, 1.0, 0.0, 0.0),
 )
-
-#: End of Sect. 2.1: non-dimensional mass, inertias and gravity (from Ref. [8]).
-INERTIAS_SECT21: dict[str, float] = {
-    "m_plus": 92.7,
-    "Ix_plus": 10.00,
-    "Iz_plus": 12.69,
-    "Ixz_plus": -8.36,
-    "g_plus": 0.0158,
-}
 
 #: Table 1: non-dimensional lateral control derivatives (per rad).
 CONTROL_DERIVATIVES_TABLE1: dict[str, float] = {
@@ -231,85 +221,17 @@ def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
     return A, B
 
 
-def discretize_zoh(A: Array, B: Array, h: float) -> tuple[Array, Array]:
-    """Exact zero-order-hold discretisation over a step ``h`` (same time unit as A).
-
-    Returns ``(Phi, Gamma)`` with x[k+1] = Phi x[k] + Gamma u[k], from the
-    matrix exponential of the augmented matrix [[A, B], [0, 0]] h.
-    """
-    n, m = B.shape
-    aug = np.zeros((n + m, n + m))
-    aug[:n, :n] = A * h
-    aug[:n, n:] = B * h
-    e = expm(aug)
-    return e[:n, :n].copy(), e[:n, n:].copy()
-
-
-class LateralModel:
-    """Eq. (9) with exact stepping for piecewise-constant controls.
+class LateralModel(ZohModel):
+    """Eq. (9) with exact stepping for piecewise-constant controls (time in wing beats).
 
     Parameters
     ----------
     params : LateralParameters
         Validated on construction (raises :class:`ModelParameterError`).
-
-    Notes
-    -----
-    The (Phi, Gamma) pair is cached per step size, so a fixed communication
-    step costs one matrix exponential in total.
     """
 
-    _CACHE_SIZE = 16
+    A_NAME = "A1"
 
     def __init__(self, params: LateralParameters) -> None:
         self.params = params
-        self.A, self.B = system_matrices(params)
-        self._cache: dict[float, tuple[Array, Array]] = {}
-        self._rows: dict[float, tuple[tuple[float, ...], ...] | None] = {}
-
-    def transition(self, h_plus: float) -> tuple[Array, Array]:
-        """(Phi, Gamma) for a step of ``h_plus`` wing beats (cached)."""
-        hit = self._cache.get(h_plus)
-        if hit is None:
-            if len(self._cache) >= self._CACHE_SIZE:
-                self._cache.pop(next(iter(self._cache)))
-            hit = self._cache[h_plus] = discretize_zoh(self.A, self.B, h_plus)
-        return hit
-
-    def step(self, x: Array, u: Array, h_plus: float) -> Array:
-        """State after ``h_plus`` wing beats with the control held at ``u``."""
-        Phi, Gamma = self.transition(h_plus)
-        return Phi @ x + Gamma @ u
-
-    def step_list(self, x: list[float], u: list[float], h_plus: float) -> list[float]:
-        """:meth:`step` on plain lists, for the FMU's doStep.
-
-        Same arithmetic as ``Phi @ x + Gamma @ u`` on the rows of [Phi, Gamma]; at this
-        size plain Python is about three times faster than building numpy arrays per call.
-        """
-        rows = self._rows.get(h_plus)
-        if rows is None:
-            with np.errstate(all="ignore"):
-                Phi, Gamma = self.transition(h_plus)
-                M = np.hstack([Phi, Gamma])
-            if len(self._rows) >= self._CACHE_SIZE:
-                self._rows.pop(next(iter(self._rows)))
-            rows = self._rows[h_plus] = (tuple(map(tuple, M.tolist()))
-                                         if np.all(np.isfinite(M)) else None)
-        if rows is None:  # exp(A1 h) overflows: only the zero solution is representable
-            if not any(x) and not any(u):
-                return [0.0, 0.0, 0.0, 0.0]
-            growth = float(np.max(np.real(np.linalg.eigvals(self.A))))
-            raise ValueError(
-                f"a step of {h_plus!r} wing beats overflows exp(A1 h) (fastest growth "
-                f"{growth:.4f} per wing beat; exp({growth * h_plus:.0f}) is beyond the float "
-                f"range), so only the zero state has a representable result; take steps of at "
-                f"most {math.log(1e300) / max(growth, 1e-300):.0f} wing beats")
-        x0, x1, x2, x3 = x
-        u0, u1, u2 = u
-        return [a * x0 + b * x1 + c * x2 + d * x3 + e * u0 + f * u1 + g * u2
-                for a, b, c, d, e, f, g in rows]
-
-    def eigenvalues(self) -> Array:
-        """Eigenvalues of A1 per wing beat, sorted by descending real part."""
-        return np.array(sort_eigenvalues(np.linalg.eigvals(self.A)))
+        super().__init__(*system_matrices(params))

@@ -60,11 +60,11 @@ def test_state_that_is_not_captured_fails(tmp_path, monkeypatch):
 
     def patched(rel):
         path = original(rel)
-        if rel == "plant/slave.py":
+        if rel == "linear_slave.py":
             text = path.read_text()
             bad = text.replace('return {"x": list(self._x)}', 'return {"x": [0.0] * 4}')
             assert bad != text
-            path = tmp_path / "slave.py"
+            path = tmp_path / "linear_slave.py"
             path.write_text(bad)
         return path
 

@@ -54,7 +54,9 @@ def test_reproducible_build_and_own_package(tmp_path, built_fmus):
     shipped = {k for k in files_c if k.startswith(f"resources/{pkg_c}/") and k.endswith(".py")
                and not k.endswith("__init__.py")}
     assert shipped == {f"resources/{pkg_c}/{r}" for r in
-                       ("errors.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py", "fmi/vars.py", "lateral.py", "controller/law.py", "controller/slave.py")}
+                       ("errors.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py",
+                        "fmi/vars.py", "axes.py", "lateral.py", "longitudinal.py",
+                        "controller/law.py", "controller/slave.py")}
 
 
 @pytest.mark.integration

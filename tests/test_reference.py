@@ -31,7 +31,8 @@ def test_reference_files_follow_cross_check_rules(model):
     assert data["time"][-1] == pytest.approx(opts["StopTime"], rel=1e-12)
     assert np.allclose(np.diff(data["time"]), opts["StepSize"], rtol=1e-9)
     assert list(data.dtype.names[1:]) == list(REFERENCES[model].outputs)
-    assert np.ptp(data[data.dtype.names[1]]) > 0, "the reference exercises the model"
+    assert max(np.ptp(data[n]) for n in data.dtype.names[1:]) > 0, \
+        "the reference exercises the model"
     if REFERENCES[model].inputs(data["time"]):
         assert read_csv(str(inp)).shape == data.shape
     else:

@@ -18,11 +18,11 @@ from typing import Callable
 import numpy as np
 
 from dronefly.files import write_csv_atomic, write_text_atomic
+from dronefly import longitudinal as lon
 from dronefly.plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
            "write_reference"]
-
 
 
 def _plant_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
@@ -47,6 +47,29 @@ def _controller_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
+def _longitudinal_plant_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
+    """A doublet on delta_phibar (+/-0.01 rad, 5 wing beats each), a pulse on delta_Phi."""
+    wb = t * N_HZ
+    return {
+        "delta_Phi": np.where((wb >= 20 - 1e-9) & (wb < 25 - 1e-9), 0.02, 0.0),
+        "delta_alpha_1": np.zeros_like(t),
+        "delta_phibar": np.where(wb < 5 - 1e-9, 0.01, np.where(wb < 10 - 1e-9, -0.01, 0.0)),
+        "delta_alpha_2": np.where((wb >= 30 - 1e-9) & (wb < 32 - 1e-9), -0.005, 0.0),
+    }
+
+
+def _longitudinal_controller_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
+    """A decaying oscillation of the four longitudinal states (dimensional)."""
+    wb = t * N_HZ
+    env = np.exp(-wb / 30.0)
+    return {
+        "delta_u": 0.3 * env * np.sin(2 * np.pi * wb / 64.0),
+        "delta_w": -0.05 * env * np.cos(2 * np.pi * wb / 40.0),
+        "delta_q": 10.0 * env * np.cos(2 * np.pi * wb / 64.0),
+        "delta_theta": 0.1 * env * np.sin(2 * np.pi * wb / 64.0),
+    }
+
+
 @dataclass(frozen=True)
 class _Setup:
     folder: str  # subpackage of dronefly holding the files
@@ -64,6 +87,10 @@ def _no_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
 REFERENCES: dict[str, _Setup] = {
     "DroneFlyLateral": _Setup("plant", _plant_inputs, STATE_NAMES),
     "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
+    "DroneFlyLongitudinal": _Setup("plant_longitudinal", _longitudinal_plant_inputs,
+                                   lon.STATE_NAMES, stop_wingbeats=60.0),
+    "StateFeedbackLongitudinal": _Setup("controller", _longitudinal_controller_inputs,
+                                        (*lon.CONTROL_NAMES, "saturated"), stop_wingbeats=60.0),
     # the container FMU: the closed loop from its default initial state (a 0.1 rad roll)
     "DroneFlyClosedLoop": _Setup("harness.interop", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
                                  stop_wingbeats=100.0),

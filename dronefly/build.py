@@ -197,10 +197,19 @@ def project_fmus(plant: str | Path | None = None, controller: str | Path | None 
 
 
 def build_all(out_dir: str | Path = "build") -> list[Path]:
-    """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts."""
+    """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts and the
+    hover system ``DroneFlyHover.ssp`` (both axes with their controllers, four FMUs)."""
+    from .harness.system.ssp import HOVER, hover_system, write_system_ssp
+
     fmus = {name: build_fmu(name, out_dir) for name in FMUS}
-    return [*fmus.values(), *build_closed_loop(out_dir, fmus["DroneFlyLateral"],
-                                               fmus["StateFeedback"])]
+    loop = build_closed_loop(out_dir, fmus["DroneFlyLateral"], fmus["StateFeedback"])
+    try:
+        hover = write_system_ssp(hover_system(fmus), Path(out_dir) / f"{HOVER}.ssp",
+                                 description="The hovering model drone fly (Zhang & Sun): "
+                                 "lateral plant with Eq. (27), longitudinal plant with design (b)")
+    except (OSError, ValueError) as e:
+        raise BuildError(f"cannot build {HOVER}.ssp: {e}") from e
+    return [*fmus.values(), *loop, hover]
 
 
 def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,

@@ -35,6 +35,9 @@ _EPILOG = {
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
              "  dronefly cosim --gains 'k11,k12,k13,k14;k21,k22,k23,k24;k31,k32,k33,k34'\n"
              "  dronefly cosim --gains my_gains.json --set plant.Lv_plus=0.25 --set u_max=0.3\n"
+             "  dronefly cosim --system build/DroneFlyHover.ssp\n"
+             "  dronefly cosim --system my.ssp --set lateral.delta_p_start=1 "
+             "--record lateral.delta_p,lateral.delta_gamma\n"
              "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input, "
              "130 interrupted" + _UNITS,
     "demo": "examples:\n  dronefly demo",
@@ -96,17 +99,24 @@ def _parser() -> argparse.ArgumentParser:
                    help="initial roll angle delta_gamma in rad, SI (default 0.1)")
     s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
 
-    c = add("cosim", "co-simulate plant and controller FMUs with fmpy and check neutral stability",
-            commands.cosim)
+    c = add("cosim", "co-simulate plant and controller FMUs, or any system of FMUs from an SSP "
+            "file, with fmpy and check the stability of each loop", commands.cosim)
+    c.add_argument("--system", default=None, metavar="SSP",
+                   help="co-simulate the system of an SSP file (any number of FMI 2.0 CS FMUs); "
+                        "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
+                        "--x0")
+    c.add_argument("--record", type=_converter(parse_names), default=None,
+                   metavar="INST.NAME,...", help="with --system: the outputs to record "
+                                                 "(default: every Real output)")
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: build/StateFeedback.fmu, built on demand)")
-    c.add_argument("--gains", type=_converter(parse_gains), default="paper", metavar="GAINS",
+    c.add_argument("--gains", type=_converter(parse_gains), default=None, metavar="GAINS",
                    help="non-dimensional 3x4 gain matrix u = K x+: paper (Eq. 27), stabilising, "
                         "open, 'k1,k2,k3,k4' (delta_Phi_a only), 'row1;row2;row3', or a .csv/.json "
                         "file (default paper)")
-    c.add_argument("--x0", type=_converter(parse_x0), default="0,0,0,0.1",
+    c.add_argument("--x0", type=_converter(parse_x0), default=None,
                    metavar="dv+,dp+,dr+,dgamma",
                    help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll)")
     c.add_argument("--set", dest="set_values", action="append", default=[],
@@ -116,7 +126,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
-    c.add_argument("--stop", type=_positive, default=300.0, help="stop time in wing beats (default 300)")
+    c.add_argument("--stop", type=_positive, default=None,
+                   help="stop time in wing beats (default 300, or the SSP's DefaultExperiment)")
     c.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
                    help="ordering of the FMU calls (default gauss-seidel)")
     c.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSV, PNG and JSON")
@@ -237,6 +248,15 @@ def parse_gains(text: str) -> Any:
     from dronefly.harness.cosim.params import parse_gains as parse
 
     return parse(text)
+
+
+def parse_names(text: str) -> list[str]:
+    """``a.x,b.y`` -> ["a.x", "b.y"]; each name must be instance.NAME."""
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [n for n in names if not n.partition(".")[2]]
+    if not names or bad:
+        raise ValueError(f"{text!r}: expected instance.NAME[,instance.NAME...]")
+    return names
 
 
 def parse_x0(text: str) -> Any:

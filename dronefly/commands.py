@@ -39,14 +39,45 @@ def simulate(args: argparse.Namespace) -> int:
 def cosim(args: argparse.Namespace) -> int:
     import json
 
-    from dronefly.harness.cosim.run import cosimulate
-
     if not args.no_plot:
         require("matplotlib", "pass --no-plot")
-    result = cosimulate(args.plant, args.controller, gains=args.gains, x0=args.x0,
-                        step_wingbeats=args.step, stop_wingbeats=args.stop, master=args.master,
-                        out_dir=args.out, plot=not args.no_plot,
+    if args.system is not None:
+        return _cosim_system(args)
+    if args.record is not None:
+        raise DroneflyError("--record is for --system; the plant/controller pair records both "
+                            "FMUs' outputs")
+    from dronefly.harness.cosim.run import cosimulate
+
+    result = cosimulate(args.plant, args.controller,
+                        gains="paper" if args.gains is None else args.gains,
+                        x0=(0.0, 0.0, 0.0, 0.1) if args.x0 is None else args.x0,
+                        step_wingbeats=args.step,
+                        stop_wingbeats=300.0 if args.stop is None else args.stop,
+                        master=args.master, out_dir=args.out, plot=not args.no_plot,
                         set_values=dict(args.set_values), build_dir=args.build)
+    print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
+    if not result.run.complete:
+        print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _cosim_system(args: argparse.Namespace) -> int:
+    import json
+
+    from dronefly.harness.system.run import cosimulate_system
+
+    given = [f"--{k}" for k in ("plant", "controller", "gains", "x0")
+             if getattr(args, k) is not None]
+    if given:
+        raise DroneflyError(f"{', '.join(given)} cannot be combined with --system (set values "
+                            "of the system's instances with --set instance.NAME=VALUE)")
+    if not Path(args.system).is_file():
+        raise DroneflyError(f"--system {args.system!r} " + (
+            "is a folder, not an SSP file" if Path(args.system).is_dir() else "does not exist"))
+    result = cosimulate_system(args.system, step_wingbeats=args.step, stop_wingbeats=args.stop,
+                               master=args.master, set_values=dict(args.set_values),
+                               record=args.record, out_dir=args.out, plot=not args.no_plot)
     print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
     if not result.run.complete:
         print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)

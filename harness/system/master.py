@@ -22,6 +22,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from dronefly.interrupt import deferred_sigint
+
 from dronefly.harness.cosim.fmu import FMU, FMUError
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS, LoopRun, StepFailure
 from dronefly.harness.system.description import System, SystemSpecError
@@ -85,8 +87,10 @@ class SystemMaster:
         self.names = [f"{i}.{v.name}" for i, md in mds.items() for v in md.modelVariables
                       if v.causality == "output" and v.type == "Real"]
 
-    def _check_values(self, mds: Mapping[str, Any]) -> None:
-        for inst, values in self.system.parameters.items():
+    def _check_values(self, mds: Mapping[str, Any],
+                      parameters: Mapping[str, Mapping[str, Any]] | None = None) -> None:
+        for inst, values in (self.system.parameters if parameters is None
+                             else parameters).items():
             settable = {v.name: v for v in mds[inst].modelVariables
                         if v.causality in ("parameter", "input")
                         and v.variability in ("fixed", "tunable", "continuous", "discrete")}
@@ -106,20 +110,43 @@ class SystemMaster:
         self.close()
 
     # -------------------------------------------------------------------------------------
-    def run(self, step_s: float, n_steps: int, *,
-            record: Sequence[str] | None = None) -> LoopRun:
-        """Co-simulate ``n_steps`` steps of ``step_s`` seconds from t = 0; record the Real
-        outputs named ``instance.name`` in ``record`` (default: every Real output)."""
+    def run(self, step_s: float, n_steps: int, *, record: Sequence[str] | None = None,
+            values: Mapping[str, Mapping[str, Any]] | None = None) -> LoopRun:
+        """Co-simulate ``n_steps`` steps of ``step_s`` seconds from t = 0.
+
+        Parameters
+        ----------
+        step_s : float
+            Communication step [s].
+        n_steps : int
+            Number of steps (1 to ``MAX_STEPS``).
+        record : sequence of str, optional
+            Real outputs ``instance.name`` to record (default: every Real output).
+        values : mapping, optional
+            ``{instance: {name: value}}`` for this run only, on top of the system's
+            parameter values (e.g. other initial states).
+
+        A SIGINT (Ctrl-C) stops the run between two steps (never inside an FMU call): the
+        instances are freed and ``KeyboardInterrupt`` is raised.
+        """
         if not (math.isfinite(step_s) and step_s > 0.0):
             raise SystemSpecError(f"step = {step_s!r} s must be finite and > 0")
         if not 1 <= n_steps <= MAX_STEPS:
             raise SystemSpecError(f"n_steps = {n_steps!r} must be in 1..{MAX_STEPS}")
+        params = {i: dict(v) for i, v in self.system.parameters.items()}
+        for inst, extra in (values or {}).items():
+            if inst not in self.fmus:
+                raise SystemSpecError(f"values for instance {inst!r}, which the system does "
+                                      f"not have (instances: {', '.join(self.fmus)})")
+            params.setdefault(inst, {}).update(extra)
+        self._check_values({i: self.fmus[i].model_description for i in self.fmus}, params)
         names = list(self.names if record is None else record)
         nodes = self._nodes(names)
         with contextlib.ExitStack() as stack:
+            interrupt = stack.enter_context(deferred_sigint())
             for node in nodes.values():
                 node.inst = stack.enter_context(node.fmu.instantiate(node.name))
-            return self._run(nodes, names, step_s, n_steps)
+            return self._run(nodes, names, step_s, n_steps, params, interrupt)
 
     def _nodes(self, names: Sequence[str]) -> dict[str, _Node]:
         wanted: dict[str, list[str]] = {i: [] for i in self.fmus}
@@ -148,7 +175,8 @@ class SystemMaster:
         return nodes
 
     def _run(self, nodes: dict[str, _Node], names: Sequence[str], h: float,
-             n_steps: int) -> LoopRun:
+             n_steps: int, parameters: Mapping[str, Mapping[str, Any]],
+             interrupt: Any) -> LoopRun:
         from fmpy.fmi1 import FMICallException
 
         free = [nodes[i] for i in self.order.free]
@@ -185,7 +213,7 @@ class SystemMaster:
                 who, s = n, n.inst.slave
                 s.setupExperiment(startTime=0.0, stopTime=n_steps * h)
                 s.enterInitializationMode()
-                for name, value in self.system.parameters.get(n.name, {}).items():
+                for name, value in parameters.get(n.name, {}).items():
                     kind = n.types[name]
                     getattr(s, f"set{kind}")([n.fmu.vr(name)], [value])
             for n in free:
@@ -200,6 +228,11 @@ class SystemMaster:
             jacobi = self.master == "jacobi"
             for k in range(n_steps + 1):
                 t = k * h
+                if interrupt.requested:  # Ctrl-C: stop between steps, never inside an FMU
+                    for n in every:
+                        with contextlib.suppress(FMICallException):
+                            n.inst.slave.terminate()
+                    raise KeyboardInterrupt  # the instances are freed on the way out
                 if jacobi:
                     for n in every:
                         get(n)

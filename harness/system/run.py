@@ -1,0 +1,207 @@
+"""``dronefly cosim --system FILE.ssp``: co-simulate any system, and give per-axis verdicts.
+
+:func:`cosimulate_system` is the Python API of the command. It opens the system (an SSP
+file or a :class:`System`), applies ``instance.NAME=VALUE`` settings, runs it with the
+:class:`SystemMaster`, records the outputs, and, for every plant of the system (see
+:mod:`.verdicts`), identifies the closed-loop eigenvalues from runs of the whole system:
+
+- at the run's communication step: the verdict, and the deviation from the exact
+  sampled-data loop at that step;
+- at a step of :data:`CHECK_STEP_WB` wing beats: the deviation from eig(A + B K) of the
+  continuous loop (the sampled-data loop differs from it by O(step)).
+
+Times are in wing beats of the system's wing-beat frequency (the parameter ``n`` of its
+plants, which must agree); a system without one counts in seconds (n = 1 Hz).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from dronefly.harness.cosim.master import LoopRun, step_count
+from dronefly.harness.system.description import System, SystemSpecError
+from dronefly.harness.system.master import SystemMaster
+from dronefly.harness.system.verdicts import AxisVerdict, axis_verdicts
+
+__all__ = ["CHECK_STEP_WB", "SystemResult", "cosimulate_system"]
+
+#: step of the identification that is compared with eig(A + B K), wing beats
+CHECK_STEP_WB = 1e-5
+
+
+@dataclass
+class SystemResult:
+    """Everything one co-simulation of a system established."""
+
+    system: str
+    run: LoopRun
+    master: str
+    step_wingbeats: float
+    stop_wingbeats: float
+    n_hz: float
+    axes: list[AxisVerdict]
+    continuous_deviation: dict[str, float | None] = field(default_factory=dict)
+    csv: Path | None = None
+    plot: Path | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        axes = []
+        for a in self.axes:
+            j = a.to_json()
+            j["continuous_check"] = {"step_wingbeats": CHECK_STEP_WB, "max_deviation":
+                                     self.continuous_deviation.get(a.plant.instance)}
+            axes.append(j)
+        return {"system": self.system, "complete": self.run.complete,
+                "failure": None if self.run.complete else str(self.run.failure),
+                "master": self.master, "step_wingbeats": self.step_wingbeats,
+                "stop_wingbeats": self.stop_wingbeats, "wingbeat_frequency_hz": self.n_hz,
+                "axes": axes, "recorded": list(self.run.names),
+                "csv": None if self.csv is None else str(self.csv),
+                "plot": None if self.plot is None else str(self.plot)}
+
+    def summary(self) -> str:
+        lines = [f"system {self.system}: {self.master} master, step {self.step_wingbeats:g} "
+                 f"wing beats, {len(self.run.time) - 1} steps to {self.stop_wingbeats:g} "
+                 f"wing beats, {len(self.run.names)} outputs recorded"]
+        for a in self.axes:
+            ev = ", ".join(_fmt(z) for z in a.identification.eigenvalues)
+            lines.append(f"{a.plant.instance} ({a.plant.model}): {a.verdict} (dominant rate "
+                         f"{a.identification.dominant_growth_rate:+.5f} per wing beat); "
+                         f"identified {ev}")
+            dev = self.continuous_deviation.get(a.plant.instance)
+            if a.continuous is not None:
+                lines.append(f"  eig(A + B K): {', '.join(_fmt(z) for z in a.continuous)}"
+                             + ("" if dev is None else f" (identified at a step of "
+                                f"{CHECK_STEP_WB:g} wing beats: max deviation {dev:.1e})"))
+        if not self.run.complete:
+            lines.append(f"INCOMPLETE: {self.run.failure}")
+        for label, path in (("csv", self.csv), ("plot", self.plot)):
+            if path:
+                lines.append(f"{label}: {path}")
+        return "\n".join(lines)
+
+
+def _fmt(z: complex) -> str:
+    return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
+
+
+def _wingbeat_frequency(master: SystemMaster) -> float:
+    found = {}
+    for inst, fmu in master.fmus.items():
+        v = fmu.variables.get("n")
+        if v is not None and v.causality == "parameter" and v.unit == "Hz":
+            found[inst] = float(master.system.parameters.get(inst, {}).get("n", v.start))
+    values = set(found.values())
+    if len(values) > 1:
+        raise SystemSpecError("the instances disagree on the wing-beat frequency n: " + ", ".join(
+            f"{i}.n = {v!r}" for i, v in found.items()))
+    n = values.pop() if values else 1.0
+    if not (math.isfinite(n) and n > 0):
+        raise SystemSpecError(f"n = {n!r} Hz must be finite and > 0")
+    return n
+
+
+def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.1,
+                      stop_wingbeats: float | None = None, master: str = "gauss-seidel",
+                      set_values: Mapping[str, Any] | None = None,
+                      record: Sequence[str] | None = None, verdicts: bool = True,
+                      out_dir: str | Path | None = "build/cosim", plot: bool = True,
+                      name: str | None = None) -> SystemResult:
+    """Co-simulate a system and identify each plant's loop.
+
+    Parameters
+    ----------
+    system : System or path
+        The system, or an SSP file to read it from.
+    step_wingbeats : float
+        Communication step in wing beats.
+    stop_wingbeats : float, optional
+        Stop time in wing beats (default: the SSP's DefaultExperiment, else 300).
+    master : {'gauss-seidel', 'jacobi'}
+    set_values : mapping, optional
+        ``{"instance.NAME": value}``: parameter or input values, in the FMU's unit.
+    record : sequence of str, optional
+        Real outputs ``instance.name`` to record (default: all).
+    verdicts : bool
+        Identify each plant's loop (extra short runs).
+    out_dir : path or None
+        Where the CSV, JSON (and PNG) go; None writes nothing.
+    """
+    if not isinstance(system, System):
+        system = System.from_ssp(system)
+    if set_values:
+        system = system.with_values(set_values)
+    with SystemMaster(system, master) as m:
+        n = _wingbeat_frequency(m)
+        stop = stop_wingbeats if stop_wingbeats is not None else (
+            system.stop_s * n if system.stop_s is not None else 300.0)
+        n_steps = step_count(stop, step_wingbeats)
+        stop = round(n_steps * step_wingbeats, 12)
+        run = m.run(step_wingbeats / n, n_steps, record=record)
+        axes, deviation = [], {}
+        if verdicts and run.complete:
+            axes = axis_verdicts(m, step_wingbeats)
+            for fine in (axis_verdicts(m, CHECK_STEP_WB) if axes else []):
+                dev = None
+                if fine.continuous is not None and len(fine.continuous) == len(
+                        fine.identification.eigenvalues):
+                    dev = float(np.max(np.abs(fine.identification.eigenvalues
+                                              - fine.continuous)))
+                deviation[fine.plant.instance] = dev
+    result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation)
+    if out_dir is not None:
+        _write_outputs(result, Path(out_dir), name or f"cosim_{system.name}_{master}", plot)
+    return result
+
+
+def _write_outputs(result: SystemResult, out: Path, name: str, plot: bool) -> None:
+    """CSV, PNG and JSON, written next to their final names and renamed together."""
+    from dronefly.files import atomic_path, format_cell, write_csv_atomic
+
+    out.mkdir(parents=True, exist_ok=True)
+    run = result.run
+    with contextlib.ExitStack() as stack:
+        csv = out / f"{name}.csv"
+        write_csv_atomic(stack.enter_context(atomic_path(csv)), ["time", *run.names],
+                         np.column_stack([run.time, run.signals]).tolist())
+        result.csv = csv
+        if plot:
+            png = out / f"{name}.png"
+            _plot(result, stack.enter_context(atomic_path(png)))
+            result.plot = png
+        summary = out / f"{name}.json"
+        stack.enter_context(atomic_path(summary)).write_text(
+            json.dumps(result.to_json(), indent=2, default=format_cell) + "\n", encoding="utf-8")
+
+
+def _plot(result: SystemResult, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    run = result.run
+    groups: dict[str, list[int]] = {}
+    for j, full in enumerate(run.names):
+        groups.setdefault(full.partition(".")[0], []).append(j)
+    fig, axs = plt.subplots(len(groups) or 1, 1, figsize=(8, 2.2 * max(len(groups), 1)),
+                            sharex=True, squeeze=False)
+    t = run.time * result.n_hz
+    verdict = {a.plant.instance: a.verdict for a in result.axes}
+    for ax, (inst, cols) in zip(axs[:, 0], groups.items()):
+        for j in cols:
+            ax.plot(t, run.signals[:, j], label=run.names[j].partition(".")[2])
+        ax.set_title(f"{inst}" + (f" ({verdict[inst]})" if inst in verdict else ""),
+                     fontsize=9)
+        ax.legend(fontsize=7, loc="upper right", ncol=2)
+    axs[-1, 0].set_xlabel("time [wing beats]")
+    fig.tight_layout()
+    fig.savefig(path, format="png", dpi=90)
+    plt.close(fig)

@@ -7,6 +7,7 @@ to an input of the same type and unit, every input has at most one source.
 
 from __future__ import annotations
 
+import math
 import tempfile
 import zipfile
 from dataclasses import dataclass, field
@@ -145,10 +146,26 @@ class System:
                 for c in system.connections]
         sys_ = cls(fmus, cons, params, name=system.name or path.stem)
         sys_._tmp = tmp  # the extracted FMUs live as long as the system
-        de = getattr(ssd, "defaultExperiment", None)
-        if de is not None and getattr(de, "stopTime", None) is not None:
-            sys_.stop_s = float(de.stopTime)
+        sys_.stop_s = _stop_time(Path(tmp.name, "SystemStructure.ssd"))
         return sys_
+
+
+def _stop_time(ssd: Path) -> float | None:
+    """The DefaultExperiment's stopTime of an SSD, s (fmpy 0.3 does not read it)."""
+    import xml.etree.ElementTree as ET
+
+    for el in ET.parse(ssd).getroot():
+        if el.tag.rsplit("}", 1)[-1] == "DefaultExperiment" and el.get("stopTime") is not None:
+            try:
+                stop = float(el.get("stopTime"))
+            except ValueError as e:
+                raise SystemSpecError(f"DefaultExperiment stopTime = {el.get('stopTime')!r} "
+                                      "is not a number") from e
+            if not (math.isfinite(stop) and stop > 0):
+                raise SystemSpecError(f"DefaultExperiment stopTime = {stop!r} s must be "
+                                      "finite and > 0")
+            return stop
+    return None
 
 
 def _ssv_value(p: Any) -> Any:

@@ -1,0 +1,205 @@
+"""The four-FMU hover system (both axes with their controllers) and ``cosim --system``.
+
+Oracles: eig(A + B K) computed here from the model modules and the control laws directly
+(not through the FMUs, the SSP or the verdicts' mapping of gains through connections), and
+the coefficient-matching designs of Sect. 3.5 (harness.paper.longitudinal).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+import zipfile
+
+import numpy as np
+import pytest
+
+from dronefly.cli import main
+from dronefly.controller.law import PAPER_GAINS_EQ27, LONGITUDINAL_GAINS_DESIGN_B, gain_name
+from dronefly.harness.system.description import System
+from dronefly.harness.system.master import SystemMaster
+from dronefly.harness.system.run import cosimulate_system
+from dronefly.harness.system.ssp import hover_system, write_system_ssp
+from dronefly.lateral import sort_eigenvalues
+from dronefly.plant import model as lateral_model
+from dronefly.plant_longitudinal import model as longitudinal_model
+
+pytestmark = pytest.mark.integration
+
+PHIBAR_ROW = 2  # delta_phibar is row 3 of the longitudinal controller (B column order)
+
+
+def _k(system_gains: dict[tuple[int, int], float], rows: int) -> np.ndarray:
+    K = np.zeros((rows, 4))
+    for (i, j), v in system_gains.items():
+        K[i, j] = v
+    return K
+
+
+def _eig_lateral(K_row0: np.ndarray) -> list[complex]:
+    A, B = lateral_model.system_matrices(lateral_model.default_parameters())
+    K = np.zeros((3, 4))
+    K[0] = K_row0
+    return sort_eigenvalues(np.linalg.eigvals(np.asarray(A) + np.asarray(B) @ K))
+
+
+def _eig_longitudinal(K_phibar: np.ndarray) -> list[complex]:
+    A, B = longitudinal_model.system_matrices(longitudinal_model.default_parameters())
+    K = np.zeros((4, 4))
+    K[PHIBAR_ROW] = K_phibar
+    return sort_eigenvalues(np.linalg.eigvals(np.asarray(A) + np.asarray(B) @ K))
+
+
+def _set_row(instance: str, row: int, values, rows: int = 4) -> dict[str, float]:
+    out = {f"{instance}.{gain_name(i, j)}": 0.0 for i in range(rows) for j in range(4)}
+    out.update({f"{instance}.{gain_name(row, j)}": float(v) for j, v in enumerate(values)})
+    return out
+
+
+@pytest.fixture(scope="module")
+def hover_ssp(built_fmus):
+    return built_fmus["DroneFlyHover.ssp"]
+
+
+def _axes(result) -> dict[str, object]:
+    return {a.plant.instance: a for a in result.axes}
+
+
+def _check_axis(result, instance: str, verdict: str, expected: list[complex]) -> None:
+    a = _axes(result)[instance]
+    assert a.verdict == verdict, (instance, a.identification.eigenvalues)
+    # the verdicts' own eig(A + B K) (A, B from the FMU, K through the connections) ...
+    np.testing.assert_allclose(a.continuous, expected, atol=1e-12)
+    # ... and the identification from runs at 1e-5 wing beats agrees with it to 1e-6
+    assert result.continuous_deviation[instance] <= 1e-6
+
+
+def test_hover_ssp_describes_four_fmus_both_loops(hover_ssp):
+    system = System.from_ssp(hover_ssp)
+    assert set(system.fmus) == {"lateral", "lateral_controller", "longitudinal",
+                                "longitudinal_controller"}
+    wires = {str(c) for c in system.connections}
+    assert len(wires) == 4 + 3 + 4 + 4  # states to both controllers, controls to both plants
+    for s in ("delta_v", "delta_p", "delta_r", "delta_gamma"):
+        assert f"lateral.{s} -> lateral_controller.{s}" in wires
+    for s in ("delta_u", "delta_w", "delta_q", "delta_theta"):
+        assert f"longitudinal.{s} -> longitudinal_controller.{s}" in wires
+    for u in ("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2"):
+        assert f"longitudinal_controller.{u} -> longitudinal.{u}" in wires
+    assert not any(c.source.startswith("lat") == c.target.startswith("lon")
+                   for c in system.connections)  # the axes are not coupled
+
+
+def test_default_hover_system_lateral_neutral_longitudinal_stable(hover_ssp):
+    r = cosimulate_system(hover_ssp, stop_wingbeats=30, out_dir=None)
+    assert r.run.complete and len(r.run.time) == 301
+    _check_axis(r, "lateral", "neutral", _eig_lateral(np.array(PAPER_GAINS_EQ27)))
+    _check_axis(r, "longitudinal", "stable",
+                _eig_longitudinal(np.array(LONGITUDINAL_GAINS_DESIGN_B)))
+    # design (b): the oscillatory pair mirrored, the others kept
+    lon = _axes(r)["longitudinal"].continuous
+    A, _ = longitudinal_model.system_matrices(longitudinal_model.default_parameters())
+    open_loop = sort_eigenvalues(np.linalg.eigvals(np.asarray(A)))
+    pair = [z for z in open_loop if abs(z.imag) > 1e-9]
+    assert sorted(-z.real for z in pair) == pytest.approx(
+        sorted(z.real for z in lon if abs(z.imag) > 1e-9), abs=1e-12)
+
+
+def test_design_a_makes_the_longitudinal_loop_neutral(hover_ssp):
+    from dronefly.harness.paper.longitudinal import design
+
+    k = design("neutral", ("delta_phibar",)).K[PHIBAR_ROW]
+    r = cosimulate_system(hover_ssp, stop_wingbeats=30, out_dir=None,
+                          set_values=_set_row("longitudinal_controller", PHIBAR_ROW, k))
+    _check_axis(r, "longitudinal", "neutral", _eig_longitudinal(k))
+    _check_axis(r, "lateral", "neutral", _eig_lateral(np.array(PAPER_GAINS_EQ27)))
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_open_loop_is_unstable_in_both_axes(hover_ssp, master):
+    values = {**_set_row("lateral_controller", 0, [0.0] * 4, rows=3),
+              **_set_row("longitudinal_controller", PHIBAR_ROW, [0.0] * 4)}
+    r = cosimulate_system(hover_ssp, stop_wingbeats=30, out_dir=None, master=master,
+                          set_values=values)
+    _check_axis(r, "lateral", "unstable", _eig_lateral(np.zeros(4)))
+    _check_axis(r, "longitudinal", "unstable", _eig_longitudinal(np.zeros(4)))
+
+
+def test_write_system_ssp_round_trip(built_fmus, tmp_path):
+    system = hover_system(built_fmus, x0_lateral=(0.1, 0, 0, 0), x0_longitudinal=(0, 0, 0.2, 0),
+                          stop_wingbeats=12.5)
+    path = write_system_ssp(system, tmp_path / "round.ssp", description="round trip")
+    back = System.from_ssp(path)
+    assert set(back.fmus) == set(system.fmus)
+    assert {str(c) for c in back.connections} == {str(c) for c in system.connections}
+    assert back.parameters == system.parameters
+    assert back.stop_s == pytest.approx(system.stop_s, rel=1e-15)
+    with zipfile.ZipFile(path) as z:
+        assert {"SystemStructure.ssd"} <= set(z.namelist())
+        assert sum(n.startswith("resources/") and n.endswith(".fmu") for n in z.namelist()) == 4
+    names = ["lateral.delta_v", "longitudinal.delta_q"]
+    with SystemMaster(system) as a, SystemMaster(back) as b:
+        ra, rb = a.run(0.1 / 164, 50, record=names), b.run(0.1 / 164, 50, record=names)
+    np.testing.assert_array_equal(ra.signals, rb.signals)
+    assert abs(ra.signals[0, 0]) > 0 and abs(ra.signals[0, 1]) > 0
+
+
+def test_cli_system_json(hover_ssp, tmp_path, capsys):
+    out = tmp_path / "o"
+    code = main(["cosim", "--system", str(hover_ssp), "--stop", "20", "--no-plot", "--json",
+                 "--out", str(out), "--record", "lateral.delta_gamma,longitudinal.delta_theta"])
+    assert code == 0
+    j = json.loads(capsys.readouterr().out)
+    assert {a["instance"] if "instance" in a else a["plant"]["instance"]: a["verdict"]
+            for a in j["axes"]} == {"lateral": "neutral", "longitudinal": "stable"}
+    assert j["recorded"] == ["lateral.delta_gamma", "longitudinal.delta_theta"]
+    assert sorted(p.suffix for p in out.iterdir()) == [".csv", ".json"]
+
+
+@pytest.mark.parametrize("extra, fragment", [
+    (["--gains", "open"], "--gains cannot be combined with --system"),
+    (["--set", "nosuch.K[1,1]=0"], "nosuch"),
+    (["--set", "lateral_controller.K[9,9]=0"], "K[9,9]"),
+    (["--record", "lateral.nosuch"], "lateral.nosuch"),
+    (["--step", "0"], "step"),
+])
+def test_cli_system_bad_input_exit_2_one_line(hover_ssp, tmp_path, capsys, extra, fragment):
+    out = tmp_path / "o"
+    code = main(["cosim", "--system", str(hover_ssp), "--stop", "5", "--no-plot",
+                 "--out", str(out), *extra])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1 and fragment in err and "Traceback" not in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize("path, fragment", [("missing.ssp", "does not exist"), (".", "folder")])
+def test_cli_system_missing_file(tmp_path, capsys, path, fragment):
+    code = main(["cosim", "--system", str(tmp_path / path), "--no-plot", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and fragment in err and err.count("\n") == 1
+
+
+def test_cli_system_not_an_ssp(tmp_path, capsys):
+    bad = tmp_path / "bad.ssp"
+    bad.write_bytes(b"not a zip")
+    code = main(["cosim", "--system", str(bad), "--no-plot", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "bad.ssp" in err and err.count("\n") == 1
+
+
+def test_ctrl_c_stops_the_system_master_between_steps(hover_ssp):
+    """SIGINT during a run: all instances terminated, KeyboardInterrupt, the master closes."""
+    system = System.from_ssp(hover_ssp)
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+    with SystemMaster(system) as m:
+        timer.start()
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                m.run(1e-4 / 164, 1_000_000, record=["lateral.delta_v"])
+        finally:
+            timer.cancel()
+        r = m.run(0.1 / 164, 10, record=["lateral.delta_v"])  # still usable afterwards
+    assert r.complete

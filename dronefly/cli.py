@@ -53,6 +53,7 @@ _EPILOG = {
              "  dronefly sweep --scheduler tcp://10.0.0.5:8786\n"
              "rerun with the same --out to resume an interrupted sweep (--fresh starts over)\n"
              "  dronefly sweep --gains paper,my_gains.csv --set plant.Nr_plus=-5\n"
+             "  dronefly sweep --system build/DroneFlyHover.ssp --disturbances directions\n"
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
              "130 interrupted (rerun to resume)" + _UNITS,
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
@@ -167,6 +168,9 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--plant", default=None, metavar="FMU", help="plant FMU (default: built)")
     w.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: built)")
+    w.add_argument("--system", default=None, metavar="SSP",
+                   help="run every case on this system of FMUs (its lateral plant and the "
+                        "controller driving it get x0 and gains; --set takes instance.NAME=VALUE)")
     w.add_argument("--disturbances", default="grid,directions", metavar="LIST",
                    help="initial disturbances: grid, lhs, directions (default grid,directions)")
     w.add_argument("--slices", default="dgamma:dv,dgamma:dp,dr:dp", metavar="X:Y,...",

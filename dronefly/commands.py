@@ -158,7 +158,7 @@ def sweep(args: argparse.Namespace) -> int:
                        workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
                        fresh=args.fresh, plot=not args.no_plot,
                        progress_bar=False if args.no_progress else None,
-                       set_values=dict(args.set_values))
+                       set_values=dict(args.set_values), system=args.system)
     print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
     if result.summary["errors"]:
         print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "

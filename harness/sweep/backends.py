@@ -11,7 +11,7 @@ from typing import Any, Callable
 
 from dronefly.harness.sweep.cases import Case, SweepInputError, one_line
 from dronefly.harness.sweep.worker import (ChunkInterrupted, FmuRef, blas_single_thread,
-                                           close_all, init_worker, loop_for, run_chunk)
+                                           close_all, init_worker, run_chunk, warm)
 
 __all__ = ["chunk_cases", "connect_scheduler", "make_progress_bar", "run_dask", "run_here", "run_pool",
            "stderr_is_tty"]
@@ -68,7 +68,7 @@ def stderr_is_tty() -> bool:
 def run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Callable) -> None:
     limiter = blas_single_thread()
     try:
-        loop_for(refs, (None, None))  # instantiate once, before any case is timed
+        warm(refs)  # instantiate once, before any case is timed
         for ch in chunks:
             try:
                 collect(run_chunk(refs, ch))

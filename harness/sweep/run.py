@@ -1,7 +1,8 @@
 """``dronefly sweep``: where do closed-loop trajectories stay inside the Sect. 3.6 bounds?
 
 Each case (see :mod:`harness.sweep.cases`) is one co-simulation of the real plant
-and controller FMUs through :class:`harness.cosim.master.Loop`. Bounds are checked at
+and controller FMUs through :class:`harness.cosim.master.Loop`, or of a whole system of
+FMUs (``system=FILE.ssp``, :mod:`harness.sweep.system`) on the system master. Bounds are checked at
 every communication point on the non-dimensional state (|x_i| / (scale bound_i))
 and on the controls (|u| / (scale 0.4 rad)).
 
@@ -74,6 +75,36 @@ def _resolve_values(refs: tuple[FmuRef, FmuRef],
         raise SweepInputError(str(e)) from e
 
 
+def _system_refs(system: str | Path, plant: Any, controller: Any,
+                 set_values: Mapping[str, Any] | None, spec: SweepSpec | None) -> tuple:
+    """((SystemRef,), case values, LateralLoop) of ``--system``, checked here."""
+    from dronefly.harness.sweep.system import SystemRef, check_system
+
+    if plant is not None or controller is not None:
+        raise SweepInputError("--plant/--controller cannot be combined with --system (set "
+                              "values of the system's instances with --set instance.NAME=VALUE)")
+    path = Path(system)
+    if not path.is_file():
+        raise SweepInputError(f"--system {str(system)!r} " + (
+            "is a folder, not an SSP file" if path.is_dir() else "does not exist"))
+    ref = SystemRef(**vars(FmuRef.of(path)))
+    lateral = check_system(ref, set_values, (spec or SweepSpec()).master)
+    return (ref,), {"plant": dict(set_values or {})}, lateral
+
+
+def _check_gains_reach(cases: Sequence[Case], lateral: Any) -> None:
+    """A non-zero gain that no connection of the system carries is an error, not ignored."""
+    reach = {(a, b) for a, b, _ in lateral.gains}
+    for c in cases:
+        for a, row in enumerate(c.K):
+            for b, k in enumerate(row):
+                if k != 0.0 and (a, b) not in reach:
+                    raise SweepInputError(
+                        f"gains {c.gains!r}: K[{a + 1},{b + 1}] = {k:g} acts through a "
+                        f"connection the system does not have (controls driven: "
+                        f"{', '.join(lateral.controls) or 'none'})")
+
+
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
     from dronefly.build import BuildError, project_fmus
 
@@ -91,7 +122,8 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
               fresh: bool = False, plot: bool = True, progress_bar: bool | None = None,
               on_chunk: Callable[[int, int], None] | None = None, chunk_steps: int | None = None,
               flush_s: float = 5.0,
-              set_values: Mapping[str, float | bool] | None = None) -> SweepResult:
+              set_values: Mapping[str, float | bool] | None = None,
+              system: str | Path | None = None) -> SweepResult:
     """Run (or resume) a sweep and write ``sweep.csv``, ``sweep.json`` and ``map_*.png``.
 
     Parameters
@@ -125,6 +157,11 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     set_values : mapping, optional
         ``{"plant.Lv_plus": 0.2, ...}``: parameter values in each FMU's unit for every case
         (as ``dronefly sweep --set``); checked against the model descriptions first.
+        With ``system``: ``{"instance.NAME": value}`` for any instance of the system.
+    system : path, optional
+        An SSP file: every case runs the whole system on the system master, the lateral
+        plant's initial state and its controller's gains set per case (see
+        :mod:`dronefly.harness.sweep.system`); not with ``plant``/``controller``.
 
     Raises
     ------
@@ -135,12 +172,17 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         After the finished cases have been written (rerun to resume).
     """
     t_start = time.perf_counter()
-    refs = _fmu_paths(plant, controller)
-    _check_pair(refs)
-    values = _resolve_values(refs, set_values)
+    if system is not None:
+        refs, values, lateral = _system_refs(system, plant, controller, set_values, spec)
+    else:
+        refs = _fmu_paths(plant, controller)
+        _check_pair(refs)
+        values, lateral = _resolve_values(refs, set_values), None
     all_cases = list(cases) if cases is not None else (spec or SweepSpec()).cases(values)
     if not all_cases:
         raise SweepInputError("the sweep has no cases")
+    if lateral is not None:
+        _check_gains_reach(all_cases, lateral)
     if workers is None:
         workers = os.cpu_count() or 1
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
@@ -207,7 +249,10 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
                    loop_run_s=stats["loop_s"], worker_case_s=stats["wall_s"],
                    per_case_overhead=(stats["wall_s"] / stats["loop_s"] - 1.0
                                       if stats["loop_s"] > 0 else None),
-                   plant=refs[0].path, controller=refs[1].path, csv=str(csv_path),
+                   **({"system": refs[0].path, "plant": lateral.plant,
+                       "controller": lateral.controller} if lateral is not None else
+                      {"plant": refs[0].path, "controller": refs[1].path}),
+                   csv=str(csv_path),
                    maps=[str(m) for m in maps])
     import json
 

@@ -24,9 +24,12 @@ from dronefly.lateral import STATE_NAMES, plant_scales
 
 from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line)
 from dronefly.harness.sweep.results import (RESULT_COLUMNS)
+from dronefly.harness.sweep.system import (SystemRef, close_systems, open_system,
+                                           run_system_case)
 
 
-__all__ = ["ChunkInterrupted", "FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk"]
+__all__ = ["ChunkInterrupted", "FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk",
+           "warm"]
 
 _TOL = 1e-9  # a ratio up to 1 + _TOL counts as on the bound (a = 1 starts on the face)
 _CONTROL_SHORT = {"delta_Phi_a": "dPhi_a", "delta_alpha_1a": "dalpha_1a",
@@ -82,9 +85,19 @@ def loop_for(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None
     return _LOOPS[key]
 
 
+def warm(refs: tuple) -> None:
+    """Open the FMUs (or the system: ``refs = (SystemRef,)``) before any case is timed."""
+    if isinstance(refs[0], SystemRef):
+        open_system(refs[0])
+    else:
+        loop_for(refs, (None, None))
+
+
 def close_all() -> None:
     """Free every cached instance and delete every extraction (worker exit)."""
     import shutil
+
+    close_systems()
 
     for loop, p, c, _ in list(_LOOPS.values()):
         for inst in (p, c):
@@ -122,10 +135,11 @@ def init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
     _LOOPS.clear()  # forked: these belong to the parent (which also deletes its extractions)
     _FMUS.clear()
     _TMP.clear()
+    close_systems(forget=True)
     atexit.register(close_all)
     util.Finalize(None, close_all, exitpriority=10)
     blas_single_thread()
-    loop_for(refs, (None, None))
+    warm(refs)
 
 
 def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, Any]:
@@ -182,19 +196,24 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
         try:
             if interrupt_pending():  # the command line's deferred Ctrl-C
                 raise KeyboardInterrupt
-            loop, p, c, scale = loop_for(refs, data)
-            if case.plant_values:  # n or U may be among them
-                scale = np.array(plant_scales({**loop.plant.start_values(),
-                                               **dict(case.plant_values)}))
-            start = {**dict(case.plant_values), **{f"{s}_start": float(v)
-                     for s, v in zip(STATE_NAMES, np.asarray(case.x0) * scale)}}
             t0 = time.perf_counter()
-            run = loop.run(case.step_wb / scale[2], case.n_steps, master=case.master,
-                           plant_start=start,
-                           controller_params={**dict(case.controller_values),
-                                              **{gain_name(i, j): v for i, row in enumerate(case.K)
-                                                 for j, v in enumerate(row)}},
-                           instances=(p, c))
+            if isinstance(refs[0], SystemRef):
+                run, loop, scale = run_system_case(refs[0], case, data[0])
+            else:
+                loop, p, c, scale = loop_for(refs, data)
+                if case.plant_values:  # n or U may be among them
+                    scale = np.array(plant_scales({**loop.plant.start_values(),
+                                                   **dict(case.plant_values)}))
+                start = {**dict(case.plant_values), **{f"{s}_start": float(v)
+                         for s, v in zip(STATE_NAMES, np.asarray(case.x0) * scale)}}
+                t0 = time.perf_counter()
+                run = loop.run(case.step_wb / scale[2], case.n_steps, master=case.master,
+                               plant_start=start,
+                               controller_params={**dict(case.controller_values),
+                                                  **{gain_name(i, j): v
+                                                     for i, row in enumerate(case.K)
+                                                     for j, v in enumerate(row)}},
+                               instances=(p, c))
             loop_s += time.perf_counter() - t0
             out.append((case.key, _measure(run, loop, scale, case)))
         except KeyboardInterrupt:  # Ctrl-C between steps: hand back what is finished
@@ -215,6 +234,8 @@ class ChunkInterrupted(KeyboardInterrupt):
 
 def _drop_thread_loop(refs: tuple[FmuRef, FmuRef]) -> None:
     """After an exception: free this thread's instances; the next case makes new ones."""
+    if isinstance(refs[0], SystemRef):
+        return  # the system master frees its instances after every run
     entry = _LOOPS.pop((threading.get_ident(), refs[0].digest, refs[1].digest), None)
     for inst in (entry[1:3] if entry else ()):
         try:

@@ -1,0 +1,172 @@
+"""``dronefly sweep --system FILE.ssp``: the sweep's cases run on a whole system of FMUs.
+
+The system must hold one lateral plant (Real outputs ``delta_v``, ``delta_p``, ``delta_r``,
+``delta_gamma`` with ``*_start`` parameters, ``n`` and ``U``; see
+:func:`dronefly.harness.system.verdicts.find_plants`) whose inputs are driven by one
+controller with gain parameters ``K[i,j]``. Each case sets the lateral plant's initial state
+and the controller's gains (mapped through the connections: row = the controller output
+that drives the plant's control, column = the controller input that senses the plant's
+state) and runs every FMU of the system on the :class:`SystemMaster`; the measurement is the
+one of the plant/controller sweep, on the lateral plant and its controls. Other instances
+(for example the longitudinal loop of ``DroneFlyHover.ssp``) run along unchanged.
+
+With a system, a case's ``plant_values`` are the ``--set instance.NAME=VALUE`` settings of
+any instance, as ``("instance.NAME", value)``; they are part of the case key.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from dronefly.controller.law import gain_name
+from dronefly.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
+from dronefly.harness.sweep.parse import SweepInputError
+
+__all__ = ["LateralLoop", "SystemRef", "check_system", "close_systems", "open_system",
+           "run_system_case"]
+
+_LOCK = threading.Lock()
+_OPEN: dict[tuple[int, str, str], tuple[Any, "LateralLoop"]] = {}  # (thread, digest, master)
+
+
+@dataclass(frozen=True)
+class SystemRef:
+    """An SSP file and the SHA-1 of its bytes (as :class:`~.worker.FmuRef`)."""
+
+    path: str
+    digest: str
+
+
+@dataclass(frozen=True)
+class LateralLoop:
+    """Where the lateral loop sits in a system; ``names``/``states``/``controls`` as a Loop's."""
+
+    plant: str
+    controller: str
+    record: tuple[str, ...]  # plant states, then the controller outputs driving its controls
+    controls: tuple[str, ...]  # the plant inputs that are driven, in CONTROL_NAMES order
+    gains: tuple[tuple[int, int, str], ...]  # (control row, state column, K[i,j] name)
+
+    @property
+    def states(self) -> tuple[str, ...]:
+        return STATE_NAMES
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return (*STATE_NAMES, *self.controls)
+
+
+def _lateral_loop(master: Any) -> LateralLoop:
+    from dronefly.harness.system.verdicts import find_plants
+
+    plants = [p for p in find_plants(master) if set(p.states) == set(STATE_NAMES)]
+    if len(plants) != 1:
+        raise SweepInputError(f"the system {master.system.name!r} has {len(plants)} lateral "
+                              f"plants (outputs {', '.join(STATE_NAMES)} with *_start, n and "
+                              "U); the sweep needs exactly one")
+    p = plants[0]
+    if p.controller is None:
+        raise SweepInputError(f"no single controller instance drives the inputs of the "
+                              f"lateral plant {p.instance!r}")
+    cons = master.system.connections
+    drives = {c.input: c.output for c in cons if c.source == p.controller and c.target == p.instance}
+    senses = {c.output: c.input for c in cons if c.source == p.instance and c.target == p.controller}
+    md = master.fmus[p.controller].model_description
+    c_in = [v.name for v in md.modelVariables if v.causality == "input"]
+    c_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+    controls = tuple(c for c in CONTROL_NAMES if c in drives)
+    gains = []
+    for a, u in enumerate(CONTROL_NAMES):
+        for b, s in enumerate(STATE_NAMES):
+            if u in drives and s in senses:
+                name = gain_name(c_out.index(drives[u]), c_in.index(senses[s]))
+                if name not in master.fmus[p.controller].variables:
+                    raise SweepInputError(f"the controller {p.controller!r} has no gain "
+                                          f"parameter {name} (from {s} to {u})")
+                gains.append((a, b, name))
+    record = (*(f"{p.instance}.{s}" for s in STATE_NAMES),
+              *(f"{p.controller}.{drives[u]}" for u in controls))
+    return LateralLoop(p.instance, p.controller, record, controls, tuple(gains))
+
+
+def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
+                 master: str = "gauss-seidel") -> LateralLoop:
+    """Open the system here, before any file is written; apply ``--set`` values and find
+    the lateral loop.
+
+    Raises
+    ------
+    SweepInputError
+        Unreadable SSP, a bad ``--set`` name, no lateral loop, a controller without gains.
+    """
+    from dronefly.harness.cosim.fmu import FMUError
+    from dronefly.harness.system.description import System, SystemSpecError
+    from dronefly.harness.system.master import SystemMaster
+
+    try:
+        system = System.from_ssp(ref.path).with_values(dict(set_values or {}))
+        with SystemMaster(system, master) as m:
+            m.run(1e-3, 1, record=[])  # one step: every --set name is checked by the master
+            return _lateral_loop(m)
+    except (SystemSpecError, FMUError) as e:
+        raise SweepInputError(str(e)) from e
+
+
+def _open(ref: SystemRef, data: bytes | None,
+          master: str = "gauss-seidel") -> tuple[Any, LateralLoop]:
+    from dronefly.harness.system.description import System
+    from dronefly.harness.system.master import SystemMaster
+
+    key = (threading.get_ident(), ref.digest, master)
+    with _LOCK:
+        if key not in _OPEN:
+            path = ref.path
+            if data is not None and not Path(path).is_file():
+                import tempfile  # a remote worker without the file
+
+                d = tempfile.mkdtemp(prefix="dronefly_sweep_")
+                path = str(Path(d, Path(ref.path).name))
+                Path(path).write_bytes(data)
+            m = SystemMaster(System.from_ssp(path), master)
+            _OPEN[key] = (m, _lateral_loop(m))
+        return _OPEN[key]
+
+
+def close_systems(*, forget: bool = False) -> None:
+    """Close every system this process opened (worker exit); ``forget``: drop them unclosed
+    (a forked worker: they belong to the parent, which deletes their extractions)."""
+    with _LOCK:
+        for m, _ in ([] if forget else _OPEN.values()):
+            m.close()
+        _OPEN.clear()
+
+
+def open_system(ref: SystemRef, data: bytes | None = None) -> None:
+    """Open the system in this thread before any case is timed."""
+    _open(ref, data)
+
+
+def run_system_case(ref: SystemRef, case: Any,
+                    data: bytes | None = None) -> tuple[Any, LateralLoop, np.ndarray]:
+    """Run one sweep case on the system; returns (LoopRun, LateralLoop, x = x+ * scale)."""
+    m, loop = _open(ref, data, case.master)
+    values: dict[str, dict[str, Any]] = {}
+    for full, v in case.plant_values:
+        inst, _, name = full.partition(".")
+        values.setdefault(inst, {})[name] = v
+    plant = {**m.fmus[loop.plant].start_values(), **m.system.parameters.get(loop.plant, {}),
+             **values.get(loop.plant, {})}
+    scale = np.array(plant_scales(plant))
+    n = float(plant["n"])
+    values.setdefault(loop.plant, {}).update(
+        {f"{s}_start": float(x) for s, x in zip(STATE_NAMES, np.asarray(case.x0) * scale)})
+    ctrl = values.setdefault(loop.controller, {})
+    for a, b, name in loop.gains:
+        ctrl[name] = float(case.K[a][b])
+    run = m.run(case.step_wb / n, case.n_steps, record=list(loop.record), values=values)
+    return run, loop, scale

@@ -16,10 +16,12 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
-from typing import Any, Callable, Sequence
+from typing import Callable, Sequence
 
 from dronefly import __version__, commands
 from dronefly.commands import EXIT_FAILED, EXIT_USAGE
+from dronefly.cliargs import (converter, finite, floats_arg, int_arg, parse_assignment,
+                              parse_gains, parse_names, parse_x0, positive)
 from dronefly.errors import DroneflyError
 from dronefly.interrupt import EXIT_INTERRUPTED, deferred_sigint
 
@@ -94,9 +96,9 @@ def _parser() -> argparse.ArgumentParser:
 
     s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance",
             commands.simulate)
-    s.add_argument("--stop", type=_positive, default=30.0, help="stop time in wing beats (default 30)")
-    s.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
-    s.add_argument("--gamma0", type=_finite, default=0.1,
+    s.add_argument("--stop", type=positive, default=30.0, help="stop time in wing beats (default 30)")
+    s.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")
+    s.add_argument("--gamma0", type=finite, default=0.1,
                    help="initial roll angle delta_gamma in rad, SI (default 0.1)")
     s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
 
@@ -106,28 +108,28 @@ def _parser() -> argparse.ArgumentParser:
                    help="co-simulate the system of an SSP file (any number of FMI 2.0 CS FMUs); "
                         "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
                         "--x0")
-    c.add_argument("--record", type=_converter(parse_names), default=None,
+    c.add_argument("--record", type=converter(parse_names), default=None,
                    metavar="INST.NAME,...", help="with --system: the outputs to record "
                                                  "(default: every Real output)")
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: build/StateFeedback.fmu, built on demand)")
-    c.add_argument("--gains", type=_converter(parse_gains), default=None, metavar="GAINS",
+    c.add_argument("--gains", type=converter(parse_gains), default=None, metavar="GAINS",
                    help="non-dimensional 3x4 gain matrix u = K x+: paper (Eq. 27), stabilising, "
                         "open, 'k1,k2,k3,k4' (delta_Phi_a only), 'row1;row2;row3', or a .csv/.json "
                         "file (default paper)")
-    c.add_argument("--x0", type=_converter(parse_x0), default=None,
+    c.add_argument("--x0", type=converter(parse_x0), default=None,
                    metavar="dv+,dp+,dr+,dgamma",
                    help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll)")
     c.add_argument("--set", dest="set_values", action="append", default=[],
-                   type=_converter(parse_assignment), metavar="NAME=VALUE",
+                   type=converter(parse_assignment), metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "
                         "controller.NAME=VALUE, or NAME=VALUE if only one FMU has NAME; SI units")
     c.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
-    c.add_argument("--step", type=_positive, default=0.1, help="communication step in wing beats (default 0.1)")
-    c.add_argument("--stop", type=_positive, default=None,
+    c.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")
+    c.add_argument("--stop", type=positive, default=None,
                    help="stop time in wing beats (default 300, or the SSP's DefaultExperiment)")
     c.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
                    help="ordering of the FMU calls (default gauss-seidel)")
@@ -176,122 +178,45 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--slices", default="dgamma:dv,dgamma:dp,dr:dp", metavar="X:Y,...",
                    help="2-D slices of the box for grid (axes dv, dp, dr, dgamma; "
                         "default dgamma:dv,dgamma:dp,dr:dp)")
-    w.add_argument("--grid", type=_int("grid", 2), default=21, metavar="N",
+    w.add_argument("--grid", type=int_arg("grid", 2), default=21, metavar="N",
                    help="grid points per axis (default 21)")
-    w.add_argument("--lhs", type=_int("lhs", 1), default=200, metavar="N",
+    w.add_argument("--lhs", type=int_arg("lhs", 1), default=200, metavar="N",
                    help="Latin-hypercube samples (default 200)")
     w.add_argument("--directions", default=",".join(f"{s}{a}" for a in ("dv", "dp", "dr", "dgamma",
                                                                         "mode1") for s in "+-"),
                    metavar="LIST", help="directions for 'directions' (default: +-dv, +-dp, +-dr, "
                                         "+-dgamma, +-mode1 = the unstable eigenvector)")
-    w.add_argument("--amplitudes", type=_int("amplitudes", 1), default=10, metavar="N",
+    w.add_argument("--amplitudes", type=int_arg("amplitudes", 1), default=10, metavar="N",
                    help="amplitudes 1/N..1 of the box per direction (default 10)")
     w.add_argument("--gains", default="paper,stabilising", metavar="LIST",
                    help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open, or a "
                         ".csv/.json file with a 3x4 matrix (default paper,stabilising)")
     w.add_argument("--set", dest="set_values", action="append", default=[],
-                   type=_converter(parse_assignment), metavar="NAME=VALUE",
+                   type=converter(parse_assignment), metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller for every case (repeatable; "
                         "SI units)")
-    w.add_argument("--steps", type=_floats("steps"), default="0.1,1,3", metavar="LIST",
+    w.add_argument("--steps", type=floats_arg("steps"), default="0.1,1,3", metavar="LIST",
                    help="communication steps = how often the insect senses and acts, wing beats "
                         "(default 0.1,1,3)")
-    w.add_argument("--scales", type=_floats("scales"), default="1", metavar="LIST",
+    w.add_argument("--scales", type=floats_arg("scales"), default="1", metavar="LIST",
                    help="factors on the bounds (default 1)")
-    w.add_argument("--stop", type=_floats("stop"), default="200", metavar="WB",
+    w.add_argument("--stop", type=floats_arg("stop"), default="200", metavar="WB",
                    help="wing beats per case (default 200)")
     w.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
                    help="ordering of the FMU calls (default gauss-seidel)")
-    w.add_argument("--seed", type=_int("seed", 0), default=0, metavar="N",
+    w.add_argument("--seed", type=int_arg("seed", 0), default=0, metavar="N",
                    help="seed of the Latin hypercube")
-    w.add_argument("--workers", type=_int("workers", 1), default=None, metavar="N",
+    w.add_argument("--workers", type=int_arg("workers", 1), default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 = in this process)")
     w.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on an existing Dask cluster, e.g. tcp://host:8786")
-    w.add_argument("--connect-timeout", type=_positive, default=10.0, metavar="S",
+    w.add_argument("--connect-timeout", type=positive, default=10.0, metavar="S",
                    help="seconds to reach the scheduler (default 10)")
     w.add_argument("--fresh", action="store_true", help="discard earlier results in --out")
     w.add_argument("--no-plot", action="store_true", help="do not write the PNG maps")
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.add_argument("--json", action="store_true", help="print the JSON summary")
     return p
-
-
-def _converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
-    """An argparse ``type=`` from a parser that raises :class:`DroneflyError` (one line)."""
-
-    def convert(text: str) -> Any:
-        try:
-            return fn(text)
-        except DroneflyError as e:
-            raise argparse.ArgumentTypeError(str(e)) from e
-
-    convert.__name__ = fn.__name__
-    return convert
-
-
-def _int(name: str, lo: int) -> Callable[[str], int]:
-    def parse(text: str) -> int:
-        from dronefly.harness.sweep.cases import parse_int
-
-        return parse_int(text, name, lo)
-
-    return _converter(parse)
-
-
-def _floats(name: str) -> Callable[[str], tuple[float, ...]]:
-    def parse(text: str) -> tuple[float, ...]:
-        from dronefly.harness.sweep.cases import parse_floats
-
-        return parse_floats(text, name)
-
-    return _converter(parse)
-
-
-def parse_gains(text: str) -> Any:
-    from dronefly.harness.cosim.params import parse_gains as parse
-
-    return parse(text)
-
-
-def parse_names(text: str) -> list[str]:
-    """``a.x,b.y`` -> ["a.x", "b.y"]; each name must be instance.NAME."""
-    names = [t.strip() for t in text.split(",") if t.strip()]
-    bad = [n for n in names if not n.partition(".")[2]]
-    if not names or bad:
-        raise ValueError(f"{text!r}: expected instance.NAME[,instance.NAME...]")
-    return names
-
-
-def parse_x0(text: str) -> Any:
-    from dronefly.harness.cosim.run import parse_x0 as parse
-
-    return parse(text)
-
-
-def parse_assignment(text: str) -> Any:
-    from dronefly.harness.cosim.params import parse_assignment as parse
-
-    return parse(text)
-
-
-def _finite(text: str) -> float:
-    import math
-
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not finite")
-    return value
-
-
-def _positive(text: str) -> float:
-    value = _finite(text)
-    if value <= 0.0:
-        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
-    return value
 
 
 def main(argv: Sequence[str] | None = None) -> int:

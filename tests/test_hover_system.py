@@ -203,3 +203,21 @@ def test_ctrl_c_stops_the_system_master_between_steps(hover_ssp):
             timer.cancel()
         r = m.run(0.1 / 164, 10, record=["lateral.delta_v"])  # still usable afterwards
     assert r.complete
+
+
+def test_docs_systems_numbers_are_the_code_s(hover_ssp):
+    """docs/systems.md: the printed summary is what the command prints, the design (a) gains
+    are the design's."""
+    import re
+    from pathlib import Path
+
+    from dronefly.harness.paper.longitudinal import design
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "systems.md").read_text()
+    r = cosimulate_system(hover_ssp, stop_wingbeats=60, out_dir=None)
+    printed = doc.split("prints\n\n```\n", 1)[1].split("```", 1)[0].splitlines()
+    assert [ln for ln in printed if not ln.startswith("csv:")] == r.summary().splitlines()
+    k = design("neutral", ("delta_phibar",)).K[PHIBAR_ROW]
+    given = {int(j): float(v) for j, v in
+             re.findall(r"longitudinal_controller\.K\[3,(\d)\]=(-?[0-9.]+)", doc)}
+    assert given == pytest.approx({j + 1: v for j, v in enumerate(k)}, abs=5e-9)

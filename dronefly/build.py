@@ -69,6 +69,11 @@ FMUS: dict[str, _Spec] = {
         module="controller.slave", cls="StateFeedbackLongitudinal", files=_CONTROLLER,
         readme="controller/README.md",
         reference="controller/StateFeedbackLongitudinal_ref.csv"),
+    "DroneFlyHover6DOF": _Spec(
+        module="plant_6dof.slave", cls="DroneFlyHover6DOF",
+        files=(*_FMI, "linear.py", "longitudinal.py", "hover6dof.py", "plant/model.py",
+               "plant_longitudinal/model.py", "plant_6dof/model.py", "plant_6dof/slave.py"),
+        readme="plant_6dof/README.md", reference="plant_6dof/DroneFlyHover6DOF_ref.csv"),
 }
 
 
@@ -99,15 +104,22 @@ def _source_path(rel: str) -> Path:
 
 def _wrapper_files() -> dict[str, bytes]:
     """pythonfmu's binaries and its Python package, as the FMU ships them."""
-    import pythonfmu
+    from importlib.metadata import PackageNotFoundError, distribution
 
-    root = Path(pythonfmu.__file__).resolve().parent
+    # the installed distribution, not sys.modules["pythonfmu"]: after an FMU built by
+    # pythonfmu ran in this process, that may be the FMU's own (since deleted) copy
+    try:
+        root = Path(str(distribution("pythonfmu").locate_file("pythonfmu"))).resolve()
+    except PackageNotFoundError as e:
+        raise BuildError("pythonfmu is not installed: pip install pythonfmu==0.7.0") from e
     out: dict[str, bytes] = {}
     for f in sorted(root.glob("*.py")):
         out[f"resources/pythonfmu/{f.name}"] = f.read_bytes()
     for f in sorted((root / "resources" / "binaries").rglob("*")):
         if f.suffix in (".so", ".dll", ".dylib"):
             out[f"binaries/{f.parent.name}/{{model}}{f.suffix}"] = f.read_bytes()
+    if not any(k.startswith("binaries/") for k in out):
+        raise BuildError(f"no pythonfmu binaries under {root}: reinstall pythonfmu")
     return out
 
 

@@ -25,6 +25,7 @@ from .axes import Axis
 from .errors import DroneflyError
 
 __all__ = [
+    "parameter_description",
     "CONTROL_DESCRIPTIONS",
     "CONTROL_NAMES",
     "CONTROL_UNIT",
@@ -197,3 +198,23 @@ def sort_eigenvalues(values: Iterable[complex]) -> list[complex]:
     """Eigenvalues in the order of :func:`eigen_order`."""
     v = [complex(z) for z in values]
     return [v[i] for i in eigen_order(v)]
+
+
+_PARAM_TEXT = {
+    "m_plus": "non-dimensional mass m/(0.5 rho U S_t t_w)",
+    "Ix_plus": "non-dimensional roll inertia",
+    "Iz_plus": "non-dimensional yaw inertia",
+    "Ixz_plus": "non-dimensional product of inertia",
+    "g_plus": "non-dimensional gravity g t_w/U",
+}
+
+
+def parameter_description(name: str) -> str:
+    """Description of a lateral model parameter (``m_plus``, ``Yv_plus``, ``L_Phi_a_plus``, ...)."""
+    if name in _PARAM_TEXT:
+        return _PARAM_TEXT[name]
+    force, rest = name[0], name[1:-len("_plus")]
+    what = {"Y": "side force", "L": "roll moment", "N": "yaw moment"}[force]
+    if rest.startswith("_"):
+        return f"control derivative of {what} w.r.t. delta{rest} (Table 1)"
+    return f"stability derivative of {what} w.r.t. delta {rest}+ (from Eq. 12)"

@@ -21,6 +21,7 @@ from .axes import Axis
 from .lateral import CONTROL_UNIT, FLIGHT_DATA, INERTIAS_SECT21
 
 __all__ = [
+    "parameter_description",
     "CONTROL_DESCRIPTIONS",
     "CONTROL_NAMES",
     "IY_PLUS",
@@ -58,3 +59,21 @@ LONGITUDINAL = Axis("longitudinal", STATE_NAMES, CONTROL_NAMES, STATE_UNITS, CON
 #: (``reference_scales``; a rounded flight datum behind Ref. [8]), so Iy is put into the
 #: paper's own non-dimensionalisation through the printed Ix+: Iy+ = 19.895.
 IY_PLUS: float = FLIGHT_DATA["Iy"] / FLIGHT_DATA["Ix"] * INERTIAS_SECT21["Ix_plus"]
+
+
+_PARAM_TEXT = {
+    "m_plus": "non-dimensional mass m/(0.5 rho U S_t t_w) (Sect. 2.1)",
+    "Iy_plus": "non-dimensional pitch inertia, Iy of Sect. 2.4 scaled as the printed Ix+",
+    "g_plus": "non-dimensional gravity g t_w/U (Sect. 2.1; -A[1,4] of Sect. 3.5)",
+}
+_FORCE = {"X": "x-force", "Z": "z-force", "M": "pitch moment"}
+
+
+def parameter_description(name: str) -> str:
+    """Description of a longitudinal model parameter (``Iy_plus``, ``Xu_plus``, ...)."""
+    if name in _PARAM_TEXT:
+        return _PARAM_TEXT[name]
+    force, rest = name[0], name[1:-len("_plus")]
+    if rest.startswith("_"):
+        return f"control derivative of the {_FORCE[force]} w.r.t. delta{rest} (from B, Sect. 3.5)"
+    return f"stability derivative of the {_FORCE[force]} w.r.t. delta {rest}+ (from A, Sect. 3.5)"

@@ -7,30 +7,11 @@ Outputs are the paper's disturbance states made dimensional with U and t_w.
 
 from __future__ import annotations
 
-from ..lateral import LATERAL, N_HZ, U_M_PER_S
+from ..lateral import LATERAL, N_HZ, U_M_PER_S, parameter_description
 from ..linear_slave import LinearPlantSlave, plant_variables
 from .model import LateralModel, LateralParameters, default_parameters
 
 __all__ = ["DroneFlyLateral"]
-
-_PARAM_TEXT = {
-    "m_plus": "non-dimensional mass m/(0.5 rho U S_t t_w)",
-    "Ix_plus": "non-dimensional roll inertia",
-    "Iz_plus": "non-dimensional yaw inertia",
-    "Ixz_plus": "non-dimensional product of inertia",
-    "g_plus": "non-dimensional gravity g t_w/U",
-}
-
-
-def _param_text(name: str) -> str:
-    if name in _PARAM_TEXT:
-        return _PARAM_TEXT[name]
-    force, rest = name[0], name[1:-len("_plus")]
-    what = {"Y": "side force", "L": "roll moment", "N": "yaw moment"}[force]
-    if rest.startswith("_"):
-        return f"control derivative of {what} w.r.t. delta{rest} (Table 1)"
-    return f"stability derivative of {what} w.r.t. delta {rest}+ (from Eq. 12)"
-
 
 def _matrix_dependencies(row: int, col: int, controls: bool) -> tuple[str, ...]:
     """Knowns that A1[row, col] (or B1) depends on, by Eqs. (10)-(11)."""
@@ -55,7 +36,7 @@ class DroneFlyLateral(LinearPlantSlave):
         "Linearized lateral dynamics of the hovering model drone fly, Eq. (9) of "
         "Zhang & Sun, 'Stabilization control of a hovering model insect: lateral motion'; "
         "exact zero-order-hold integration")
-    VARIABLES = plant_variables(LATERAL, default_parameters(), _param_text, _matrix_dependencies,
+    VARIABLES = plant_variables(LATERAL, default_parameters(), parameter_description, _matrix_dependencies,
                                 N_HZ, U_M_PER_S, ("system matrix A1 of Eq. (9)",
                                                   "control matrix B1 of Eq. (9)"))
     DEFAULT_EXPERIMENT = (0.0, 30.0 / N_HZ, 0.1 / N_HZ)  # 30 wing beats: open loop diverges

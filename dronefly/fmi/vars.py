@@ -17,6 +17,7 @@ UNITS: dict[str, tuple[dict[str, int], dict[str, float]]] = {
     "1": ({}, {}),
     "s": ({"s": 1}, {}),
     "Hz": ({"s": -1}, {}),
+    "m": ({"m": 1}, {"mm": 1000.0}),
     "m/s": ({"m": 1, "s": -1}, {}),
     "rad": ({"rad": 1}, {"deg": _DEG}),
     "rad/s": ({"rad": 1, "s": -1}, {"deg/s": _DEG}),

@@ -19,6 +19,7 @@ import numpy as np
 
 from dronefly.files import write_csv_atomic, write_text_atomic
 from dronefly import longitudinal as lon
+from dronefly.hover6dof import OUTPUT_NAMES
 from dronefly.plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
@@ -84,6 +85,11 @@ def _no_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
     return {}
 
 
+def _hover6dof_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
+    """Both plants' inputs at once: the lateral and the longitudinal doublets and pulses."""
+    return {**_plant_inputs(t), **_longitudinal_plant_inputs(t)}
+
+
 REFERENCES: dict[str, _Setup] = {
     "DroneFlyLateral": _Setup("plant", _plant_inputs, STATE_NAMES),
     "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
@@ -91,6 +97,8 @@ REFERENCES: dict[str, _Setup] = {
                                    lon.STATE_NAMES, stop_wingbeats=60.0),
     "StateFeedbackLongitudinal": _Setup("controller", _longitudinal_controller_inputs,
                                         (*lon.CONTROL_NAMES, "saturated"), stop_wingbeats=60.0),
+    "DroneFlyHover6DOF": _Setup("plant_6dof", _hover6dof_inputs, OUTPUT_NAMES,
+                                stop_wingbeats=60.0),
     # the container FMU: the closed loop from its default initial state (a 0.1 rad roll)
     "DroneFlyClosedLoop": _Setup("harness.interop", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
                                  stop_wingbeats=100.0),

@@ -27,6 +27,7 @@ if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
     from .harness.interop.closedloop import ClosedLoopSpec
 
 __all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "fmu_sources",
+           "project_systems",
            "project_fmus"]
 
 _PKG_ROOT = Path(__file__).resolve().parent
@@ -208,20 +209,36 @@ def project_fmus(plant: str | Path | None = None, controller: str | Path | None 
             Path(controller) if controller is not None else build_fmu("StateFeedback", out_dir))
 
 
+def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
+    """``DroneFlyHover.ssp`` (linear plants) and ``DroneFlyHover6DOF.ssp`` (the nonlinear one)
+    in ``out_dir``, built (with every FMU) if either is missing."""
+    from .harness.system.ssp import HOVER, HOVER_6DOF
+
+    paths = (Path(out_dir) / f"{HOVER}.ssp", Path(out_dir) / f"{HOVER_6DOF}.ssp")
+    if not all(p.is_file() for p in paths):
+        build_all(out_dir)
+    return paths
+
+
 def build_all(out_dir: str | Path = "build") -> list[Path]:
     """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts and the
     hover system ``DroneFlyHover.ssp`` (both axes with their controllers, four FMUs)."""
-    from .harness.system.ssp import HOVER, hover_system, write_system_ssp
+    from .harness.system.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 
     fmus = {name: build_fmu(name, out_dir) for name in FMUS}
     loop = build_closed_loop(out_dir, fmus["DroneFlyLateral"], fmus["StateFeedback"])
-    try:
-        hover = write_system_ssp(hover_system(fmus), Path(out_dir) / f"{HOVER}.ssp",
-                                 description="The hovering model drone fly (Zhang & Sun): "
-                                 "lateral plant with Eq. (27), longitudinal plant with design (b)")
-    except (OSError, ValueError) as e:
-        raise BuildError(f"cannot build {HOVER}.ssp: {e}") from e
-    return [*fmus.values(), *loop, hover]
+    systems = []
+    for name, nonlinear, text in (
+            (HOVER, False, "lateral plant with Eq. (27), longitudinal plant with design (b)"),
+            (HOVER_6DOF, True, "the nonlinear six-degree-of-freedom plant with the controllers "
+                               "of both axes (Eq. 27, design b)")):
+        try:
+            systems.append(write_system_ssp(
+                hover_system(fmus, nonlinear=nonlinear), Path(out_dir) / f"{name}.ssp",
+                description=f"The hovering model drone fly (Zhang & Sun): {text}"))
+        except (OSError, ValueError) as e:
+            raise BuildError(f"cannot build {name}.ssp: {e}") from e
+    return [*fmus.values(), *loop, *systems]
 
 
 def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,

@@ -56,6 +56,7 @@ _EPILOG = {
              "rerun with the same --out to resume an interrupted sweep (--fresh starts over)\n"
              "  dronefly sweep --gains paper,my_gains.csv --set plant.Nr_plus=-5\n"
              "  dronefly sweep --system build/DroneFlyHover.ssp --disturbances directions\n"
+             "  dronefly sweep --compare nonlinear --out build/validity\n"
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
              "130 interrupted (rerun to resume)" + _UNITS,
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
@@ -170,6 +171,15 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--plant", default=None, metavar="FMU", help="plant FMU (default: built)")
     w.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: built)")
+    w.add_argument("--compare", default=None, metavar="SSP",
+                   help="run every case also on this system and measure how far the two "
+                        "trajectories differ; 'nonlinear' = the 6-DOF plant "
+                        "(build/DroneFlyHover6DOF.ssp) against the linear plants "
+                        "(build/DroneFlyHover.ssp), built on demand. Defaults then: --gains "
+                        "paper, --steps 1, --stop 100, --grid 25, --amplitudes 12, --extent 3")
+    w.add_argument("--extent", type=positive, default=None, metavar="X",
+                   help="the disturbances cover X times the Sect. 3.6 box (default 1; 3 with "
+                        "--compare)")
     w.add_argument("--system", default=None, metavar="SSP",
                    help="run every case on this system of FMUs (its lateral plant and the "
                         "controller driving it get x0 and gains; --set takes instance.NAME=VALUE)")
@@ -178,7 +188,7 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--slices", default="dgamma:dv,dgamma:dp,dr:dp", metavar="X:Y,...",
                    help="2-D slices of the box for grid (axes dv, dp, dr, dgamma; "
                         "default dgamma:dv,dgamma:dp,dr:dp)")
-    w.add_argument("--grid", type=int_arg("grid", 2), default=21, metavar="N",
+    w.add_argument("--grid", type=int_arg("grid", 2), default=None, metavar="N",
                    help="grid points per axis (default 21)")
     w.add_argument("--lhs", type=int_arg("lhs", 1), default=200, metavar="N",
                    help="Latin-hypercube samples (default 200)")
@@ -186,21 +196,21 @@ def _parser() -> argparse.ArgumentParser:
                                                                         "mode1") for s in "+-"),
                    metavar="LIST", help="directions for 'directions' (default: +-dv, +-dp, +-dr, "
                                         "+-dgamma, +-mode1 = the unstable eigenvector)")
-    w.add_argument("--amplitudes", type=int_arg("amplitudes", 1), default=10, metavar="N",
+    w.add_argument("--amplitudes", type=int_arg("amplitudes", 1), default=None, metavar="N",
                    help="amplitudes 1/N..1 of the box per direction (default 10)")
-    w.add_argument("--gains", default="paper,stabilising", metavar="LIST",
+    w.add_argument("--gains", default=None, metavar="LIST",
                    help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open, or a "
                         ".csv/.json file with a 3x4 matrix (default paper,stabilising)")
     w.add_argument("--set", dest="set_values", action="append", default=[],
                    type=converter(parse_assignment), metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller for every case (repeatable; "
                         "SI units)")
-    w.add_argument("--steps", type=floats_arg("steps"), default="0.1,1,3", metavar="LIST",
+    w.add_argument("--steps", type=floats_arg("steps"), default=None, metavar="LIST",
                    help="communication steps = how often the insect senses and acts, wing beats "
                         "(default 0.1,1,3)")
     w.add_argument("--scales", type=floats_arg("scales"), default="1", metavar="LIST",
                    help="factors on the bounds (default 1)")
-    w.add_argument("--stop", type=floats_arg("stop"), default="200", metavar="WB",
+    w.add_argument("--stop", type=floats_arg("stop"), default=None, metavar="WB",
                    help="wing beats per case (default 200)")
     w.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
                    help="ordering of the FMU calls (default gauss-seidel)")

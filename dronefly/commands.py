@@ -134,6 +134,13 @@ def analyze(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+#: the sweep's defaults, and those of a comparison (a wider box, one gain set and step)
+_SWEEP_DEFAULTS = {"grid": 21, "amplitudes": 10, "gains": "paper,stabilising",
+                   "steps": "0.1,1,3", "stop": "200", "extent": 1.0}
+_SWEEP_COMPARE_DEFAULTS = {"grid": 25, "amplitudes": 12, "gains": "paper", "steps": "1",
+                           "stop": "100", "extent": 3.0}
+
+
 def sweep(args: argparse.Namespace) -> int:
     import json
 
@@ -148,17 +155,25 @@ def sweep(args: argparse.Namespace) -> int:
         require("matplotlib", "pass --no-plot")
     if args.scheduler is not None:
         require("distributed")
-    spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices, grid=args.grid,
-                               lhs=args.lhs, directions=args.directions,
-                               amplitudes=args.amplitudes, gains=args.gains, steps=args.steps,
-                               scales=args.scales, stop=args.stop, master=args.master,
-                               seed=args.seed)
+    system, compare = args.system, args.compare
+    d = _SWEEP_COMPARE_DEFAULTS if compare is not None else _SWEEP_DEFAULTS
+    opt = {k: getattr(args, k) if getattr(args, k) is not None else v for k, v in d.items()}
+    spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices,
+                               grid=opt["grid"], lhs=args.lhs, directions=args.directions,
+                               amplitudes=opt["amplitudes"], gains=opt["gains"],
+                               steps=opt["steps"], scales=args.scales, stop=opt["stop"],
+                               master=args.master, seed=args.seed, extent=opt["extent"])
+    if compare == "nonlinear":
+        from dronefly.build import project_systems
+
+        linear, nonlinear = project_systems()
+        system, compare = system or linear, nonlinear
     workers, timeout = args.workers, args.connect_timeout
     result = run_sweep(spec, args.out, plant=args.plant, controller=args.controller,
                        workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
                        fresh=args.fresh, plot=not args.no_plot,
                        progress_bar=False if args.no_progress else None,
-                       set_values=dict(args.set_values), system=args.system)
+                       set_values=dict(args.set_values), system=system, compare=compare)
     print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
     if result.summary["errors"]:
         print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "

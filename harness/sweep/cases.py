@@ -141,6 +141,9 @@ class SweepSpec:
         Simulated time, wing beats.
     master : {'gauss-seidel', 'jacobi'}
     seed : int
+    extent : float
+        The grid, the Latin hypercube and the direction amplitudes cover ``extent`` times
+        the box (> 0; the bounds checked stay the box times ``scales``).
     """
 
     disturbances: tuple[str, ...] = ("grid", "directions")
@@ -155,18 +158,22 @@ class SweepSpec:
     stop_wb: float = 200.0
     master: str = "gauss-seidel"
     seed: int = 0
+    #: the disturbances cover ``extent`` times the box (grid, Latin hypercube, amplitudes)
+    extent: float = 1.0
 
     @classmethod
     def from_text(cls, *, disturbances: str, slices: str, grid: str, lhs: str, directions: str,
                   amplitudes: str, gains: str, steps: str, scales: str, stop: str, master: str,
-                  seed: str) -> "SweepSpec":
+                  seed: str, extent: float = 1.0) -> "SweepSpec":
         """A validated spec from command-line strings (comma-separated lists)."""
         spec = cls(parse_names(disturbances, "disturbances", DISTURBANCES), parse_slices(slices),
                    parse_int(grid, "grid", 2), parse_int(lhs, "lhs", 1),
                    parse_names(directions, "directions", DEFAULT_DIRECTIONS),
                    parse_int(amplitudes, "amplitudes", 1), parse_names(gains, "gains", GAIN_SETS),
                    parse_floats(steps, "steps"), parse_floats(scales, "scales"),
-                   parse_floats(stop, "stop")[0], master, parse_int(seed, "seed", 0))
+                   parse_floats(stop, "stop")[0], master, parse_int(seed, "seed", 0),
+                   parse_floats([extent] if isinstance(extent, (int, float)) else extent,
+                                "extent")[0])
         spec.validate()
         return spec
 
@@ -174,6 +181,9 @@ class SweepSpec:
         """Raise :class:`SweepInputError` naming the first bad value."""
         parse_names(self.disturbances, "disturbances", DISTURBANCES)
         parse_names(self.gains, "gains", GAIN_SETS)
+        if not (isinstance(self.extent, (int, float)) and math.isfinite(self.extent)
+                and self.extent > 0):
+            raise SweepInputError(f"extent = {self.extent!r} must be finite and > 0")
         parse_names(self.directions, "directions", DEFAULT_DIRECTIONS)
         parse_slices(self.slices)
         if self.master not in MASTERS:
@@ -218,7 +228,7 @@ class SweepSpec:
         box = np.array(STATE_BOUNDS_SECT36)
         out: list[tuple[str, str, float, np.ndarray]] = []
         if "grid" in self.disturbances:
-            g = np.linspace(-1.0, 1.0, self.grid_points)
+            g = np.linspace(-self.extent, self.extent, self.grid_points)
             for ax, ay in self.slices:
                 i, j = AXES.index(ax), AXES.index(ay)
                 for b in g:  # rows: y
@@ -231,12 +241,12 @@ class SweepSpec:
             n = self.lhs_points
             u = np.column_stack([(rng.permutation(n) + rng.random(n)) / n for _ in range(4)])
             for row in u:
-                out.append(("lhs", "", math.nan, (2.0 * row - 1.0) * box))
+                out.append(("lhs", "", math.nan, (2.0 * row - 1.0) * box * self.extent))
         if "directions" in self.disturbances:
             for name in self.directions:
                 d = _direction(name)
                 for k in range(1, self.amplitudes + 1):
-                    a = k / self.amplitudes
+                    a = k / self.amplitudes * self.extent
                     out.append(("direction", name, a, a * d * box))
         return out
 

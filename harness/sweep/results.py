@@ -22,6 +22,7 @@ import numpy as np
 
 from dronefly.files import atomic_path, write_csv_atomic
 from dronefly.harness.sweep.cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
+from dronefly.harness.sweep.compare import COMPARE_COLUMNS
 
 __all__ = ["COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
            "summarize", "write_maps", "write_results"]
@@ -46,17 +47,21 @@ def _fmt(v: Any) -> str:
     return "" if math.isnan(f) else repr(f)
 
 
-def result_row(case: Case, result: dict[str, Any]) -> dict[str, str]:
+def result_row(case: Case, result: dict[str, Any], compare: bool = False) -> dict[str, str]:
+    """One row of ``sweep.csv``; ``compare`` adds the comparison columns (empty if missing)."""
     vals = [case.case, case.key, case.family, case.label, case.amplitude, *case.x0, case.gains,
             case.step_wb, case.scale, case.stop_wb, case.n_steps, case.master]
     row = {c: _fmt(v) for c, v in zip(_CASE_COLS, vals)}
     row.update({c: _fmt(result[c]) for c in RESULT_COLUMNS})
+    if compare:
+        row.update({c: _fmt(result.get(c, math.nan)) for c in COMPARE_COLUMNS})
     return row
 
 
 def write_results(path: Path, rows: list[dict[str, str]]) -> None:
     """``sweep.csv``: the rows in case order, atomically (the one CSV writer of the project)."""
-    write_csv_atomic(path, COLUMNS, sorted(rows, key=lambda r: int(r["case"])))
+    header = COLUMNS + COMPARE_COLUMNS if rows and "err_dv" in rows[0] else COLUMNS
+    write_csv_atomic(path, header, sorted(rows, key=lambda r: int(r["case"])))
 
 
 def read_rows(path: str | Path) -> list[dict[str, str]]:
@@ -64,7 +69,7 @@ def read_rows(path: str | Path) -> list[dict[str, str]]:
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             reader = csv.DictReader(fh)
-            if reader.fieldnames != COLUMNS:
+            if reader.fieldnames not in (COLUMNS, COLUMNS + COMPARE_COLUMNS):
                 raise SweepInputError(f"{str(path)!r} is not a sweep result (its columns differ); "
                                       "use another output folder or --fresh")
             return list(reader)
@@ -72,18 +77,23 @@ def read_rows(path: str | Path) -> list[dict[str, str]]:
         raise SweepInputError(f"cannot read {str(path)!r}: {e}") from e
 
 
-def load_done(path: Path, keys: set[str]) -> dict[str, dict[str, Any]]:
+def load_done(path: Path, keys: set[str], compare: bool = False) -> dict[str, dict[str, Any]]:
     """Results already in ``path`` by key; refuses a file from a different sweep."""
     if not path.exists():
         return {}
     done: dict[str, dict[str, Any]] = {}
-    for row in read_rows(path):
+    rows = read_rows(path)
+    if rows and ("err_dv" in rows[0]) != compare:
+        raise SweepInputError(f"{str(path)!r} holds a sweep " + ("without" if compare else "with")
+                              + " --compare; use another output folder or --fresh")
+    columns = RESULT_COLUMNS + (COMPARE_COLUMNS if compare else [])
+    for row in rows:
         if row["key"] not in keys:
             raise SweepInputError(f"{str(path)!r} holds case {row['case']} (key {row['key']}) that "
                                   "is not in this sweep; use another output folder or --fresh")
-        done[row["key"]] = {c: (row[c] if c in ("verdict", "error")
+        done[row["key"]] = {c: (row[c] if c in ("verdict", "error", "cmp_verdict")
                                 else (float(row[c]) if row[c] else math.nan))
-                            for c in RESULT_COLUMNS}
+                            for c in columns}
     return done
 
 
@@ -168,6 +178,10 @@ def format_summary(summary: dict[str, Any]) -> str:
             best = [(a["direction"], a["largest_amplitude"]) for a in amps]
             lines.append("    largest amplitude within bounds: " + ", ".join(
                 f"{d} {'-' if v is None else format(v, 'g')}" for d, v in best))
+    if "comparison" in s:
+        from dronefly.harness.sweep.compare import format_comparison
+
+        lines += format_comparison(s["comparison"])
     lines.append(f"csv: {s['csv']}")
     lines.append(f"json: {Path(s['csv']).with_name('sweep.json')}")
     lines += [f"map: {m}" for m in s["maps"]]

@@ -33,6 +33,7 @@ from dronefly.harness.sweep.results import (COLUMNS, load_done, read_rows, resul
                                             summarize, write_maps, write_results)
 from dronefly.harness.sweep.backends import (chunk_cases, connect_scheduler, make_progress_bar,
                                              run_dask, run_here, run_pool, stderr_is_tty)
+from dronefly.harness.sweep.compare import compare_summary
 from dronefly.harness.sweep.worker import FmuRef
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
@@ -76,20 +77,42 @@ def _resolve_values(refs: tuple[FmuRef, FmuRef],
 
 
 def _system_refs(system: str | Path, plant: Any, controller: Any,
-                 set_values: Mapping[str, Any] | None, spec: SweepSpec | None) -> tuple:
-    """((SystemRef,), case values, LateralLoop) of ``--system``, checked here."""
+                 set_values: Mapping[str, Any] | None, spec: SweepSpec | None,
+                 compare: str | Path | None = None) -> tuple:
+    """((SystemRef,) or (SystemRef, SystemRef), case values, LateralLoop) of ``--system``
+    (and ``--compare``), checked here; ``--set`` values go to the systems that have the
+    instance."""
     from dronefly.harness.sweep.system import SystemRef, check_system
 
     if plant is not None or controller is not None:
         raise SweepInputError("--plant/--controller cannot be combined with --system (set "
                               "values of the system's instances with --set instance.NAME=VALUE)")
-    path = Path(system)
-    if not path.is_file():
-        raise SweepInputError(f"--system {str(system)!r} " + (
-            "is a folder, not an SSP file" if path.is_dir() else "does not exist"))
-    ref = SystemRef(**vars(FmuRef.of(path)))
-    lateral = check_system(ref, set_values, (spec or SweepSpec()).master)
-    return (ref,), {"plant": dict(set_values or {})}, lateral
+    refs, lateral, used = [], None, set()
+    for option, given in (("--system", system), ("--compare", compare)):
+        if given is None:
+            continue
+        path = Path(given)
+        if not path.is_file():
+            raise SweepInputError(f"{option} {str(given)!r} " + (
+                "is a folder, not an SSP file" if path.is_dir() else "does not exist"))
+        ref = SystemRef(**vars(FmuRef.of(path)))
+        mine = _values_for(ref, set_values)
+        used |= set(mine)
+        loop = check_system(ref, mine, (spec or SweepSpec()).master)
+        lateral = lateral or loop
+        refs.append(ref)
+    unused = sorted(set(set_values or {}) - used)
+    if unused:
+        raise SweepInputError(f"--set {unused[0]}: no system has that instance")
+    return tuple(refs), {"plant": dict(set_values or {})}, lateral
+
+
+def _values_for(ref: Any, set_values: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The ``instance.NAME`` values whose instance the system has."""
+    from dronefly.harness.system.description import System
+
+    instances = set(System.from_ssp(ref.path).fmus)
+    return {k: v for k, v in (set_values or {}).items() if k.partition(".")[0] in instances}
 
 
 def _check_gains_reach(cases: Sequence[Case], lateral: Any) -> None:
@@ -123,7 +146,8 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
               on_chunk: Callable[[int, int], None] | None = None, chunk_steps: int | None = None,
               flush_s: float = 5.0,
               set_values: Mapping[str, float | bool] | None = None,
-              system: str | Path | None = None) -> SweepResult:
+              system: str | Path | None = None,
+              compare: str | Path | None = None) -> SweepResult:
     """Run (or resume) a sweep and write ``sweep.csv``, ``sweep.json`` and ``map_*.png``.
 
     Parameters
@@ -162,6 +186,9 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         An SSP file: every case runs the whole system on the system master, the lateral
         plant's initial state and its controller's gains set per case (see
         :mod:`dronefly.harness.sweep.system`); not with ``plant``/``controller``.
+    compare : path, optional
+        A second SSP: every case also runs on it, and the rows get the comparison
+        columns of :mod:`dronefly.harness.sweep.compare` (needs ``system``).
 
     Raises
     ------
@@ -172,8 +199,11 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         After the finished cases have been written (rerun to resume).
     """
     t_start = time.perf_counter()
+    if compare is not None and system is None:
+        raise SweepInputError("--compare needs --system (the reference system)")
     if system is not None:
-        refs, values, lateral = _system_refs(system, plant, controller, set_values, spec)
+        refs, values, lateral = _system_refs(system, plant, controller, set_values, spec,
+                                             compare)
     else:
         refs = _fmu_paths(plant, controller)
         _check_pair(refs)
@@ -196,7 +226,8 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         raise SweepInputError(f"output folder {str(out)!r} is a file")
     csv_path, json_path = out / "sweep.csv", out / "sweep.json"
     keys = {c.key for c in all_cases}
-    done = {} if fresh else load_done(csv_path, keys)
+    cmp = compare is not None
+    done = {} if fresh else load_done(csv_path, keys, cmp)
     resumed = len(keys & done.keys())
     client = connect_scheduler(scheduler, connect_timeout_s) if scheduler is not None else None
     todo = list({c.key: c for c in reversed(all_cases) if c.key not in done}.values())[::-1]
@@ -209,7 +240,8 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     last_flush = [time.perf_counter()]
 
     def flush() -> None:
-        write_results(csv_path, [result_row(c, done[c.key]) for c in all_cases if c.key in done])
+        write_results(csv_path, [result_row(c, done[c.key], cmp) for c in all_cases
+                                 if c.key in done])
         last_flush[0] = time.perf_counter()
 
     def collect(res: tuple[list, float, float]) -> None:
@@ -237,9 +269,15 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
             client.close()
         if stats["computed"] or fresh or not csv_path.exists():
             flush()
-    rows = [result_row(c, done[c.key]) for c in all_cases]
+    rows = [result_row(c, done[c.key], cmp) for c in all_cases]
     maps = write_maps(rows, out) if plot else []
     summary = summarize(rows, all_cases)
+    if cmp:
+        from dronefly.harness.sweep.comparemaps import write_compare_maps
+
+        summary["comparison"] = compare_summary(rows)
+        summary["compare"] = refs[1].path
+        maps += write_compare_maps(rows, out) if plot else []
     summary.update(elapsed_s=time.perf_counter() - t_start, workers=n_workers,
                    backend="dask" if client else ("in-process" if n_workers == 1 else "processes"),
                    scheduler=scheduler, computed_cases=stats["computed"], resumed_cases=resumed,

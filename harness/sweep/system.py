@@ -19,17 +19,20 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from dronefly.controller.law import gain_name
 from dronefly.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
+from dronefly.longitudinal import LONGITUDINAL
 from dronefly.harness.sweep.parse import SweepInputError
 
-__all__ = ["LateralLoop", "SystemRef", "check_system", "close_systems", "open_system",
+__all__ = ["EARTH", "LateralLoop", "SystemRef", "check_system", "close_systems", "open_system",
            "run_system_case"]
 
+#: the earth-axis position outputs of a six-degree-of-freedom plant, m
+EARTH = ("x_earth", "y_earth", "z_earth")
 _LOCK = threading.Lock()
 _OPEN: dict[tuple[int, str, str], tuple[Any, "LateralLoop"]] = {}  # (thread, digest, master)
 
@@ -44,13 +47,19 @@ class SystemRef:
 
 @dataclass(frozen=True)
 class LateralLoop:
-    """Where the lateral loop sits in a system; ``names``/``states``/``controls`` as a Loop's."""
+    """Where the lateral loop sits in a system; ``names``/``states``/``controls`` as a Loop's.
+
+    ``record`` is the lateral plant's states, the controller outputs that drive its controls,
+    then (if the system has them) the longitudinal states and the earth-axis position.
+    """
 
     plant: str
     controller: str
-    record: tuple[str, ...]  # plant states, then the controller outputs driving its controls
+    record: tuple[str, ...]
     controls: tuple[str, ...]  # the plant inputs that are driven, in CONTROL_NAMES order
     gains: tuple[tuple[int, int, str], ...]  # (control row, state column, K[i,j] name)
+    longitudinal: str | None = None  # the instance with the longitudinal states
+    earth: str | None = None  # the instance with x_earth, y_earth, z_earth
 
     @property
     def states(self) -> tuple[str, ...]:
@@ -61,37 +70,54 @@ class LateralLoop:
         return (*STATE_NAMES, *self.controls)
 
 
-def _lateral_loop(master: Any) -> LateralLoop:
-    from dronefly.harness.system.verdicts import find_plants
+def _instances_with(master: Any, outputs: Sequence[str], starts: bool = True) -> list[str]:
+    """Instances with all these Real outputs (and, if ``starts``, ``*_start``, n and U)."""
+    out = []
+    for inst, fmu in master.fmus.items():
+        v = fmu.variables
+        if all(n in v and v[n].causality == "output" and v[n].type == "Real" for n in outputs) \
+                and (not starts or all(k in v for k in (*(f"{n}_start" for n in outputs),
+                                                        "n", "U"))):
+            out.append(inst)
+    return out
 
-    plants = [p for p in find_plants(master) if set(p.states) == set(STATE_NAMES)]
+
+def _lateral_loop(master: Any) -> LateralLoop:
+    plants = _instances_with(master, STATE_NAMES)
     if len(plants) != 1:
         raise SweepInputError(f"the system {master.system.name!r} has {len(plants)} lateral "
                               f"plants (outputs {', '.join(STATE_NAMES)} with *_start, n and "
                               "U); the sweep needs exactly one")
-    p = plants[0]
-    if p.controller is None:
-        raise SweepInputError(f"no single controller instance drives the inputs of the "
-                              f"lateral plant {p.instance!r}")
+    plant = plants[0]
     cons = master.system.connections
-    drives = {c.input: c.output for c in cons if c.source == p.controller and c.target == p.instance}
-    senses = {c.output: c.input for c in cons if c.source == p.instance and c.target == p.controller}
-    md = master.fmus[p.controller].model_description
+    drives = {c.input: c for c in cons if c.target == plant and c.input in CONTROL_NAMES}
+    sources = {c.source for c in drives.values()}
+    if len(sources) != 1:
+        raise SweepInputError(f"the lateral controls of {plant!r} must be driven by one "
+                              f"controller instance (found {sorted(sources) or 'none'})")
+    ctrl = sources.pop()
+    senses = {c.output: c.input for c in cons if c.source == plant and c.target == ctrl}
+    md = master.fmus[ctrl].model_description
     c_in = [v.name for v in md.modelVariables if v.causality == "input"]
     c_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
     controls = tuple(c for c in CONTROL_NAMES if c in drives)
     gains = []
     for a, u in enumerate(CONTROL_NAMES):
-        for b, s in enumerate(STATE_NAMES):
-            if u in drives and s in senses:
-                name = gain_name(c_out.index(drives[u]), c_in.index(senses[s]))
-                if name not in master.fmus[p.controller].variables:
-                    raise SweepInputError(f"the controller {p.controller!r} has no gain "
-                                          f"parameter {name} (from {s} to {u})")
+        for b, st in enumerate(STATE_NAMES):
+            if u in drives and st in senses:
+                name = gain_name(c_out.index(drives[u].output), c_in.index(senses[st]))
+                if name not in master.fmus[ctrl].variables:
+                    raise SweepInputError(f"the controller {ctrl!r} has no gain parameter "
+                                          f"{name} (from {st} to {u})")
                 gains.append((a, b, name))
-    record = (*(f"{p.instance}.{s}" for s in STATE_NAMES),
-              *(f"{p.controller}.{drives[u]}" for u in controls))
-    return LateralLoop(p.instance, p.controller, record, controls, tuple(gains))
+    lon = _instances_with(master, LONGITUDINAL.state_names)
+    earth = _instances_with(master, EARTH, starts=False)
+    record = (*(f"{plant}.{st}" for st in STATE_NAMES),
+              *(f"{ctrl}.{drives[u].output}" for u in controls),
+              *(f"{lon[0]}.{st}" for st in LONGITUDINAL.state_names[:len(lon) * 4]),
+              *(f"{earth[0]}.{n}" for n in EARTH[:len(earth) * 3]))
+    return LateralLoop(plant, ctrl, record, controls, tuple(gains),
+                       lon[0] if len(lon) == 1 else None, earth[0] if len(earth) == 1 else None)
 
 
 def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
@@ -158,7 +184,8 @@ def run_system_case(ref: SystemRef, case: Any,
     values: dict[str, dict[str, Any]] = {}
     for full, v in case.plant_values:
         inst, _, name = full.partition(".")
-        values.setdefault(inst, {})[name] = v
+        if inst in m.fmus:  # --compare: each system takes the values of its instances
+            values.setdefault(inst, {})[name] = v
     plant = {**m.fmus[loop.plant].start_values(), **m.system.parameters.get(loop.plant, {}),
              **values.get(loop.plant, {})}
     scale = np.array(plant_scales(plant))

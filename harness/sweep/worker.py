@@ -23,6 +23,7 @@ from dronefly.interrupt import pending as interrupt_pending
 from dronefly.lateral import STATE_NAMES, plant_scales
 
 from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line)
+from dronefly.harness.sweep.compare import compare_runs
 from dronefly.harness.sweep.results import (RESULT_COLUMNS)
 from dronefly.harness.sweep.system import (SystemRef, close_systems, open_system,
                                            run_system_case)
@@ -88,7 +89,8 @@ def loop_for(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None
 def warm(refs: tuple) -> None:
     """Open the FMUs (or the system: ``refs = (SystemRef,)``) before any case is timed."""
     if isinstance(refs[0], SystemRef):
-        open_system(refs[0])
+        for ref in refs:
+            open_system(ref)
     else:
         loop_for(refs, (None, None))
 
@@ -148,8 +150,9 @@ def _measure(run: Any, loop: Any, scale: np.ndarray, case: Case) -> dict[str, An
     idx = [loop.names.index(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
     nu = len(loop.controls)
     x = S[:, idx] / scale
+    ns = len(loop.states)
     r = np.abs(np.hstack([x / np.array(STATE_BOUNDS_SECT36),
-                          S[:, len(loop.states):] / CONTROL_BOUND])) / case.scale
+                          S[:, ns:ns + nu] / CONTROL_BOUND])) / case.scale
     out: dict[str, Any] = {"error": "", "t_exit_wb": math.nan}
     peaks = r.max(axis=0) if len(r) else np.full(4 + nu, math.nan)
     out.update({f"peak_{a}": float(v) for a, v in zip(AXES, peaks[:4])})
@@ -197,8 +200,13 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
             if interrupt_pending():  # the command line's deferred Ctrl-C
                 raise KeyboardInterrupt
             t0 = time.perf_counter()
+            extra: dict[str, Any] = {}
             if isinstance(refs[0], SystemRef):
                 run, loop, scale = run_system_case(refs[0], case, data[0])
+                if len(refs) == 2:  # --compare: the same case through the second system
+                    run2, loop2, _ = run_system_case(refs[1], case, data[1])
+                    extra = compare_runs(run, loop, run2, loop2, scale,
+                                         _measure(run2, loop2, scale, case))
             else:
                 loop, p, c, scale = loop_for(refs, data)
                 if case.plant_values:  # n or U may be among them
@@ -215,7 +223,7 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
                                                      for j, v in enumerate(row)}},
                                instances=(p, c))
             loop_s += time.perf_counter() - t0
-            out.append((case.key, _measure(run, loop, scale, case)))
+            out.append((case.key, {**_measure(run, loop, scale, case), **extra}))
         except KeyboardInterrupt:  # Ctrl-C between steps: hand back what is finished
             raise ChunkInterrupted((out, loop_s, time.perf_counter() - t_chunk)) from None
         except Exception as e:  # recorded; the sweep goes on with fresh instances

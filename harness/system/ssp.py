@@ -19,7 +19,8 @@ from fmpy import read_model_description
 from dronefly.files import write_zip
 from dronefly.harness.system.description import System, SystemSpecError
 
-__all__ = ["HOVER", "HOVER_FMUS", "hover_system", "write_system_ssp"]
+__all__ = ["HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS", "hover_system",
+           "write_system_ssp"]
 
 _SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 _SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -29,10 +30,14 @@ ET.register_namespace("ssc", _SSC)
 ET.register_namespace("ssv", _SSV)
 
 HOVER = "DroneFlyHover"
+HOVER_6DOF = "DroneFlyHover6DOF"
 #: instance -> model of the hover system: both axes, each with its controller
 HOVER_FMUS = {"lateral": "DroneFlyLateral", "lateral_controller": "StateFeedback",
               "longitudinal": "DroneFlyLongitudinal",
               "longitudinal_controller": "StateFeedbackLongitudinal"}
+#: the same with the six-degree-of-freedom plant in place of both linear ones
+HOVER_6DOF_FMUS = {"plant": "DroneFlyHover6DOF", "lateral_controller": "StateFeedback",
+                   "longitudinal_controller": "StateFeedbackLongitudinal"}
 
 
 def _xml(root: ET.Element) -> bytes:
@@ -114,32 +119,36 @@ def _ssv(name: str, values: Mapping[str, object]) -> bytes:
 def hover_system(fmus: Mapping[str, str | Path],
                  x0_lateral: Sequence[float] = (0.0, 0.0, 0.0, 0.1),
                  x0_longitudinal: Sequence[float] = (0.0, 0.0, 0.0, 0.1),
-                 stop_wingbeats: float = 300.0) -> System:
-    """Both axes of the hovering drone fly with their controllers: four FMUs.
+                 stop_wingbeats: float = 300.0, nonlinear: bool = False) -> System:
+    """Both axes of the hovering drone fly with their controllers.
 
     Parameters
     ----------
     fmus : mapping
         Model name (``DroneFlyLateral``, ``StateFeedback``, ``DroneFlyLongitudinal``,
-        ``StateFeedbackLongitudinal``) -> FMU path.
+        ``StateFeedbackLongitudinal``, ``DroneFlyHover6DOF``) -> FMU path.
     x0_lateral, x0_longitudinal : sequence of 4 floats
-        Initial non-dimensional states x+ of the two plants (default: a 0.1 rad roll and a
+        Initial non-dimensional states x+ of the two axes (default: a 0.1 rad roll and a
         0.1 rad pitch disturbance).
     stop_wingbeats : float
         Stop time of the SSP's DefaultExperiment, in wing beats.
+    nonlinear : bool
+        The six-degree-of-freedom plant (instance ``plant``) in place of the two linear ones
+        (:data:`HOVER_6DOF_FMUS`): three FMUs, the same controllers.
     """
     from dronefly import lateral, longitudinal
 
-    missing = [m for m in HOVER_FMUS.values() if m not in fmus]
+    models = HOVER_6DOF_FMUS if nonlinear else HOVER_FMUS
+    missing = [m for m in models.values() if m not in fmus]
     if missing:
         raise SystemSpecError(f"the hover system needs the FMUs {', '.join(missing)}")
-    paths = {inst: Path(fmus[model]) for inst, model in HOVER_FMUS.items()}
+    paths = {inst: Path(fmus[model]) for inst, model in models.items()}
     params: dict[str, dict[str, object]] = {}
     for inst, axis, x0 in (("lateral", lateral.LATERAL, x0_lateral),
                            ("longitudinal", longitudinal.LONGITUDINAL, x0_longitudinal)):
         scale = axis.scale_vector(lateral.U_M_PER_S, lateral.N_HZ)
-        params[inst] = {f"{s}_start": float(v) * k
-                        for s, v, k in zip(axis.state_names, x0, scale)}
-    system = System.by_name(paths, parameters=params, name=HOVER)
+        params.setdefault("plant" if nonlinear else inst, {}).update(
+            {f"{s}_start": float(v) * k for s, v, k in zip(axis.state_names, x0, scale)})
+    system = System.by_name(paths, parameters=params, name=HOVER_6DOF if nonlinear else HOVER)
     system.stop_s = stop_wingbeats / lateral.N_HZ
     return system

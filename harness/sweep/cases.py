@@ -41,6 +41,7 @@ from dronefly.harness.sweep.parse import (SweepInputError, one_line, parse_float
 
 __all__ = ["MAX_CASES", "AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
+           "direction_vector",
            "gain_matrix", "parse_floats", "parse_int", "parse_names", "parse_slices"]
 
 #: Cases per sweep at most (rows of sweep.csv, about 1 kB each, and their results in memory).
@@ -76,7 +77,8 @@ def _mode1_direction() -> np.ndarray:
     return v if v[3] >= 0 else -v
 
 
-def _direction(name: str) -> np.ndarray:
+def direction_vector(name: str) -> np.ndarray:
+    """A direction of ``DEFAULT_DIRECTIONS`` (``+dv``, ``-mode1``, ...) in box units."""
     sign = 1.0 if name[0] == "+" else -1.0
     if name[1:] == "mode1":
         return sign * _mode1_direction()
@@ -244,7 +246,7 @@ class SweepSpec:
                 out.append(("lhs", "", math.nan, (2.0 * row - 1.0) * box * self.extent))
         if "directions" in self.disturbances:
             for name in self.directions:
-                d = _direction(name)
+                d = direction_vector(name)
                 for k in range(1, self.amplitudes + 1):
                     a = k / self.amplitudes * self.extent
                     out.append(("direction", name, a, a * d * box))

@@ -11,7 +11,9 @@ one of the plant/controller sweep, on the lateral plant and its controls. Other 
 (for example the longitudinal loop of ``DroneFlyHover.ssp``) run along unchanged.
 
 With a system, a case's ``plant_values`` are the ``--set instance.NAME=VALUE`` settings of
-any instance, as ``("instance.NAME", value)``; they are part of the case key.
+any instance, as ``("instance.NAME", value)``; they are part of the case key. The
+longitudinal states (of the instance that has them) start at zero whatever the SSP's start
+values, unless ``--set`` gives them: a case is a lateral disturbance.
 """
 
 from __future__ import annotations
@@ -186,6 +188,10 @@ def run_system_case(ref: SystemRef, case: Any,
         inst, _, name = full.partition(".")
         if inst in m.fmus:  # --compare: each system takes the values of its instances
             values.setdefault(inst, {})[name] = v
+    if loop.longitudinal:  # the case is a lateral disturbance: no longitudinal one unless set
+        lon = values.setdefault(loop.longitudinal, {})
+        for s in LONGITUDINAL.state_names:
+            lon.setdefault(f"{s}_start", 0.0)
     plant = {**m.fmus[loop.plant].start_values(), **m.system.parameters.get(loop.plant, {}),
              **values.get(loop.plant, {})}
     scale = np.array(plant_scales(plant))

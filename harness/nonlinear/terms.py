@@ -1,0 +1,136 @@
+"""Which dropped rigid-body term breaks the linear theory first? The model, term by term.
+
+The closed loops of the comparison sweep, run on the model classes instead of the FMUs: the
+linear loop (both linear models, exact zero-order hold) and the nonlinear one
+(:class:`dronefly.plant_6dof.model.Hover6DOF`), each with the controls computed from the
+state at every communication point and held over the step (u_k = K x+_k, the Gauss-Seidel
+loop of the co-simulation), from the same initial state. The nonlinear model is run with all
+restored terms, and with each of them (transport, gyroscopic, exact gravity) switched off in
+turn; what remains with all three off is the nonlinear attitude kinematics. The term whose
+removal shrinks the linearisation error most is the one that breaks the linear theory first.
+
+With all terms on, :func:`linearisation_error` is what ``dronefly sweep --compare`` measures
+through the FMUs (a test checks they agree).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from dronefly.controller.law import LONGITUDINAL_GAINS_DESIGN_B, PAPER_GAINS_EQ27
+from dronefly.linear import discretize_zoh
+from dronefly.plant import model as lateral
+from dronefly.plant_6dof.model import TERMS, Hover6DOF, gamma_from_quaternion
+from dronefly.plant_longitudinal import model as longitudinal
+
+from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36, direction_vector
+
+__all__ = ["TermErrors", "VARIANTS", "linearisation_error", "term_errors"]
+
+#: the nonlinear variants compared: all terms, each one off, all off (kinematics only)
+VARIANTS: dict[str, frozenset] = {
+    "all": TERMS,
+    **{f"no {t}": TERMS - {t} for t in sorted(TERMS)},
+    "kinematics only": frozenset(),
+}
+
+
+def _gains() -> tuple[np.ndarray, np.ndarray]:
+    Kl = np.zeros((3, 4))
+    Kl[0] = PAPER_GAINS_EQ27
+    Kn = np.zeros((4, 4))
+    Kn[2] = LONGITUDINAL_GAINS_DESIGN_B
+    return Kl, Kn
+
+
+def linearisation_error(x0_lateral: Sequence[float], *, terms: frozenset = TERMS,
+                        step_wb: float = 1.0, stop_wb: float = 100.0) -> np.ndarray:
+    """Peak over the run of |x_nonlinear - x_linear| / bound per state.
+
+    Parameters
+    ----------
+    x0_lateral : 4 floats
+        Initial non-dimensional lateral state (dv+, dp+, dr+, dgamma); the longitudinal
+        state starts at zero.
+    terms : frozenset
+        Restored rigid-body terms of the nonlinear model.
+    step_wb, stop_wb : float
+        Communication step and stop time, wing beats.
+
+    Returns
+    -------
+    ndarray of 8
+        Lateral (dv, dp, dr, dgamma) then longitudinal (du, dw, dq, dtheta) errors, as
+        fractions of the Sect. 3.6 bounds.
+    """
+    return _errors(x0_lateral, terms, step_wb, stop_wb)[0]
+
+
+def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: float = 1.0,
+            stop_wb: float = 100.0) -> tuple[np.ndarray, float]:
+    """(the errors of :func:`linearisation_error`, the largest sink z_earth [m])."""
+    lp, np_ = lateral.default_parameters(), longitudinal.default_parameters()
+    model = Hover6DOF(lp, np_, terms)
+    Kl, Kn = _gains()
+    A1, B1 = lateral.system_matrices(lp)
+    A2, B2 = longitudinal.system_matrices(np_)
+    P1, G1 = discretize_zoh(A1, B1, step_wb)
+    P2, G2 = discretize_zoh(A2, B2, step_wb)
+    F1, F2 = P1 + G1 @ Kl, P2 + G2 @ Kn
+    g0 = float(x0_lateral[3])
+    x = [0.0, float(x0_lateral[0]), 0.0, float(x0_lateral[1]), 0.0, float(x0_lateral[2]),
+         float(np.cos(g0 / 2)), float(np.sin(g0 / 2)), 0.0, 0.0, 0.0, 0.0, 0.0]
+    lat, lon = np.array(x0_lateral, float), np.zeros(4)
+    bounds = np.array(STATE_BOUNDS_SECT36 * 2)
+    worst, sink = np.zeros(8), 0.0
+    for _ in range(int(round(stop_wb / step_wb))):
+        sink = max(sink, x[12])
+        nl_lat = np.array([x[1], x[3], x[5], gamma_from_quaternion(x[6:10])])
+        theta = float(np.arcsin(np.clip(-2.0 * (x[7] * x[9] - x[6] * x[8]), -1.0, 1.0)))
+        nl_lon = np.array([x[0], x[2], x[4], theta])
+        worst = np.maximum(worst, np.abs(np.concatenate([nl_lat - lat, nl_lon - lon])) / bounds)
+        x = model.step(x, (Kl @ nl_lat).tolist(), (Kn @ nl_lon).tolist(), step_wb)
+        lat, lon = F1 @ lat, F2 @ lon
+    return worst, sink * lateral.U_M_PER_S / lateral.N_HZ
+
+
+@dataclass(frozen=True)
+class TermErrors:
+    """The largest lateral (and longitudinal) linearisation error per variant."""
+
+    direction: str
+    amplitude: float
+    lateral: dict[str, float]
+    longitudinal: dict[str, float]
+
+    altitude_lost_m: dict[str, float]
+
+    @property
+    def contributions(self) -> dict[str, float]:
+        """Lateral error each part accounts for: the kinematics (all terms off), and each
+        restored term (the error with all terms minus the error without it; negative where
+        it cancels part of the others)."""
+        out = {"kinematics": self.lateral["kinematics only"]}
+        out.update({v[len("no "):]: self.lateral["all"] - self.lateral[v]
+                    for v in self.lateral if v.startswith("no ")})
+        return out
+
+    @property
+    def first(self) -> str:
+        """The part with the largest contribution to the lateral error."""
+        c = self.contributions
+        return max(c, key=lambda k: c[k])
+
+
+def term_errors(direction: str, amplitude: float = 1.0, **kw: float) -> TermErrors:
+    """:func:`linearisation_error` of every variant of :data:`VARIANTS` for one initial state:
+    ``amplitude`` (box units) along ``direction`` (``+dr``, ``-mode1``, ...)."""
+    x0 = amplitude * direction_vector(direction) * np.array(STATE_BOUNDS_SECT36)
+    lat, lon, alt = {}, {}, {}
+    for name, terms in VARIANTS.items():
+        e, z = _errors(x0, terms, **kw)
+        lat[name], lon[name], alt[name] = float(e[:4].max()), float(e[4:].max()), z
+    return TermErrors(direction, amplitude, lat, lon, alt)

@@ -86,14 +86,16 @@ def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: floa
     lat, lon = np.array(x0_lateral, float), np.zeros(4)
     bounds = np.array(STATE_BOUNDS_SECT36 * 2)
     worst, sink = np.zeros(8), 0.0
-    for _ in range(int(round(stop_wb / step_wb))):
+    n_steps = int(round(stop_wb / step_wb))
+    for k in range(n_steps + 1):  # every communication point, the last one included
         sink = max(sink, x[12])
         nl_lat = np.array([x[1], x[3], x[5], gamma_from_quaternion(x[6:10])])
         theta = float(np.arcsin(np.clip(-2.0 * (x[7] * x[9] - x[6] * x[8]), -1.0, 1.0)))
         nl_lon = np.array([x[0], x[2], x[4], theta])
         worst = np.maximum(worst, np.abs(np.concatenate([nl_lat - lat, nl_lon - lon])) / bounds)
-        x = model.step(x, (Kl @ nl_lat).tolist(), (Kn @ nl_lon).tolist(), step_wb)
-        lat, lon = F1 @ lat, F2 @ lon
+        if k < n_steps:
+            x = model.step(x, (Kl @ nl_lat).tolist(), (Kn @ nl_lon).tolist(), step_wb)
+            lat, lon = F1 @ lat, F2 @ lon
     return worst, sink * lateral.U_M_PER_S / lateral.N_HZ
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from dronefly.build import FMUS
 from dronefly.cli import main
 from dronefly.harness.compliance.suite import check_fmu
 from fmu_helpers import build_crashing_fmu
@@ -18,9 +19,10 @@ def _status(report) -> dict[str, bool]:
     return {c.name: c.passed for c in report.checks}
 
 
-@pytest.mark.parametrize("model", ["DroneFlyLateral", "StateFeedback"])
+@pytest.mark.parametrize("model", list(FMUS))
 def test_project_fmus_pass(built_fmus, model):
-    """The fuzz itself is tested in test_reliability.py; here once, on the controller."""
+    """Every FMU of the project. The fuzz itself is tested in test_reliability.py (on every
+    FMU); here once, on the controller."""
     report = check_fmu(built_fmus[model], fuzz=model == "StateFeedback")
     assert report.passed, report.checks
     assert ("fuzz" in {c.name for c in report.checks}) == (model == "StateFeedback")

@@ -153,8 +153,7 @@ _CONTAINER_REFUSAL = textwrap.dedent("""
 def test_container_refuses_a_bad_gain_and_the_host_survives(built_fmus, logging):
     """K[1,1] = NaN in the container: the step is refused with a status (and, logging on, a
     message), the host process lives on and exits 0, and a new container instance works.
-    (FMPy's container stays stopped after such a refusal even through fmi2Reset: see
-    docs/fmi-limits.md.)"""
+    (fmi2Reset of the same instance: tests/test_container_reset.py.)"""
     r = subprocess.run([sys.executable, "-c", _CONTAINER_REFUSAL,
                         str(built_fmus["DroneFlyClosedLoop"]), logging],
                        capture_output=True, text=True, timeout=120)

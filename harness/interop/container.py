@@ -15,6 +15,11 @@ Real -> Float64 and Integer -> Int32.) :func:`fix_connection_types` applies the 
 the connections of the configuration fmpy wrote, and nothing else; the JSON is otherwise
 fmpy's own. ``tests/test_interop.py`` checks both that fmpy's output still needs it and that
 the fixed container runs.
+
+pythonfmu 0.7.0 and the container together also stopped the container for good after one
+refused component step, fmi2Reset included: on Linux the nested FMUs' library is pythonfmu's
+behind a small forwarding shim that answers ``fmi2Terminated`` truthfully (see
+:mod:`dronefly.harness.interop.nestedshim`; ``shim=False`` builds without it).
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from fmpy import read_model_description
 from dronefly.files import write_zip
 from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec,
                         parameter_values, reference_scales)
+from dronefly.harness.interop.nestedshim import install_shims
 from dronefly.harness.cosim.master import connect_by_name
 from dronefly.harness.cosim.stability import Identification, identify
 from dronefly.lateral import STATE_NAMES
@@ -139,8 +145,9 @@ def container_configuration(plant: str | Path, controller: str | Path,
                          variableMappings=mappings)
 
 
-def _container_files(config, fix: bool = True) -> dict[str, bytes]:
-    """The container's files, written by fmpy's writers (plus the connection-type fix)."""
+def _container_files(config, fix: bool = True, shim: bool = True) -> dict[str, bytes]:
+    """The container's files, written by fmpy's writers (plus the connection-type fix and the
+    nested FMUs' shim)."""
     import fmpy.container_fmu as cfmu
     from fmpy.model_description import write_model_description
 
@@ -163,6 +170,8 @@ def _container_files(config, fix: bool = True) -> dict[str, bytes]:
             for info in z.infolist():
                 if not info.is_dir():
                     files[f"resources/{Path(comp.filename).stem}/{info.filename}"] = z.read(info)
+    if shim:
+        install_shims(files, config.components)
     # a platform only where the container binary AND every nested FMU can run
     platforms = set.intersection(*nested) if nested else set()
     bins = Path(cfmu.__file__).parent / "binaries"
@@ -190,11 +199,11 @@ class Verdict:
 
 def write_container(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
                     spec: ClosedLoopSpec = ClosedLoopSpec(), *, fix: bool = True,
-                    name: str = CLOSED_LOOP) -> Path:
-    """Write the container FMU ``<name>.fmu``. ``fix=False`` keeps fmpy's connection types
-    (only to show that fmpy's output fails)."""
+                    shim: bool = True, name: str = CLOSED_LOOP) -> Path:
+    """Write the container FMU ``<name>.fmu``. ``fix=False`` keeps fmpy's connection types,
+    ``shim=False`` pythonfmu's bare nested binaries (only to show what each workaround is for)."""
     config = container_configuration(plant, controller, spec)
-    return write_zip(Path(out_dir) / f"{name}.fmu", _container_files(config, fix))
+    return write_zip(Path(out_dir) / f"{name}.fmu", _container_files(config, fix, shim))
 
 
 def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None = None,

@@ -123,10 +123,10 @@ def design(kind: str, inputs: Sequence[str], A: Array | None = None,
     """
     if A is None or B is None:
         A, B = system_matrices(default_parameters())
-    inputs = tuple(inputs)
+    inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)  # a str is one name
     unknown = [u for u in inputs if u not in CONTROL_NAMES]
-    if unknown or not 1 <= len(inputs) <= 2:
-        raise AnalysisInputError(f"inputs {list(inputs)!r}: one or two of "
+    if unknown or not 1 <= len(inputs) <= 2 or len(set(inputs)) < len(inputs):
+        raise AnalysisInputError(f"inputs {list(inputs)!r}: one or two different ones of "
                                  f"{', '.join(CONTROL_NAMES)}")
     t = targets(kind, A)
     cols = [CONTROL_NAMES.index(u) for u in inputs]

@@ -202,7 +202,11 @@ def _longitudinal_quantities(x: dict[str, float]) -> dict[tuple[str, str], float
         A[i, j], B[i, j] = x.get(f"A{i}{j}", A[i, j]), x.get(f"B{i}{j}", B[i, j])
     w, _ = _eig_sorted(A)
     Bn = _modal_B(A, B, (0, 1, 3, 2), (1, 1))
-    q = {("Eq. (31)", "A_nn(3,3)"): w[3].real, ("Eq. (31)", "A_nn(4,4)"): w[2].real}
+    q = {("Eq. (31)", "A_nn(3,3)"): w[3].real, ("Eq. (31)", "A_nn(4,4)"): w[2].real,
+         ("Eq. (31)", "eigenvalue sigma (unstable pair)"): w[0].real,
+         ("Eq. (31)", "eigenvalue omega (unstable pair, +/-)"): w[0].imag,
+         ("Eq. (31)", "eigenvalue fast subsidence"): w[3].real,
+         ("Eq. (31)", "eigenvalue slow subsidence"): w[2].real}
     return q | {("Eq. (32)", f"B_n({i + 1},{j + 1}) [{pv.LONGITUDINAL_CONTROLS[j]}]"): Bn[i, j]
                 for i in range(4) for j in range(4)}
 

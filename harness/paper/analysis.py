@@ -1,14 +1,14 @@
 """Eigen-, modal, controllability and pole-placement analysis (Sects. 3.3-3.5).
 
 Lateral matrices come from :mod:`dronefly.plant.model`; the longitudinal ones
-from the printed A, B of Sect. 3.5 (:mod:`dronefly.harness.paper.values`).
+from the printed A, B of Sect. 3.5 (:mod:`dronefly.plant_longitudinal.model`). The
+modal form lives in :mod:`dronefly.harness.paper.modal` (re-exported here).
 All rates are non-dimensional, per wing beat (t+ = t n); controls in rad.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -16,10 +16,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.signal import place_poles
 
 from dronefly.errors import DroneflyError
-from dronefly.lateral import eigen_order
 from dronefly.plant import model
+from dronefly.plant_longitudinal.model import A_SECT35, B_SECT35
 
-from dronefly.harness.paper import values as pv
+from dronefly.harness.paper.modal import (LATERAL_CONVENTION, LONGITUDINAL_CONVENTION,
+                                          ModalConvention, ModalForm, eigenvector_table,
+                                          modal_decomposition, ordered_eigen)
 
 __all__ = [
     "AnalysisInputError", "LATERAL_CONVENTION", "LONGITUDINAL_CONVENTION", "ModalConvention",
@@ -48,109 +50,7 @@ def lateral_system(params: model.LateralParameters | None = None) -> tuple[Array
 
 def longitudinal_system() -> tuple[Array, Array]:
     """A (4x4) and B (4x4) of Sect. 3.5 as printed (state du+, dw+, dq+, dtheta)."""
-    return (np.array([[float(t) for t in r] for r in pv.SECT35_A]),
-            np.array([[float(t) for t in r] for r in pv.SECT35_B]))
-
-
-def ordered_eigen(A: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-    """Eigenvalues and eigenvectors by descending real part, sigma + i omega before its conjugate."""
-    w, V = np.linalg.eig(np.asarray(A, dtype=float))
-    o = eigen_order(w)
-    return w[o], V[:, o]
-
-
-@dataclass(frozen=True)
-class ModalConvention:
-    """How the eigenvector matrix M = [eta_1, f eta_2, f eta_3, eta_4] is scaled (Eq. 14).
-
-    Attributes
-    ----------
-    order : tuple of int
-        Positions, in :func:`ordered_eigen` order, of the modes in M; a complex
-        pair occupies two consecutive slots (the sigma + i omega eigenvector).
-    norm : {"unit", "last"}
-        "unit": each eigenvector has 2-norm 1 and a complex one is rotated so its
-        largest-modulus component is real and positive (LAPACK ``geev``);
-        "last": the last state component is 1 (Table 3: dgamma = 1).
-    real_signs : tuple of int
-        For "unit": sign of the largest-modulus component of each real eigenvector, in M order.
-    pair_factor : float
-        f, the factor of the real and imaginary parts of a complex pair (2 in Eq. 14).
-    """
-
-    order: tuple[int, ...]
-    norm: str = "unit"
-    real_signs: tuple[int, ...] = ()
-    pair_factor: float = 2.0
-
-
-#: The scaling that reproduces Eqs. (19)-(20): unit 2-norm, eta_1 with dgamma < 0.
-LATERAL_CONVENTION = ModalConvention(order=(0, 1, 2, 3), real_signs=(-1, 1))
-#: The scaling that reproduces Eq. (32): pair, fast subsidence, slow subsidence.
-LONGITUDINAL_CONVENTION = ModalConvention(order=(0, 1, 3, 2), real_signs=(1, 1))
-
-
-@dataclass(frozen=True)
-class ModalForm:
-    """Modal form, Eqs. (15)-(18): x = M xi, xi' = A_nn xi + B_n u."""
-
-    M: Array
-    A_nn: Array
-    B_n: Array
-    eigenvalues: NDArray[np.complex128]
-
-
-def _normalise(v: NDArray[np.complex128], conv: ModalConvention, sign: int) -> NDArray[np.complex128]:
-    if conv.norm == "last":
-        return v / v[-1]
-    v = v / np.linalg.norm(v)
-    big = v[np.argmax(np.abs(v))]
-    return v * (abs(big) / big) * (sign if abs(v.imag).max() == 0.0 else 1)
-
-
-def modal_decomposition(A: ArrayLike, B: ArrayLike, conv: ModalConvention = LATERAL_CONVENTION) -> ModalForm:
-    """M1, A_lnn = M1^-1 A M1 and B_ln = M1^-1 B (Eqs. 14, 17, 18).
-
-    The columns of a complex pair eta_2 +/- i eta_3 are ``f Re(v), f Im(v)`` with v the
-    eigenvector of sigma + i omega, which puts +omega at A_nn[1, 2] (0-based).
-    """
-    A = np.asarray(A, dtype=float)
-    w, V = ordered_eigen(A)
-    cols: list[Array] = []
-    signs = iter(conv.real_signs)
-    slot = 0
-    while slot < len(conv.order):
-        j = conv.order[slot]
-        if abs(w[j].imag) > 0.0:
-            v = _normalise(V[:, j], conv, 1)
-            cols += [conv.pair_factor * v.real, conv.pair_factor * v.imag]
-            slot += 2
-        else:
-            cols.append(_normalise(V[:, j], conv, next(signs, 1)).real)
-            slot += 1
-    M = np.column_stack(cols)
-    Minv = np.linalg.inv(M)
-    return ModalForm(M, Minv @ A @ M, Minv @ np.asarray(B, dtype=float), w[list(conv.order)])
-
-
-def eigenvector_table(A: ArrayLike) -> tuple[NDArray[np.complex128], Array, Array]:
-    """Table 3: eigenvectors of modes 1, 2 (sigma + i omega), 3 with dgamma = 1.
-
-    Returns
-    -------
-    eigenvalues : (3,) complex ndarray
-    magnitude : (4, 3) ndarray
-        Moduli of the components (non-dimensional).
-    phase_deg : (4, 3) ndarray
-        Phases in degrees, wrapped to (-180, 180].
-    """
-    w, V = ordered_eigen(A)
-    idx = [0, 1, 3]
-    E = V[:, idx] / V[-1, idx]
-    ph = np.degrees(np.angle(E))
-    ph[ph <= -180.0 + 1e-9] += 360.0
-    ph += 0.0  # no negative zero
-    return w[idx], np.abs(E), ph
+    return np.array(A_SECT35, dtype=float), np.array(B_SECT35, dtype=float)
 
 
 def input_index(name: str, names: Sequence[str] = model.CONTROL_NAMES) -> int:

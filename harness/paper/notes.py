@@ -79,6 +79,13 @@ class Notes:
             return ("Round trip: model.py recovers the stability derivatives from Eq. (12) and the Sect. 2.1 "
                     "inertias and rebuilds A1 by Eq. (10); this checks that inversion, not an independent "
                     "source." + (" Eq. (24) reprints Eq. (12)." if src == "Eq. (24)" else ""))
+        if src == "Sect. 3.5":
+            return ("Round trip: plant_longitudinal/model.py recovers the derivatives from the printed A and "
+                    "B with m+ (Sect. 2.1) and Iy+ (Sect. 2.4's Iy scaled as the printed Ix+), g+ = -A(1,4), "
+                    "and rebuilds A and B; this checks that inversion, not an independent source.")
+        if src == "Eq. (31)" and qty.startswith("eigenvalue"):
+            return ("eig(A) of the longitudinal plant, convention-free; Eq. (31) prints the eigenvalues as "
+                    "A_nn's diagonal and the pair's off-diagonal.")
         if src == "Table 3":
             parts = []
             if qty == "|dp+| mode 2":

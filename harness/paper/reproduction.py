@@ -1,7 +1,8 @@
-"""The reproduction table: every printed number of Tables 2-3 and Eqs. (12)-(32).
+"""The reproduction table: every printed number of Tables 2-3, Eqs. (12)-(32) and Sect. 3.5.
 
-Each row compares a printed value with the value computed from the model module
-(lateral) or from the printed longitudinal A, B of Sect. 3.5. ``match`` means
+Each row compares a printed value with the value computed from the plants' model modules:
+the lateral one, and the longitudinal one, which recovers its derivatives from the printed
+A, B of Sect. 3.5 (with m+ and Iy+) and rebuilds them. ``match`` means
 |computed - printed| <= half a unit in the last printed digit. A mismatch gets a
 reason ("convention", "rounding", "error in print") and a note. "Rounding" is
 decided, never assumed: every printed input (Eq. 12 and Sect. 3.5 to 4 decimals,
@@ -19,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from dronefly.plant import model
+from dronefly.plant_longitudinal import model as lon_model
 
 from dronefly.harness.paper import values as pv
 from dronefly.harness.paper.notes import Notes
@@ -84,7 +86,10 @@ def _longitudinal_ctx(x: np.ndarray) -> Ctx:
     for (name, _, _), v in zip(longitudinal_inputs(), x):
         i, j = int(name[2]) - 1, int(name[4]) - 1
         (A if name[0] == "A" else B)[i, j] = v
-    return _ctx(A, B, None, LONGITUDINAL_CONVENTION)
+    # the longitudinal plant's A and B: derivatives recovered from the printed A, B, g+ = -A(1,4)
+    params = lon_model.default_parameters().with_values(g_plus=-A[0, 3],
+                                                        **lon_model.derive_derivatives(A, B))
+    return _ctx(*lon_model.system_matrices(params), None, LONGITUDINAL_CONVENTION)
 
 
 def _intervals(ctx_of: Callable[[np.ndarray], Ctx], inputs: list[tuple[str, float, float]],
@@ -140,7 +145,15 @@ def _lateral_specs() -> list[tuple[str, str, str, int | None, Callable[[Ctx], fl
 
 
 def _longitudinal_specs() -> list[tuple[str, str, str, int | None, Callable[[Ctx], float]]]:
-    S = [("Eq. (31)", f"A_nn({i + 1},{j + 1})", pv.EQ31_A_NN[i][j], 4, lambda c, i=i, j=j: c["Ann"][i, j])
+    S: list = [("Sect. 3.5", f"{m}({i + 1},{j + 1})" + (f" [{pv.LONGITUDINAL_CONTROLS[j]}]" if m == "B" else ""),
+                tab[i][j], pv.SECT35_DECIMALS, lambda c, m=m, i=i, j=j: c[m][i, j])
+               for m, tab in (("A", pv.SECT35_A), ("B", pv.SECT35_B)) for i in range(4) for j in range(4)]
+    ev = pv.EQ31_EIGENVALUES  # eig(A) ordered: the pair (sigma + i omega first), slow, fast
+    S += [("Eq. (31)", "eigenvalue sigma (unstable pair)", ev["sigma"], None, lambda c: c["w"][0].real),
+          ("Eq. (31)", "eigenvalue omega (unstable pair, +/-)", ev["omega"], None, lambda c: c["w"][0].imag),
+          ("Eq. (31)", "eigenvalue fast subsidence", ev["fast"], None, lambda c: c["w"][3].real),
+          ("Eq. (31)", "eigenvalue slow subsidence", ev["slow"], None, lambda c: c["w"][2].real)]
+    S += [("Eq. (31)", f"A_nn({i + 1},{j + 1})", pv.EQ31_A_NN[i][j], 4, lambda c, i=i, j=j: c["Ann"][i, j])
          for i in range(4) for j in range(4)]
     S += [("Eq. (32)", f"B_n({i + 1},{j + 1}) [{pv.LONGITUDINAL_CONTROLS[j]}]", pv.EQ32_B_N[i][j], 4,
            lambda c, i=i, j=j: c["Bn"][i, j]) for i in range(4) for j in range(4)]

@@ -4,7 +4,9 @@ Every number is stored once, as the text printed in the paper (so that its
 rounding, half a unit in the last printed digit, is known), with its source.
 ``"a×10^-n"`` is written ``"ae-n"``. The lateral system matrix of Eq. (12) lives
 in :mod:`dronefly.plant.model` (``A1_EQ12``) and Eq. (24) reprints it verbatim,
-so it is imported, not repeated. A number that appears in two equations (e.g.
+so it is imported, not repeated; likewise Sect. 3.5's longitudinal A and B live in
+:mod:`dronefly.plant_longitudinal.model` (``A_SECT35``, ``B_SECT35``) and are formatted
+here as printed (4 decimals; a printed 0 or 1 as such). A number that appears in two equations (e.g.
 0.4993 in Eq. 24 and Eq. 26) is two printed numbers and is checked twice.
 
 Layout conventions: matrices are tuples of rows; Table 3 is indexed
@@ -17,13 +19,15 @@ import math
 from decimal import Decimal
 
 from dronefly.controller.law import PAPER_GAINS_EQ27
+from dronefly.longitudinal import CONTROL_NAMES
 from dronefly.plant.model import A1_EQ12
+from dronefly.plant_longitudinal.model import A_SECT35, B_SECT35
 
 __all__ = [
     "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
     "EQ24_B_COLUMN", "EQ26", "EQ26_ABSENT", "EQ27_GAINS", "ERRATA",
-    "EQ31_A_NN", "EQ32_B_N", "LONGITUDINAL_CONTROLS", "LONGITUDINAL_STRUCTURAL",
-    "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE",
+    "EQ31_A_NN", "EQ31_EIGENVALUES", "EQ32_B_N", "LONGITUDINAL_CONTROLS",
+    "LONGITUDINAL_STRUCTURAL", "SECT21_DECIMALS", "SECT35_A", "SECT35_B", "SECT35_DECIMALS", "TABLE1_DECIMALS", "TABLE2", "TABLE3_MAGNITUDE",
     "TABLE3_PHASE_DEG",
     "eq27_targets", "half_unit", "table2_eigenvalues",
 ]
@@ -78,19 +82,23 @@ EQ26_ABSENT = {("b", 4): "0.0000", ("e", 2): "0.000000000"}
 #: the controller's law module (the FMU's default gains), so they are formatted, not repeated.
 EQ27_GAINS = tuple(f"{k:.4f}" for k in PAPER_GAINS_EQ27)
 
-#: Sect. 3.5: longitudinal system matrix A (state du+, dw+, dq+, dtheta; Ref. [17]).
-SECT35_A = (("-0.0134", "0.0011", "-0.0025", "-0.0158"),
-            ("-0.0006", "-0.0122", "-0.0003", "0"),
-            ("0.0895", "-0.0062", "-0.0098", "0"),
-            ("0", "0", "1", "0"))
-#: Sect. 3.5: longitudinal control matrix B (columns in the order of Eq. 30).
-SECT35_B = (("0", "0.0009", "-0.0022", "-0.0321"),
-            ("-0.0180", "-0.0266", "0", "-0.0001"),
-            ("0.0011", "0.0013", "-0.1556", "0.0247"),
-            ("0", "0", "0", "0"))
+#: Sect. 3.5 prints A and B to 4 decimals (0 and 1 bare).
+SECT35_DECIMALS = 4
+
+
+def _as_printed(matrix: tuple[tuple[float, ...], ...]) -> tuple[tuple[str, ...], ...]:
+    return tuple(tuple(f"{v:g}" if v in (0.0, 1.0) else f"{v:.{SECT35_DECIMALS}f}" for v in row)
+                 for row in matrix)
+
+
+#: Sect. 3.5: longitudinal system matrix A (state du+, dw+, dq+, dtheta; Ref. [17]), as printed.
+SECT35_A = _as_printed(A_SECT35)
+#: Sect. 3.5: longitudinal control matrix B (columns in the order of Eq. 30), as printed.
+SECT35_B = _as_printed(B_SECT35)
 #: Eq. (30) control vector order; the text lists dPhi, dphi_bar, dalpha1, dalpha2,
-#: but B_n's rows (slow subsidence ~ B row 2) show that B uses Eq. (30)'s order.
-LONGITUDINAL_CONTROLS = ("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2")
+#: but B_n's rows (slow subsidence ~ B row 2) show that B uses Eq. (30)'s order. The names
+#: live in the plant's interface (:mod:`dronefly.longitudinal`).
+LONGITUDINAL_CONTROLS = CONTROL_NAMES
 #: Structural entries of the longitudinal A (dtheta' = dq; no theta in w, q rows)
 #: and B (no control in the dtheta row), 0-based; all other entries are rounded.
 LONGITUDINAL_STRUCTURAL = {"A": ((1, 3), (2, 3), (3, 0), (3, 1), (3, 2), (3, 3)),
@@ -101,6 +109,10 @@ EQ31_A_NN = (("0.0481", "-0.0977", "0", "0"),
              ("0.0977", "0.0481", "0", "0"),
              ("0", "0", "-0.1195", "0"),
              ("0", "0", "0", "-0.0123"))
+#: The longitudinal eigenvalues as Eq. (31) prints them (its diagonal and the pair's omega):
+#: sigma +/- i omega (unstable oscillatory mode), fast and slow subsidence.
+EQ31_EIGENVALUES = {"sigma": EQ31_A_NN[0][0], "omega": EQ31_A_NN[1][0], "fast": EQ31_A_NN[2][2],
+                    "slow": EQ31_A_NN[3][3]}
 #: Eq. (32): longitudinal modal control matrix B_n.
 EQ32_B_N = (("0.0004", "-0.0008", "-0.2201", "0.0742"),
             ("0.0055", "0.0092", "-0.4312", "0.0012"),

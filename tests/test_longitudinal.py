@@ -111,6 +111,12 @@ def test_model_equations_structure(AB):
     assert d["Z_alpha_1_plus"] == pytest.approx(B[1, 1] * 92.7, rel=1e-15)
 
 
+def _inertia_scale() -> float:
+    """0.5 rho U^2 S_t c t_w^2 [kg m^2] of Sect. 2.1 from Sect. 2.4's data (rho = 1.25 kg/m^3,
+    U = 2 Phi n r2, S_t two wings of 33.34 mm^2, c = 2.98 mm, t_w = 1/n)."""
+    return 0.5 * 1.25 * _reference_U()**2 * 2 * 33.34e-6 * 2.98e-3 / 164.0**2
+
+
 def test_iy_plus_is_iy_in_the_paper_s_nondimensionalisation(paper):
     """Iy+ = Iy Ix+ / Ix with Ix, Iy of Sect. 2.4 and the printed Ix+ (Sect. 2.1).
 
@@ -125,11 +131,7 @@ def test_iy_plus_is_iy_in_the_paper_s_nondimensionalisation(paper):
     iz_plus = re.search(r"I_\{z\}\^\{\+\}=([0-9.]+)", s21).group(1)
     assert IY_PLUS == pytest.approx(mg_mm2["y"] / mg_mm2["x"] * float(ix_plus), rel=1e-15)
     assert f"{IY_PLUS:.3f}" == "19.895"
-    n, phi = 164.0, math.radians(107.1)
-    R, c, S = 11.2e-3, 2.98e-3, 33.34e-6
-    U = 2 * phi * n * 0.55 * R
-    q = 0.5 * 1.25 * U**2 * 2 * S * c / n**2
-    raw = {k: v * 1e-12 / q for k, v in mg_mm2.items()}
+    raw = {k: v * 1e-12 / _inertia_scale() for k, v in mg_mm2.items()}
     fx = float(ix_plus) / raw["x"]
     fz = float(iz_plus) / raw["z"]
     # both printed inertias sit the same factor above the raw ones, within their rounding
@@ -604,3 +606,106 @@ def test_a_single_input_name_is_one_input():
     """A str is a Sequence[str]: design("mirror", "delta_phibar") is the delta_phibar design."""
     assert_allclose(lon.design("mirror", "delta_phibar").K[PHIBAR], L.LONGITUDINAL_GAINS_DESIGN_B,
                     rtol=0, atol=1e-12)
+
+
+# --- docs/longitudinal.md -------------------------------------------------------------------------
+def _table(text: str, header: str) -> list[list[str]]:
+    """The body rows of the Markdown table whose header line starts with ``header``."""
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith(header))
+    rows = []
+    for ln in lines[i + 2:]:
+        if not ln.startswith("|"):
+            break
+        rows.append([c.strip() for c in ln.strip("|").split("|")])
+    return rows
+
+
+def _key(design: str, inputs: str) -> tuple[str, tuple[str, ...]]:
+    kind = {"(a) neutral": "neutral", "(b) mirror": "mirror"}[design]
+    return kind, tuple(s.strip() for s in inputs.split("+"))
+
+
+def _close(token: str, value: float) -> None:
+    """``token`` is ``value`` to the digits printed (half a unit of the last one)."""
+    assert abs(float(token) - value) <= _half_unit(token) + 1e-12, (token, value)
+
+
+def _eigenvalues(cell: str) -> list[complex]:
+    out = []
+    for part in cell.split(","):
+        m = re.fullmatch(r"\s*(-?[0-9.]+)(?: ± ([0-9.]+)i)?\s*", part)
+        assert m, part
+        out.append((m.group(1), m.group(2)))
+    return out
+
+
+def test_doc_numbers_are_the_designs(designs):
+    """Every number of docs/longitudinal.md's three tables against designs(), to its digits."""
+    text = DOC.read_text(encoding="utf-8")
+    gains = _table(text, "| design | inputs | row |")
+    assert len(gains) == 6
+    for design, inputs, row, *ks in gains:
+        d = designs[_key(design, inputs)]
+        for token, k in zip(ks, d.K[CONTROLS.index(row)], strict=True):
+            _close(token, k)
+    covered = {(_key(r[0], r[1]), r[2]) for r in gains}
+    nonzero = {(key, CONTROLS[i]) for key, d in designs.items() for i in range(4) if d.K[i].any()}
+    assert covered == nonzero
+    eig = _table(text, "| design | inputs | closed-loop eigenvalues |")
+    assert len(eig) == 4
+    for design, inputs, cell, norm, pp, knv in eig:
+        d = designs[_key(design, inputs)]
+        got = [z for z in d.eigenvalues if z.imag >= 0]  # one of each pair
+        printed = _eigenvalues(cell)
+        assert len(printed) == len(got) == 3
+        for (re_, im), z in zip(printed, sorted(got, key=lambda z: (-abs(z.imag), -z.real))):
+            _close(re_, z.real)
+            _close(im or "0", z.imag)
+        _close(norm, np.linalg.norm(d.K))
+        assert pp.startswith("< ") and np.abs(d.place_poles_K - d.K).max() < float(pp[2:])
+        if d.knv_K is None:
+            assert knv == "-"
+        else:
+            _close(knv, np.linalg.norm(d.knv_K))
+    peaks = _table(text, "| design | inputs | du+ = 1 |")
+    assert {_key(r[0], r[1]) for r in peaks} == set(designs) == {_key(r[0], r[1]) for r in eig}
+    for design, inputs, *ps in peaks:
+        for token, p in zip(ps, designs[_key(design, inputs)].peak_control_rad, strict=True):
+            _close(token, p)
+
+
+def test_doc_numbers_of_the_text(designs, AB):
+    """The prose: open-loop eigenvalues, Iy+, the two-input ratios, gain savings, KNV factors."""
+    text = " ".join(DOC.read_text(encoding="utf-8").split())
+    A, B = AB
+    w = np.linalg.eigvals(A)
+    pair = w[np.argmax(w.imag)]
+    m = re.search(r"per wing beat: (\S+) ± (\S+)i \(unstable oscillation, doubling in about (\d+) "
+                  r"wing beats\), (\S+) \(slow subsidence\) and (\S+) \(fast", text)
+    _close(m.group(1), pair.real)
+    _close(m.group(2), pair.imag)
+    assert round(math.log(2) / pair.real) == int(m.group(3))
+    real = sorted(z.real for z in w if abs(z.imag) < 1e-14)
+    _close(m.group(4), real[1])
+    _close(m.group(5), real[0])
+    _close(re.search(r"x 10\.00 = ([0-9.]+)", text).group(1), IY_PLUS)
+    _close(re.search(r"give Ix\+ = ([0-9.]+)", text).group(1), 657.7e-12 / _inertia_scale())
+    _close(re.search(r"the raw value would be ([0-9.]+)", text).group(1), 1308.5e-12 / _inertia_scale())
+    _close(re.search(r"both ([0-9.]+) times their raw values", text).group(1),
+           10.00 / (657.7e-12 / _inertia_scale()))
+    m = re.search(r"`delta_alpha_2` is (\S+) \(a\) or (\S+) \(b\) times", text)
+    for token, kind in zip(m.groups(), ("neutral", "mirror")):
+        K = designs[(kind, ("delta_phibar", "delta_alpha_2"))].K
+        _close(token, K[ALPHA2, 0] / K[PHIBAR, 0])
+    for kind in ("neutral", "mirror"):  # "saves only about 1 % of the gain"
+        one = np.linalg.norm(designs[(kind, ("delta_phibar",))].K)
+        two = np.linalg.norm(designs[(kind, ("delta_phibar", "delta_alpha_2"))].K)
+        assert 0.005 < 1 - two / one < 0.015
+    m = re.search(r"about ([0-9.]+) to ([0-9.]+) times larger", text)
+    factors = sorted(np.linalg.norm(d.knv_K) / np.linalg.norm(d.K) for d in designs.values()
+                     if d.knv_K is not None)
+    assert float(m.group(1)) == round(factors[0], 1) and float(m.group(2)) == round(factors[1])
+    m = re.search(r"0\.1 rad \(6 degrees\) needs at most ([0-9.]+) rad", text)
+    _close(m.group(1), 0.1 * designs[("mirror", ("delta_phibar",))].peak_control_rad[3])
+    assert "B[3,3] = -0.1556 against B[3,4] = 0.0247" in text and round(B[2, 2] / B[2, 3]) == -6

@@ -1,18 +1,26 @@
 """Benchmark: microseconds per closed-loop communication step.
 
 Measures, in one run, interleaved repeat by repeat (so that the machine's noise hits all
-three alike):
+alike):
   ours    DroneFlyLateral + StateFeedback through the harness master (harness.cosim.master.Loop)
   master  do-nothing pythonfmu FMUs with the same interface through the same master
   floor   the same six FMI calls per step on the do-nothing FMUs, no master, no recording
+  pair    the lateral pair through the pair master (Loop.run) and through the system master
+          (harness.system.master.SystemMaster), Gauss-Seidel, fresh instances in both
+  systems 2, 3 and 4 FMUs through the system master: the lateral pair; the pair and the
+          longitudinal plant in open loop; the hover system (both axes with their controllers)
 Prints medians and the ratios ours/floor (target <= 1.5: everything we add, FMU code and
-master, over the unavoidable FMI calls) and master/floor (what the master alone adds).
+master, over the unavoidable FMI calls), master/floor (what the master alone adds),
+SystemMaster/Loop for the pair (target <= 1.05), and per system the cost per step (a run of
+N steps less a run of 1 step, over N - 1: without instantiation), the FMI calls per step
+(counted) and the cost per FMI call.
 Usage: python benchmarks/run.py [--steps N] [--repeats R]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
 import tempfile
@@ -69,36 +77,122 @@ def _time_bare(p, c, steps: int) -> float:
     return (time.perf_counter() - t0) / steps * 1e6
 
 
+def _time_run(run, steps: int) -> float:
+    """Wall time of ``run(steps)`` [s]; the run must be complete."""
+    t0 = time.perf_counter()
+    result = run(steps)
+    elapsed = time.perf_counter() - t0
+    assert result.complete, result.failure
+    return elapsed
+
+
+def _fmi_calls_per_step(run, steps: int = 50) -> float:
+    """FMI calls per communication step of ``run``, counted on every fmpy FMI call
+    (the calls of a run of 2 x steps less those of a run of steps)."""
+    from fmpy.fmi1 import _FMU
+
+    real, count = _FMU._call, [0]
+
+    def counting(self, fname, *args):
+        count[0] += 1
+        return real(self, fname, *args)
+
+    _FMU._call = counting
+    try:
+        calls = []
+        for n in (steps, 2 * steps):
+            count[0] = 0
+            run(n)
+            calls.append(count[0])
+    finally:
+        _FMU._call = real
+    return (calls[1] - calls[0]) / steps
+
+
+def _systems(fmus: dict[str, Path]) -> dict[int, object]:
+    """Systems of 2, 3 and 4 FMUs: the lateral pair, the pair and the open-loop longitudinal
+    plant, the hover system (instances and initial states of ``hover_system``)."""
+    from dronefly.harness.system.description import System
+    from dronefly.harness.system.ssp import hover_system
+
+    hover = hover_system(fmus)
+    out: dict[int, object] = {}
+    for n, keep in ((2, ("lateral", "lateral_controller")),
+                    (3, ("lateral", "lateral_controller", "longitudinal")), (4, tuple(hover.fmus))):
+        out[n] = System({i: hover.fmus[i] for i in keep},
+                        [c for c in hover.connections if c.source in keep and c.target in keep],
+                        {i: v for i, v in hover.parameters.items() if i in keep})
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=9)
     args = ap.parse_args(argv)
+    if args.steps < 2 or args.repeats < 1:
+        ap.error("--steps must be >= 2 and --repeats >= 1")
     from dronefly.harness.cosim.fmu import FMU
     from dronefly.harness.cosim.master import Loop
+    from dronefly.harness.system.master import SystemMaster
 
-    times: dict[str, list[float]] = {"ours": [], "master": [], "floor": []}
-    with tempfile.TemporaryDirectory() as tmp:
+    h, N = 0.1 / 164.0, args.steps
+    times: dict[str, list[float]] = {}
+    with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
         fmus = _build(Path(tmp))
-        with FMU(fmus["DroneFlyLateral"]) as P, FMU(fmus["StateFeedback"]) as C, \
-                FMU(fmus["NullPlant"]) as NP, FMU(fmus["NullController"]) as NC, \
-                P.instantiate(logging=False) as p, C.instantiate(logging=False) as c, \
-                NP.instantiate(logging=False) as np_, NC.instantiate(logging=False) as nc:
-            ours, null = Loop(P, C), Loop(NP, NC)
-            for _ in range(args.repeats):
-                times["ours"].append(_time_loop(ours, p, c, args.steps))
-                times["master"].append(_time_loop(null, np_, nc, args.steps))
-                times["floor"].append(_time_bare(np_, nc, args.steps))
+        P, C, NP, NC = (stack.enter_context(FMU(fmus[m])) for m in (
+            "DroneFlyLateral", "StateFeedback", "NullPlant", "NullController"))
+        p, c, np_, nc = (stack.enter_context(f.instantiate(logging=False)) for f in (P, C, NP, NC))
+        ours, null = Loop(P, C), Loop(NP, NC)
+        systems = _systems(fmus)
+        sm = {n: stack.enter_context(SystemMaster(systems[n])) for n in systems}
+        x0 = systems[2].parameters["lateral"]
+        # the pair master and the system master: whole runs with fresh instances (both
+        # instantiate their FMUs), of N steps and of 1 step (the difference has no set-up).
+        # The pair master gets FMUs of its own so that, as for the system master, no live
+        # instance keeps their libraries loaded between runs (p and c do for P and C).
+        pair = Loop(*(stack.enter_context(FMU(fmus[m])) for m in ("DroneFlyLateral",
+                                                                   "StateFeedback")))
+        runs = {"loop": lambda n: pair.run(h, n, plant_start=x0),
+                **{f"sys{k}": (lambda n, m=m: m.run(h, n)) for k, m in sm.items()}}
+        assert pair.names == [v.partition(".")[2] for v in sm[2].names]  # the same recording
+        for run in runs.values():  # warm up (imports, first instantiation)
+            _time_run(run, 2)
+        for r in range(args.repeats):
+            times.setdefault("ours", []).append(_time_loop(ours, p, c, N))
+            times.setdefault("master", []).append(_time_loop(null, np_, nc, N))
+            times.setdefault("floor", []).append(_time_bare(np_, nc, N))
+            for key in (list(runs) if r % 2 == 0 else list(runs)[::-1]):
+                for n in (N, 1):
+                    times.setdefault(f"{key}/{n}", []).append(_time_run(runs[key], n))
+        calls = {key: _fmi_calls_per_step(run) for key, run in runs.items()}
     med = {k: statistics.median(v) for k, v in times.items()}
     print(f"closed-loop communication step, median of {args.repeats} interleaved repeats x "
-          f"{args.steps} steps [us/step]")
+          f"{N} steps [us/step]")
     print(f"  ours   (DroneFlyLateral + StateFeedback, harness master): {med['ours']:8.2f}")
     print(f"  master (do-nothing pythonfmu FMUs, harness master):       {med['master']:8.2f}")
     print(f"  floor  (do-nothing FMUs, the six FMI calls, no master):   {med['floor']:8.2f}")
     ratio = med["ours"] / med["floor"]
     print(f"ratio ours/floor = {ratio:.2f} (target <= 1.5); "
           f"master alone: master/floor = {med['master'] / med['floor']:.2f}")
-    return 0 if ratio <= 1.5 else 1
+    # us per step: of a whole run (/ N), and without set-up ((N steps - 1 step) / (N - 1))
+    whole = {k: med[f"{k}/{N}"] / N * 1e6 for k in runs}
+    step = {k: (med[f"{k}/{N}"] - med[f"{k}/1"]) / (N - 1) * 1e6 for k in runs}
+    ratio_pair = whole["sys2"] / whole["loop"]
+    print(f"\nlateral pair, Gauss-Seidel, fresh instances per run, {N} steps [us/step]")
+    for key, label in (("loop", "Loop         (harness.cosim.master): "),
+                       ("sys2", "SystemMaster (harness.system.master):")):
+        print(f"  {label} {whole[key]:8.2f} whole run, {step[key]:8.2f} per step without set-up")
+    print(f"ratio SystemMaster/Loop = {ratio_pair:.3f} (target <= 1.05); per step without set-up "
+          f"{step['sys2'] / step['loop']:.3f}")
+    print("\nsystems through SystemMaster, per step without set-up")
+    print("  FMUs  us/step  FMI calls/step  us/FMI call  step cost / pair's")
+    for n in sm:
+        k = f"sys{n}"
+        print(f"  {n:4d} {step[k]:8.2f} {calls[k]:15.1f} {step[k] / calls[k]:12.2f} "
+              f"{step[k] / step['sys2']:19.2f}")
+    print(f"  (the pair through Loop: {calls['loop']:.1f} FMI calls per step)")
+    return 0 if ratio <= 1.5 and ratio_pair <= 1.05 else 1
 
 
 if __name__ == "__main__":

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from ctypes import c_double, c_uint
+from ctypes import c_double, c_int, c_uint
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -41,14 +41,31 @@ class _Node:
         self.out_names = outputs
         self.out_vr = (c_uint * len(outputs))(*[fmu.vr(n) for n in outputs])
         self.out = (c_double * len(outputs))()
+        self.at = 0  # where ``out`` starts in the buffer of every output (see ``place``)
         self.in_real: list[tuple[int, "_Node", int]] = []  # (vr, source node, source index)
         self.in_other: list[tuple[str, int, "_Node", int]] = []  # (type, vr, node, index)
         self.inst: Any = None
 
-    def finish(self) -> None:
+    def place(self, every_out: Any, at: int) -> None:
+        """Make ``out`` a view of ``every_out`` from ``at`` on (one buffer for all outputs)."""
+        self.at = at
+        self.out = (c_double * len(self.out_names)).from_buffer(every_out, 8 * at)
+
+    def finish(self, every_out: Any) -> None:
+        """Input buffers; inputs that are one run of ``every_out`` read it in place (no copy)."""
+        real = sorted(self.in_real, key=lambda r: r[1].at + r[2])
+        where = [node.at + i for _, node, i in real]
+        if where and where == list(range(where[0], where[0] + len(where))):
+            self.in_real = real
+            self.in_buf = (c_double * len(real)).from_buffer(every_out, 8 * where[0])
+            self.in_src: list[tuple[Any, int]] = []
+        else:
+            self.in_buf = (c_double * len(self.in_real))()
+            self.in_src = [(node.out, i) for _, node, i in self.in_real]
         self.in_vr = (c_uint * len(self.in_real))(*[vr for vr, _, _ in self.in_real])
-        self.in_buf = (c_double * len(self.in_real))()
-        self.in_src = [(node.out, i) for _, node, i in self.in_real]
+
+
+_Op = tuple[_Node, str, Any, tuple]  # one call of a step: node, FMI call, function, arguments
 
 
 class SystemMaster:
@@ -141,14 +158,14 @@ class SystemMaster:
             params.setdefault(inst, {}).update(extra)
         self._check_values({i: self.fmus[i].model_description for i in self.fmus}, params)
         names = list(self.names if record is None else record)
-        nodes = self._nodes(names)
+        nodes, every_out = self._nodes(names)
         with contextlib.ExitStack() as stack:
             interrupt = stack.enter_context(deferred_sigint())
             for node in nodes.values():
                 node.inst = stack.enter_context(node.fmu.instantiate(node.name))
-            return self._run(nodes, names, step_s, n_steps, params, interrupt)
+            return self._run(nodes, every_out, names, step_s, n_steps, params, interrupt)
 
-    def _nodes(self, names: Sequence[str]) -> dict[str, _Node]:
+    def _nodes(self, names: Sequence[str]) -> tuple[dict[str, _Node], Any]:
         wanted: dict[str, list[str]] = {i: [] for i in self.fmus}
         for c in self.system.connections:
             if self.fmus[c.source].variables[c.output].type == "Real" and \
@@ -170,11 +187,16 @@ class SystemMaster:
                 dst.in_real.append((vr, src, src.out_names.index(c.output)))
             else:
                 dst.in_other.append((kind, vr, src, src.fmu.vr(c.output)))
+        every_out = (c_double * sum(len(n.out_names) for n in nodes.values()))()
+        at = 0
         for n in nodes.values():
-            n.finish()
-        return nodes
+            n.place(every_out, at)
+            at += len(n.out_names)
+        for n in nodes.values():
+            n.finish(every_out)
+        return nodes, every_out
 
-    def _run(self, nodes: dict[str, _Node], names: Sequence[str], h: float,
+    def _run(self, nodes: dict[str, _Node], every_out: Any, names: Sequence[str], h: float,
              n_steps: int, parameters: Mapping[str, Mapping[str, Any]],
              interrupt: Any) -> LoopRun:
         from fmpy.fmi1 import FMICallException
@@ -182,32 +204,46 @@ class SystemMaster:
         free = [nodes[i] for i in self.order.free]
         chained = [nodes[i] for i in self.order.chained]
         every = [nodes[i] for i in self.system.fmus]
-        where = [(nodes[n.partition(".")[0]].out, nodes[n.partition(".")[0]].out_names.index(
-            n.partition(".")[2])) for n in names]
+        outs = np.frombuffer(every_out, dtype=np.float64)
+        where = [nodes[n.partition(".")[0]].at + nodes[n.partition(".")[0]].out_names.index(
+            n.partition(".")[2]) for n in names]
+        # one view of the outputs in record order when they lie in order, else a gather
+        row = outs[where[0]:where[0] + len(where)] if where and where == list(
+            range(where[0], where[0] + len(where))) else None
+        where_ix = np.array(where, dtype=np.intp)
         rec = np.full((n_steps + 1, len(names)), np.nan)
         time = np.arange(n_steps + 1) * h
         run = LoopRun(list(names), time, rec)
         who, call, t = every[0], "initialization", 0.0
-
-        def get(n: _Node) -> None:
-            nonlocal who, call
-            who, call = n, "fmi2GetReal"
+        # the calls of a step, planned once per run: (node, FMI call, function, arguments)
+        def get(n: _Node) -> list[_Op]:
             s = n.inst.slave
-            s.fmi2GetReal(s.component, n.out_vr, len(n.out), n.out)
+            return [(n, "fmi2GetReal", s.fmi2GetReal, (s.component, n.out_vr, len(n.out), n.out))
+                    ] if len(n.out) else []
 
-        def put(n: _Node) -> None:
-            nonlocal who, call
-            s = n.inst.slave
-            if n.in_src:
-                who, call = n, "fmi2SetReal"
-                n.in_buf[:] = [buf[i] for buf, i in n.in_src]
-                s.fmi2SetReal(s.component, n.in_vr, len(n.in_buf), n.in_buf)
+        def put(n: _Node) -> list[_Op]:
+            s, ops = n.inst.slave, []
+            if n.in_src:  # inputs from scattered outputs: copied first
+                ops.append((n, "fmi2SetReal", _gather, (n.in_buf, n.in_src)))
+            if len(n.in_buf):
+                ops.append((n, "fmi2SetReal", s.fmi2SetReal,
+                            (s.component, n.in_vr, len(n.in_buf), n.in_buf)))
             for kind, vr, src, svr in n.in_other:
-                who, call = src, f"fmi2Get{kind}"
-                value = getattr(src.inst.slave, f"get{kind}")([svr])
-                who, call = n, f"fmi2Set{kind}"
-                getattr(n.inst.slave, f"set{kind}")([vr], value)
+                value = (c_int * 1)()  # fmi2Integer and fmi2Boolean are both int
+                ss = src.inst.slave
+                ops.append((src, f"fmi2Get{kind}", getattr(ss, f"fmi2Get{kind}"),
+                            (ss.component, (c_uint * 1)(svr), 1, value)))
+                ops.append((n, f"fmi2Set{kind}", getattr(s, f"fmi2Set{kind}"),
+                            (s.component, (c_uint * 1)(vr), 1, value)))
+            return ops
 
+        jacobi = self.master == "jacobi"
+        read = [op for n in (every if jacobi else free) for op in get(n)]
+        if not jacobi:
+            read += [op for n in chained for op in (*put(n), *get(n))]
+        write = [op for n in (every if jacobi else free) for op in put(n)]
+        steps = [(n, "fmi2DoStep", n.inst.slave.fmi2DoStep, n.inst.slave.component)
+                 for n in every]
         try:
             for n in every:
                 who, s = n, n.inst.slave
@@ -216,41 +252,29 @@ class SystemMaster:
                 for name, value in parameters.get(n.name, {}).items():
                     kind = n.types[name]
                     getattr(s, f"set{kind}")([n.fmu.vr(name)], [value])
-            for n in free:
+            for n in (*free, *chained):
+                for who, call, f, args in (put(n) if n in chained else []):
+                    f(*args)
                 who, call = n, "fmi2ExitInitializationMode"
                 n.inst.slave.exitInitializationMode()
-                get(n)
-            for n in chained:
-                put(n)
-                who, call = n, "fmi2ExitInitializationMode"
-                n.inst.slave.exitInitializationMode()
-                get(n)
-            jacobi = self.master == "jacobi"
+                for who, call, f, args in get(n):
+                    f(*args)
             for k in range(n_steps + 1):
                 t = k * h
-                if interrupt.requested:  # Ctrl-C: stop between steps, never inside an FMU
+                if interrupt.count:  # Ctrl-C: stop between steps, never inside an FMU
                     for n in every:
                         with contextlib.suppress(FMICallException):
                             n.inst.slave.terminate()
                     raise KeyboardInterrupt  # the instances are freed on the way out
-                if jacobi:
-                    for n in every:
-                        get(n)
-                else:
-                    for n in free:
-                        get(n)
-                    for n in chained:
-                        put(n)
-                        get(n)
-                rec[k] = [buf[i] for buf, i in where]
+                for who, call, f, args in read:
+                    f(*args)
+                rec[k] = outs[where_ix] if row is None else row
                 if k == n_steps:
                     break
-                for n in (every if jacobi else free):
-                    put(n)
-                for n in every:
-                    who, call = n, "fmi2DoStep"
-                    s = n.inst.slave
-                    s.fmi2DoStep(s.component, t, h, 1)
+                for who, call, f, args in write:
+                    f(*args)
+                for who, call, f, c in steps:
+                    f(c, t, h, 1)
             for n in every:
                 who, call = n, "fmi2Terminate"
                 n.inst.slave.terminate()
@@ -268,3 +292,8 @@ class SystemMaster:
             raise SystemSpecError(str(e)) from e
         run.messages = [m.message for n in every for m in n.inst.messages]
         return run
+
+
+def _gather(buf: Any, src: list[tuple[Any, int]]) -> None:
+    """Copy the values of inputs whose sources are not one run of the outputs into ``buf``."""
+    buf[:] = [b[i] for b, i in src]

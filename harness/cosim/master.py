@@ -21,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import math
 from ctypes import c_double, c_uint
-from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -30,6 +29,7 @@ from dronefly.errors import DroneflyError
 from dronefly.interrupt import deferred_sigint
 
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
+from dronefly.harness.cosim.records import LoopRun, StepFailure
 
 __all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "connect_by_name",
            "step_count"]
@@ -104,48 +104,6 @@ def connect_by_name(plant_md: Any, controller_md: Any,
                              + (f" ({where[1]})" if where[1] else ""))
         cons.append(("controller", name, "plant", name))
     return cons
-
-
-@dataclass(frozen=True)
-class StepFailure:
-    """Where a run stopped early."""
-
-    fmu: str
-    call: str
-    time: float
-    status: int
-    message: str
-
-    def __str__(self) -> str:
-        return (f"{self.fmu}: {self.call} at t = {self.time!r} s returned status {self.status}"
-                + (f" ({self.message})" if self.message else ""))
-
-
-@dataclass
-class LoopRun:
-    """Recorded signals of one run: ``time`` (N,) s, ``signals`` (N, len(names))."""
-
-    names: list[str]
-    time: np.ndarray
-    signals: np.ndarray
-    failure: StepFailure | None = None
-    messages: list[str] = field(default_factory=list)
-
-    @property
-    def complete(self) -> bool:
-        return self.failure is None
-
-    def column(self, name: str) -> np.ndarray:
-        return self.signals[:, self.names.index(name)]
-
-    def structured(self) -> np.ndarray:
-        """fmpy-style structured array (``time`` plus every connected signal)."""
-        dtype = [("time", np.float64)] + [(n, np.float64) for n in self.names]
-        out = np.empty(len(self.time), dtype=dtype)
-        out["time"] = self.time
-        for j, n in enumerate(self.names):
-            out[n] = self.signals[:, j]
-        return out
 
 
 class Loop:

@@ -25,7 +25,8 @@ import numpy as np
 from dronefly.interrupt import deferred_sigint
 
 from dronefly.harness.cosim.fmu import FMU, FMUError
-from dronefly.harness.cosim.master import MASTERS, MAX_STEPS, LoopRun, StepFailure
+from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
+from dronefly.harness.cosim.records import LoopRun, StepFailure
 from dronefly.harness.system.description import System, SystemSpecError
 from dronefly.harness.system.graph import check_connections, evaluation_order, feedthrough
 

@@ -1,0 +1,56 @@
+"""What a co-simulation run records: :class:`LoopRun` (signals over time, the failure that
+stopped it early, the FMUs' messages) and :class:`StepFailure`.
+
+Shared by the pair master (:mod:`.master`) and the system master
+(:mod:`dronefly.harness.system.master`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["LoopRun", "StepFailure"]
+
+
+@dataclass(frozen=True)
+class StepFailure:
+    """Where a run stopped early."""
+
+    fmu: str
+    call: str
+    time: float
+    status: int
+    message: str
+
+    def __str__(self) -> str:
+        return (f"{self.fmu}: {self.call} at t = {self.time!r} s returned status {self.status}"
+                + (f" ({self.message})" if self.message else ""))
+
+
+@dataclass
+class LoopRun:
+    """Recorded signals of one run: ``time`` (N,) s, ``signals`` (N, len(names))."""
+
+    names: list[str]
+    time: np.ndarray
+    signals: np.ndarray
+    failure: StepFailure | None = None
+    messages: list[str] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.failure is None
+
+    def column(self, name: str) -> np.ndarray:
+        return self.signals[:, self.names.index(name)]
+
+    def structured(self) -> np.ndarray:
+        """fmpy-style structured array (``time`` plus every connected signal)."""
+        dtype = [("time", np.float64)] + [(n, np.float64) for n in self.names]
+        out = np.empty(len(self.time), dtype=dtype)
+        out["time"] = self.time
+        for j, n in enumerate(self.names):
+            out[n] = self.signals[:, j]
+        return out

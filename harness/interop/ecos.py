@@ -1,0 +1,292 @@
+"""A third importer: the closed-loop SSP co-simulated by Ecos (ecospy), in a child process.
+
+Ecos (ecospy 0.7.2 on PyPI) is a C++ co-simulation engine (fmi4c, SSP 1.0, a CLI, proxyfmu)
+with a ctypes binding. Its ``libecosc.so`` needs ``libtbb.so.12`` (C++17 parallel algorithms),
+which the PyPI package ``tbb`` installs into ``<prefix>/lib``, not on the library path. So
+:func:`run_ecos` runs ecospy in a child process of this interpreter with that folder on
+``LD_LIBRARY_PATH`` (:func:`ecos_env`). The child also isolates Ecos' failure modes from the
+caller: a crash in Ecos or an FMU ends the child only, and Ecos leaks one unzipped copy of the
+SSP per simulation into ``TMPDIR`` (the child gets a private one, removed afterwards).
+
+Why Ecos crashed on our SSP (measured, docs/interop.md): pythonfmu runs the FMU's Python code
+in the host's interpreter, so the FMUs' imports (numpy, scipy) must be importable by the
+Python that runs ecospy. Where they are not, pythonfmu's ``fmi2Instantiate`` returns NULL;
+fmi4c (inside Ecos) wraps that NULL in a non-NULL instance handle, so Ecos' check passes, and
+``init()`` calls ``fmi2SetupExperiment(NULL, ...)``: SIGSEGV. Threads are not the cause: Ecos
+steps the FMUs on TBB worker threads, and pythonfmu takes the GIL (``PyGILState_Ensure``)
+around each call while ctypes has released it.
+
+Ecos' fixed-step master, measured (``tests/test_interop_ecos.py``)
+------------------------------------------------------------------
+Jacobi. Each step every instance gets its inputs, steps and its outputs are read (the instances
+in parallel), then all connections are transferred. In initialization mode Ecos transfers the
+connections (once per instance) before fmi2ExitInitializationMode, when our plant already
+serves x_0 (its start values): the controller sees x_(-1) = x_0, so u_0 = u_1 = K x_0 and
+u_k = K x_(k-1), exactly ``Loop.run(..., master="jacobi")`` with its default u_source0 (the
+plant's initial outputs); measured: equal to the last bit over 3000 steps. Time is a double
+that Ecos accumulates (t_k = t_(k-1) + h, 1.5e-13 s from k h after 3000 steps).
+
+Ecos keys SSP parameter sets by the SSV's ``name`` and applies one per ``init``; our SSP has
+two (``plant``, ``controller``). :func:`run_ecos` applies every binding of the SSP (and any
+overrides) with ``set_real`` before ``init``, as the SSP standard means them.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Mapping
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+from dronefly.harness.cosim.master import CoSimError
+from dronefly.harness.cosim.stability import identify
+from dronefly.harness.interop.closedloop import reference_scales
+from dronefly.harness.interop.container import Verdict
+from dronefly.harness.interop.libcosim import InteropRun
+from dronefly.harness.interop.ssp import ssp_parameter_set
+from dronefly.lateral import STATE_NAMES
+
+__all__ = ["ecos_available", "ecos_env", "ecos_verdict", "run_ecos", "tbb_library_dir"]
+
+_SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
+
+#: The child: only ecospy and the standard library (no numpy), so it also shows the failure
+#: mode of a host that cannot import the FMUs' dependencies. Stages go to stderr.
+_CHILD = r"""
+import json, sys
+job = json.load(open(sys.argv[1]))
+from ecospy import EcosLib, EcosSimulation
+EcosLib.set_log_level("warn")
+out = {"version": repr(EcosLib.version()), "runs": []}
+for run in job["runs"]:
+    res = {"time": [], "values": [], "error": ""}
+    out["runs"].append(res)
+    try:
+        sim = EcosSimulation(step_size=job["step"], ssp_path=job["ssp"])
+        print("stage: created", file=sys.stderr, flush=True)
+        for name, value in run.items():
+            sim.set_real(name, value)
+        if not sim.init():
+            raise RuntimeError("init: " + EcosLib.get_last_error())
+        print("stage: initialized", file=sys.stderr, flush=True)
+        for k in range(job["n"] + 1):
+            if k:
+                sim.step(1)
+            res["time"].append(sim.get_time())
+            res["values"].append([sim.get_real(r) for r in job["record"]])
+        sim.terminate()
+        sim.free()
+    except Exception as e:
+        res["error"] = f"{type(e).__name__}: {e}"
+json.dump(out, open(sys.argv[2], "w"))
+"""
+
+
+def tbb_library_dir() -> str | None:
+    """The folder holding ``libtbb.so.12`` of the PyPI package ``tbb``, or None.
+
+    pip installs the package's libraries as data files into ``<prefix>/lib`` (the virtual
+    environment's, or ``~/.local/lib`` for ``--user``), where the loader does not look.
+    """
+    from importlib import metadata
+
+    try:
+        files = metadata.distribution("tbb").files or []
+    except metadata.PackageNotFoundError:
+        return None
+    for f in files:
+        if f.name == "libtbb.so.12":
+            path = Path(f.locate()).resolve()
+            if path.is_file():
+                return str(path.parent)
+    return None
+
+
+def ecos_env(base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """``base`` (default: ``os.environ``) with :func:`tbb_library_dir` first on
+    ``LD_LIBRARY_PATH``, the environment a process needs to load ecospy's ``libecosc.so``."""
+    env = dict(os.environ if base is None else base)
+    lib = tbb_library_dir()
+    if lib:
+        old = env.get("LD_LIBRARY_PATH")
+        env["LD_LIBRARY_PATH"] = os.pathsep.join([lib] + ([old] if old else []))
+    return env
+
+
+@functools.lru_cache(maxsize=1)
+def ecos_available() -> str | None:
+    """None if ecospy runs here (probed once, in a child process), else why not."""
+    import importlib.util
+
+    if not (sys.platform.startswith("linux") and platform.machine() in ("x86_64", "AMD64")):
+        return f"the Ecos route is for Linux x86_64 (ecospy's binaries), not " \
+               f"{sys.platform}/{platform.machine()}"
+    if importlib.util.find_spec("ecospy") is None:
+        return "ecospy is not installed (pip install ecospy tbb)"
+    r = subprocess.run([sys.executable, "-c", "from ecospy import EcosLib; print(EcosLib.version())"],
+                       env=ecos_env(), capture_output=True, text=True, timeout=120)
+    if r.returncode != 0:
+        why = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1]
+        hint = "" if tbb_library_dir() else " (no libtbb.so.12 found: pip install tbb)"
+        return f"ecospy cannot be loaded: {why}{hint}"
+    return None
+
+
+def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
+    """The plant component's output and input connector names, in SSD order."""
+    with zipfile.ZipFile(ssp) as z:
+        root = ET.fromstring(z.read("SystemStructure.ssd"))
+    for comp in root.iter(f"{_SSD}Component"):
+        if comp.get("name") == plant:
+            cons = list(comp.iter(f"{_SSD}Connector"))
+            return ([c.get("name") for c in cons if c.get("kind") == "output"],
+                    [c.get("name") for c in cons if c.get("kind") == "input"])
+    raise CoSimError(f"the SSP {str(ssp)!r} has no component {plant!r}")
+
+
+def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
+    """n [Hz] and the state scales of the plant component's FMU."""
+    from fmpy import read_model_description
+
+    with zipfile.ZipFile(ssp) as z:
+        root = ET.fromstring(z.read("SystemStructure.ssd"))
+        source = next((c.get("source") for c in root.iter(f"{_SSD}Component")
+                       if c.get("name") == plant), None)
+        if source is None:
+            raise CoSimError(f"the SSP {str(ssp)!r} has no component {plant!r}")
+        with tempfile.TemporaryDirectory(prefix="dronefly_ecos_md_") as tmp:
+            fmu = Path(tmp, "plant.fmu")
+            fmu.write_bytes(z.read(source))
+            return reference_scales(read_model_description(str(fmu)))
+
+
+def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],
+              runs: list[dict[str, float]], env: Mapping[str, str] | None) -> dict:
+    """Run the SSP once per entry of ``runs`` (values set before init) in one child."""
+    why = ecos_available()
+    if why:
+        raise CoSimError(why)
+    with tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:
+        job, out = Path(tmp, "job.json"), Path(tmp, "out.json")
+        job.write_text(json.dumps({"ssp": str(ssp), "step": step_s, "n": n_steps,
+                                   "record": record, "runs": runs}))
+        child_env = ecos_env(env)
+        child_env["TMPDIR"] = tmp  # Ecos leaves an unzipped copy of the SSP there
+        r = subprocess.run([sys.executable, "-c", _CHILD, str(job), str(out)], env=child_env,
+                           capture_output=True, text=True, timeout=600)
+        if r.returncode != 0:
+            stages = [ln for ln in r.stderr.splitlines() if ln.startswith("stage: ")]
+            where = stages[-1][7:] if stages else "not created"
+            sig = f"signal {signal.Signals(-r.returncode).name}" if r.returncode < 0 \
+                else f"exit code {r.returncode}"
+            hint = (" (an FMU failed to instantiate and Ecos went on with its NULL instance: "
+                    "can this Python import the FMUs' dependencies?)"
+                    if r.returncode == -signal.SIGSEGV and where == "created" else "")
+            raise CoSimError(f"Ecos child process ended with {sig}; last stage: {where}{hint}\n"
+                             + r.stderr[-1500:])
+        return json.loads(out.read_text())
+
+
+def run_ecos(ssp: str | Path, *, n_steps: int, step_s: float | None = None,
+             overrides: Mapping[str, float] | None = None, plant: str = "plant",
+             env: Mapping[str, str] | None = None) -> InteropRun:
+    """Co-simulate the SSP with Ecos' fixed-step master and record the plant's signals.
+
+    Parameters
+    ----------
+    ssp : path
+        An SSP 1.0 file such as ``DroneFlyClosedLoop.ssp``.
+    n_steps : int
+        Number of communication steps from t = 0.
+    step_s : float, optional
+        Communication step in seconds; default 0.1 wing beat of the plant's n.
+    overrides : mapping, optional
+        ``component.variable`` -> value, replacing or adding to the SSP's bindings
+        (e.g. ``plant.delta_v_start``).
+    plant : str
+        The component whose outputs (states) and inputs (controls) are recorded.
+    env : mapping, optional
+        Base environment of the child process (default ``os.environ``).
+
+    Returns
+    -------
+    InteropRun
+        As :func:`dronefly.harness.interop.libcosim.run_libcosim` returns it: ``names`` are the
+        plant's outputs then inputs, row k holds x_k and the control applied over step k, at
+        Ecos' time t_k. ``step_ns`` is the step rounded to whole ns (Ecos uses the double).
+
+    Raises
+    ------
+    CoSimError
+        Ecos unavailable, a bad argument, or the child process crashed (the message says in
+        which stage; an error Ecos reports is returned as ``complete=False`` instead).
+    """
+    ssp = Path(ssp).resolve()
+    if not ssp.is_file():
+        raise CoSimError(f"SSP {str(ssp)!r} does not exist")
+    if n_steps < 1:
+        raise CoSimError(f"n_steps = {n_steps!r} must be >= 1")
+    if step_s is None:
+        step_s = 0.1 / _plant_scales(ssp, plant)[0]
+    if not (np.isfinite(step_s) and step_s > 0):
+        raise CoSimError(f"step = {step_s!r} s must be finite and > 0")
+    return _runs(ssp, float(step_s), n_steps, [overrides or {}], plant, env)[0]
+
+
+def _runs(ssp: Path, step_s: float, n_steps: int, overrides: list[Mapping[str, float]],
+          plant: str, env: Mapping[str, str] | None) -> list[InteropRun]:
+    outputs, inputs = _plant_connectors(ssp, plant)
+    names = [*outputs, *inputs]
+    bound = {p.name: float(p.value) for p in ssp_parameter_set(ssp).parameters}
+    runs = []
+    for o in overrides:
+        values = {**bound, **{k: float(v) for k, v in o.items()}}
+        runs.append({k.replace(".", "::", 1): v for k, v in values.items()})
+    out = _run_jobs(ssp, step_s, n_steps, [f"{plant}::{n}" for n in names], runs, env)
+    result = []
+    for res in out["runs"]:
+        n = len(res["values"])
+        signals = np.asarray(res["values"], dtype=float).reshape(n, len(names))
+        result.append(InteropRun(names, np.asarray(res["time"], dtype=float), signals,
+                                 int(round(step_s * 1e9)), complete=not res["error"]
+                                 and n == n_steps + 1, error=res["error"]))
+    return result
+
+
+def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
+                 overrides: Mapping[str, float] | None = None,
+                 env: Mapping[str, str] | None = None) -> Verdict:
+    """Identify and classify the loop as Ecos runs the SSP (its gains, 0.1 wing beat).
+
+    One run per unit initial state x+_0 = e_i, all in one child process. Each run is
+    [x_(-1); x_0; x_1; ...] with x_(-1) = x_0 (see the module text), the delayed (Jacobi) form
+    of :func:`dronefly.harness.cosim.stability.identify`; u_0 = u_1 (= K x_0) is checked.
+    ``overrides`` as in :func:`run_ecos` (e.g. the gains ``controller.K[i,j]``).
+    """
+    ssp = Path(ssp).resolve()
+    n_hz, scale = _plant_scales(ssp, "plant")
+    step = 0.1 / n_hz
+    starts = [{**(overrides or {}),
+               **{f"plant.{s}_start": float(v) for s, v in zip(STATE_NAMES, e * scale)}}
+              for e in np.eye(len(STATE_NAMES))]
+    runs = []
+    for r in _runs(ssp, step, n_steps, starts, "plant", env):
+        if not r.complete:
+            raise CoSimError(f"Ecos identification run failed: {r.error}")
+        u0, u1 = r.signals[:2, len(STATE_NAMES):]
+        if np.any(u0 != u1):
+            raise CoSimError(f"Ecos fed the plant u_0 = {u0.tolist()} != u_1 = {u1.tolist()}: "
+                             "the controller did not see x_0 before the first step")
+        xs = r.states() / scale
+        runs.append(np.vstack([xs[:1], xs]))
+    return Verdict(identify(runs, step * n_hz, delay=True), runs)

@@ -1,0 +1,148 @@
+"""The third importer (issue 15): the closed-loop SSP co-simulated by Ecos (ecospy 0.7.2).
+
+Ecos runs in a child process (:mod:`dronefly.harness.interop.ecos`). Its fixed-step master is
+Jacobi with the controller fed x_0 before the first step, so its trajectory must equal
+``Loop.run(master="jacobi")`` (default u_source0: the plant's initial outputs) to rounding, and
+differ from Gauss-Seidel; its verdict of the paper's gains is neutral. Every test skips with
+the reason where ecospy is missing or cannot be loaded (CI is never red because of Ecos).
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from dronefly.harness.cosim.fmu import FMU
+from dronefly.harness.cosim.master import CoSimError, Loop
+from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
+from dronefly.harness.interop.ecos import (ecos_available, ecos_env, ecos_verdict, run_ecos,
+                                           tbb_library_dir)
+from dronefly.harness.interop.ssp import ssp_parameter_set
+from dronefly.harness.paper import values as pv
+from dronefly.lateral import scale_vector
+
+pytestmark = pytest.mark.integration
+
+STATES = ("delta_v", "delta_p", "delta_r", "delta_gamma")
+CONTROLS = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
+H = 0.1 / 164.0  # 0.1 wing beat, the SSP's step
+X0 = np.array([0.02, 0.05, -0.03, 0.1])  # non-dimensional initial state, all states moving
+N = 3000  # 300 wing beats
+
+
+@pytest.fixture(scope="module")
+def ecos():
+    why = ecos_available()
+    if why:
+        pytest.skip(why)
+
+
+@pytest.fixture(scope="module")
+def ssp(built_fmus):
+    return built_fmus["DroneFlyClosedLoop.ssp"]
+
+
+@pytest.fixture(scope="module")
+def bound(ssp):
+    """The SSP's parameter bindings, by component: {"plant": {...}, "controller": {...}}."""
+    out: dict[str, dict[str, float]] = {"plant": {}, "controller": {}}
+    for p in ssp_parameter_set(ssp).parameters:
+        comp, name = p.name.split(".", 1)
+        out[comp][name] = float(p.value)
+    return out
+
+
+@pytest.fixture(scope="module")
+def loop(built_fmus):
+    with FMU(built_fmus["DroneFlyLateral"]) as p, FMU(built_fmus["StateFeedback"]) as c:
+        yield Loop(p, c)
+
+
+def _max_abs_rel(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """max |a - b| and the same per column relative to that column's peak |b|."""
+    d = np.abs(a - b)
+    return float(d.max()), float(np.max(d / np.maximum(np.abs(b).max(axis=0), 1e-300)))
+
+
+def test_ecos_is_the_jacobi_loop(ecos, ssp, bound, loop):
+    """Ecos' trajectory (x_k, and the control applied over step k) from a state with every
+    component nonzero, with the SSP's gains, equals our Jacobi master's to rounding: measured
+    0.0 (the same arithmetic in the same order) over 3000 steps; tolerance 1e-12. Ecos
+    accumulates its time (t_k = t_(k-1) + h). Against Gauss-Seidel the one-step delay shows."""
+    start = {f"{s}_start": float(v) for s, v in zip(STATES, X0 * np.array(scale_vector()))}
+    r = run_ecos(ssp, n_steps=N, overrides={f"plant.{k}": v for k, v in start.items()})
+    assert r.complete, r.error
+    assert r.names == [*STATES, *CONTROLS]
+    assert_allclose(r.time, np.arange(N + 1) * H, rtol=0, atol=1e-12)
+    ja = loop.run(H, N, master="jacobi", plant_start=start, controller_params=bound["controller"])
+    dev, rel = _max_abs_rel(r.signals, ja.signals)
+    assert dev <= 1e-12 and rel <= 1e-12, f"Ecos vs Jacobi master: {dev:.2e} ({rel:.2e} rel.)"
+    gs = loop.run(H, N, master="gauss-seidel", plant_start=start,
+                  controller_params=bound["controller"])
+    assert _max_abs_rel(r.signals, gs.signals)[1] > 1e-4, "Ecos is not Gauss-Seidel"
+
+
+def test_ecos_applies_every_binding_of_the_ssp(ecos, ssp, bound, loop):
+    """With nothing overridden, Ecos runs the SSP's own values (x+_0 = (0, 0, 0, 0.1), Eq. 27
+    gains), although it keys SSP parameter sets by SSV name (``plant``, ``controller``) and
+    applies one per init: run_ecos sets all of them. delta_gamma at 300 wing beats: 0.010684."""
+    r = run_ecos(ssp, n_steps=N)
+    assert r.complete, r.error
+    assert r.column("delta_gamma")[0] == bound["plant"]["delta_gamma_start"] == 0.1
+    ja = loop.run(H, N, master="jacobi", plant_start=bound["plant"],
+                  controller_params=bound["controller"])
+    assert _max_abs_rel(r.signals, ja.signals)[0] <= 1e-12
+    assert abs(r.column("delta_gamma")[-1] - 0.010684) < 1e-6
+
+
+def test_ecos_verdicts(ecos, ssp):
+    """Neutral with the paper's gains (the same rate as the other importers), unstable open
+    loop at the plant's divergent rate (Eq. 19)."""
+    v = ecos_verdict(ssp)
+    ident = v.identification
+    assert v.verdict == "neutral"
+    assert abs(ident.dominant_growth_rate) <= TOL_PER_WINGBEAT
+    assert abs(ident.dominant_growth_rate - 7.7e-5) < 1e-6
+    assert_allclose(ident.eigenvalues[:4], list(pv.eq27_targets()), atol=1e-3)
+    assert ident.fit_residual < 1e-10
+    zero = {f"controller.K[{i},{j}]": 0.0 for i in range(1, 4) for j in range(1, 5)}
+    open_loop = ecos_verdict(ssp, overrides=zero)
+    assert open_loop.verdict == "unstable"
+    assert_allclose(open_loop.identification.dominant_growth_rate, float(pv.EQ19_A_LNN[0][0]),
+                    atol=1e-3)
+
+
+def test_ecos_segfaults_when_the_host_cannot_import_the_fmus_dependencies(ecos, ssp, tmp_path):
+    """The crash of issue 15, pinned: pythonfmu runs the FMU's code in the host's interpreter;
+    where numpy cannot be imported there (a fresh venv with only ecospy and tbb; here: numpy
+    hidden on PYTHONPATH), fmi2Instantiate returns NULL, fmi4c wraps it in a non-NULL handle,
+    and ``init()`` calls fmi2SetupExperiment(NULL, ...): SIGSEGV after the simulation was
+    created. run_ecos reports it with that stage and the hint."""
+    hide = tmp_path / "hide" / "numpy"
+    hide.mkdir(parents=True)
+    (hide / "__init__.py").write_text("raise ImportError('numpy hidden for this test')\n")
+    env = dict(os.environ, PYTHONPATH=str(hide.parent))
+    with pytest.raises(CoSimError, match=r"signal SIGSEGV; last stage: created \(an FMU failed"):
+        run_ecos(ssp, n_steps=1, env=env)
+
+
+def test_ecospy_needs_tbb_on_the_library_path(ecos):
+    """ecospy's libecosc.so needs libtbb.so.12, which the PyPI package tbb installs where the
+    loader does not look; ecos_env puts that folder on LD_LIBRARY_PATH."""
+    lib = tbb_library_dir()
+    if lib is None or ctypes.util.find_library("tbb"):
+        pytest.skip("libtbb comes from the system here, not from the tbb package")
+    code = "import ecospy"
+    env = {k: v for k, v in os.environ.items() if k != "LD_LIBRARY_PATH"}
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert r.returncode != 0 and "libtbb.so.12: cannot open shared object file" in r.stderr
+    r = subprocess.run([sys.executable, "-c", code], env=ecos_env(env), capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr
+    assert ecos_env(env)["LD_LIBRARY_PATH"].split(os.pathsep)[0] == lib

@@ -47,8 +47,8 @@ class _Spec:
     reference: str
 
 
-_FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/host.py", "fmi/state.py",
-        "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
+_FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
+        "fmi/state.py", "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
 _PLANT = (*_FMI, "linear.py", "linear_slave.py")
 _CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/slave.py")
 
@@ -124,15 +124,23 @@ def _wrapper_files() -> dict[str, bytes]:
     return out
 
 
-def fmu_sources(name: str) -> tuple[str, dict[str, bytes]]:
-    """Package name and ``{path in FMU: content}`` of one FMU (no model description)."""
+def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
+    """Package name and ``{path in FMU: content}`` of one FMU (no model description), for
+    FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.build3`)."""
+    from .build3 import ENTRY3, FMI3_FILES, wrapper3_binaries
+
     spec = FMUS[name]
-    sources = {rel: _source_path(rel).read_bytes() for rel in spec.files}
+    rels = spec.files if fmi == 2 else (*spec.files, *FMI3_FILES)
+    sources = {rel: _source_path(rel).read_bytes() for rel in rels}
     wrapper = _wrapper_files()
-    h = hashlib.sha256(name.encode() + _ENTRY.encode())
+    entry_text = _ENTRY if fmi == 2 else ENTRY3
+    if fmi == 3:  # pythonfmu's Python facade (the base class), pythonfmu3's binaries
+        wrapper = {**{k: v for k, v in wrapper.items() if not k.startswith("binaries/")},
+                   **wrapper3_binaries()}
+    h = hashlib.sha256(name.encode() + entry_text.encode())
     for rel, data in sorted({**sources, **wrapper}.items()):
         h.update(rel.encode() + b"\0" + hashlib.sha256(data).digest())
-    pkg = f"dronefly_{name.lower()}_{h.hexdigest()[:16]}"
+    pkg = f"dronefly{'' if fmi == 2 else '3'}_{name.lower()}_{h.hexdigest()[:16]}"
     files: dict[str, bytes] = {}
     for rel, data in sources.items():
         files[f"resources/{pkg}/{rel}"] = data
@@ -140,7 +148,8 @@ def fmu_sources(name: str) -> tuple[str, dict[str, bytes]]:
         for i in range(len(parts) + 1):
             files.setdefault(f"resources/{pkg}/{'/'.join(parts[:i] + ['__init__.py'])}", b"")
     entry = f"{pkg}_slave"
-    files[f"resources/{entry}.py"] = _ENTRY.format(pkg=pkg, module=spec.module, cls=spec.cls).encode()
+    files[f"resources/{entry}.py"] = entry_text.format(pkg=pkg, module=spec.module,
+                                                       cls=spec.cls).encode()
     files["resources/slavemodule.txt"] = entry.encode()
     for rel, data in wrapper.items():
         files[rel.replace("{model}", name)] = data
@@ -148,8 +157,10 @@ def fmu_sources(name: str) -> tuple[str, dict[str, bytes]]:
     return pkg, files
 
 
-def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str) -> bytes:
+def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str,
+                       fmi: int = 2) -> bytes:
     """Generate the XML from the code the FMU ships, imported under its own name."""
+    from .build3 import model_description3
     from .modeldescription import model_description_bytes
 
     spec = FMUS[name]
@@ -162,6 +173,8 @@ def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str) 
         resources = str(Path(tmp, "resources"))
         sys.path.insert(0, resources)
         try:
+            if fmi == 3:
+                return model_description3(pkg, spec.module, spec.cls, guid)
             module = importlib.import_module(f"{pkg}.{spec.module}")
             cls = getattr(module, spec.cls)
             return model_description_bytes(cls, guid)
@@ -171,8 +184,8 @@ def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str) 
                 del sys.modules[mod]
 
 
-def build_fmu(name: str, out_dir: str | Path = "build") -> Path:
-    """Build one FMU into ``out_dir`` and return its path.
+def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
+    """Build one FMU into ``out_dir`` and return its path (``fmi``: 2 or 3, the FMI version).
 
     Raises
     ------
@@ -181,12 +194,14 @@ def build_fmu(name: str, out_dir: str | Path = "build") -> Path:
     """
     if name not in FMUS:
         raise BuildError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
+    if fmi not in (2, 3):
+        raise BuildError(f"FMI version {fmi!r}: 2 or 3")
     out = Path(out_dir)
     try:
-        pkg, files = fmu_sources(name)
+        pkg, files = fmu_sources(name, fmi)
         digest = pkg.rsplit("_", 1)[-1]
         guid = "{" + str(uuid.uuid5(_NAMESPACE, f"{name}:{digest}")) + "}"
-        files["modelDescription.xml"] = _model_description(name, pkg, files, guid)
+        files["modelDescription.xml"] = _model_description(name, pkg, files, guid, fmi)
     except (OSError, ImportError) as e:
         raise BuildError(f"cannot build {name}: {e}") from e
     return write_zip(out / f"{name}.fmu", files)

@@ -13,10 +13,11 @@ from xml.etree.ElementTree import Element, SubElement, tostring
 
 from .fmi import SlaveBase
 
-__all__ = ["model_description", "model_description_bytes"]
+__all__ = ["format_value", "model_description", "model_description_bytes"]
 
 
-def _fmt(value: float | bool) -> str:
+def format_value(value: float | bool) -> str:
+    """A start value as the model description writes it (repr-exact floats, true/false)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     return repr(float(value))
@@ -78,7 +79,7 @@ def model_description(cls: type[SlaveBase], guid: str) -> Element:
             if v.display_unit is not None:
                 tattrs["displayUnit"] = v.display_unit
         if v.start is not None:
-            tattrs["start"] = _fmt(v.start)
+            tattrs["start"] = format_value(v.start)
         SubElement(sv, v.type, tattrs)
     ms = SubElement(root, "ModelStructure")
     outputs = [(i, v.dependencies) for i, v in enumerate(cls.VARIABLES) if v.causality == "output"]

@@ -1,6 +1,11 @@
-"""FMI 2.0 co-simulation slave base shared by the project's FMUs (shipped inside each FMU).
+"""Co-simulation slave base shared by the project's FMUs (shipped inside each FMU).
 
-- :mod:`.base`: :class:`SlaveBase`, the lifecycle, doStep and the FMI 2.0 call-sequence table;
+One implementation, two FMI wrappers: :class:`SlaveBase` is the FMI 2.0 slave (pythonfmu
+0.7.0); :func:`.fmi3.fmi3_class` makes any subclass an FMI 3.0 slave (pythonfmu3).
+
+- :mod:`.base`: :class:`SlaveBase`, storage, hooks and the FMI 2.0 binding;
+- :mod:`.calls`: the lifecycle, doStep and the call-sequence table (both versions);
+- :mod:`.fmi3`, :mod:`.table3`: the FMI 3.0 side (arrays, ``time``, statuses);
 - :mod:`.vars`: the variable table (:class:`Var`) and the unit definitions (``UNITS``);
 - :mod:`.values`: fmi2Get/fmi2Set of every type;
 - :mod:`.state`: FMU states, their serialisation and refusal;

@@ -23,6 +23,10 @@ Every logged message passes through :meth:`SlaveBase._report`, which escapes
 ``%`` (the importer's logger treats the message as a printf format) and any
 character that is not UTF-8.
 
+The FMI 3.0 FMUs run the same class behind :class:`~dronefly.fmi.fmi3.Fmi3Side`, which
+changes only the FMI-facing names and statuses (class attributes ``FMI``, ``FMI_TEXT``,
+``TYPE_NAMES``, ``STATE_API``, ``ILLEGAL_STATUS``, ``PRINTF_LOGGER``).
+
 Each FMU ships its own copy of this module inside a content-addressed package,
 so it must import nothing from the project but relative siblings.
 """
@@ -35,6 +39,8 @@ from typing import Any, ClassVar, Iterable, Sequence
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
+from .calls import (MODES, do_step_status, enter, exit_initialization_mode, in_state, refuse,
+                    setup_experiment)
 from .host import finalize_at_exit, inside_fmpy_container, leave_sys_path
 from .state import (get_fmu_state, set_fmu_state, snapshot, state_from_bytes,
                     state_to_bytes)
@@ -44,17 +50,6 @@ from .vars import UNITS, Var
 
 __all__ = ["UNITS", "SlaveBase", "Var"]
 
-_MODES = ("instantiated", "initialization", "stepping", "terminated")
-#: FMI 2.0 CS call-sequence table (section 4.2.4): the states in which each call is allowed
-#: ("stepping" = stepComplete). Calls not listed are allowed in every state.
-_ALLOWED = {
-    "fmi2SetupExperiment": ("instantiated",),
-    "fmi2EnterInitializationMode": ("instantiated",),
-    "fmi2ExitInitializationMode": ("initialization",),
-    "fmi2Terminate": ("stepping",),
-    "fmi2DoStep": ("stepping",),
-    "fmi2Get": ("initialization", "stepping", "terminated"),
-}
 
 
 class SlaveBase(Fmi2Slave):
@@ -78,7 +73,16 @@ class SlaveBase(Fmi2Slave):
     UNITS: ClassVar[dict[str, tuple[dict[str, int], dict[str, float]]]] = UNITS
     #: outputs depend on inputs within a time instant (Modelica block semantics)
     DIRECT_FEEDTHROUGH: ClassVar[bool] = False
-    MODES: ClassVar[tuple[str, ...]] = _MODES
+    MODES: ClassVar[tuple[str, ...]] = MODES
+    #: the FMI version's names in messages (prefix of the calls, standard, type names,
+    #: "FMUstate"/"FMUState"), the status of a step refused for an illegal call, and
+    #: whether the importer's logger reads messages as printf formats
+    FMI: ClassVar[str] = "fmi2"
+    FMI_TEXT: ClassVar[str] = "FMI 2.0"
+    TYPE_NAMES: ClassVar[dict[str, str]] = {k: k for k in ("Real", "Boolean", "Integer", "String")}
+    STATE_API: ClassVar[str] = "FMUstate"
+    ILLEGAL_STATUS: ClassVar[Fmi2Status] = Fmi2Status.discard
+    PRINTF_LOGGER: ClassVar[bool] = True
     log_categories = {
         "logStatusWarning": "Messages with status fmi2Warning.",
         "logStatusDiscard": "Messages with status fmi2Discard (refused steps).",
@@ -102,7 +106,7 @@ class SlaveBase(Fmi2Slave):
         self._settable = {
             (mode, kind): frozenset(i for i, v in enumerate(vars_)
                                     if v.type == kind and self._may_set(v, mode))
-            for mode in _MODES for kind in ("Real", "Boolean")
+            for mode in MODES for kind in ("Real", "Boolean")
         }
         self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
         self._n_vars = len(vars_)
@@ -163,27 +167,13 @@ class SlaveBase(Fmi2Slave):
             r[vr[n]] = x
 
     def _report(self, msg: str, status: Fmi2Status) -> None:
-        """Log ``msg``: ``%`` escaped for the printf-style logger, valid UTF-8 guaranteed."""
+        """Log ``msg``: ``%`` escaped for a printf-style logger, valid UTF-8 guaranteed."""
         if self._mute:
             return
-        text = f"{self.instance_name}: {msg}".replace("%", "%%")
+        text = f"{self.instance_name}: {msg}"
+        if self.PRINTF_LOGGER:
+            text = text.replace("%", "%%")
         self.log(text.encode("utf-8", "backslashreplace").decode("utf-8"), status)
-
-    def _in_state(self, call: str, name: str | None = None) -> bool:
-        """Whether ``call`` is allowed now; if not, log an error (naming the call as ``name``)
-        and keep it for doStep."""
-        if self._mode in _ALLOWED[call]:
-            return True
-        msg = (f"{name or call} is not allowed in state {self._mode!r} (FMI 2.0 co-simulation "
-               f"call sequence: only in {', '.join(_ALLOWED[call])}); ignored")
-        if call != "fmi2DoStep" and call != "fmi2Get":
-            self._pending.append(msg)
-        self._report(msg, Fmi2Status.error)
-        return False
-
-    def _refuse(self, msg: str) -> bool:
-        self._report(msg, Fmi2Status.discard)
-        return False
 
     def _update_if_stale(self) -> None:
         self._stale = False
@@ -198,99 +188,21 @@ class SlaveBase(Fmi2Slave):
             if not math.isfinite(x):
                 raise ValueError(f"{n} = {x!r} is not finite")
 
-    # -- FMI calls ----------------------------------------------------------
-    def setup_experiment(self, start_time: float, stop_time: float | None = None,
-                         tolerance: float | None = None) -> None:
-        try:
-            if not self._in_state("fmi2SetupExperiment"):
-                return
-            bad = [f"{name} = {value!r}" for name, value in (("startTime", start_time),
-                                                             ("stopTime", stop_time))
-                   if value is not None and not math.isfinite(value)]
-            if stop_time is not None and not bad and stop_time < start_time:
-                bad.append(f"stopTime = {stop_time!r} < startTime = {start_time!r}")
-            if bad:
-                msg = f"fmi2SetupExperiment: {', '.join(bad)} refused; times must be finite"
-                self._pending.append(msg)
-                self._report(msg, Fmi2Status.error)
-                return
-            self._time = float(start_time)
-            self._stop_time = None if stop_time is None else float(stop_time)
-        except BaseException as e:  # never let an exception reach the wrapper
-            self._report(f"fmi2SetupExperiment failed: {e!r}", Fmi2Status.error)
-
-    def _enter(self, call: str, mode: str) -> None:
-        """Go to ``mode`` if ``call`` is allowed now (else logged and ignored)."""
-        try:
-            if self._in_state(call):
-                self._mode = mode
-        except BaseException as e:  # never let an exception reach the wrapper
-            self._pending.append(f"{call} failed: {e!r}")
+    # -- FMI calls: functions of .calls, bound here as methods ----------------
+    _in_state = in_state
+    _refuse = refuse
+    _enter = enter
+    setup_experiment = setup_experiment
+    exit_initialization_mode = exit_initialization_mode
 
     def enter_initialization_mode(self) -> None:
-        self._enter("fmi2EnterInitializationMode", "initialization")
-
-    def exit_initialization_mode(self) -> None:
-        if not self._in_state("fmi2ExitInitializationMode"):
-            return
-        self._mode = "stepping"
-        try:
-            self._initialize()
-            self._initialized = True
-            self._dirty = False
-        except BaseException as e:  # retried, and reported, by every doStep until fixed
-            self._report(f"initialization: {e}", Fmi2Status.error)
+        self._enter("EnterInitializationMode", "initialization")
 
     def terminate(self) -> None:
-        self._enter("fmi2Terminate", "terminated")
+        self._enter("Terminate", "terminated")
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        try:
-            if self._mode != "stepping":
-                return self._refuse(f"fmi2DoStep is not allowed in state {self._mode!r} (FMI 2.0 "
-                                    "co-simulation call sequence: only after "
-                                    "fmi2ExitInitializationMode and before fmi2Terminate)")
-            if self._pending:
-                msg = "; ".join(self._pending)
-                self._pending.clear()
-                return self._refuse(f"step refused at t = {current_time!r} s: {msg}")
-            end = current_time + step_size
-            # x - x == 0 is false exactly for inf and nan (cheaper than math.isfinite here)
-            if not (current_time - current_time == 0.0 and end - end == 0.0
-                    and step_size > 0.0):
-                if not math.isfinite(current_time):
-                    return self._refuse(f"currentCommunicationPoint = {current_time!r} s must be "
-                                        "finite")
-                return self._refuse(f"communicationStepSize = {step_size!r} s must be finite and "
-                                    f"> 0, with a finite end (from {current_time!r} s)")
-            # float accumulation of the master's time: relative to the times, never to the step
-            last = self._time
-            tol = 1e-9 * (abs(current_time) + abs(last)) + 1e-300
-            if not (abs(current_time - last) <= tol):
-                return self._refuse(
-                    f"currentCommunicationPoint = {current_time!r} s does not continue "
-                    f"from the last communication point {self._time!r} s")
-            stop = self._stop_time
-            if stop is not None and end > stop + tol:
-                return self._refuse(f"a step of {step_size!r} s from {current_time!r} s goes "
-                                    f"past stopTime = {stop!r} s (fmi2SetupExperiment)")
-            if not self._initialized:
-                self._initialize()
-                self._initialized = True
-                self._dirty = False
-            elif self._dirty:
-                self._refresh()
-                self._dirty = False
-            self._advance(current_time, step_size)
-            self._time = end
-            return True
-        except ValueError as e:
-            return self._refuse(f"step refused at t = {current_time!r} s: {e}")
-        except KeyboardInterrupt:  # Ctrl-C landed in this FMU's code: refuse, never Fatal
-            return self._refuse(f"step from t = {current_time!r} s interrupted (SIGINT); "
-                                "nothing changed")
-        except BaseException as e:  # never let an exception reach the wrapper
-            return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
+        return do_step_status(self, current_time, step_size) == 0
 
     # value access and FMU state: functions of .values and .state, bound
     # here as methods (mixin classes would lengthen the MRO, and pythonfmu's findClass leaks

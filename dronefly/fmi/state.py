@@ -56,10 +56,11 @@ class StateHandle:
         self.rejected = rejected
         self.freed = False
 
-    def problem(self, fmu_id: str) -> str | None:
-        """Why this state cannot be restored into FMU ``fmu_id`` (None: it can)."""
+    def problem(self, fmu_id: str, free_call: str = "fmi2FreeFMUstate") -> str | None:
+        """Why this state cannot be restored into FMU ``fmu_id`` (None: it can); ``free_call``
+        names the FMI function that frees a state."""
         if self.freed:
-            return "the state was freed (fmi2FreeFMUstate) before it was used"
+            return f"the state was freed ({free_call}) before it was used"
         if self.rejected is not None:
             return self.rejected
         if self.fmu_id != fmu_id:
@@ -166,29 +167,29 @@ def get_fmu_state(self: Any) -> Any:
     try:
         return StateHandle(self._fmu_id, snapshot(self))
     except BaseException as e:
-        self._report(f"fmi2GetFMUstate failed: {e!r}", Fmi2Status.error)
+        self._report(f"{self.FMI}Get{self.STATE_API} failed: {e!r}", Fmi2Status.error)
         return StateHandle(self._fmu_id, None, rejected=f"not saved: {e!r}")
 
 
 def set_fmu_state(self: Any, state: Any) -> None:
     try:
-        why = (state.problem(self._fmu_id) if isinstance(state, StateHandle)
-               else foreign(state))
+        why = (state.problem(self._fmu_id, f"{self.FMI}Free{self.STATE_API}")
+               if isinstance(state, StateHandle) else foreign(state))
         if why is None:
             why = _check_payload(self, state.payload)
         if why is not None:
-            self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {why}",
-                         Fmi2Status.error)
+            self._report(f"{self.FMI}Set{self.STATE_API} refused, the instance is unchanged: "
+                         f"{why}", Fmi2Status.error)
             return
         before = snapshot(self)
         try:
             _restore(self, state.payload)
         except BaseException as e:
             _restore(self, before)
-            self._report(f"fmi2SetFMUstate refused, the instance is unchanged: {e}",
-                         Fmi2Status.error)
+            self._report(f"{self.FMI}Set{self.STATE_API} refused, the instance is unchanged: "
+                         f"{e}", Fmi2Status.error)
     except BaseException as e:  # never let an exception reach the wrapper
-        self._report(f"fmi2SetFMUstate failed: {e!r}", Fmi2Status.error)
+        self._report(f"{self.FMI}Set{self.STATE_API} failed: {e!r}", Fmi2Status.error)
 
 
 def _check_payload(self: Any, p: Any) -> str | None:

@@ -18,7 +18,7 @@ from typing import Any
 from pythonfmu.enums import Fmi2Status
 
 __all__ = ["get_boolean", "get_integer", "get_real", "get_string", "set_boolean", "set_integer",
-           "set_real", "set_string"]
+           "set_real", "set_rows", "set_string"]
 
 
 def _vr_text(vr: int) -> str:
@@ -27,7 +27,7 @@ def _vr_text(vr: int) -> str:
 
 def _reject(self: Any, vr: int, value: Any, why: str, kind: str) -> None:
     name = self.VARIABLES[vr].name if 0 <= vr < self._n_vars else _vr_text(vr)
-    msg = f"fmi2Set{kind}: {name} = {value!r} rejected: {why}"
+    msg = f"{self.FMI}Set{self.TYPE_NAMES[kind]}: {name} = {value!r} rejected: {why}"
     self._pending.append(msg)
     self._report(msg, Fmi2Status.error)
 
@@ -36,7 +36,7 @@ def _read(self: Any, vrs: list[int], kind: str, convert: Any, fallback: Any) -> 
     """Values of ``vrs`` as ``kind``; wrong ones logged and answered with ``fallback``."""
     try:
         if self._mode == "instantiated":
-            self._in_state("fmi2Get", f"fmi2Get{kind}")
+            self._in_state("Get", f"{self.FMI}Get{self.TYPE_NAMES[kind]}")
         if self._stale:
             self._update_if_stale()
         r, types, n = self._real, self._types, self._n_vars
@@ -46,7 +46,7 @@ def _read(self: Any, vrs: list[int], kind: str, convert: Any, fallback: Any) -> 
             return [convert(r[i]) if 0 <= i < n and types[i] == kind else fallback for i in vrs]
         return [convert(r[i]) for i in vrs]
     except BaseException as e:  # a getter cannot fail: log, answer the fallback
-        self._report(f"fmi2Get{kind} failed: {e!r}", Fmi2Status.error)
+        self._report(f"{self.FMI}Get{self.TYPE_NAMES[kind]} failed: {e!r}", Fmi2Status.error)
         return [fallback for _ in vrs]
 
 
@@ -75,22 +75,24 @@ def get_string(self: Any, vrs: list[int]) -> list[str]:
 
 
 def set_real(self: Any, vrs: list[int], values: list[float]) -> None:
-    _set(self, vrs, values, "Real")
+    set_rows(self, vrs, values, "Real")
 
 
 def set_boolean(self: Any, vrs: list[int], values: list[bool]) -> None:
-    _set(self, vrs, values, "Boolean")
+    set_rows(self, vrs, values, "Boolean")
 
 
 def set_integer(self: Any, vrs: list[int], values: list[int]) -> None:
-    _set(self, vrs, values, "Integer")
+    set_rows(self, vrs, values, "Integer")
 
 
 def set_string(self: Any, vrs: list[int], values: list[str]) -> None:
-    _set(self, vrs, values, "String")
+    set_rows(self, vrs, values, "String")
 
 
-def _set(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
+def set_rows(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
+    """Set scalar rows ``vrs`` of type ``kind``; a row that may not be set is logged (status
+    Error) and kept for the next doStep."""
     try:
         ok = self._settable.get((self._mode, kind), ())
         r = self._real
@@ -106,7 +108,7 @@ def _set(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
         if not self._dirty and not self._param_vrs.isdisjoint(vrs):
             self._dirty = True
     except BaseException as e:  # never let an exception reach the wrapper
-        msg = f"fmi2Set{kind} failed: {e!r}"
+        msg = f"{self.FMI}Set{self.TYPE_NAMES[kind]} failed: {e!r}"
         self._pending.append(msg)
         self._report(msg, Fmi2Status.error)
 
@@ -115,7 +117,8 @@ def _why_not_settable(self: Any, vr: int, kind: str) -> str:
     if not 0 <= vr < self._n_vars:
         return "no such variable"
     if self._types[vr] != kind:
-        return f"is a {self._types[vr]} variable, not {kind}"
+        names = self.TYPE_NAMES
+        return f"is a {names[self._types[vr]]} variable, not {names[kind]}"
     return f"not settable in state {self._mode!r}"
 
 
@@ -123,7 +126,8 @@ def _bad_get(self: Any, vrs: list[int], kind: str) -> None:
     """Log reads of unknown or wrongly typed variables (a getter cannot fail)."""
     for i in vrs:
         if not (0 <= i < self._n_vars) or self._types[i] != kind:
+            names = self.TYPE_NAMES
             what = (_vr_text(i) if not 0 <= i < self._n_vars
-                    else f"{self.VARIABLES[i].name} (a {self._types[i]} variable)")
-            self._report(f"fmi2Get{kind} of {what}: not a {kind} variable of this FMU",
-                         Fmi2Status.error)
+                    else f"{self.VARIABLES[i].name} (a {names[self._types[i]]} variable)")
+            self._report(f"{self.FMI}Get{names[kind]} of {what}: not a {names[kind]} variable "
+                         "of this FMU", Fmi2Status.error)

@@ -1,4 +1,7 @@
-"""Thin, safe access to FMI 2.0 co-simulation FMUs through fmpy's FMU2Slave API.
+"""Thin, safe access to co-simulation FMUs through fmpy's FMU2Slave API.
+
+FMI 2.0 FMUs run in fmpy's FMU2Slave; FMI 3.0 FMUs in fmpy's FMU3Slave behind the same API
+(:mod:`.fmi3`: arrays appear as scalar elements, Float64 as Real).
 
 An :class:`FMU` is read and extracted once; :meth:`FMU.instantiate` gives
 :class:`Instance` objects whose log messages are captured in
@@ -47,7 +50,7 @@ def _unique(name: str) -> str:
 
 
 class FMUError(DroneflyError):
-    """An FMU file is missing, corrupt, or not an FMI 2.0 co-simulation FMU."""
+    """An FMU file is missing, corrupt, or not an FMI 2.0 / 3.0 co-simulation FMU."""
 
 
 @dataclass(frozen=True)
@@ -67,14 +70,14 @@ def start_values(md: Any) -> dict[str, float]:
 def check_archive(path: Path) -> None:
     """Refuse an FMU that could not be loaded safely, before anything of it is loaded.
 
-    Checks that the file is a zip with a modelDescription.xml of FMI version 2.0, a
+    Checks that the file is a zip with a modelDescription.xml of FMI version 2.0 or 3.0, a
     co-simulation binary for this platform, and, for a pythonfmu FMU (``slavemodule.txt``,
     also nested ones), the Python module it names: pythonfmu crashes the host on a missing
     one. Raises :class:`FMUError` with one line naming what is missing.
     """
     import re
 
-    from fmpy import platform, sharedLibraryExtension
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     try:
         with zipfile.ZipFile(path) as z:
@@ -87,13 +90,14 @@ def check_archive(path: Path) -> None:
     except KeyError:
         raise FMUError(f"{str(path)!r} is not an FMU (no modelDescription.xml)") from None
     version = re.search(r'fmiVersion\s*=\s*"([^"]*)"', head)
-    if version is None or version.group(1) != "2.0":
+    if version is None or version.group(1) not in ("2.0", "3.0"):
         found = version.group(1) if version else "unknown"
         raise FMUError(f"{str(path)!r} is an FMI {found} FMU; dronefly co-simulates FMI 2.0 "
-                       "co-simulation FMUs")
+                       "and 3.0 co-simulation FMUs")
     ident = re.search(r'<CoSimulation[^>]*modelIdentifier\s*=\s*"([^"]*)"', head)
     if ident is not None:
-        lib = f"binaries/{platform}/{ident.group(1)}{sharedLibraryExtension}"
+        folder = platform if version.group(1) == "2.0" else platform_tuple
+        lib = f"binaries/{folder}/{ident.group(1)}{sharedLibraryExtension}"
         if lib not in names:
             raise FMUError(f"{str(path)!r} has no binary for this platform ({lib} is missing)")
     for txt, module in modules.items():
@@ -133,6 +137,17 @@ class FMU:
         md = self.model_description
         if md.coSimulation is None:
             raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU (model exchange only)")
+        #: 2 or 3; for FMI 3.0, ``model_description`` is the harness's view of
+        #: ``model_description3`` (see :mod:`.fmi3`)
+        self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2
+        self.model_description3: Any = None
+        self.elements: dict[int, Any] = {}
+        if self.fmi_version == 3:
+            from .fmi3 import fmi2_view
+
+            self.model_description3 = md
+            self.model_description, self.elements = fmi2_view(md)
+            md = self.model_description
         self.name = md.modelName
         self.variables = {v.name: v for v in md.modelVariables}
         self._unzipdir: str | None = tempfile.mkdtemp(prefix=f"dronefly_{self.name}_")
@@ -188,10 +203,13 @@ class Instance:
                                fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
         from fmpy.fmi1 import calloc, free
 
+        self.name = _unique(self.name)
+        if self.fmu.fmi_version == 3:
+            self._instantiate3()
+            return
         global _DISPATCH
         if _DISPATCH is None:
             _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
-        self.name = _unique(self.name)
         md = self.fmu.model_description
         self.slave = FMU2Slave(guid=md.guid, unzipDirectory=self.fmu._unzipdir,
                                modelIdentifier=md.coSimulation.modelIdentifier,
@@ -211,6 +229,25 @@ class Instance:
         _LIVE[self.name] = self
         try:
             self.slave.instantiate(callbacks=cb, loggingOn=self.logging)
+        except Exception as e:
+            self._freed = True
+            _LIVE.pop(self.name, None)
+            raise FMUError(f"cannot instantiate {self.fmu.name!r}: {e}") from e
+
+    def _instantiate3(self) -> None:
+        from .fmi3 import FMU3Adapter
+
+        md = self.fmu.model_description3
+        self.slave: Any = FMU3Adapter(md, str(self.fmu._unzipdir), self.name, self.fmu.elements)
+        self._freed = False
+        _LIVE[self.name] = self
+
+        def log(env: Any, status: int, category: bytes, message: bytes) -> None:
+            self.messages.append(LogMessage(self.name, int(status), (category or b"").decode(
+                "utf-8", "replace"), (message or b"").decode("utf-8", "replace")))
+
+        try:
+            self.slave.instantiate(logMessage=log, loggingOn=self.logging)
         except Exception as e:
             self._freed = True
             _LIVE.pop(self.name, None)

@@ -1,0 +1,217 @@
+"""FMI 3.0 Co-Simulation FMUs in the harness: fmpy's ``FMU3Slave`` behind the FMI 2.0 API the
+masters and the compliance checks call.
+
+The harness speaks fmpy's FMU2Slave API (``setupExperiment``, ``getReal``, raw
+``fmi2GetReal(component, vr, n, values)``, ...). For an FMI 3.0 FMU, :class:`FMU3Adapter`
+answers the same calls through fmpy's FMU3Slave, and :func:`fmi2_view` gives the model
+description as the harness reads it:
+
+- Float64 variables read as ``type == "Real"``; the independent variable ``time`` is left
+  out (the masters keep time themselves);
+- each element of a 2-D array ``K`` appears as a scalar ``K[i,j]`` with a *virtual* value
+  reference (from :data:`VIRTUAL`); ``getReal``/``setReal`` read the whole array and write it
+  back with the element changed (FMI 3.0 sets an array as a whole). The raw calls
+  (``fmi2GetReal``/``fmi2SetReal``, the masters' hot path) take real value references of
+  scalars only, which is what the masters pass (inputs and outputs are scalars);
+- ``setupExperiment`` keeps the start and stop time for ``fmi3EnterInitializationMode``.
+
+Statuses are FMI 3.0's (same numbers as FMI 2.0); fmpy raises ``FMICallException`` above
+Warning as for FMI 2.0.
+"""
+
+from __future__ import annotations
+
+import copy
+from ctypes import byref, c_bool, c_double
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+__all__ = ["VIRTUAL", "Element", "FMU3Adapter", "fmi2_view"]
+
+#: first virtual value reference of an array element (FMI 3.0 references stay below it)
+VIRTUAL = 1 << 30
+
+
+@dataclass(frozen=True)
+class Element:
+    """Where ``K[i,j]`` lives: the array's value reference, its size and the row-major index."""
+
+    array_vr: int
+    size: int
+    index: int
+
+
+class _View:
+    """An FMI 3.0 model description as the FMI 2.0 harness reads it (see the module text)."""
+
+    def __init__(self, md: Any, variables: list[Any]) -> None:
+        self._md = md
+        self.modelVariables = variables
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._md, name)
+
+
+def fmi2_view(md: Any) -> tuple[Any, dict[int, Element]]:
+    """The harness's view of an fmpy FMI 3.0 model description and its array elements."""
+    out: list[Any] = []
+    elements: dict[int, Element] = {}
+    for v in md.modelVariables:
+        if v.causality == "independent":
+            continue
+        kind = "Real" if v.type in ("Float64", "Float32") else v.type
+        shape = tuple(int(d.start) for d in (v.dimensions or ()))
+        if not shape:
+            w = copy.copy(v)
+            w.type = kind
+            out.append(w)
+            continue
+        starts = str(v.start).split() if v.start is not None else None
+        size = 1
+        for d in shape:
+            size *= d
+        for k in range(size):
+            idx, rest = [], k
+            for d in reversed(shape):
+                idx.append(rest % d + 1)
+                rest //= d
+            w = copy.copy(v)
+            w.name = f"{v.name}[{','.join(str(i) for i in reversed(idx))}]"
+            w.type = kind
+            w.dimensions = []
+            w.start = starts[k] if starts else None
+            w.valueReference = VIRTUAL + len(elements)
+            elements[w.valueReference] = Element(v.valueReference, size, k)
+            out.append(w)
+    return _View(md, out), elements
+
+
+class FMU3Adapter:
+    """fmpy's FMU3Slave answering the FMU2Slave calls the harness makes."""
+
+    def __init__(self, md: Any, unzipdir: str, instance_name: str,
+                 elements: dict[int, Element]) -> None:
+        from fmpy.fmi3 import FMU3Slave
+
+        self._s = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir,
+                            modelIdentifier=md.coSimulation.modelIdentifier,
+                            instanceName=instance_name)
+        self._elements = elements
+        self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
+        flags = (c_bool(), c_bool(), c_bool(), c_double())
+        self._flags = flags
+        self._flag_refs = tuple(byref(f) for f in flags)
+        self._do_step = self._s.fmi3DoStep
+        self._get64 = self._s.fmi3GetFloat64
+        self._set64 = self._s.fmi3SetFloat64
+
+    # -- life cycle ------------------------------------------------------------
+    def instantiate(self, logMessage: Callable[..., None], loggingOn: bool = False) -> None:
+        self._s.instantiate(loggingOn=loggingOn, logMessage=logMessage)
+
+    @property
+    def component(self) -> Any:
+        return self._s.component
+
+    def setupExperiment(self, tolerance: float | None = None, startTime: float = 0.0,
+                        stopTime: float | None = None) -> None:
+        self._experiment = (tolerance, startTime, stopTime)
+
+    def enterInitializationMode(self) -> None:
+        tol, start, stop = self._experiment
+        self._s.enterInitializationMode(tolerance=tol, startTime=start, stopTime=stop)
+
+    def exitInitializationMode(self) -> None:
+        self._s.exitInitializationMode()
+
+    def terminate(self) -> Any:
+        return self._s.terminate()
+
+    def reset(self) -> Any:
+        return self._s.reset()
+
+    def doStep(self, currentCommunicationPoint: float, communicationStepSize: float,
+               noSetFMUStatePriorToCurrentPoint: bool = True) -> Any:
+        return self._s.doStep(currentCommunicationPoint, communicationStepSize,
+                              noSetFMUStatePriorToCurrentPoint)
+
+    def fmi2FreeInstance(self, component: Any) -> None:
+        self._s.fmi3FreeInstance(component)
+
+    def freeLibrary(self) -> None:
+        self._s.freeLibrary()
+
+    # -- raw calls of the masters' hot path (scalar value references) ----------
+    def fmi2GetReal(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        return self._get64(c, vr, n, values, n)
+
+    def fmi2SetReal(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        return self._set64(c, vr, n, values, n)
+
+    def fmi2DoStep(self, c: Any, t: float, h: float, no_set_prior: int) -> int:
+        r = self._flag_refs
+        return self._do_step(c, t, h, bool(no_set_prior), r[0], r[1], r[2], r[3])
+
+    def fmi2GetBoolean(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        buf = (c_bool * n)()
+        status = self._s.fmi3GetBoolean(c, vr, n, buf, n)
+        values[:n] = [int(b) for b in buf]
+        return status
+
+    def fmi2SetBoolean(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        return self._s.fmi3SetBoolean(c, vr, n, (c_bool * n)(*[bool(x) for x in values[:n]]), n)
+
+    # -- values by (possibly virtual) value reference ----------------------------
+    def _split(self, vrs: Sequence[int]) -> bool:
+        return any(v >= VIRTUAL for v in vrs)
+
+    def getReal(self, vr: Sequence[int]) -> list[float]:
+        if not self._split(vr):
+            return self._s.getFloat64(list(vr))
+        out = []
+        for v in vr:
+            e = self._elements.get(v)
+            out.append(self._s.getFloat64([e.array_vr], e.size)[e.index] if e
+                       else self._s.getFloat64([v])[0])
+        return out
+
+    def setReal(self, vr: Sequence[int], values: Sequence[float]) -> None:
+        if not self._split(vr):
+            self._s.setFloat64(list(vr), [float(x) for x in values])
+            return
+        for v, x in zip(vr, values):
+            e = self._elements.get(v)
+            if e is None:
+                self._s.setFloat64([v], [float(x)])
+                continue
+            whole = self._s.getFloat64([e.array_vr], e.size)
+            whole[e.index] = float(x)
+            self._s.setFloat64([e.array_vr], whole)
+
+    def getBoolean(self, vr: Sequence[int]) -> list[bool]:
+        return [bool(b) for b in self._s.getBoolean(list(vr))]
+
+    def setBoolean(self, vr: Sequence[int], values: Sequence[bool]) -> None:
+        self._s.setBoolean(list(vr), [bool(x) for x in values])
+
+    # -- FMU state -----------------------------------------------------------------
+    def getFMUstate(self) -> Any:
+        return self._s.getFMUState()
+
+    def setFMUstate(self, state: Any) -> None:
+        self._s.setFMUState(state)
+
+    def freeFMUstate(self, state: Any) -> None:
+        self._s.freeFMUState(state)
+
+    def serializeFMUstate(self, state: Any) -> bytes:
+        return self._s.serializeFMUState(state)
+
+    def deSerializeFMUstate(self, data: bytes) -> Any:
+        return self._s.deserializeFMUState(data)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("fmi3") or name in ("getFloat64", "setFloat64"):
+            return getattr(self._s, name)
+        raise AttributeError(f"{name}: an FMI 2.0 call with no FMI 3.0 counterpart in "
+                             "dronefly's adapter (FMU3Adapter)")

@@ -78,6 +78,12 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
 
         if shutil.which("gcc") is None or libpython_path() is None:
             pytest.skip("no gcc or no shared libpython (.ci/setup-c-host.sh installs them)")
+    if mark.startswith("needs ecospy"):
+        from dronefly.harness.interop.ecos import ecos_available
+
+        why = ecos_available()
+        if why:
+            pytest.skip(why)
     before = _status()
     if lang == "python":
         script = tmp_path / "block.py"

@@ -1,12 +1,11 @@
 """A third importer: the closed-loop SSP co-simulated by Ecos (ecospy), in a child process.
 
-Ecos (ecospy 0.7.2 on PyPI) is a C++ co-simulation engine (fmi4c, SSP 1.0, a CLI, proxyfmu)
-with a ctypes binding. Its ``libecosc.so`` needs ``libtbb.so.12`` (C++17 parallel algorithms),
-which the PyPI package ``tbb`` installs into ``<prefix>/lib``, not on the library path. So
-:func:`run_ecos` runs ecospy in a child process of this interpreter with that folder on
-``LD_LIBRARY_PATH`` (:func:`ecos_env`). The child also isolates Ecos' failure modes from the
-caller: a crash in Ecos or an FMU ends the child only, and Ecos leaks one unzipped copy of the
-SSP per simulation into ``TMPDIR`` (the child gets a private one, removed afterwards).
+Ecos (ecospy 0.7.2) is a C++ co-simulation engine (fmi4c, SSP 1.0, a CLI, proxyfmu) with a
+ctypes binding. Its ``libecosc.so`` needs ``libtbb.so.12``, which the PyPI package ``tbb``
+installs off the library path, so :func:`run_ecos` runs ecospy in a child process of this
+interpreter with that folder on ``LD_LIBRARY_PATH`` (:func:`ecos_env`). A crash in Ecos or an
+FMU ends the child only; Ecos leaks an unzipped copy of the SSP per simulation into ``TMPDIR``
+(the child's is private and removed).
 
 Why Ecos crashed on our SSP (measured, docs/interop.md): pythonfmu runs the FMU's Python code
 in the host's interpreter, so the FMUs' imports (numpy, scipy) must be importable by the
@@ -26,9 +25,8 @@ u_k = K x_(k-1), exactly ``Loop.run(..., master="jacobi")`` with its default u_s
 plant's initial outputs); measured: equal to the last bit over 3000 steps. Time is a double
 that Ecos accumulates (t_k = t_(k-1) + h, 1.5e-13 s from k h after 3000 steps).
 
-Ecos keys SSP parameter sets by the SSV's ``name`` and applies one per ``init``; our SSP has
-two (``plant``, ``controller``). :func:`run_ecos` applies every binding of the SSP (and any
-overrides) with ``set_real`` before ``init``, as the SSP standard means them.
+Ecos keys SSP parameter sets by the SSV's ``name`` and applies one per ``init``; ours are two
+(``plant``, ``controller``), so :func:`run_ecos` sets every binding before ``init`` itself.
 """
 
 from __future__ import annotations
@@ -93,11 +91,8 @@ json.dump(out, open(sys.argv[2], "w"))
 
 
 def tbb_library_dir() -> str | None:
-    """The folder holding ``libtbb.so.12`` of the PyPI package ``tbb``, or None.
-
-    pip installs the package's libraries as data files into ``<prefix>/lib`` (the virtual
-    environment's, or ``~/.local/lib`` for ``--user``), where the loader does not look.
-    """
+    """The folder holding ``libtbb.so.12`` of the PyPI package ``tbb``, or None (pip puts it
+    into ``<prefix>/lib`` or ``~/.local/lib``, where the loader does not look)."""
     from importlib import metadata
 
     try:
@@ -142,32 +137,32 @@ def ecos_available() -> str | None:
     return None
 
 
-def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
-    """The plant component's output and input connector names, in SSD order."""
+def _component(ssp: Path, name: str) -> ET.Element:
+    """The SSD's ``Component`` element of that name."""
     with zipfile.ZipFile(ssp) as z:
         root = ET.fromstring(z.read("SystemStructure.ssd"))
     for comp in root.iter(f"{_SSD}Component"):
-        if comp.get("name") == plant:
-            cons = list(comp.iter(f"{_SSD}Connector"))
-            return ([c.get("name") for c in cons if c.get("kind") == "output"],
-                    [c.get("name") for c in cons if c.get("kind") == "input"])
-    raise CoSimError(f"the SSP {str(ssp)!r} has no component {plant!r}")
+        if comp.get("name") == name:
+            return comp
+    raise CoSimError(f"the SSP {str(ssp)!r} has no component {name!r}")
+
+
+def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
+    """The plant component's output and input connector names, in SSD order."""
+    cons = list(_component(ssp, plant).iter(f"{_SSD}Connector"))
+    return ([c.get("name") for c in cons if c.get("kind") == "output"],
+            [c.get("name") for c in cons if c.get("kind") == "input"])
 
 
 def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
     """n [Hz] and the state scales of the plant component's FMU."""
     from fmpy import read_model_description
 
-    with zipfile.ZipFile(ssp) as z:
-        root = ET.fromstring(z.read("SystemStructure.ssd"))
-        source = next((c.get("source") for c in root.iter(f"{_SSD}Component")
-                       if c.get("name") == plant), None)
-        if source is None:
-            raise CoSimError(f"the SSP {str(ssp)!r} has no component {plant!r}")
-        with tempfile.TemporaryDirectory(prefix="dronefly_ecos_md_") as tmp:
-            fmu = Path(tmp, "plant.fmu")
-            fmu.write_bytes(z.read(source))
-            return reference_scales(read_model_description(str(fmu)))
+    source = _component(ssp, plant).get("source")
+    with zipfile.ZipFile(ssp) as z, tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:
+        fmu = Path(tmp, "plant.fmu")
+        fmu.write_bytes(z.read(source))
+        return reference_scales(read_model_description(str(fmu)))
 
 
 def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],
@@ -180,8 +175,7 @@ def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],
         job, out = Path(tmp, "job.json"), Path(tmp, "out.json")
         job.write_text(json.dumps({"ssp": str(ssp), "step": step_s, "n": n_steps,
                                    "record": record, "runs": runs}))
-        child_env = ecos_env(env)
-        child_env["TMPDIR"] = tmp  # Ecos leaves an unzipped copy of the SSP there
+        child_env = {**ecos_env(env), "TMPDIR": tmp}  # Ecos leaves a copy of the SSP there
         r = subprocess.run([sys.executable, "-c", _CHILD, str(job), str(out)], env=child_env,
                            capture_output=True, text=True, timeout=600)
         if r.returncode != 0:
@@ -271,7 +265,20 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
     One run per unit initial state x+_0 = e_i, all in one child process. Each run is
     [x_(-1); x_0; x_1; ...] with x_(-1) = x_0 (see the module text), the delayed (Jacobi) form
     of :func:`dronefly.harness.cosim.stability.identify`; u_0 = u_1 (= K x_0) is checked.
-    ``overrides`` as in :func:`run_ecos` (e.g. the gains ``controller.K[i,j]``).
+
+    Parameters
+    ----------
+    ssp : path
+        The closed-loop SSP (components ``plant`` and ``controller``).
+    n_steps : int
+        Steps per identification run.
+    overrides, env : mapping, optional
+        As in :func:`run_ecos` (e.g. the gains ``controller.K[i,j]``).
+
+    Returns
+    -------
+    Verdict
+        The identification and the non-dimensional runs it used.
     """
     ssp = Path(ssp).resolve()
     n_hz, scale = _plant_scales(ssp, "plant")

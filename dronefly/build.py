@@ -26,9 +26,8 @@ from .files import write_zip
 if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
     from .harness.interop.closedloop import ClosedLoopSpec
 
-__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "fmu_sources",
-           "project_systems",
-           "project_fmus"]
+__all__ = ["FMUS", "BuildError", "build_all", "build_all3", "build_closed_loop", "build_fmu",
+           "fmu_sources", "project_fmus", "project_systems"]
 
 _PKG_ROOT = Path(__file__).resolve().parent
 _NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
@@ -254,6 +253,24 @@ def build_all(out_dir: str | Path = "build") -> list[Path]:
         except (OSError, ValueError) as e:
             raise BuildError(f"cannot build {name}.ssp: {e}") from e
     return [*fmus.values(), *loop, *systems]
+
+
+def build_all3(out_dir: str | Path = Path("build") / "fmi3") -> list[Path]:
+    """Every FMU of the project as an FMI 3.0 Co-Simulation FMU (pythonfmu3) in ``out_dir``,
+    with the hover systems ``DroneFlyHover.ssp`` and ``DroneFlyHover6DOF.ssp`` referencing
+    them. No container FMU: FMPy's container does not nest FMI 3.0 FMUs (docs/fmi-limits.md)."""
+    from .harness.system.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
+
+    fmus = {name: build_fmu(name, out_dir, fmi=3) for name in FMUS}
+    systems = []
+    for name, nonlinear in ((HOVER, False), (HOVER_6DOF, True)):
+        try:
+            systems.append(write_system_ssp(
+                hover_system(fmus, nonlinear=nonlinear), Path(out_dir) / f"{name}.ssp",
+                description="The hovering model drone fly (Zhang & Sun), FMI 3.0 FMUs"))
+        except (OSError, ValueError) as e:
+            raise BuildError(f"cannot build the FMI 3.0 {name}.ssp: {e}") from e
+    return [*fmus.values(), *systems]
 
 
 def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,

@@ -20,9 +20,10 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 
 def build(args: argparse.Namespace) -> int:
-    from dronefly.build import build_all
+    from dronefly.build import build_all, build_all3
+    from dronefly.build3 import FMI3_OUT
 
-    for path in build_all(args.out):
+    for path in [*build_all(args.out), *build_all3(Path(args.out) / FMI3_OUT)]:
         print(path)
     return EXIT_OK
 

@@ -1,4 +1,6 @@
-"""``dronefly check``: an FMI 2.0 co-simulation compliance suite for FMUs.
+"""``dronefly check``: a co-simulation compliance suite for FMI 2.0 and FMI 3.0 FMUs.
+
+FMI 3.0 FMUs run the same checks through fmpy's FMU3Slave, plus those of :mod:`.fmi3checks`.
 
 Checks, each reported as passed or failed with a reason:
 
@@ -147,8 +149,9 @@ def _check_reset(fmu: FMU) -> str:
         first = _whole_run(inst, fmu)
         inst.slave.reset()
         second = _whole_run(inst, fmu)
-    _require(np.array_equal(first, second), "the run after fmi2Reset differs")
-    return "identical after fmi2Reset"
+    reset = f"fmi{fmu.fmi_version}Reset"
+    _require(np.array_equal(first, second), f"the run after {reset} differs")
+    return f"identical after {reset}"
 
 
 def _check_two_instances(fmu: FMU) -> str:
@@ -277,13 +280,15 @@ def run_checks(path: Path, progress: Callable[[dict], None] | None = None) -> FM
         if progress:
             progress(asdict(report.checks[-1]))
         return report
+    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS
+
     with fmu:
-        for name, fn in _CHECKS:
+        for name, fn in _CHECKS + (FMI3_CHECKS if fmu.fmi_version == 3 else []):
             if progress:
                 progress({"begin": name})
             try:
                 result = CheckResult(name, True, fn(fmu))
-            except _CheckFailed as e:
+            except AssertionError as e:  # _CheckFailed, Fmi3CheckFailed
                 result = CheckResult(name, False, str(e))
             except Exception as e:  # an FMI call failed: that is a finding, not a crash
                 result = CheckResult(name, False, f"{type(e).__name__}: {e}")

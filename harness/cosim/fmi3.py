@@ -24,9 +24,10 @@ from __future__ import annotations
 import copy
 from ctypes import byref, c_bool, c_double
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
-__all__ = ["VIRTUAL", "Element", "FMU3Adapter", "fmi2_view"]
+__all__ = ["VIRTUAL", "Element", "FMU3Adapter", "fmi2_view", "read_view"]
 
 #: first virtual value reference of an array element (FMI 3.0 references stay below it)
 VIRTUAL = 1 << 30
@@ -84,6 +85,14 @@ def fmi2_view(md: Any) -> tuple[Any, dict[int, Element]]:
             elements[w.valueReference] = Element(v.valueReference, size, k)
             out.append(w)
     return _View(md, out), elements
+
+
+def read_view(path: str | Path) -> Any:
+    """fmpy's model description of an FMU file; of an FMI 3.0 FMU, the harness's view."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(path))
+    return fmi2_view(md)[0] if str(md.fmiVersion).startswith("3") else md
 
 
 class FMU3Adapter:

@@ -14,9 +14,8 @@ from pathlib import Path
 from typing import Mapping, Sequence
 from xml.etree import ElementTree as ET
 
-from fmpy import read_model_description
-
 from dronefly.files import write_zip
+from dronefly.harness.cosim.fmi3 import read_view
 from dronefly.harness.system.description import System, SystemSpecError
 
 __all__ = ["HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS", "hover_system",
@@ -82,7 +81,7 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
         comp = ET.SubElement(elements, f"{{{_SSD}}}Component", {
             "name": inst, "source": entry, "type": "application/x-fmu-sharedlibrary"})
         connectors = ET.SubElement(comp, f"{{{_SSD}}}Connectors")
-        for v in read_model_description(str(fmu)).modelVariables:
+        for v in read_view(fmu).modelVariables:  # FMI 3.0: Float64 as Real
             if v.causality in ("input", "output") and v.type in ("Real", "Integer", "Boolean"):
                 con = ET.SubElement(connectors, f"{{{_SSD}}}Connector",
                                     {"name": v.name, "kind": v.causality})

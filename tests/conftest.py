@@ -18,6 +18,16 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="session")
+def built_fmus3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The FMI 3.0 artefacts of ``dronefly build`` (``build/fmi3/``), freshly built: FMUs by
+    model name, the hover system SSPs by file name."""
+    from dronefly.build import build_all3
+
+    out = tmp_path_factory.mktemp("fmus3")
+    return {(p.stem if p.suffix == ".fmu" else p.name): p for p in build_all3(out)}
+
+
+@pytest.fixture(scope="session")
 def plant(built_fmus):
     """The built DroneFlyLateral, read and extracted once."""
     from dronefly.harness.cosim.fmu import FMU

@@ -1,0 +1,222 @@
+"""FMI 3.0 builds (issue 15): the same model and controller code behind pythonfmu3.
+
+Every FMU of the project as an FMI 3.0 Co-Simulation FMU: fmpy validate clean; arrays, the
+independent variable, units and dependencies in the model description; the slave's FMI 3.0
+answers (statuses, arrays, states); co-simulation through fmpy's FMU3Slave equal to FMI 2.0
+(pairs and the hover system, FMI 3.0 only and mixed); dronefly check on FMI 3.0 FMUs, and a
+broken one failing it.
+"""
+
+from __future__ import annotations
+
+import math
+import zipfile
+from xml.etree import ElementTree as ET
+
+import numpy as np
+import pytest
+
+from dronefly.build import FMUS
+
+pytestmark = pytest.mark.integration
+
+# -- the slave in this process (no FMU built) -----------------------------------------------
+
+
+@pytest.fixture
+def feedback3():
+    from dronefly.controller.slave import StateFeedback
+    from dronefly.fmi.fmi3 import fmi3_class
+
+    return fmi3_class(StateFeedback)(instance_name="c3")
+
+
+def _vr(slave, name):
+    return next(vr for vr, e in enumerate(slave.TABLE3) if e.name == name)
+
+
+def test_slave_arrays_time_and_statuses(feedback3):
+    s = feedback3
+    K = _vr(s, "K")
+    assert s.TABLE3[0].name == "time" and s.TABLE3[K].dims == (3, 4)
+    assert s.do_step(0.0, 1e-3).status == 3  # fmi3Error: not initialized
+    assert "fmi3DoStep is not allowed in state 'instantiated'" in s.log_queue[-1].msg
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    k = s.get_float64([K])
+    assert len(k) == 12 and k[0] == pytest.approx(-0.3192)
+    s.set_float64([K], [0.0] * 12)
+    s.set_float64([_vr(s, "delta_p")], [1.0])
+    assert s.get_float64([_vr(s, "delta_Phi_a")]) == [0.0]
+    s.set_float64([K], [1.0] * 3)  # too few values for a 3 x 4 array
+    msg = s.log_queue[-1]
+    assert "12 values needed, 3 given" in msg.msg and msg.status == 3 and msg.debug is False
+    assert s.do_step(0.5, 1e-3).status == 3  # the rejected set, named
+    assert s.do_step(0.5, 1e-3).status == 0  # the first step's time is the start (pythonfmu3)
+    assert s.get_float64([0]) == [0.501]
+    s.set_float64([_vr(s, "delta_v")], [math.nan])
+    assert s.do_step(0.501, 1e-3).status == 2  # fmi3Discard: a bad value
+    assert "delta_v = nan" in s.log_queue[-1].msg
+    assert math.isnan(s.get_float64([2 ** 30])[0])  # logged, never raises
+    assert "fmi3GetFloat64 of valueReference 1073741824" in s.log_queue[-1].msg
+
+
+def test_slave_state_round_trip_and_foreign_state(feedback3):
+    from dronefly.controller.slave import StateFeedback
+
+    s = feedback3
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    assert s.do_step(0.25, 1e-3).status == 0
+    blob = type(s)._fmu_state_to_bytes(s._get_fmu_state())
+    fmi2 = StateFeedback(instance_name="c2")
+    s.do_step(0.251, 1e-3)
+    s._set_fmu_state(type(s)._fmu_state_from_bytes(blob))
+    assert s._time == 0.251 and s._t0_known
+    s._set_fmu_state(fmi2._get_fmu_state())  # a state of the FMI 2.0 class: refused
+    assert "fmi3SetFMUState refused" in s.log_queue[-1].msg
+
+
+# -- the built FMUs --------------------------------------------------------------------------
+
+
+def _md(path):
+    with zipfile.ZipFile(path) as z:
+        return ET.fromstring(z.read("modelDescription.xml"))
+
+
+def test_every_fmu_built_and_validate_clean(built_fmus3):
+    from fmpy.validation import validate_fmu
+
+    assert set(FMUS) <= set(built_fmus3)
+    assert {"DroneFlyHover.ssp", "DroneFlyHover6DOF.ssp"} <= set(built_fmus3)
+    for name in FMUS:
+        assert validate_fmu(str(built_fmus3[name])) == [], name
+        assert _md(built_fmus3[name]).get("fmiVersion") == "3.0"
+
+
+def _scalar_deps(md2, index_attr):
+    """{name: set of dependency names} of an FMI 2.0 ModelStructure section."""
+    names = [sv.get("name") for sv in md2.find("ModelVariables")]
+    out = {}
+    for u in md2.find("ModelStructure").find(index_attr) or []:
+        deps = u.get("dependencies")
+        out[names[int(u.get("index")) - 1]] = None if deps is None else {
+            names[int(i) - 1] for i in deps.split()}
+    return out
+
+
+def _array_of(name):
+    return name.split("[")[0]
+
+
+@pytest.mark.parametrize("name", ["DroneFlyLateral", "StateFeedback"])
+def test_model_description_arrays_units_dependencies(built_fmus, built_fmus3, name):
+    md2, md3 = _md(built_fmus[name]), _md(built_fmus3[name])
+    vars3 = list(md3.find("ModelVariables"))
+    by_vr = {int(v.get("valueReference")): v for v in vars3}
+    assert by_vr[0].get("name") == "time" and by_vr[0].get("causality") == "independent"
+    arrays = {v.get("name"): [int(d.get("start")) for d in v.findall("Dimension")]
+              for v in vars3 if v.findall("Dimension")}
+    assert arrays == ({"A": [4, 4], "B": [4, 3]} if name == "DroneFlyLateral" else {"K": [3, 4]})
+    assert all(v.tag == "Float64" and v.get("unit") for v in vars3 if v.get("name") in arrays)
+    units2 = {sv.get("name"): (sv[0].get("unit"), sv[0].get("displayUnit")) for sv in
+              md2.find("ModelVariables") if "[" not in sv.get("name")}
+    for v in vars3[1:]:
+        if v.get("name") in units2:
+            assert (v.get("unit"), v.get("displayUnit")) == units2[v.get("name")]
+            assert v.get("description")
+    # every FMI 3.0 dependency list is the FMI 2.0 one with the elements collapsed to arrays
+    names3 = {int(v.get("valueReference")): v.get("name") for v in vars3}
+    for tag2, tag3 in (("Outputs", "Output"), ("InitialUnknowns", "InitialUnknown")):
+        deps2 = _scalar_deps(md2, tag2)
+        want: dict[str, set | None] = {}
+        for n, d in deps2.items():
+            a = _array_of(n)
+            want[a] = None if d is None or want.get(a, set()) is None else (
+                want.get(a, set()) | {_array_of(x) for x in d})
+        got = {names3[int(u.get("valueReference"))]:
+               None if u.get("dependencies") is None
+               else {names3[int(i)] for i in u.get("dependencies").split()}
+               for u in md3.find("ModelStructure").findall(tag3)}
+        assert got == want, tag3
+
+
+def _pair(plant, controller, master):
+    from dronefly.harness.cosim.run import cosimulate
+
+    return cosimulate(plant, controller, master=master, stop_wingbeats=60, out_dir=None,
+                      plot=False, set_values={"controller.K[1,2]": -0.25})
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_pair_fmi3_and_mixed_equal_fmi2(built_fmus, built_fmus3, master):
+    """The lateral loop (with a gain set by element name) through fmpy's FMU3Slave: FMI 3.0
+    only and mixed (FMI 2.0 plant, FMI 3.0 controller, and the reverse) equal FMI 2.0."""
+    p2, c2 = built_fmus["DroneFlyLateral"], built_fmus["StateFeedback"]
+    p3, c3 = built_fmus3["DroneFlyLateral"], built_fmus3["StateFeedback"]
+    ref = _pair(p2, c2, master)
+    assert ref.run.complete and len(ref.run.signals) == 601
+    for p, c in ((p3, c3), (p2, c3), (p3, c2)):
+        r = _pair(p, c, master)
+        assert r.run.complete and r.verdict == ref.verdict
+        assert np.max(np.abs(r.run.signals - ref.run.signals)) <= 1e-12
+
+
+def test_hover_system_fmi3_ssp_and_mixed_equal_fmi2(built_fmus, built_fmus3):
+    """The four-FMU hover system: from build/fmi3/DroneFlyHover.ssp (FMI 3.0 FMUs) and mixed
+    (FMI 2.0 plants, FMI 3.0 controllers) equal to the FMI 2.0 system; same verdicts (the
+    trajectories decide them: the mixed run's verdicts are not identified again)."""
+    from dronefly.harness.system.run import cosimulate_system
+    from dronefly.harness.system.ssp import hover_system
+
+    kw = dict(stop_wingbeats=60, out_dir=None, plot=False)
+    ref = cosimulate_system(built_fmus["DroneFlyHover.ssp"], **kw)
+    mixed = {m: (built_fmus3 if m.startswith("StateFeedback") else built_fmus)[m]
+             for m in FMUS}
+    for system, verdicts in ((built_fmus3["DroneFlyHover.ssp"], True),
+                             (hover_system(mixed), False)):
+        r = cosimulate_system(system, verdicts=verdicts, **kw)
+        assert r.run.complete and r.run.names == ref.run.names
+        assert np.max(np.abs(r.run.signals - ref.run.signals)) <= 1e-12
+        if verdicts:
+            assert [a.verdict for a in r.axes] == [a.verdict for a in ref.axes] == [
+                "neutral", "stable"]
+
+
+def test_check_passes_on_fmi3(built_fmus3):
+    from dronefly.harness.compliance.suite import check_fmu
+
+    report = check_fmu(built_fmus3["StateFeedback"], fuzz=True)
+    assert report.passed, report.checks
+    names = [c.name for c in report.checks]
+    assert {"state-machine", "discard", "state-refusal", "reference"} <= set(names)
+
+
+def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, monkeypatch, capsys):
+    """An FMI 3.0 FMU whose doStep raises: pythonfmu3 answers fmi3Fatal and frees the Python
+    instance while keeping its pointer, so the next call (fmi3Terminate) crashes the host;
+    the check runs in a child process and reports it."""
+    import dronefly.build as build
+    from dronefly.cli import main
+
+    original = build._source_path
+
+    def patched(rel):
+        path = original(rel)
+        if rel == "fmi/fmi3.py":
+            text = path.read_text()
+            bad = text.replace("        return _RESULTS[do_step_status(self, current_time, "
+                               "step_size)]", "        raise RuntimeError('broken doStep')")
+            assert bad != text
+            path = tmp_path / "fmi3.py"
+            path.write_text(bad)
+        return path
+
+    monkeypatch.setattr(build, "_source_path", patched)
+    fmu = build.build_fmu("DroneFlyLateral", tmp_path / "bad", fmi=3)
+    assert main(["check", "--no-fuzz", str(fmu)]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL" in out and "0 of 1 FMUs passed" in out
+    assert "[  ok] validate" in out
+    assert "[FAIL] call-sequence  the checking process died (killed by SIGSEGV)" in out

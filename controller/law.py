@@ -7,9 +7,12 @@ shares, so that the controller and the plant agree on the
 non-dimensionalisation of Sect. 2.1:
 
     x+ = (delta_v / U, delta_p t_w, delta_r t_w, delta_gamma),  t_w = 1/n
-    u  = (delta_Phi_a, delta_alpha_1a, delta_alpha_2a) = K x+   [rad]
+    u  = (delta_Phi_a, delta_alpha_1a, delta_alpha_2a) = K x+ + KI z   [rad]
 
-K is 3x4 and non-dimensional (rad per unit of x+). Eq. (22) is its first row.
+K is 3x4 and non-dimensional (rad per unit of x+). Eq. (22) is its first row. KI
+(same shape, default 0) weighs the integral state z = integral of x+ over the
+non-dimensional time t+ = t n (issue 14: a proportional-integral law); with KI = 0
+the law is u = K x+, bit for bit.
 The same law serves the longitudinal axis (:data:`dronefly.longitudinal.LONGITUDINAL`,
 x+ = (delta_u/U, delta_w/U, delta_q t_w, delta_theta), four controls, K 4x4).
 An optional actuator limit clips each control to [-u_max, u_max].
@@ -38,6 +41,7 @@ __all__ = [
     "default_gains",
     "default_longitudinal_gains",
     "gain_name",
+    "integral_gain_name",
 ]
 
 Gains = tuple[tuple[float, ...], ...]
@@ -69,6 +73,11 @@ def gain_name(i: int, j: int) -> str:
     return f"K[{i + 1},{j + 1}]"
 
 
+def integral_gain_name(i: int, j: int) -> str:
+    """FMI name of the integral gain in row ``i``, column ``j`` (0-based): ``KI[i+1,j+1]``."""
+    return f"KI[{i + 1},{j + 1}]"
+
+
 def default_longitudinal_gains() -> Gains:
     """4x4 gains of the longitudinal controller, rows (delta_Phi, delta_alpha_1, delta_phibar,
     delta_alpha_2): design (b) in the delta_phibar row, zeros elsewhere."""
@@ -83,7 +92,8 @@ def default_gains() -> Gains:
 
 @dataclass(frozen=True)
 class FeedbackLaw:
-    """u = K x+, optionally clipped to [-u_max, u_max]; x+ formed from the dimensional state.
+    """u = K x+ + KI z, optionally clipped to [-u_max, u_max]; x+ formed from the dimensional
+    state, z (the integral of x+ over t+) given.
 
     Parameters
     ----------
@@ -100,6 +110,9 @@ class FeedbackLaw:
         Whether the controls are limited (default: no limit).
     axis : Axis
         Names and non-dimensionalisation of the state and controls (default: lateral).
+    KI : nested tuple or None
+        Non-dimensional integral gains [rad per unit of z], the shape of ``K``; None = no
+        integral action (the same as all zeros).
     """
 
     K: Gains
@@ -108,16 +121,19 @@ class FeedbackLaw:
     u_max: float = U_MAX_LINEAR_RANGE
     limit_enabled: bool = False
     axis: Axis = LATERAL
+    KI: Gains | None = None
 
     def validate(self) -> None:
         """Raise :class:`LawParameterError` naming the first bad value."""
         m, c = len(self.axis.control_names), len(self.axis.state_names)
-        if len(self.K) != m or any(len(row) != c for row in self.K):
-            raise LawParameterError(f"K must be {m}x{c}")
-        for i, row in enumerate(self.K):
-            for j, k in enumerate(row):
-                if not math.isfinite(k):
-                    raise LawParameterError(f"{gain_name(i, j)} = {k!r} is not finite")
+        for label, gains, naming in (("K", self.K, gain_name),
+                                     ("KI", self.KI or ((0.0,) * c,) * m, integral_gain_name)):
+            if len(gains) != m or any(len(row) != c for row in gains):
+                raise LawParameterError(f"{label} must be {m}x{c}")
+            for i, row in enumerate(gains):
+                for j, k in enumerate(row):
+                    if not math.isfinite(k):
+                        raise LawParameterError(f"{naming(i, j)} = {k!r} is not finite")
         for name, value in (("n", self.n), ("U", self.U), ("u_max", self.u_max)):
             if not (math.isfinite(value) and value > 0.0):
                 raise LawParameterError(f"{name} = {value!r} must be finite and > 0")
@@ -135,8 +151,27 @@ class FeedbackLaw:
         scale = self.axis.scale_vector(self.U, self.n)
         return tuple(tuple(k / s for k, s in zip(row, scale)) for row in self.K)
 
-    def evaluate(self, x: Sequence[float]) -> tuple[tuple[float, ...], bool]:
+    @cached_property
+    def scale(self) -> tuple[float, ...]:
+        """x = x+ * scale, element-wise (U, t_w = 1/n or 1 per state component)."""
+        return self.axis.scale_vector(self.U, self.n)
+
+    @cached_property
+    def has_integral(self) -> bool:
+        """Whether any integral gain is non-zero."""
+        return self.KI is not None and any(k != 0.0 for row in self.KI for k in row)
+
+    def evaluate(self, x: Sequence[float], z: Sequence[float] | None = None
+                 ) -> tuple[tuple[float, ...], bool]:
         """Controls [rad] for a dimensional state, and whether any of them is limited.
+
+        Parameters
+        ----------
+        x : sequence of float
+            The (sensed) dimensional state [SI units].
+        z : sequence of float, optional
+            The integral state, non-dimensional (z_j = integral of x+_j dt+); used only if
+            :attr:`has_integral`.
 
         Each control is clipped on its own; ``saturated`` is true exactly when
         at least one unclipped value lies outside [-u_max, u_max].
@@ -144,17 +179,20 @@ class FeedbackLaw:
         Raises
         ------
         LawParameterError
-            A state value is not finite, or K x+ overflows.
+            A state value is not finite, or K x+ (+ KI z) overflows.
         """
         for v in x:
             if v - v != 0.0:  # inf or nan (cheaper than math.isfinite per element)
                 self.nondimensional_state(x)  # raises, naming the value
         u = [dot(row, x) for row in self._rows]
+        if z is not None and self.has_integral:
+            u = [a + dot(row, z) for a, row in zip(u, self.KI)]  # type: ignore[arg-type]
         for v in u:
             if v - v != 0.0:
                 for name, value in zip(self.axis.control_names, u):
                     if not math.isfinite(value):
-                        raise LawParameterError(f"{name} = {value!r} is not finite (K x+ "
+                        what = "K x+ + KI z" if self.has_integral else "K x+"
+                        raise LawParameterError(f"{name} = {value!r} is not finite ({what} "
                                                 "overflows)")
         saturated = False
         if self.limit_enabled:

@@ -1,76 +1,36 @@
-"""FMU ``StateFeedback``: the state feedback u = K x+ of Eq. (22) as an FMI 2.0 CS slave.
+"""The controller FMUs: u = K x+_s + KI z of Eq. (22) as FMI 2.0 CS slaves, for either axis.
 
-A block without internal state and with direct feedthrough: the outputs are
-recomputed from the current inputs and parameters whenever an output is read
-after a value was set (no doStep needed). All numbers come from :mod:`.law`.
+One implementation (:class:`_Feedback`), four interfaces: ``StateFeedback`` and
+``StateFeedbackLongitudinal`` (direct feedthrough declared: exact at ``sensing_delay`` = 0, the
+default) and their ``...Delayed`` variants (``sensing_delay`` > 0 required, no direct
+feedthrough declared). The internal state is the delay line and the integral z
+(:class:`.delay.Sensor`); the outputs are recomputed whenever an output is read after a
+value was set (feedthrough FMUs) and at the end of every step. All numbers come from
+:mod:`.law`, the timing from :mod:`.delay`, the variables from :mod:`.variables`.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
-from typing import ClassVar
+from operator import itemgetter
+from typing import Any, ClassVar
 
 from ..axes import Axis
-from ..fmi import SlaveBase, Var
-from ..lateral import LATERAL, N_HZ, U_M_PER_S
+from ..fmi import SlaveBase
+from ..lateral import LATERAL, N_HZ
 from ..longitudinal import LONGITUDINAL
-from .law import (U_MAX_LINEAR_RANGE, FeedbackLaw, Gains, default_gains,
-                  default_longitudinal_gains, gain_name)
+from .delay import Sensor, Timing
+from .law import FeedbackLaw, default_gains, default_longitudinal_gains
+from .variables import (LAW_PARAMETERS, TIMING, all_gains, all_integral_gains,
+                        controller_variables)
 
-__all__ = ["StateFeedback", "StateFeedbackLongitudinal"]
-
-_LIMIT = ("limit_enabled", "u_max")
-
-
-def _gains_of_row(axis: Axis, i: int) -> tuple[str, ...]:
-    return tuple(gain_name(i, j) for j in range(len(axis.state_names)))
-
-
-def _all_gains(axis: Axis) -> tuple[str, ...]:
-    return tuple(g for i in range(len(axis.control_names)) for g in _gains_of_row(axis, i))
-
-
-def _variables(axis: Axis, K: Gains, sources: tuple[str, ...]) -> tuple[Var, ...]:
-    """Inputs (the measured state), outputs (the controls, ``saturated``), gains ``K[i,j]``
-    with their defaults ``K`` (``sources[i]`` says where row i comes from), n, U, the limit."""
-    states = axis.state_names
-    out: list[Var] = []
-    for name, text, nondim, (unit, disp) in zip(states, axis.state_descriptions,
-                                                axis.nondimensional, axis.state_units):
-        out.append(Var(name, "input", "continuous", f"measured {text}; {nondim}", unit, disp,
-                       start=0.0))
-    for i, (name, text) in enumerate(zip(axis.control_names, axis.control_descriptions)):
-        out.append(Var(name, "output", "continuous",
-                       f"{text}: row {i + 1} of u = K x+, limited to +/-u_max if limit_enabled",
-                       *axis.control_unit, initial="calculated", dependencies=states,
-                       initial_dependencies=(*states, *_gains_of_row(axis, i), "n", "U",
-                                             *_LIMIT)))
-    out.append(Var("saturated", "output", "discrete",
-                   "true while any control output is limited to +/-u_max", None,
-                   initial="calculated", type="Boolean", dependencies=states,
-                   initial_dependencies=(*states, *_all_gains(axis), "n", "U", *_LIMIT)))
-    for i, row in enumerate(K):
-        for j, k in enumerate(row):
-            out.append(Var(gain_name(i, j), "parameter", "tunable",
-                           f"gain of {axis.control_names[i]} [rad] on x+{j + 1} ({states[j]}, "
-                           f"non-dimensional); {sources[i]}", "1", start=k))
-    out.append(Var("n", "parameter", "tunable",
-                   "wing-beat frequency; reference time t_w = 1/n (Sect. 2.4)", "Hz", start=N_HZ))
-    out.append(Var("U", "parameter", "tunable",
-                   "reference velocity U = 2 Phi n r2 (Sect. 2.4)", "m/s", start=U_M_PER_S))
-    out.append(Var("limit_enabled", "parameter", "tunable",
-                   "limit every control to [-u_max, u_max] (default false: no limit)", None,
-                   start=False, type="Boolean"))
-    out.append(Var("u_max", "parameter", "tunable",
-                   "actuator limit, used if limit_enabled; the linear range of the control "
-                   "derivatives ends at 0.4 rad (Sect. 3.1)", "rad", "deg",
-                   start=U_MAX_LINEAR_RANGE))
-    return tuple(out)
+__all__ = ["StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
+           "StateFeedbackLongitudinalDelayed"]
 
 
 class _Feedback(SlaveBase):
-    """Full-state feedback u = K x+ on one axis; subclasses set ``AXIS`` and ``VARIABLES``."""
+    """Full-state feedback with sensing delay, sampling and integral action on one axis;
+    subclasses set ``AXIS``, ``VARIABLES`` and, for the delayed variants,
+    ``DIRECT_FEEDTHROUGH = False`` (which also requires ``sensing_delay`` > 0)."""
 
     AXIS: ClassVar[Axis]
     DIRECT_FEEDTHROUGH = True
@@ -80,12 +40,16 @@ class _Feedback(SlaveBase):
         vr, axis = self._vr, self.AXIS
         self._in_vr = tuple(vr[n] for n in axis.state_names)
         self._out_vr = tuple(vr[n] for n in axis.control_names)
-        self._gains = _all_gains(axis)
         self._sat_vr = vr["saturated"]
-        self._law_vr = tuple(vr[n] for n in (*self._gains, "n", "U", *_LIMIT))
+        self._law_vr = tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
+                                             *LAW_PARAMETERS))
+        self._timing_vr = tuple(vr[n] for n in TIMING)
+        self._inputs = itemgetter(*self._in_vr)  # r -> the input tuple
         self._law_key: tuple[Any, ...] | None = None
         self._law: FeedbackLaw | None = None
-        self._outputs_valid = False  # the last _update_outputs succeeded
+        self._timing: Timing | None = None
+        self._sensor = Sensor(len(axis.state_names))
+        self._outputs_valid = False  # the last output computation succeeded
 
     def _current_law(self) -> FeedbackLaw:
         """The law of the current parameters, validated (rebuilt only when they changed)."""
@@ -94,62 +58,155 @@ class _Feedback(SlaveBase):
         if self._law is None or key != self._law_key:
             m, c = len(self.AXIS.control_names), len(self.AXIS.state_names)
             K = tuple(tuple(float(key[i * c + j]) for j in range(c)) for i in range(m))
-            n, U, enabled, u_max = key[m * c:]
-            law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS)
+            KI = tuple(tuple(float(key[m * c + i * c + j]) for j in range(c)) for i in range(m))
+            n, U, enabled, u_max = key[2 * m * c:]
+            law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS, KI)
             law.validate()  # raises naming the bad value; nothing is cached then
             self._law, self._law_key = law, key
         return self._law
 
+    def _current_timing(self) -> Timing:
+        r = self._real
+        d, period = (float(r[i]) for i in self._timing_vr)
+        timing = self._timing
+        if timing is None or (d, period) != (timing.sensing_delay, timing.sample_period):
+            timing = Timing(d, period, delay_required=not self.DIRECT_FEEDTHROUGH)
+            timing.validate()  # raises naming the bad value; nothing is cached then
+            self._timing = timing
+        return timing
+
     def _refresh(self) -> None:
         self._current_law()
+        self._current_timing()
 
-    def _update_outputs(self) -> None:
-        self._outputs_valid = False
+    def _outputs_at(self, t: float, law: FeedbackLaw, timing: Timing) -> None:
+        """Outputs at the communication point ``t`` [s]; raises before writing any."""
         r = self._real
-        # parameters are re-read only after one was set (the base class's dirty flag)
-        law = self._current_law() if self._dirty or self._law is None else self._law
-        u, saturated = law.evaluate([r[i] for i in self._in_vr])
+        x = self._inputs(r)
+        sensor = self._sensor
+        sensed = (x if timing.immediate and self.DIRECT_FEEDTHROUGH
+                  else sensor.sensed(t, x, timing, self.DIRECT_FEEDTHROUGH))
+        u, saturated = law.evaluate(sensed, sensor.integral(t) if law.has_integral else None)
         for i, v in zip(self._out_vr, u):
             r[i] = v
         r[self._sat_vr] = saturated
+
+    def _update_outputs(self) -> None:
+        self._outputs_valid = False
+        # parameters are re-read only after one was set (the base class's dirty flag)
+        fresh = self._dirty or self._law is None or self._timing is None
+        law = self._current_law() if fresh else self._law
+        timing = self._current_timing() if fresh else self._timing
+        self._outputs_at(self._time, law, timing)  # type: ignore[arg-type]
         self._outputs_valid = True
 
     def _initialize(self) -> None:
+        self._sensor = Sensor(len(self.AXIS.state_names), self._time)
         self._update_outputs()
 
     def _advance(self, t: float, h: float) -> None:
-        # No state to integrate. The step is refused while an input or parameter is bad;
-        # outputs already computed for the current inputs are not computed again.
-        if self._stale or not self._outputs_valid:
-            self._update_outputs()
-            self._stale = False
+        # the base class has called _initialize or _refresh after any parameter was set
+        law, timing = self._law, self._timing
+        if law is None or timing is None:  # pragma: no cover - the base class prevents it
+            law, timing = self._current_law(), self._current_timing()
+        x = self._inputs(self._real)
+        sensor = self._sensor
+        if (timing.immediate and not law.has_integral and not sensor.integrating
+                and not sensor.line):  # the sample at t in effect at once: u = K x+ (Eq. 22)
+            if self._stale or not self._outputs_valid:  # (else the outputs of x, valid at t,
+                before = sensor.held, sensor.h, sensor.last_k  # hold at t + h as well)
+                sensor.held, sensor.h, sensor.last_k = x, h, None
+                try:  # validates x, naming a bad input
+                    self._outputs_at(t + h, law, timing)
+                except BaseException:
+                    sensor.held, sensor.h, sensor.last_k = before  # a refused step changes
+                    raise  # nothing
+                self._outputs_valid, self._stale = True, False
+            else:
+                sensor.held, sensor.h, sensor.last_k = x, h, None
+            return
+        total = sum(x)
+        if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite
+            law.nondimensional_state(x)
+        timing.check_step(h)
+        token = sensor.advance(t, h, x, law.scale, law.n, timing, law.has_integral)
+        try:
+            self._outputs_at(t + h, law, timing)
+        except BaseException:
+            sensor.undo(token)  # a refused step changes nothing
+            raise
+        self._outputs_valid, self._stale = True, False
+
+    def _extra_state(self) -> dict[str, Any]:
+        return {"sensor": self._sensor.to_dict()}
+
+    def _restore_extra_state(self, state: dict[str, Any]) -> None:
+        self._sensor = Sensor.from_dict(state["sensor"], len(self.AXIS.state_names))
+
+
+_LATERAL_SOURCES = ("Eq. (27)", "default 0", "default 0")
+_LONGITUDINAL_SOURCES = ("default 0", "default 0", "design (b): mirror the unstable pair",
+                         "default 0")
+_PAPER = "Zhang & Sun, 'Stabilization control of a hovering model insect: lateral motion'"
+_TIMING_TEXT = ("sensing_delay and sample_period (zero-order hold of the delayed samples); "
+                "integral gains KI (default 0)")
+_FEEDTHROUGH = ("direct feedthrough declared conservatively (exact at sensing_delay = 0, the "
+                "default; the ModelStructure cannot follow a tunable parameter)")
+_NO_FEEDTHROUGH = ("sensing_delay > 0 required (default one wing beat), so no direct "
+                   "feedthrough: the outputs depend on no input at the same instant")
 
 
 class StateFeedback(_Feedback):
-    """Full-state feedback u = K x+ of the lateral motion (Zhang & Sun, Eq. 22)."""
+    """Full-state feedback u = K x+_s + KI z of the lateral motion (Zhang & Sun, Eq. 22)."""
 
     MODEL_NAME = "StateFeedback"
     AXIS = LATERAL
     MODEL_DESCRIPTION = (
-        "State feedback u = K x+ (Eq. 22 generalised to the three lateral controls) of "
-        "Zhang & Sun, 'Stabilization control of a hovering model insect: lateral motion'; "
-        "default K: Eq. (27) on delta_Phi_a; direct feedthrough, no internal state")
-    VARIABLES = _variables(LATERAL, default_gains(), ("Eq. (27)", "default 0", "default 0"))
+        f"State feedback u = K x+ (Eq. 22 generalised to the three lateral controls) of {_PAPER}; "
+        f"default K: Eq. (27) on delta_Phi_a; {_TIMING_TEXT}; {_FEEDTHROUGH}")
+    VARIABLES = controller_variables(LATERAL, default_gains(), _LATERAL_SOURCES)
     DEFAULT_EXPERIMENT = (0.0, 30.0 / N_HZ, 0.1 / N_HZ)
 
 
+class StateFeedbackDelayed(_Feedback):  # not a subclass of StateFeedback: pythonfmu's
+    # findClass leaks memory per MRO entry on every instantiation
+    """:class:`StateFeedback` with a sensing delay > 0 and no direct feedthrough."""
+
+    MODEL_NAME = "StateFeedbackDelayed"
+    AXIS = LATERAL
+    DIRECT_FEEDTHROUGH = False
+    MODEL_DESCRIPTION = (
+        f"State feedback u = K x+ (Eq. 22 generalised to the three lateral controls) of {_PAPER}, "
+        f"sensed late; default K: Eq. (27) on delta_Phi_a; {_TIMING_TEXT}; {_NO_FEEDTHROUGH}")
+    VARIABLES = controller_variables(LATERAL, default_gains(), _LATERAL_SOURCES, delayed=True)
+    DEFAULT_EXPERIMENT = StateFeedback.DEFAULT_EXPERIMENT
+
+
 class StateFeedbackLongitudinal(_Feedback):
-    """Full-state feedback u = K x+ of the longitudinal motion (Sect. 3.5), same law."""
+    """Full-state feedback u = K x+_s + KI z of the longitudinal motion (Sect. 3.5), same law."""
 
     MODEL_NAME = "StateFeedbackLongitudinal"
     AXIS = LONGITUDINAL
     MODEL_DESCRIPTION = (
-        "State feedback u = K x+ on the four longitudinal controls of Sect. 3.5 of Zhang & Sun, "
-        "'Stabilization control of a hovering model insect: lateral motion'; default K: "
-        "delta_phibar moves the unstable oscillatory pair to its mirror image -0.0481 +/- "
-        "0.0976i per wing beat by coefficient matching (Eqs. 25-26), the other eigenvalues "
-        "kept; direct feedthrough, no internal state")
-    VARIABLES = _variables(LONGITUDINAL, default_longitudinal_gains(),
-                           ("default 0", "default 0", "design (b): mirror the unstable pair",
-                            "default 0"))
+        f"State feedback u = K x+ on the four longitudinal controls of Sect. 3.5 of {_PAPER}; "
+        "default K: delta_phibar moves the unstable oscillatory pair to its mirror image "
+        "-0.0481 +/- 0.0976i per wing beat by coefficient matching (Eqs. 25-26), the other "
+        f"eigenvalues kept; {_TIMING_TEXT}; {_FEEDTHROUGH}")
+    VARIABLES = controller_variables(LONGITUDINAL, default_longitudinal_gains(),
+                                     _LONGITUDINAL_SOURCES)
     DEFAULT_EXPERIMENT = (0.0, 60.0 / N_HZ, 0.1 / N_HZ)
+
+
+class StateFeedbackLongitudinalDelayed(_Feedback):
+    """:class:`StateFeedbackLongitudinal` with a sensing delay > 0 and no direct feedthrough."""
+
+    MODEL_NAME = "StateFeedbackLongitudinalDelayed"
+    AXIS = LONGITUDINAL
+    DIRECT_FEEDTHROUGH = False
+    MODEL_DESCRIPTION = (
+        f"State feedback u = K x+ on the four longitudinal controls of Sect. 3.5 of {_PAPER}, "
+        "sensed late; default K: design (b) (the unstable pair mirrored) on delta_phibar; "
+        f"{_TIMING_TEXT}; {_NO_FEEDTHROUGH}")
+    VARIABLES = controller_variables(LONGITUDINAL, default_longitudinal_gains(),
+                                     _LONGITUDINAL_SOURCES, delayed=True)
+    DEFAULT_EXPERIMENT = StateFeedbackLongitudinal.DEFAULT_EXPERIMENT

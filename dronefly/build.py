@@ -49,7 +49,8 @@ class _Spec:
 _FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
         "fmi/state.py", "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
 _PLANT = (*_FMI, "linear.py", "linear_slave.py")
-_CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/slave.py")
+_CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/delay.py",
+               "controller/variables.py", "controller/slave.py")
 
 FMUS: dict[str, _Spec] = {
     "DroneFlyLateral": _Spec(
@@ -69,6 +70,14 @@ FMUS: dict[str, _Spec] = {
         module="controller.slave", cls="StateFeedbackLongitudinal", files=_CONTROLLER,
         readme="controller/README.md",
         reference="controller/StateFeedbackLongitudinal_ref.csv"),
+    # the controllers with a sensing delay > 0 and no direct feedthrough (issue 14)
+    "StateFeedbackDelayed": _Spec(
+        module="controller.slave", cls="StateFeedbackDelayed", files=_CONTROLLER,
+        readme="controller/README.md", reference="controller/StateFeedbackDelayed_ref.csv"),
+    "StateFeedbackLongitudinalDelayed": _Spec(
+        module="controller.slave", cls="StateFeedbackLongitudinalDelayed", files=_CONTROLLER,
+        readme="controller/README.md",
+        reference="controller/StateFeedbackLongitudinalDelayed_ref.csv"),
     "DroneFlyHover6DOF": _Spec(
         module="plant_6dof.slave", cls="DroneFlyHover6DOF",
         files=(*_FMI, "linear.py", "longitudinal.py", "hover6dof.py", "plant/model.py",

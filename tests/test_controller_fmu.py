@@ -54,9 +54,10 @@ def test_reproducible_build_and_own_package(tmp_path, built_fmus):
     shipped = {k for k in files_c if k.startswith(f"resources/{pkg_c}/") and k.endswith(".py")
                and not k.endswith("__init__.py")}
     assert shipped == {f"resources/{pkg_c}/{r}" for r in
-                       ("errors.py", "fmi/base.py", "fmi/host.py", "fmi/state.py", "fmi/values.py",
-                        "fmi/vars.py", "axes.py", "lateral.py", "longitudinal.py",
-                        "controller/law.py", "controller/slave.py")}
+                       ("errors.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py", "fmi/state.py",
+                        "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py", "longitudinal.py",
+                        "controller/law.py", "controller/delay.py", "controller/variables.py",
+                        "controller/slave.py")}
 
 
 @pytest.mark.integration
@@ -89,7 +90,7 @@ def test_model_description_interface(built_fmus):
         (idx[n], inputs) for n in CONTROLS + ["saturated"]]
     init = {int(u.get("index")): set(map(int, u.get("dependencies").split()))
             for u in root.find("ModelStructure/InitialUnknowns")}
-    common = {idx[n] for n in STATES + ["n", "U", "limit_enabled", "u_max"]}
+    common = {idx[n] for n in STATES + ["n", "U", "limit_enabled", "u_max", "sensing_delay"]}
     for i, name in enumerate(CONTROLS):
         assert init[idx[name]] == common | {idx[L.gain_name(i, j)] for j in range(4)}
     assert init[idx["saturated"]] == common | {idx[g] for g in GAINS}

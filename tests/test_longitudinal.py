@@ -289,7 +289,8 @@ def _deps(root, part):
 
 
 EXPECTED_UNITS = {"delta_u": "m/s", "delta_w": "m/s", "delta_q": "rad/s", "delta_theta": "rad",
-                  **{c: "rad" for c in CONTROLS}, "n": "Hz", "U": "m/s"}
+                  **{c: "rad" for c in CONTROLS}, "n": "Hz", "U": "m/s",
+                  "sensing_delay": "s", "sample_period": "s"}
 
 
 @pytest.mark.integration
@@ -379,7 +380,9 @@ def test_controller_model_structure_is_truthful(built_fmus, controller_fmu):
     base = dict(zip(GAINS, K.ravel())) | dict(zip(STATES, x))
     u = K @ np.array([0.03, -0.02, 0.04, 0.05])
     knowns = [n for n in idx if n not in CONTROLS + ["saturated", "limit_enabled"]]
-    free = _observed_dependencies(controller_fmu, knowns, CONTROLS, base, lambda k, v: 1.25 * v)
+    # a zero known (KI[i,j], sensing_delay, sample_period) is set to 0.01 instead
+    free = _observed_dependencies(controller_fmu, knowns, CONTROLS, base,
+                                  lambda k, v: 1.25 * v if v else 0.01)
     limited = _observed_dependencies(
         controller_fmu, ["u_max"], CONTROLS,
         base | {"limit_enabled": True, "u_max": 0.5 * np.abs(u).min()}, lambda k, v: 1.25 * v)
@@ -387,7 +390,8 @@ def test_controller_model_structure_is_truthful(built_fmus, controller_fmu):
         declared = {name[j] for j in initial[idx[c]]}
         observed = free[c] | limited[c]
         assert observed == declared - {"limit_enabled"}, (c, observed, declared)
-        assert {L.gain_name(i, j) for j in range(4)} | set(STATES) | {"n", "U"} == free[c]
+        assert {L.gain_name(i, j) for j in range(4)} | set(STATES) | {"n", "U",
+                                                                     "sensing_delay"} == free[c]
         assert "limit_enabled" in declared
     with controller_fmu.instantiate() as inst:  # outputs follow the inputs without doStep
         start(inst, {k: v for k, v in base.items() if k in GAINS})

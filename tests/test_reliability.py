@@ -25,7 +25,8 @@ BUILT = [*FMUS, "DroneFlyClosedLoop"]
 #: FMUs whose slave class another FMU shares (LinearPlantSlave, the feedback law's slave):
 #: the shared code is fuzzed in full on the lateral ones; these get the same groups with fewer
 #: random calls and instances (their variable tables still get every value and sequence case)
-_SHARED = {"DroneFlyLongitudinal", "StateFeedbackLongitudinal"}
+_SHARED = {"DroneFlyLongitudinal", "StateFeedbackLongitudinal", "StateFeedbackDelayed",
+           "StateFeedbackLongitudinalDelayed"}
 
 
 @pytest.mark.parametrize("name", BUILT)

@@ -15,7 +15,7 @@ _DEG = 180.0 / math.pi
 #: unit name -> (base-unit exponents, {display unit: factor})
 UNITS: dict[str, tuple[dict[str, int], dict[str, float]]] = {
     "1": ({}, {}),
-    "s": ({"s": 1}, {}),
+    "s": ({"s": 1}, {"ms": 1000.0}),
     "Hz": ({"s": -1}, {}),
     "m": ({"m": 1}, {"mm": 1000.0}),
     "m/s": ({"m": 1, "s": -1}, {}),

@@ -97,6 +97,11 @@ REFERENCES: dict[str, _Setup] = {
                                    lon.STATE_NAMES, stop_wingbeats=60.0),
     "StateFeedbackLongitudinal": _Setup("controller", _longitudinal_controller_inputs,
                                         (*lon.CONTROL_NAMES, "saturated"), stop_wingbeats=60.0),
+    # the same inputs through the controllers with the default sensing delay of one wing beat
+    "StateFeedbackDelayed": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
+    "StateFeedbackLongitudinalDelayed": _Setup("controller", _longitudinal_controller_inputs,
+                                               (*lon.CONTROL_NAMES, "saturated"),
+                                               stop_wingbeats=60.0),
     "DroneFlyHover6DOF": _Setup("plant_6dof", _hover6dof_inputs, OUTPUT_NAMES,
                                 stop_wingbeats=60.0),
     # the container FMU: the closed loop from its default initial state (a 0.1 rad roll)

@@ -1,0 +1,297 @@
+"""Sensing delay, sampling and the integral state of the controller FMUs (issue 14).
+
+The controller samples the measured state at its sample instants
+
+    t_k = t_start + k * sample_period       (sample_period = 0: every communication point)
+
+and the control computed from the sample at t_k takes effect at t_k + sensing_delay, held
+(zero-order hold) until the next one takes effect. Before the first sample takes effect the
+sensed state is the equilibrium x = 0 (the insect hovered before t_start). The output at a
+communication point t is the control of the latest sample with t_k + sensing_delay <= t
+(times compared to 1e-9 of the communication step, :data:`TOLERANCE`).
+
+FMI co-simulation holds the inputs over a communication step (``canInterpolateInputs`` is
+false), so a sample instant inside [t, t + h) sees exactly the input set at t: every delay and
+period can be honoured at every step size, none is refused for not being a whole number of
+steps. All instants of one step see the same input, so the delay line keeps one entry per step
+at most (the first instant in it), and none when the value equals the previous one.
+
+:class:`Sensor` holds the delay line, the sample in effect and the integral state
+z = integral of x+_s dt+ (t+ = t n) of the sensed non-dimensional state x+_s, exact for the
+held signal: z(t) = z(t_b) + x+_s (t - t_b) n since the last change t_b of the held sample.
+z integrates while integral action is on (any integral gain non-zero) and holds its value
+while it is off: from z = 0 at t_start when the gains are set before the run starts, and
+with no cost and no effect (no overflow either) when all integral gains are 0.
+
+Pure Python (shipped inside the controller FMUs); imports only the project's errors.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, Sequence
+
+from ..errors import DroneflyError
+
+__all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
+
+#: bound of the delay line (samples taken, not yet in effect) of one instance
+MAX_SAMPLES = 100_000
+#: times closer than TOLERANCE * (communication step) count as equal
+TOLERANCE = 1e-9
+
+State = tuple[float, ...]
+
+
+class SensingError(DroneflyError):
+    """A sensing delay or sample period is not acceptable, or the integral state overflows."""
+
+
+@dataclass(frozen=True)
+class Timing:
+    """When the controller samples and how late its samples take effect.
+
+    Parameters
+    ----------
+    sensing_delay : float
+        Delay from a sample instant to the instant its control takes effect [s], >= 0.
+    sample_period : float
+        Period of the sample instants t_start + k * sample_period [s]; 0 = sample at every
+        communication point.
+    delay_required : bool
+        The FMU declares no direct feedthrough: ``sensing_delay`` must be > 0.
+    """
+
+    sensing_delay: float = 0.0
+    sample_period: float = 0.0
+    delay_required: bool = False
+
+    @cached_property
+    def immediate(self) -> bool:
+        """No delay, no sampling: each communication point's input in effect at once."""
+        return self.sensing_delay == 0.0 and self.sample_period == 0.0
+
+    def validate(self) -> None:
+        """Raise :class:`SensingError` naming the first bad value."""
+        for name, value in (("sensing_delay", self.sensing_delay),
+                            ("sample_period", self.sample_period)):
+            if not (math.isfinite(value) and value >= 0.0):
+                raise SensingError(f"{name} = {value!r} s must be finite and >= 0")
+        if self.delay_required and not self.sensing_delay > 0.0:
+            raise SensingError(f"sensing_delay = {self.sensing_delay!r} s must be > 0 in this "
+                               "FMU (it declares no direct feedthrough; the FMU of the same "
+                               "name without 'Delayed' takes 0)")
+
+    def too_long(self, h: float) -> str:
+        """The refusal of a delay line longer than :data:`MAX_SAMPLES` for a step of ``h`` [s]."""
+        return (f"sensing_delay = {self.sensing_delay!r} s with sample_period = "
+                f"{self.sample_period!r} s and a communication step of {h!r} s needs a delay "
+                f"line of more than {MAX_SAMPLES} samples (memory bound): use a longer "
+                "sample_period or communication step")
+
+    def check_step(self, h: float) -> None:
+        """Refuse a step of ``h`` [s] that would need more than :data:`MAX_SAMPLES` entries
+        (one per step or per sample period within the delay)."""
+        if self.sensing_delay > MAX_SAMPLES * max(h, self.sample_period):
+            raise SensingError(self.too_long(h))
+
+
+class Sensor:
+    """The delay line and the integral state of one controller instance.
+
+    Parameters
+    ----------
+    size : int
+        Number of state components.
+    t0 : float
+        Start time [s], origin of the sample instants.
+
+    Attributes
+    ----------
+    line : deque of (float, tuple)
+        Samples taken and not yet in effect, oldest first: (instant [s], dimensional state).
+    held : tuple
+        The dimensional sample in effect (zeros: the equilibrium).
+    z0, t_base : tuple, float
+        The integral state (non-dimensional) at ``t_base`` [s], the last change of ``held``.
+    x_plus, scale, n : tuple, tuple, float
+        x+ of ``held`` (x = x+ * scale) and the wing-beat frequency [Hz] of t+ since t_base.
+    integrating : bool
+        Whether z integrates (integral action on) since t_base.
+    last_k, last_period : int or None, float
+        Index of the last sample instant taken on the grid of ``last_period`` [s].
+    h : float
+        The last communication step [s] (0 before the first).
+    """
+
+    __slots__ = ("t0", "line", "held", "z0", "t_base", "x_plus", "scale", "n", "integrating",
+                 "last_k", "last_period", "h")
+
+    def __init__(self, size: int, t0: float = 0.0) -> None:
+        zero = (0.0,) * size
+        self.t0 = float(t0)
+        self.line: deque[tuple[float, State]] = deque()
+        self.held, self.z0, self.x_plus = zero, zero, zero
+        self.t_base = self.t0
+        self.scale: State = ()
+        self.n = 0.0
+        self.integrating = False
+        self.last_k: int | None = None
+        self.last_period = 0.0
+        self.h = 0.0
+
+    def integral(self, t: float) -> State:
+        """z(t) [non-dimensional] for t >= t_base (exact for the held sample)."""
+        if t == self.t_base or not self.integrating:
+            return self.z0
+        dt = (t - self.t_base) * self.n
+        return tuple(a + b * dt for a, b in zip(self.z0, self.x_plus))
+
+    def _switch(self, t: float, x: State, scale: State, n: float) -> None:
+        """From ``t`` [s] on, ``x`` is in effect with the scales ``scale``, ``n``."""
+        if not self.integrating:
+            self.held = x
+            return
+        z = self.integral(t)
+        for j, v in enumerate(z):
+            if v - v != 0.0:
+                raise SensingError(f"the integral state z{j + 1} = {v!r} (of x+{j + 1}) "
+                                   f"overflows at t = {t!r} s: the sensed state is far outside "
+                                   "the linear range")
+        self.z0, self.t_base, self.held, self.scale, self.n = z, t, x, scale, n
+        self.x_plus = tuple(v / s for v, s in zip(x, scale))
+
+    def _instant(self, t: float, end: float, tol: float, period: float) -> float | None:
+        """The first sample instant in [t, end) [s] not taken yet (None: there is none)."""
+        if period <= tol:  # every communication point (or finer than the step resolves)
+            self.last_k = None
+            return t
+        try:
+            k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end: before end
+            if self.last_k is None or self.last_period != period:
+                k = math.ceil((t - tol - self.t0) / period)
+            else:  # the next one on the grid, unless it lies before this step (by more than
+                # the tolerance of the previous step, which decided that it was not in it)
+                wide = TOLERANCE * max(self.h, end - t)
+                k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
+            if k >= k_end:
+                return None
+            ts = self.t0 + k * period
+        except (OverflowError, ValueError):  # an instant index beyond float range
+            self.last_k = None
+            return t
+        self.last_k, self.last_period = k_end - 1, period
+        return ts
+
+    def advance(self, t: float, h: float, x: State, scale: State, n: float,
+                timing: Timing, integrate: bool) -> tuple[Any, ...]:
+        """One communication step [t, t + h) [s] with the input ``x`` (dimensional) held.
+
+        Takes the sample (if an instant falls in the step) and puts into effect every sample
+        due by t + h; z integrates over the step if ``integrate`` (integral action on).
+        Returns a token for :meth:`undo`; on an exception nothing is changed.
+
+        Raises
+        ------
+        SensingError
+            The delay line would exceed :data:`MAX_SAMPLES`, or the integral overflows.
+        """
+        line = self.line
+        popped: list[tuple[float, State]] = []
+        token = (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n,
+                 self.integrating, self.last_k, self.last_period, self.h, len(line), popped)
+        try:
+            tol, end = TOLERANCE * h, t + h
+            if integrate != self.integrating:  # integral action switched on or off at t
+                if self.integrating:
+                    self._switch(t, self.held, scale, n)  # z up to t, held from then on
+                self.integrating, self.t_base = integrate, t
+                if integrate:
+                    self._switch(t, self.held, scale, n)  # x+ of the sample in effect
+            elif integrate and (scale != self.scale or n != self.n):  # new scales from t on
+                self._switch(t, self.held, scale, n)
+            d, period = timing.sensing_delay, timing.sample_period
+            if not line and d <= tol and period <= tol:  # the sample at t takes effect at t
+                if x != self.held:
+                    self._switch(t, x, scale, n)
+                self.last_k, self.h = None, h
+                return token
+            ts = self._instant(t, end, tol, period)
+            if ts is not None and x != (line[-1][1] if line else self.held):
+                if len(line) >= MAX_SAMPLES:
+                    raise SensingError(timing.too_long(h))
+                line.append((ts, x))
+            while line:
+                e = line[0][0] + d
+                if e > end + tol:
+                    break
+                e = t if e < t + tol else end if e > end - tol else e
+                popped.append(line.popleft())
+                self._switch(e, popped[-1][1], scale, n)
+            self.h = h
+        except BaseException:
+            self.undo(token)
+            raise
+        return token
+
+    def undo(self, token: tuple[Any, ...]) -> None:
+        """Return to the state before the :meth:`advance` that gave ``token``."""
+        (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n, self.integrating,
+         self.last_k, self.last_period, self.h, length, popped) = token
+        for item in reversed(popped):
+            self.line.appendleft(item)
+        while len(self.line) > length:
+            self.line.pop()
+
+    def is_instant(self, t: float, period: float) -> bool:
+        """Whether the communication point ``t`` [s] is a sample instant."""
+        tol = TOLERANCE * self.h
+        if period <= tol:
+            return True
+        try:
+            k = round((t - self.t0) / period)
+            return abs(self.t0 + k * period - t) <= tol
+        except (OverflowError, ValueError):
+            return True
+
+    def sensed(self, t: float, x_live: State, timing: Timing, feedthrough: bool) -> State:
+        """The sensed (dimensional) state at the communication point ``t`` [s]: the live input
+        if the delay is 0 and ``t`` a sample instant (``feedthrough``: the FMU may use the
+        input of the same instant), else the sample in effect."""
+        if (feedthrough and timing.sensing_delay <= TOLERANCE * self.h
+                and self.is_instant(t, timing.sample_period)):
+            return x_live
+        return self.held
+
+    # -- FMU state ------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """Everything, JSON-ready (floats exact)."""
+        return {"t0": self.t0, "line": [[ts, list(x)] for ts, x in self.line],
+                "held": list(self.held), "z0": list(self.z0), "t_base": self.t_base,
+                "x_plus": list(self.x_plus), "scale": list(self.scale), "n": self.n,
+                "integrating": self.integrating, "last_k": self.last_k, "last_period": self.last_period, "h": self.h}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], size: int) -> "Sensor":
+        """The sensor of :meth:`to_dict`'s output; ``ValueError`` if it does not fit ``size``."""
+        def vec(v: Sequence[Any], n: int | None = size) -> State:
+            out = tuple(float(a) for a in v)
+            if n is not None and len(out) != n:
+                raise ValueError(f"the sensor state holds {len(out)} values, expected {n}")
+            return out
+
+        s = cls(size, float(d["t0"]))
+        if len(d["line"]) > MAX_SAMPLES:
+            raise ValueError(f"the delay line holds {len(d['line'])} samples, more than "
+                             f"{MAX_SAMPLES}")
+        s.line.extend((float(ts), vec(x)) for ts, x in d["line"])
+        s.held, s.z0, s.x_plus = vec(d["held"]), vec(d["z0"]), vec(d["x_plus"])
+        s.scale = vec(d["scale"], None)
+        s.t_base, s.n, s.h = float(d["t_base"]), float(d["n"]), float(d["h"])
+        s.integrating = bool(d["integrating"])
+        s.last_k = None if d["last_k"] is None else int(d["last_k"])
+        s.last_period = float(d["last_period"])
+        return s

@@ -114,3 +114,44 @@ def test_the_shim_is_in_the_container_and_still_needed(built_fmus, shim, tmp_pat
     got = _run(bare, "0")
     assert got["reset"] == 0
     assert got["again"][0][0] == 0 and all(st >= 2 for st in got["again"][0][1:]), got["again"][0]
+
+
+_EXIT_CHILD = textwrap.dedent("""
+    import json, sys
+    from dronefly.harness.cosim.fmu import FMU
+    with FMU(sys.argv[1]) as f:
+        with f.instantiate("c", logging=False) as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.exitInitializationMode()
+            s.doStep(0.0, float(f.model_description.defaultExperiment.stepSize))
+        # the container is freed: it has unloaded the shims; pythonfmu's libraries stay loaded
+        hosts = [m for k, m in sys.modules.items() if k.endswith(".fmi.host")]
+        maps = open("/proc/self/maps").read()
+        rows = []
+        for h in hosts:
+            for lib in h.guarded_libraries():
+                real = lib[:-3] + h.PYTHONFMU_BESIDE_SHIM
+                rows.append([real in maps, str(h.release_interpreter_guard(lib)), real])
+        print(json.dumps(rows))
+""")
+
+
+def test_the_exit_handler_reaches_pythonfmu_behind_an_unloaded_shim(built_fmus, shim):
+    """CI, 2026-11-22: a process that freed the container aborted at exit now and then
+    (valgrind: invalid read in pythonfmu's finalizePythonInterpreter, from _dl_fini). The
+    container unloads the shim when it frees its components, pythonfmu's library stays loaded,
+    and the FMUs' exit handler looked only for ``<model>.so`` (the shim): the guard was never
+    released and the double free of issue 17 point 5 came back. The handler now releases it
+    through ``<model>.pythonfmu.so``: every nested pythonfmu library still loaded after the free
+    (the plant's, here) has its guard released; one that was unloaded with the shim ran its
+    destructors then (valgrind: clean)."""
+    r = subprocess.run([sys.executable, "-c", _EXIT_CHILD, str(built_fmus["DroneFlyClosedLoop"])],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-800:]
+    rows = json.loads(r.stdout.strip().splitlines()[-1])
+    assert len(rows) == 2  # plant and controller
+    assert any(loaded for loaded, _, _ in rows)  # the bug's precondition: one stays loaded
+    for loaded, released, real in rows:  # before: "None" for the loaded one as well
+        assert released == (real if loaded else "None"), rows

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["finalize_at_exit", "inside_fmpy_container", "leave_sys_path"]
+__all__ = ["PYTHONFMU_BESIDE_SHIM", "finalize_at_exit", "guarded_libraries", "inside_fmpy_container",
+           "leave_sys_path", "release_interpreter_guard"]
 
 
 def leave_sys_path(resources: str | None) -> None:
@@ -50,21 +51,56 @@ def finalize_at_exit(resources: str | None, model: str) -> None:
     _FINALIZE.add(lib)
     import atexit
 
-    atexit.register(_finalize, lib)
+    atexit.register(_at_exit, lib)
 
 
-def _finalize(lib: str) -> None:
-    import ctypes
+def guarded_libraries() -> tuple[str, ...]:
+    """The FMU libraries (``binaries/linux64/<model>.so``) whose guard is released at exit."""
+    return tuple(sorted(_FINALIZE))
+
+
+#: Nested in a container built by dronefly, ``<model>.so`` is a forwarding shim and pythonfmu's
+#: library sits beside it under this name (see ``harness/interop/nestedshim.py``). The shim
+#: may be unloaded (the container frees its components) while pythonfmu's library stays
+#: loaded, so the guard is released through pythonfmu's library itself whenever it is there.
+PYTHONFMU_BESIDE_SHIM = ".pythonfmu.so"
+
+
+def _at_exit(lib: str) -> None:
     import os
     import threading
 
     if threading.get_native_id() != os.getpid():  # not the main thread: a C host's shutdown
         return
-    try:
-        handle = ctypes.CDLL(lib, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if still loaded
-        handle.finalizePythonInterpreter()
-    except (OSError, AttributeError):
-        pass
+    release_interpreter_guard(lib)
+
+
+def release_interpreter_guard(lib: str) -> str | None:
+    """Call ``finalizePythonInterpreter`` of the pythonfmu library behind ``lib`` if loaded.
+
+    Parameters
+    ----------
+    lib : str
+        Path of the FMU's ``binaries/linux64/<model>.so`` (pythonfmu's library, or dronefly's
+        shim with pythonfmu's library beside it as ``<model>.pythonfmu.so``).
+
+    Returns
+    -------
+    str or None
+        The library whose guard was released, or ``None`` if neither is loaded. Releasing
+        twice is harmless (the guard is then empty).
+    """
+    import ctypes
+    import os
+
+    for path in (lib[:-len(".so")] + PYTHONFMU_BESIDE_SHIM, lib):
+        try:
+            handle = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if loaded
+            handle.finalizePythonInterpreter()
+            return path
+        except (OSError, AttributeError):
+            continue
+    return None
 
 
 def inside_fmpy_container(resources: str | None) -> bool:

@@ -39,10 +39,13 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable
 
+from dronefly.fmi.host import PYTHONFMU_BESIDE_SHIM
+
 __all__ = ["REAL_SUFFIX", "SHIM_SOURCE", "install_shims", "shim_library"]
 
-#: pythonfmu's library next to the shim: ``<model>`` + this suffix
-REAL_SUFFIX = ".pythonfmu.so"
+#: pythonfmu's library next to the shim: ``<model>`` + this suffix (the FMUs' exit handler,
+#: :func:`dronefly.fmi.host.finalize_at_exit`, looks for it there)
+REAL_SUFFIX = PYTHONFMU_BESIDE_SHIM
 
 SHIM_SOURCE = r"""
 /* Forwards the FMI 2.0 functions of the pythonfmu library <own name without .so>.pythonfmu.so;

@@ -52,32 +52,28 @@ _PLANT = (*_FMI, "linear.py", "linear_slave.py")
 _CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/delay.py",
                "controller/variables.py", "controller/slave.py")
 
+
+def _controller(cls: str) -> _Spec:
+    """A controller FMU: one slave module, one README, its reference files in controller/."""
+    return _Spec(module="controller.slave", cls=cls, files=_CONTROLLER,
+                 readme="controller/README.md", reference=f"controller/{cls}_ref.csv")
+
+
 FMUS: dict[str, _Spec] = {
     "DroneFlyLateral": _Spec(
         module="plant.slave", cls="DroneFlyLateral",
         files=(*_PLANT, "plant/model.py", "plant/slave.py"),
         readme="plant/README.md", reference="plant/DroneFlyLateral_ref.csv"),
-    "StateFeedback": _Spec(
-        module="controller.slave", cls="StateFeedback", files=_CONTROLLER,
-        readme="controller/README.md", reference="controller/StateFeedback_ref.csv"),
+    "StateFeedback": _controller("StateFeedback"),
     "DroneFlyLongitudinal": _Spec(
         module="plant_longitudinal.slave", cls="DroneFlyLongitudinal",
         files=(*_PLANT, "longitudinal.py", "plant_longitudinal/model.py",
                "plant_longitudinal/slave.py"),
         readme="plant_longitudinal/README.md",
         reference="plant_longitudinal/DroneFlyLongitudinal_ref.csv"),
-    "StateFeedbackLongitudinal": _Spec(
-        module="controller.slave", cls="StateFeedbackLongitudinal", files=_CONTROLLER,
-        readme="controller/README.md",
-        reference="controller/StateFeedbackLongitudinal_ref.csv"),
-    # the controllers with a sensing delay > 0 and no direct feedthrough (issue 14)
-    "StateFeedbackDelayed": _Spec(
-        module="controller.slave", cls="StateFeedbackDelayed", files=_CONTROLLER,
-        readme="controller/README.md", reference="controller/StateFeedbackDelayed_ref.csv"),
-    "StateFeedbackLongitudinalDelayed": _Spec(
-        module="controller.slave", cls="StateFeedbackLongitudinalDelayed", files=_CONTROLLER,
-        readme="controller/README.md",
-        reference="controller/StateFeedbackLongitudinalDelayed_ref.csv"),
+    "StateFeedbackLongitudinal": _controller("StateFeedbackLongitudinal"),
+    "StateFeedbackDelayed": _controller("StateFeedbackDelayed"),  # delay > 0, no feedthrough
+    "StateFeedbackLongitudinalDelayed": _controller("StateFeedbackLongitudinalDelayed"),
     "DroneFlyHover6DOF": _Spec(
         module="plant_6dof.slave", cls="DroneFlyHover6DOF",
         files=(*_FMI, "linear.py", "longitudinal.py", "hover6dof.py", "plant/model.py",

@@ -17,9 +17,9 @@ from scipy.optimize import brentq
 
 from dronefly.harness.latency.continuous import DelayMargin, delay_margin
 from dronefly.harness.latency.designs import DESIGNS, bryson_weights, design, designs
-from dronefly.harness.latency.loop import FeedbackLoop
-from dronefly.harness.latency.sampled import (Response, SampledMargin, response, sampled_margin,
-                                              sampled_rates)
+from dronefly.harness.latency.loop import FeedbackLoop, LatencyInputError
+from dronefly.harness.latency.sampled import (Response, SampledMargin, excess_rate, response,
+                                              sampled_margin, sampled_rates)
 from dronefly.harness.cosim.stability import classify
 from dronefly.harness.paper.analysis import lateral_system
 from dronefly.harness.paper.design import lqr_gains
@@ -107,23 +107,36 @@ _FAMILIES: tuple[tuple[str, Callable[[float], FeedbackLoop], tuple[float, float]
 
 def redesigns(targets_ms: tuple[float, ...] = TARGETS_MS) -> list[Redesign]:
     """For each family of :data:`_FAMILIES` and target: the factor at which the margin (b)
-    equals the target (Brent's method on margin - target over the bracket, to 1e-6; ``nan``
-    if the bracket holds no change), and the roll responses without delay and at half the
-    target delay."""
+    equals the target, and the roll responses without delay and at half the target delay.
+
+    The factor solves excess_rate(loop(factor), 1, target) = 0 (a root on the unit circle at
+    the target delay) by Brent's method over the bracket (``nan`` if the bracket holds no
+    change); :func:`~.sampled.sampled_margin` then confirms that the target is the *first*
+    delay at which the verdict is lost.
+
+    Raises
+    ------
+    LatencyInputError
+        The root found is not the design's margin.
+    """
     out = []
     for family, make, (lo, hi) in _FAMILIES:
         for target in targets_ms:
             tau = ms_to_wb(target)
 
             def excess(p: float) -> float:
-                return sampled_margin(make(p), tau_limit=tau + 2.0).tau - tau
+                return excess_rate(make(p), 1.0, tau)[0]
 
             if excess(lo) * excess(hi) > 0.0:
                 nan = Response(math.nan, math.nan, math.nan)
                 out.append(Redesign(family, target, math.nan, np.full(4, math.nan), nan, nan))
                 continue
-            p = brentq(excess, lo, hi, xtol=1e-12, rtol=1e-6)
+            p = brentq(excess, lo, hi, xtol=1e-12, rtol=1e-10)
             loop = make(p)
+            margin = sampled_margin(loop, tau_limit=tau + 1.0).tau
+            if abs(margin - tau) > 1e-6:
+                raise LatencyInputError(f"{family}: factor {p:.6g} loses the verdict at "
+                                        f"{margin!r} wing beats, before {tau!r}")
             out.append(Redesign(family, target, float(p), loop.K[0].copy(),
                                 response(loop, ROLL), response(loop, ROLL, 1.0, tau / 2)))
     return out
@@ -179,7 +192,7 @@ def redesign_table(rows: list[Redesign]) -> list[str]:
         if math.isnan(r.factor):
             out.append(f"| {r.family} | {r.target_ms:g} ms | not in the bracket | - | - | - |")
             continue
-        k = ", ".join(f"{v:.4f}" for v in r.gains)
+        k = ", ".join(f"{v:.3f}" for v in r.gains)
         out.append(f"| {r.family} | {r.target_ms:g} ms | {r.factor:.4g} | {k} | "
                    f"{r.undelayed.peak_control:.3f} rad, {_rec(r.undelayed)} | "
                    f"{r.half.peak_control:.3f} rad, {_rec(r.half)} |")

@@ -35,8 +35,8 @@ from dronefly.harness.latency.loop import NEUTRAL_RATE, FeedbackLoop, LatencyInp
 from dronefly.linear import discretize_zoh
 from dronefly.lateral import STATE_BOUNDS_SECT36
 
-__all__ = ["Response", "SampledMargin", "delay_split", "response", "sampled_margin",
-           "sampled_matrix", "sampled_rates", "verdict_map"]
+__all__ = ["Response", "SampledMargin", "delay_split", "excess_rate", "response",
+           "sampled_margin", "sampled_matrix", "sampled_rates", "verdict_map"]
 
 Array = NDArray[np.float64]
 
@@ -112,8 +112,11 @@ def sampled_rates(loop: FeedbackLoop, Ts: float = 1.0, tau: float = 0.0) -> NDAr
     return rates_from_transition(sampled_matrix(loop, Ts, tau), Ts)
 
 
-def _excess(loop: FeedbackLoop, Ts: float, tau: float) -> tuple[float, complex]:
-    """Largest rate that counts against the verdict (> 0: lost), and its eigenvalue mu."""
+def excess_rate(loop: FeedbackLoop, Ts: float, tau: float) -> tuple[float, complex]:
+    """The largest rate log|mu| / Ts (per wing beat) that counts against the verdict, > 0 when
+    it is lost, and its eigenvalue mu: over every eigenvalue of a stable loop; for a neutral
+    one over all but the eigenvalue nearest mu = 1, which (if the loop is not exactly
+    neutral) counts by its excess over the tolerance 1e-3 per wing beat."""
     mu = np.linalg.eigvals(sampled_matrix(loop, Ts, tau))
     if loop.neutral:
         i = int(np.argmin(np.abs(mu - 1.0)))
@@ -175,22 +178,22 @@ def sampled_margin(loop: FeedbackLoop, Ts: float = 1.0, tau_limit: float = 40.0,
         Scan points per sample period.
     """
     whole = -1
-    while whole * Ts < tau_limit and _excess(loop, Ts, (whole + 1) * Ts)[0] <= 0.0:
+    while whole * Ts < tau_limit and excess_rate(loop, Ts, (whole + 1) * Ts)[0] <= 0.0:
         whole += 1
     grid = np.linspace(0.0, tau_limit, int(math.ceil(tau_limit / Ts * per_sample)) + 1)
-    prev = _excess(loop, Ts, 0.0)[0]
+    prev = excess_rate(loop, Ts, 0.0)[0]
     if prev > 0.0:
-        return SampledMargin(Ts, whole, 0.0, _excess(loop, Ts, 0.0)[1])
+        return SampledMargin(Ts, whole, 0.0, excess_rate(loop, Ts, 0.0)[1])
     for a, b in zip(grid[:-1], grid[1:]):
-        h, mu = _excess(loop, Ts, b)
+        h, mu = excess_rate(loop, Ts, b)
         if h <= 0.0:
             continue
         if loop.exactly_neutral and abs(mu - 1.0) < 1e-2 \
                 and _adj_trace(loop, Ts, a) * _adj_trace(loop, Ts, b) < 0:
             tau = brentq(lambda t: _adj_trace(loop, Ts, t), a, b, xtol=1e-14, rtol=1e-15)
         else:
-            tau = brentq(lambda t: _excess(loop, Ts, t)[0], a, b, xtol=1e-14, rtol=1e-15)
-        return SampledMargin(Ts, whole, float(tau), _excess(loop, Ts, tau)[1])
+            tau = brentq(lambda t: excess_rate(loop, Ts, t)[0], a, b, xtol=1e-14, rtol=1e-15)
+        return SampledMargin(Ts, whole, float(tau), excess_rate(loop, Ts, tau)[1])
     return SampledMargin(Ts, whole, math.inf, 0j)
 
 

@@ -7,6 +7,8 @@ ModelStructure each output declares. Shipped inside the controller FMUs.
 
 from __future__ import annotations
 
+from typing import Callable
+
 from ..axes import Axis
 from ..fmi import Var
 from ..lateral import N_HZ, U_M_PER_S
@@ -24,7 +26,8 @@ _TIMING_TEXT = (
     "and is held until the next one does; before the first, the equilibrium (x = 0)")
 
 
-def _row(axis: Axis, i: int, name=gain_name) -> tuple[str, ...]:
+def _row(axis: Axis, i: int, name: Callable[[int, int], str] = gain_name) -> tuple[str, ...]:
+    """The names of row ``i`` (0-based) of K (or, with ``name``, of KI)."""
     return tuple(name(i, j) for j in range(len(axis.state_names)))
 
 

@@ -26,7 +26,7 @@ from .files import write_zip
 if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
     from .harness.interop.closedloop import ClosedLoopSpec
 
-__all__ = ["FMUS", "BuildError", "build_all", "build_all3", "build_closed_loop", "build_fmu",
+__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu",
            "fmu_sources", "project_fmus", "project_systems"]
 
 _PKG_ROOT = Path(__file__).resolve().parent
@@ -130,8 +130,8 @@ def _wrapper_files() -> dict[str, bytes]:
 
 def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
     """Package name and ``{path in FMU: content}`` of one FMU (no model description), for
-    FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.build3`)."""
-    from .build3 import ENTRY3, FMI3_FILES, wrapper3_binaries
+    FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.package3`)."""
+    from .package3 import ENTRY3, FMI3_FILES, wrapper3_binaries
 
     spec = FMUS[name]
     rels = spec.files if fmi == 2 else (*spec.files, *FMI3_FILES)
@@ -164,7 +164,7 @@ def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
 def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str,
                        fmi: int = 2) -> bytes:
     """Generate the XML from the code the FMU ships, imported under its own name."""
-    from .build3 import model_description3
+    from .package3 import model_description3
     from .modeldescription import model_description_bytes
 
     spec = FMUS[name]
@@ -258,24 +258,6 @@ def build_all(out_dir: str | Path = "build") -> list[Path]:
         except (OSError, ValueError) as e:
             raise BuildError(f"cannot build {name}.ssp: {e}") from e
     return [*fmus.values(), *loop, *systems]
-
-
-def build_all3(out_dir: str | Path = Path("build") / "fmi3") -> list[Path]:
-    """Every FMU of the project as an FMI 3.0 Co-Simulation FMU (pythonfmu3) in ``out_dir``,
-    with the hover systems ``DroneFlyHover.ssp`` and ``DroneFlyHover6DOF.ssp`` referencing
-    them. No container FMU: FMPy's container does not nest FMI 3.0 FMUs (docs/fmi-limits.md)."""
-    from .harness.system.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
-
-    fmus = {name: build_fmu(name, out_dir, fmi=3) for name in FMUS}
-    systems = []
-    for name, nonlinear in ((HOVER, False), (HOVER_6DOF, True)):
-        try:
-            systems.append(write_system_ssp(
-                hover_system(fmus, nonlinear=nonlinear), Path(out_dir) / f"{name}.ssp",
-                description="The hovering model drone fly (Zhang & Sun), FMI 3.0 FMUs"))
-        except (OSError, ValueError) as e:
-            raise BuildError(f"cannot build the FMI 3.0 {name}.ssp: {e}") from e
-    return [*fmus.values(), *systems]
 
 
 def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,

@@ -20,8 +20,8 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 
 def build(args: argparse.Namespace) -> int:
-    from dronefly.build import build_all, build_all3
-    from dronefly.build3 import FMI3_OUT
+    from dronefly.build import build_all
+    from dronefly.build3 import FMI3_OUT, build_all3
 
     for path in [*build_all(args.out), *build_all3(Path(args.out) / FMI3_OUT)]:
         print(path)

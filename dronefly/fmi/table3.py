@@ -27,6 +27,7 @@ __all__ = ["TIME", "Var3", "array_dependencies", "fmi3_table"]
 #: the independent variable (value reference 0)
 TIME = Var("time", "independent", "continuous",
            "simulation time, the independent variable (seconds from the start time)", "s")
+_DANGLING = {"a", "an", "at", "by", "for", "in", "of", "on", "the", "to", "with"}
 _ELEMENT = re.compile(r"^([A-Za-z_]\w*)\[(\d+),(\d+)\]$")
 
 
@@ -102,7 +103,8 @@ def fmi3_table(variables: Sequence[Var]) -> tuple[Var3, ...]:
             name = first[i]
             m, n, order = arrays[name]
             text = _common_text([variables[k].description for k in order])
-            if len(text.split()) < 3:  # says little: show what the first element says
+            words = text.split()
+            if len(words) < 3 or words[-1] in _DANGLING:  # show what the first element says
                 text = f"{name}[i,j]; {name}[1,1]: {v.description}"
             out.append(Var3(name, v, tuple(order), (m, n),
                             f"{text} ({m} x {n} array, row-major; element [i,j] is "

@@ -19,84 +19,27 @@ at most (the first instant in it), and none when the value equals the previous o
 :class:`Sensor` holds the delay line, the sample in effect and the integral state
 z = integral of x+_s dt+ (t+ = t n) of the sensed non-dimensional state x+_s, exact for the
 held signal: z(t) = z(t_b) + x+_s (t - t_b) n since the last change t_b of the held sample.
+The control is computed when a sample takes effect and held until the next one does, so its
+integral term uses z at that instant: u = K x+_s + KI z(t_e), t_e the instant the held sample
+took effect (every sample instant counts, also one whose value repeats the previous).
 z integrates while integral action is on (any integral gain non-zero) and holds its value
 while it is off: from z = 0 at t_start when the gains are set before the run starts, and
 with no cost and no effect (no overflow either) when all integral gains are 0.
 
-Pure Python (shipped inside the controller FMUs); imports only the project's errors.
+Pure Python (shipped inside the controller FMUs); imports only :mod:`.timing`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
-from functools import cached_property
 from typing import Any, Sequence
 
-from ..errors import DroneflyError
+from .timing import MAX_SAMPLES, TOLERANCE, SensingError, Timing
 
 __all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
 
-#: bound of the delay line (samples taken, not yet in effect) of one instance
-MAX_SAMPLES = 100_000
-#: times closer than TOLERANCE * (communication step) count as equal
-TOLERANCE = 1e-9
-
 State = tuple[float, ...]
-
-
-class SensingError(DroneflyError):
-    """A sensing delay or sample period is not acceptable, or the integral state overflows."""
-
-
-@dataclass(frozen=True)
-class Timing:
-    """When the controller samples and how late its samples take effect.
-
-    Parameters
-    ----------
-    sensing_delay : float
-        Delay from a sample instant to the instant its control takes effect [s], >= 0.
-    sample_period : float
-        Period of the sample instants t_start + k * sample_period [s]; 0 = sample at every
-        communication point.
-    delay_required : bool
-        The FMU declares no direct feedthrough: ``sensing_delay`` must be > 0.
-    """
-
-    sensing_delay: float = 0.0
-    sample_period: float = 0.0
-    delay_required: bool = False
-
-    @cached_property
-    def immediate(self) -> bool:
-        """No delay, no sampling: each communication point's input in effect at once."""
-        return self.sensing_delay == 0.0 and self.sample_period == 0.0
-
-    def validate(self) -> None:
-        """Raise :class:`SensingError` naming the first bad value."""
-        for name, value in (("sensing_delay", self.sensing_delay),
-                            ("sample_period", self.sample_period)):
-            if not (math.isfinite(value) and value >= 0.0):
-                raise SensingError(f"{name} = {value!r} s must be finite and >= 0")
-        if self.delay_required and not self.sensing_delay > 0.0:
-            raise SensingError(f"sensing_delay = {self.sensing_delay!r} s must be > 0 in this "
-                               "FMU (it declares no direct feedthrough; the FMU of the same "
-                               "name without 'Delayed' takes 0)")
-
-    def too_long(self, h: float) -> str:
-        """The refusal of a delay line longer than :data:`MAX_SAMPLES` for a step of ``h`` [s]."""
-        return (f"sensing_delay = {self.sensing_delay!r} s with sample_period = "
-                f"{self.sample_period!r} s and a communication step of {h!r} s needs a delay "
-                f"line of more than {MAX_SAMPLES} samples (memory bound): use a longer "
-                "sample_period or communication step")
-
-    def check_step(self, h: float) -> None:
-        """Refuse a step of ``h`` [s] that would need more than :data:`MAX_SAMPLES` entries
-        (one per step or per sample period within the delay)."""
-        if self.sensing_delay > MAX_SAMPLES * max(h, self.sample_period):
-            raise SensingError(self.too_long(h))
 
 
 class Sensor:
@@ -125,10 +68,12 @@ class Sensor:
         Index of the last sample instant taken on the grid of ``last_period`` [s].
     h : float
         The last communication step [s] (0 before the first).
+    t_effect : float
+        The instant [s] the sample in effect took effect (``t0`` before the first).
     """
 
     __slots__ = ("t0", "line", "held", "z0", "t_base", "x_plus", "scale", "n", "integrating",
-                 "last_k", "last_period", "h")
+                 "last_k", "last_period", "h", "t_effect")
 
     def __init__(self, size: int, t0: float = 0.0) -> None:
         zero = (0.0,) * size
@@ -142,6 +87,7 @@ class Sensor:
         self.last_k: int | None = None
         self.last_period = 0.0
         self.h = 0.0
+        self.t_effect = self.t0
 
     def integral(self, t: float) -> State:
         """z(t) [non-dimensional] for t >= t_base (exact for the held sample)."""
@@ -202,7 +148,8 @@ class Sensor:
         line = self.line
         popped: list[tuple[float, State]] = []
         token = (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n,
-                 self.integrating, self.last_k, self.last_period, self.h, len(line), popped)
+                 self.integrating, self.last_k, self.last_period, self.h, self.t_effect,
+                 len(line), popped)
         try:
             tol, end = TOLERANCE * h, t + h
             if integrate != self.integrating:  # integral action switched on or off at t
@@ -217,10 +164,10 @@ class Sensor:
             if not line and d <= tol and period <= tol:  # the sample at t takes effect at t
                 if x != self.held:
                     self._switch(t, x, scale, n)
-                self.last_k, self.h = None, h
+                self.last_k, self.h, self.t_effect = None, h, t
                 return token
             ts = self._instant(t, end, tol, period)
-            if ts is not None and x != (line[-1][1] if line else self.held):
+            if ts is not None:  # also a repeated value: its instant updates the control
                 if len(line) >= MAX_SAMPLES:
                     raise SensingError(timing.too_long(h))
                 line.append((ts, x))
@@ -230,7 +177,9 @@ class Sensor:
                     break
                 e = t if e < t + tol else end if e > end - tol else e
                 popped.append(line.popleft())
-                self._switch(e, popped[-1][1], scale, n)
+                if popped[-1][1] != self.held:  # a repeated value leaves z's base as it is
+                    self._switch(e, popped[-1][1], scale, n)
+                self.t_effect = e
             self.h = h
         except BaseException:
             self.undo(token)
@@ -240,7 +189,7 @@ class Sensor:
     def undo(self, token: tuple[Any, ...]) -> None:
         """Return to the state before the :meth:`advance` that gave ``token``."""
         (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n, self.integrating,
-         self.last_k, self.last_period, self.h, length, popped) = token
+         self.last_k, self.last_period, self.h, self.t_effect, length, popped) = token
         for item in reversed(popped):
             self.line.appendleft(item)
         while len(self.line) > length:
@@ -266,13 +215,23 @@ class Sensor:
             return x_live
         return self.held
 
+    def integral_in_effect(self, t: float, timing: Timing, feedthrough: bool) -> State:
+        """z for the control at the communication point ``t`` [s]: z(t) if the sample at ``t``
+        is in effect at once (as in :meth:`sensed`), else z at the instant the held sample took
+        effect (the control is held between samples)."""
+        if (feedthrough and timing.sensing_delay <= TOLERANCE * self.h
+                and self.is_instant(t, timing.sample_period)):
+            return self.integral(t)
+        return self.integral(max(self.t_effect, self.t_base))
+
     # -- FMU state ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Everything, JSON-ready (floats exact)."""
         return {"t0": self.t0, "line": [[ts, list(x)] for ts, x in self.line],
                 "held": list(self.held), "z0": list(self.z0), "t_base": self.t_base,
                 "x_plus": list(self.x_plus), "scale": list(self.scale), "n": self.n,
-                "integrating": self.integrating, "last_k": self.last_k, "last_period": self.last_period, "h": self.h}
+                "integrating": self.integrating, "last_k": self.last_k,
+                "last_period": self.last_period, "h": self.h, "t_effect": self.t_effect}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], size: int) -> "Sensor":
@@ -294,4 +253,5 @@ class Sensor:
         s.integrating = bool(d["integrating"])
         s.last_k = None if d["last_k"] is None else int(d["last_k"])
         s.last_period = float(d["last_period"])
+        s.t_effect = float(d["t_effect"])
         return s

@@ -86,7 +86,8 @@ class _Feedback(SlaveBase):
         sensor = self._sensor
         sensed = (x if timing.immediate and self.DIRECT_FEEDTHROUGH
                   else sensor.sensed(t, x, timing, self.DIRECT_FEEDTHROUGH))
-        u, saturated = law.evaluate(sensed, sensor.integral(t) if law.has_integral else None)
+        z = sensor.integral_in_effect(t, timing, self.DIRECT_FEEDTHROUGH) if law.has_integral else None
+        u, saturated = law.evaluate(sensed, z)
         for i, v in zip(self._out_vr, u):
             r[i] = v
         r[self._sat_vr] = saturated

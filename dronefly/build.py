@@ -50,7 +50,7 @@ _FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/calls.py", "fmi/host
         "fmi/state.py", "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
 _PLANT = (*_FMI, "linear.py", "linear_slave.py")
 _CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/delay.py",
-               "controller/variables.py", "controller/slave.py")
+               "controller/timing.py", "controller/variables.py", "controller/slave.py")
 
 
 def _controller(cls: str) -> _Spec:

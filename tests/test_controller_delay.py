@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from dronefly.controller import delay as D
+from dronefly.controller import timing as T
 from dronefly.controller import law as L
 from dronefly.controller.slave import (StateFeedback, StateFeedbackDelayed,
                                        StateFeedbackLongitudinalDelayed)
@@ -164,8 +165,9 @@ def test_integral_of_a_constant_input_is_KI_x_t_plus_exactly(delay_wb):
 
 
 def test_integral_follows_the_held_sensed_state_exactly():
-    """Mid-step effects (period 0.7, delay 1.3 wing beats, steps of 0.5): z against the exact
-    integral of the held sensed signal (Fractions), to rounding."""
+    """Mid-step effects (period 0.7, delay 1.3 wing beats, steps of 0.5): the control is
+    computed when a sample takes effect and held, so z is the exact integral of the held sensed
+    signal (Fractions) up to the instant the sample in effect took effect, to rounding."""
     n, h, delay, period = 40, F(1, 2), F(13, 10), F(7, 10)
     xs = _inputs(n + 1, seed=2)
     ki = np.random.default_rng(4).normal(0.0, 1.0, (3, 4))
@@ -183,9 +185,10 @@ def test_integral_follows_the_held_sensed_state_exactly():
         t += float(h) * WB
         end = (m + 1) * h
         z = np.zeros(4)
-        for (a, xp), (b, _) in zip(effects, effects[1:] + [(end, None)]):
-            if a < end:
-                z += xp * float(min(b, end) - a)  # t+ in wing beats
+        last = max((a for a, _ in effects if a <= end), default=None)  # in effect at end
+        for (a, xp), (b, _) in zip(effects, effects[1:]):
+            if last is not None and a < last:
+                z += xp * float(min(b, last) - a)  # t+ in wing beats
         np.testing.assert_allclose(_controls(s), ki @ z, rtol=1e-12, atol=1e-15)
 
 
@@ -242,7 +245,8 @@ def test_a_delay_line_past_the_memory_bound_is_refused(monkeypatch):
     assert f"communication step of {h!r} s" in msg and "memory bound" in msg
     _set(s, {"sample_period": 0.1 * WB})  # one sample per 0.1 wing beat: 10 in the line
     assert s.do_step(0.0, h)
-    monkeypatch.setattr(D, "MAX_SAMPLES", 8)
+    monkeypatch.setattr(D, "MAX_SAMPLES", 8)  # the line
+    monkeypatch.setattr(T, "MAX_SAMPLES", 8)  # the estimate and its message
     s = _slave(StateFeedbackDelayed)
     t, x = 0.0, _inputs(40)
     for m in range(16):  # steps of 0.125 wing beat: 8 samples within the delay at most

@@ -56,7 +56,8 @@ def test_reproducible_build_and_own_package(tmp_path, built_fmus):
     assert shipped == {f"resources/{pkg_c}/{r}" for r in
                        ("errors.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py", "fmi/state.py",
                         "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py", "longitudinal.py",
-                        "controller/law.py", "controller/delay.py", "controller/variables.py",
+                        "controller/law.py", "controller/delay.py", "controller/timing.py",
+                        "controller/variables.py",
                         "controller/slave.py")}
 
 

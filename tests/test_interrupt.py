@@ -22,7 +22,7 @@ def test_sigint_sets_a_flag_instead_of_raising():
 def test_third_sigint_raises():
     with pytest.raises(KeyboardInterrupt):
         with deferred_sigint():
-            for _ in range(2):  # twice: the first and a later run in the same folder (suite time)
+            for _ in range(3):
                 os.kill(os.getpid(), signal.SIGINT)
                 signal.getsignal(signal.SIGINT)
 

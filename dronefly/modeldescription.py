@@ -13,7 +13,8 @@ from xml.etree.ElementTree import Element, SubElement, tostring
 
 from .fmi import SlaveBase
 
-__all__ = ["format_value", "model_description", "model_description_bytes"]
+__all__ = ["add_units_and_log_categories", "format_value", "model_description",
+           "model_description_bytes"]
 
 
 def format_value(value: float | bool) -> str:
@@ -21,6 +22,22 @@ def format_value(value: float | bool) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     return repr(float(value))
+
+
+def add_units_and_log_categories(root: Element, cls: type[SlaveBase], used: set[str],
+                                 fmi: str = "fmi2") -> None:
+    """``UnitDefinitions`` (SI base-unit exponents, display units) of the units in ``used``,
+    then ``LogCategories`` (their descriptions name the calls of FMI version ``fmi``)."""
+    units = SubElement(root, "UnitDefinitions")
+    for name in sorted(used):
+        exps, displays = cls.UNITS[name]
+        unit = SubElement(units, "Unit", {"name": name})
+        SubElement(unit, "BaseUnit", {k: str(e) for k, e in exps.items()})
+        for dname, factor in displays.items():
+            SubElement(unit, "DisplayUnit", {"name": dname, "factor": repr(factor)})
+    cats = SubElement(root, "LogCategories")
+    for name, text in cls.log_categories.items():
+        SubElement(cats, "Category", {"name": name, "description": text.replace("fmi2", fmi)})
 
 
 def _dependency_indices(cls: type[SlaveBase], names: tuple[str, ...]) -> str:
@@ -52,17 +69,7 @@ def model_description(cls: type[SlaveBase], guid: str) -> Element:
         "canSerializeFMUstate": "true",
         "providesDirectionalDerivative": "false",
     })
-    used = {v.unit for v in cls.VARIABLES if v.unit is not None}
-    units = SubElement(root, "UnitDefinitions")
-    for name in sorted(used):
-        exps, displays = cls.UNITS[name]
-        unit = SubElement(units, "Unit", {"name": name})
-        SubElement(unit, "BaseUnit", {k: str(e) for k, e in exps.items()})
-        for dname, factor in displays.items():
-            SubElement(unit, "DisplayUnit", {"name": dname, "factor": repr(factor)})
-    cats = SubElement(root, "LogCategories")
-    for name, text in cls.log_categories.items():
-        SubElement(cats, "Category", {"name": name, "description": text})
+    add_units_and_log_categories(root, cls, {v.unit for v in cls.VARIABLES if v.unit is not None})
     start, stop, step = cls.DEFAULT_EXPERIMENT
     SubElement(root, "DefaultExperiment", {
         "startTime": repr(start), "stopTime": repr(stop), "stepSize": repr(step)})

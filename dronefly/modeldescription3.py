@@ -14,7 +14,7 @@ from typing import Any
 from xml.etree.ElementTree import Element, SubElement, tostring
 
 from .fmi.table3 import Var3, array_dependencies
-from .modeldescription import format_value
+from .modeldescription import add_units_and_log_categories, format_value
 
 __all__ = ["model_description3", "model_description3_bytes"]
 
@@ -71,17 +71,9 @@ def model_description3(cls: Any, token: str) -> Element:
         "providesIntermediateUpdate": "false",
     })
     table = cls.TABLE3
-    used = {e.var.unit for e in table if e.var.type == "Real" and e.var.unit is not None}
-    units = SubElement(root, "UnitDefinitions")
-    for name in sorted(used):
-        exps, displays = cls.UNITS[name]
-        unit = SubElement(units, "Unit", {"name": name})
-        SubElement(unit, "BaseUnit", {k: str(x) for k, x in exps.items()})
-        for dname, factor in displays.items():
-            SubElement(unit, "DisplayUnit", {"name": dname, "factor": repr(factor)})
-    cats = SubElement(root, "LogCategories")
-    for name, text in cls.log_categories.items():
-        SubElement(cats, "Category", {"name": name, "description": text.replace("fmi2", "fmi3")})
+    add_units_and_log_categories(
+        root, cls, {e.var.unit for e in table if e.var.type == "Real" and e.var.unit is not None},
+        fmi="fmi3")
     start, stop, step = cls.DEFAULT_EXPERIMENT
     SubElement(root, "DefaultExperiment", {
         "startTime": repr(start), "stopTime": repr(stop), "stepSize": repr(step)})

@@ -57,6 +57,8 @@ _EPILOG = {
              "  dronefly sweep --gains paper,my_gains.csv --set plant.Nr_plus=-5\n"
              "  dronefly sweep --system build/DroneFlyHover.ssp --disturbances directions\n"
              "  dronefly sweep --compare nonlinear --out build/validity\n"
+             "  dronefly sweep --steps 0.5 --delays 0,1,2,4 --sample-periods 0,1,2 "
+             "--disturbances directions\n"
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
              "130 interrupted (rerun to resume)" + _UNITS,
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
@@ -208,6 +210,13 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--steps", type=floats_arg("steps"), default=None, metavar="LIST",
                    help="communication steps = how often the insect senses and acts, wing beats "
                         "(default 0.1,1,3)")
+    w.add_argument("--delays", type=floats_arg("delays"), default="0", metavar="LIST",
+                   help="the controller's sensing delays, wing beats (1 wb = 1000/n ms, 6.1 ms "
+                        "at 164 Hz; default 0 = not set); adds the loop's verdict with the "
+                        "delay states to every row")
+    w.add_argument("--sample-periods", type=floats_arg("sample-periods"), default="0",
+                   metavar="LIST", help="the controller's sample periods, wing beats (default "
+                                        "0 = every communication step)")
     w.add_argument("--scales", type=floats_arg("scales"), default="1", metavar="LIST",
                    help="factors on the bounds (default 1)")
     w.add_argument("--stop", type=floats_arg("stop"), default=None, metavar="WB",

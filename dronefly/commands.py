@@ -163,7 +163,8 @@ def sweep(args: argparse.Namespace) -> int:
                                grid=opt["grid"], lhs=args.lhs, directions=args.directions,
                                amplitudes=opt["amplitudes"], gains=opt["gains"],
                                steps=opt["steps"], scales=args.scales, stop=opt["stop"],
-                               master=args.master, seed=args.seed, extent=opt["extent"])
+                               master=args.master, seed=args.seed, extent=opt["extent"],
+                               delays=args.delays, sample_periods=args.sample_periods)
     if compare == "nonlinear":
         from dronefly.build import project_systems
 

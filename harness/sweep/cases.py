@@ -14,6 +14,9 @@ gain set
     ``STABILISING_LAMBDA1`` with delta_Phi_a alone), ``open`` (no control).
 communication step
     How often the insect senses and acts, in wing beats (meaningful: 0.1 to 3).
+sensing delay and sample period (issue 14)
+    The controller's ``sensing_delay`` and ``sample_period``, in wing beats (0 and 0, the
+    default, set nothing: today's sweep); see :mod:`harness.sweep.delays`.
 bound scale
     A factor on the bounds checked; the initial disturbances stay in the nominal box.
 
@@ -24,9 +27,10 @@ Every case has a deterministic number (its position in that product) and a
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -36,8 +40,8 @@ from dronefly.lateral import STATE_BOUNDS_SECT36, eigen_order
 from dronefly.harness.cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
 from dronefly.plant import model
 from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
-from dronefly.harness.sweep.parse import (SweepInputError, one_line, parse_floats, parse_int,
-                                          parse_names)
+from dronefly.harness.sweep.parse import (AXES, SweepInputError, one_line, parse_floats,
+                                          parse_int, parse_names, parse_slices)
 
 __all__ = ["MAX_CASES", "AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",
@@ -47,25 +51,8 @@ __all__ = ["MAX_CASES", "AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTU
 #: Cases per sweep at most (rows of sweep.csv, about 1 kB each, and their results in memory).
 MAX_CASES = 200_000
 
-#: Short names of the non-dimensional state components (x+ order).
-AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
 DISTURBANCES: tuple[str, ...] = ("grid", "lhs", "directions")
 DEFAULT_DIRECTIONS: tuple[str, ...] = tuple(f"{s}{a}" for a in (*AXES, "mode1") for s in "+-")
-
-
-def parse_slices(text: str | Iterable[Sequence[str]]) -> tuple[tuple[str, str], ...]:
-    """``"dgamma:dv,dp:dr"`` -> ((x axis, y axis), ...), two different state axes each."""
-    items = ([p.strip().split(":") for p in text.split(",")] if isinstance(text, str)
-             else [tuple(p) for p in text])
-    if not items or items == [[""]]:
-        raise SweepInputError(f"slices = {text!r} is empty")
-    out = []
-    for pair in items:
-        if len(pair) != 2 or any(a not in AXES for a in pair) or pair[0] == pair[1]:
-            raise SweepInputError(f"slice {':'.join(pair)!r}: expected two different axes "
-                                  f"of {', '.join(AXES)} as X:Y")
-        out.append((pair[0], pair[1]))
-    return tuple(dict.fromkeys(out))
 
 
 def _mode1_direction() -> np.ndarray:
@@ -105,13 +92,18 @@ class Case:
     #: ``--set`` values (name, value) of the plant and of the controller, in their units
     plant_values: tuple[tuple[str, Any], ...] = ()
     controller_values: tuple[tuple[str, Any], ...] = ()
+    #: the controller's sensing_delay and sample_period, wing beats (0: not set)
+    delay_wb: float = 0.0
+    sample_period_wb: float = 0.0
     key: str = field(init=False)
 
     def __post_init__(self) -> None:
+        timing = (float(self.delay_wb), float(self.sample_period_wb))
         ident = repr((tuple(map(float, self.x0)), tuple(tuple(map(float, r)) for r in self.K),
                       float(self.step_wb), float(self.scale), self.n_steps, self.master)
                      + ((self.plant_values, self.controller_values)
-                        if self.plant_values or self.controller_values else ()))
+                        if self.plant_values or self.controller_values else ())
+                     + ((timing,) if any(timing) else ()))
         object.__setattr__(self, "key", hashlib.sha1(ident.encode()).hexdigest()[:16])
 
     @property
@@ -138,6 +130,8 @@ class SweepSpec:
         Amplitudes 1/N, 2/N, ..., 1 (box units) per direction, >= 1.
     gains : subset of ``GAIN_SETS``
     steps_wb : communication steps, wing beats, each > 0 and <= ``stop_wb``
+    delays_wb : the controller's ``sensing_delay`` per case, wing beats, each >= 0
+    sample_periods_wb : its ``sample_period``, wing beats, each >= 0 (0: every step)
     scales : factors on the bounds checked, each > 0
     stop_wb : float
         Simulated time, wing beats.
@@ -162,11 +156,15 @@ class SweepSpec:
     seed: int = 0
     #: the disturbances cover ``extent`` times the box (grid, Latin hypercube, amplitudes)
     extent: float = 1.0
+    #: the controller's sensing delays and sample periods, wing beats (each >= 0; 0: not set)
+    delays_wb: tuple[float, ...] = (0.0,)
+    sample_periods_wb: tuple[float, ...] = (0.0,)
 
     @classmethod
     def from_text(cls, *, disturbances: str, slices: str, grid: str, lhs: str, directions: str,
                   amplitudes: str, gains: str, steps: str, scales: str, stop: str, master: str,
-                  seed: str, extent: float = 1.0) -> "SweepSpec":
+                  seed: str, extent: float = 1.0, delays: str = "0",
+                  sample_periods: str = "0") -> "SweepSpec":
         """A validated spec from command-line strings (comma-separated lists)."""
         spec = cls(parse_names(disturbances, "disturbances", DISTURBANCES), parse_slices(slices),
                    parse_int(grid, "grid", 2), parse_int(lhs, "lhs", 1),
@@ -175,7 +173,8 @@ class SweepSpec:
                    parse_floats(steps, "steps"), parse_floats(scales, "scales"),
                    parse_floats(stop, "stop")[0], master, parse_int(seed, "seed", 0),
                    parse_floats([extent] if isinstance(extent, (int, float)) else extent,
-                                "extent")[0])
+                                "extent")[0],
+                   parse_floats(delays, "delays"), parse_floats(sample_periods, "sample-periods"))
         spec.validate()
         return spec
 
@@ -206,6 +205,10 @@ class SweepSpec:
         for s in parse_floats(self.scales, "scales"):
             if s <= 0:
                 raise SweepInputError(f"scale = {s!r} must be > 0")
+        for name, values in (("delay", self.delays_wb), ("sample period", self.sample_periods_wb)):
+            for v in parse_floats(values, name):
+                if v < 0:
+                    raise SweepInputError(f"{name} = {v!r} wing beats must be >= 0")
         n = self.case_count()
         if n > MAX_CASES:
             raise SweepInputError(
@@ -223,7 +226,8 @@ class SweepSpec:
             per += int(self.lhs_points)
         if "directions" in self.disturbances:
             per += len(tuple(self.directions)) * int(self.amplitudes)
-        return per * len(tuple(self.gains)) * len(tuple(self.steps_wb)) * len(tuple(self.scales))
+        return (per * len(tuple(self.gains)) * len(tuple(self.steps_wb)) * len(tuple(self.scales))
+                * len(tuple(self.delays_wb)) * len(tuple(self.sample_periods_wb)))
 
     def initial_states(self) -> list[tuple[str, str, float, np.ndarray]]:
         """(family, label, amplitude, x+(0)) of every disturbance, in a fixed order."""
@@ -253,7 +257,7 @@ class SweepSpec:
         return out
 
     def cases(self, values: Mapping[str, Mapping[str, Any]] | None = None) -> list[Case]:
-        """Every case, numbered: gain set x step x scale x disturbance (that nesting).
+        """Every case, numbered: gain set x step x delay x sample period x scale x disturbance.
 
         ``values``: ``--set`` values by instance (``plant``, ``controller``), as resolved by
         :func:`dronefly.harness.cosim.params.resolve_assignments`.
@@ -268,12 +272,12 @@ class SweepSpec:
                 K = tuple(tuple(float(v) for v in row) for row in parse_gains(g))
             except DroneflyError as e:
                 raise SweepInputError(str(e)) from e
-            for h in self.steps_wb:
-                for s in self.scales:
-                    for family, label, amp, x in x0s:
-                        out.append(Case(len(out), family, label, amp,
-                                        tuple(float(v) for v in x), g, K, float(h), float(s),
-                                        float(self.stop_wb), self.master, pv, cv))
+            for h, d, T, s in itertools.product(self.steps_wb, self.delays_wb,
+                                                self.sample_periods_wb, self.scales):
+                for family, label, amp, x in x0s:
+                    out.append(Case(len(out), family, label, amp, tuple(float(v) for v in x), g,
+                                    K, float(h), float(s), float(self.stop_wb), self.master, pv,
+                                    cv, float(d), float(T)))
         return out
 
 

@@ -11,7 +11,11 @@ from typing import Iterable, Sequence
 
 from dronefly.errors import DroneflyError
 
-__all__ = ["SweepInputError", "one_line", "parse_floats", "parse_int", "parse_names"]
+__all__ = ["AXES", "SweepInputError", "one_line", "parse_floats", "parse_int", "parse_names",
+           "parse_slices"]
+
+#: Short names of the non-dimensional state components (x+ order).
+AXES: tuple[str, ...] = ("dv", "dp", "dr", "dgamma")
 
 
 class SweepInputError(DroneflyError):
@@ -60,3 +64,18 @@ def parse_names(text: str | Iterable[str], name: str, allowed: Sequence[str]) ->
             raise SweepInputError(f"{name}: unknown {p!r}; choose from {', '.join(allowed)}"
                                   + (" or a .csv/.json gain matrix" if name == "gains" else ""))
     return tuple(dict.fromkeys(items))
+
+
+def parse_slices(text: str | Iterable[Sequence[str]]) -> tuple[tuple[str, str], ...]:
+    """``"dgamma:dv,dp:dr"`` -> ((x axis, y axis), ...), two different state axes each."""
+    items = ([p.strip().split(":") for p in text.split(",")] if isinstance(text, str)
+             else [tuple(p) for p in text])
+    if not items or items == [[""]]:
+        raise SweepInputError(f"slices = {text!r} is empty")
+    out = []
+    for pair in items:
+        if len(pair) != 2 or any(a not in AXES for a in pair) or pair[0] == pair[1]:
+            raise SweepInputError(f"slice {':'.join(pair)!r}: expected two different axes "
+                                  f"of {', '.join(AXES)} as X:Y")
+        out.append((pair[0], pair[1]))
+    return tuple(dict.fromkeys(out))

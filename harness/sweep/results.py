@@ -24,7 +24,7 @@ from dronefly.files import atomic_path, write_csv_atomic
 from dronefly.harness.sweep.cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
 from dronefly.harness.sweep.compare import COMPARE_COLUMNS
 
-__all__ = ["COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
+__all__ = ["COLUMNS", "DELAY_COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
            "summarize", "write_maps", "write_results"]
 
 _CASE_COLS = ["case", "key", "family", "label", "amplitude", *(f"x0_{a}" for a in AXES), "gains",
@@ -33,6 +33,9 @@ _PEAKS = [*(f"peak_{a}" for a in AXES), "peak_u", "peak"]
 RESULT_COLUMNS = [*_PEAKS, "t_exit_wb", "verdict", *(f"final_{a}" for a in AXES), "error"]
 #: Columns of ``sweep.csv``: the case, then its result.
 COLUMNS = _CASE_COLS + RESULT_COLUMNS
+#: Columns added by the delay axes (:mod:`.delays`).
+DELAY_COLUMNS = ["delay_wb", "sample_period_wb", "delay_ms", "sample_period_ms", "stability",
+                 "stability_rate", "stability_identified", "stability_deviation"]
 
 _AXIS_LABEL = {"dv": "dv+ = dv/U", "dp": "dp+ = dp t_w", "dr": "dr+ = dr t_w",
                "dgamma": "dgamma [rad]"}
@@ -48,11 +51,15 @@ def _fmt(v: Any) -> str:
 
 
 def result_row(case: Case, result: dict[str, Any], compare: bool = False) -> dict[str, str]:
-    """One row of ``sweep.csv``; ``compare`` adds the comparison columns (empty if missing)."""
+    """One row of ``sweep.csv``; ``compare`` adds the comparison columns (empty if missing), a
+    result with ``stability`` the delay columns (:mod:`.delays`)."""
     vals = [case.case, case.key, case.family, case.label, case.amplitude, *case.x0, case.gains,
             case.step_wb, case.scale, case.stop_wb, case.n_steps, case.master]
     row = {c: _fmt(v) for c, v in zip(_CASE_COLS, vals)}
     row.update({c: _fmt(result[c]) for c in RESULT_COLUMNS})
+    if "stability" in result:
+        row.update({c: _fmt({"delay_wb": case.delay_wb, "sample_period_wb": case.sample_period_wb,
+                             **result}[c]) for c in DELAY_COLUMNS})
     if compare:
         row.update({c: _fmt(result.get(c, math.nan)) for c in COMPARE_COLUMNS})
     return row
@@ -60,7 +67,8 @@ def result_row(case: Case, result: dict[str, Any], compare: bool = False) -> dic
 
 def write_results(path: Path, rows: list[dict[str, str]]) -> None:
     """``sweep.csv``: the rows in case order, atomically (the one CSV writer of the project)."""
-    header = COLUMNS + COMPARE_COLUMNS if rows and "err_dv" in rows[0] else COLUMNS
+    header = (COLUMNS + (DELAY_COLUMNS if rows and "delay_wb" in rows[0] else [])
+              + (COMPARE_COLUMNS if rows and "err_dv" in rows[0] else []))
     write_csv_atomic(path, header, sorted(rows, key=lambda r: int(r["case"])))
 
 
@@ -69,7 +77,8 @@ def read_rows(path: str | Path) -> list[dict[str, str]]:
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             reader = csv.DictReader(fh)
-            if reader.fieldnames not in (COLUMNS, COLUMNS + COMPARE_COLUMNS):
+            if reader.fieldnames not in [COLUMNS + d + c for d in ([], DELAY_COLUMNS)
+                                         for c in ([], COMPARE_COLUMNS)]:
                 raise SweepInputError(f"{str(path)!r} is not a sweep result (its columns differ); "
                                       "use another output folder or --fresh")
             return list(reader)
@@ -113,23 +122,26 @@ def summarize(rows: Sequence[dict[str, str]], cases: Sequence[Case]) -> dict[str
     within = sum(r["verdict"] == "within" for r in rows)
     groups: dict[tuple, list[dict[str, str]]] = defaultdict(list)
     dirs: dict[tuple, list[dict[str, str]]] = defaultdict(list)
+    timed = bool(rows) and "delay_wb" in rows[0]  # the delay axes: groups per delay and period
     for r in rows:
-        g = (r["gains"], float(r["step_wb"]), float(r["scale"]))
+        g = (r["gains"], float(r["step_wb"]), float(r["scale"]),
+             *((float(r["delay_wb"]), float(r["sample_period_wb"])) if timed else ()))
         groups[g].append(r)
         if r["family"] == "direction":
             dirs[(*g, r["label"])].append(r)
     group_list = []
-    for (gains, h, s), rs in groups.items():
+    for (gains, h, s, *dT), rs in groups.items():
         left: dict[str, int] = defaultdict(int)
         for r in rs:
             if r["verdict"] != "within":
                 left[r["verdict"]] += 1
         k = sum(r["verdict"] == "within" for r in rs)
-        group_list.append({"gains": gains, "step_wb": h, "scale": s, "cases": len(rs),
+        group_list.append({"gains": gains, "step_wb": h, "scale": s,
+                           **dict(zip(("delay_wb", "sample_period_wb"), dT)), "cases": len(rs),
                            "within_bounds": k, "fraction_within_bounds": k / len(rs),
                            "verdicts": dict(sorted(left.items()))})
     amp_list = []
-    for (gains, h, s, label), rs in dirs.items():
+    for (gains, h, s, *dT, label), rs in dirs.items():
         rs = sorted(rs, key=lambda r: float(r["amplitude"]))
         largest = None
         for r in rs:
@@ -139,7 +151,8 @@ def summarize(rows: Sequence[dict[str, str]], cases: Sequence[Case]) -> dict[str
         top = rs[-1]
         peak = _f(top["peak"])
         limit = float(top["amplitude"]) / peak if math.isfinite(peak) and peak > 0 else None
-        amp_list.append({"gains": gains, "step_wb": h, "scale": s, "direction": label,
+        amp_list.append({"gains": gains, "step_wb": h, "scale": s,
+                         **dict(zip(("delay_wb", "sample_period_wb"), dT)), "direction": label,
                          "largest_amplitude": largest, "linear_limit_amplitude": limit})
     gain_sets = {c.gains: [list(row) for row in c.K] for c in cases}
     return {
@@ -169,7 +182,11 @@ def format_summary(summary: dict[str, Any]) -> str:
              + f"; {s['elapsed_s']:.1f} s on {s['workers']} worker(s) ({s['backend']})",
              f"within bounds: {s['within_bounds']}/{s['cases']} "
              f"({100 * (s['fraction_within_bounds'] or 0):.1f} %), errors: {s['errors']}"]
-    for g in s["groups"]:
+    if "delay_groups" in s:  # the delay axes: one line per configuration, with its verdict
+        from dronefly.harness.sweep.delaymap import format_delay_groups
+
+        lines += format_delay_groups(s)
+    for g in ([] if "delay_groups" in s else s["groups"]):
         lines.append(f"  {g['gains']:<12} step {g['step_wb']:g} wb, scale {g['scale']:g}: "
                      f"{100 * g['fraction_within_bounds']:5.1f} % within")
         amps = [a for a in s["largest_amplitude_within_bounds"]
@@ -212,16 +229,27 @@ def _panel(ax: Any, rs: list[dict[str, str]], sx: str, sy: str) -> Any:
 
 
 def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path]:
-    """One PNG per grid slice (and bound scale): ``map_X_Y.png`` (``..._scaleS.png``)."""
+    """One PNG per grid slice (and bound scale): ``map_X_Y.png`` (``..._scaleS.png``); with the
+    delay axes one per delay and sample period too (``..._delayD_periodT.png``) and the map over
+    delay x sample period (:func:`.delaymap.write_delay_map`)."""
     from matplotlib.figure import Figure
 
+    from dronefly.harness.sweep.delaymap import write_delay_map
+
     grid = [r for r in rows if r["family"] == "grid"]
-    scales = sorted({float(r["scale"]) for r in grid})
+    timed = bool(rows) and "delay_wb" in rows[0]
+
+    def combo(r: dict[str, str]) -> tuple[float, ...]:
+        return (float(r["scale"]), *((float(r["delay_wb"]), float(r["sample_period_wb"]))
+                                     if timed else ()))
+
+    combos = sorted({combo(r) for r in grid})
+    scales = sorted({c[0] for c in combos})
     written = []
     for label in dict.fromkeys(r["label"] for r in grid):
         sx, sy = label.split(":")
-        for s in scales:
-            rs = [r for r in grid if r["label"] == label and float(r["scale"]) == s]
+        for s, *dT in combos:
+            rs = [r for r in grid if r["label"] == label and combo(r) == (s, *dT)]
             gains = list(dict.fromkeys(r["gains"] for r in rs))
             steps = sorted({float(r["step_wb"]) for r in rs})
             fig = Figure(figsize=(1.2 + 3.3 * len(steps), 0.9 + 3.0 * len(gains)), dpi=110,
@@ -247,11 +275,13 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
             fig.suptitle(f"Initial disturbances over the Sect. 3.6 box, slice {sx} x {sy} "
                          f"(others 0), {float(stop):g} wing beats"
                          + (f", bounds x {s:g}" if s != 1.0 else "")
+                         + (f", delay {dT[0]:g} wb, sample period {dT[1]:g} wb" if dT else "")
                          + "\ngreen: stays within the bounds; red: leaves them; "
                          "black line: peak = bound", fontsize=10)
-            name = f"map_{sx}_{sy}" + (f"_scale{s:g}" if len(scales) > 1 or s != 1.0 else "")
+            name = (f"map_{sx}_{sy}" + (f"_scale{s:g}" if len(scales) > 1 or s != 1.0 else "")
+                    + (f"_delay{dT[0]:g}_period{dT[1]:g}" if dT else ""))
             path = Path(out_dir) / f"{name}.png"
             with atomic_path(path) as tmp:
                 fig.savefig(tmp, format="png")
             written.append(path)
-    return written
+    return written + write_delay_map(rows, out_dir)

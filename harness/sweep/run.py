@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-
 from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec
 from dronefly.files import write_text_atomic
 from dronefly.harness.sweep.results import (COLUMNS, load_done, read_rows, result_row,
@@ -34,9 +33,11 @@ from dronefly.harness.sweep.results import (COLUMNS, load_done, read_rows, resul
 from dronefly.harness.sweep.backends import (chunk_cases, connect_scheduler, make_progress_bar,
                                              run_dask, run_here, run_pool, stderr_is_tty)
 from dronefly.harness.sweep.compare import compare_summary
+from dronefly.harness.sweep.delays import delay_results, delay_summary
 from dronefly.harness.sweep.worker import FmuRef
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
+
 
 @dataclass
 class SweepResult:
@@ -224,6 +225,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepInputError(f"output folder {str(out)!r} is a file")
+    timed = delay_results(all_cases, refs)  # the loop's verdict per delay and sample period
     csv_path, json_path = out / "sweep.csv", out / "sweep.json"
     keys = {c.key for c in all_cases}
     cmp = compare is not None
@@ -240,8 +242,8 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     last_flush = [time.perf_counter()]
 
     def flush() -> None:
-        write_results(csv_path, [result_row(c, done[c.key], cmp) for c in all_cases
-                                 if c.key in done])
+        write_results(csv_path, [result_row(c, {**done[c.key], **timed.get(c.key, {})}, cmp)
+                                 for c in all_cases if c.key in done])
         last_flush[0] = time.perf_counter()
 
     def collect(res: tuple[list, float, float]) -> None:
@@ -269,9 +271,9 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
             client.close()
         if stats["computed"] or fresh or not csv_path.exists():
             flush()
-    rows = [result_row(c, done[c.key], cmp) for c in all_cases]
+    rows = [result_row(c, {**done[c.key], **timed.get(c.key, {})}, cmp) for c in all_cases]
     maps = write_maps(rows, out) if plot else []
-    summary = summarize(rows, all_cases)
+    summary = summarize(rows, all_cases) | (delay_summary(rows) if timed else {})
     if cmp:
         from dronefly.harness.sweep.comparemaps import write_compare_maps
 

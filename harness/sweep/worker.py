@@ -24,6 +24,7 @@ from dronefly.lateral import STATE_NAMES, plant_scales
 
 from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line)
 from dronefly.harness.sweep.compare import compare_runs
+from dronefly.harness.sweep.timing import timing_params
 from dronefly.harness.sweep.results import (RESULT_COLUMNS)
 from dronefly.harness.sweep.system import (SystemRef, close_systems, open_system,
                                            run_system_case)
@@ -220,7 +221,8 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
                                controller_params={**dict(case.controller_values),
                                                   **{gain_name(i, j): v
                                                      for i, row in enumerate(case.K)
-                                                     for j, v in enumerate(row)}},
+                                                     for j, v in enumerate(row)},
+                                                  **timing_params(case, scale[2])},
                                instances=(p, c))
             loop_s += time.perf_counter() - t0
             out.append((case.key, {**_measure(run, loop, scale, case), **extra}))

@@ -9,11 +9,15 @@ alike):
           (harness.system.master.SystemMaster), Gauss-Seidel, fresh instances in both
   systems 2, 3 and 4 FMUs through the system master: the lateral pair; the pair and the
           longitudinal plant in open loop; the hover system (both axes with their controllers)
+  plants  one plant step: the nonlinear DroneFlyHover6DOF against the linear pair it replaces
+          (DroneFlyLateral + DroneFlyLongitudinal), in-process (model classes) and through
+          FMI, at steps of 0.1 and 1 wing beat (benchmarks/plants.py)
 Prints medians and the ratios ours/floor (target <= 1.5: everything we add, FMU code and
 master, over the unavoidable FMI calls), master/floor (what the master alone adds),
 SystemMaster/Loop for the pair (target <= 1.05), and per system the cost per step (a run of
 N steps less a run of 1 step, over N - 1: without instantiation), the FMI calls per step
-(counted) and the cost per FMI call.
+(counted) and the cost per FMI call; the plants' costs and the ratio 6-DOF/pair through
+FMI at 0.1 wing beat (target < 5).
 Usage: python benchmarks/run.py [--steps N] [--repeats R]
 """
 
@@ -29,6 +33,8 @@ from ctypes import c_double, c_uint
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from plants import PlantBench, report as plants_report  # noqa: E402
 
 
 def _build(out: Path) -> dict[str, Path]:
@@ -36,7 +42,7 @@ def _build(out: Path) -> dict[str, Path]:
 
     from dronefly.build import build_all
 
-    fmus = {p.stem: p for p in build_all(out)}
+    fmus = {p.stem: p for p in build_all(out) if p.suffix == ".fmu"}  # not DroneFlyHover6DOF.ssp
     for name in ("NullPlant", "NullController"):
         fmus[name] = Path(FmuBuilder.build_FMU(HERE / "null_fmus" / f"{name}.py", dest=out))
     return fmus
@@ -158,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
         assert pair.names == [v.partition(".")[2] for v in sm[2].names]  # the same recording
         for run in runs.values():  # warm up (imports, first instantiation)
             _time_run(run, 2)
+        plants = PlantBench(fmus, stack)
+        for key in plants.keys:  # warm up (the linear models' matrix exponentials)
+            plants.time(key, 2)
         for r in range(args.repeats):
             times.setdefault("ours", []).append(_time_loop(ours, p, c, N))
             times.setdefault("master", []).append(_time_loop(null, np_, nc, N))
@@ -165,6 +174,10 @@ def main(argv: list[str] | None = None) -> int:
             for key in (list(runs) if r % 2 == 0 else list(runs)[::-1]):
                 for n in (N, 1):
                     times.setdefault(f"{key}/{n}", []).append(_time_run(runs[key], n))
+            for key in (plants.keys if r % 2 == 0 else plants.keys[::-1]):
+                # a step of 1 wing beat costs ten of 0.1: a fifth of the steps
+                n = N if key.endswith(" 0.1") else max(N // 5, 2)
+                times.setdefault(key, []).append(plants.time(key, n))
         calls = {key: _fmi_calls_per_step(run) for key, run in runs.items()}
     med = {k: statistics.median(v) for k, v in times.items()}
     print(f"closed-loop communication step, median of {args.repeats} interleaved repeats x "
@@ -192,7 +205,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {n:4d} {step[k]:8.2f} {calls[k]:15.1f} {step[k] / calls[k]:12.2f} "
               f"{step[k] / step['sys2']:19.2f}")
     print(f"  (the pair through Loop: {calls['loop']:.1f} FMI calls per step)")
-    return 0 if ratio <= 1.5 and ratio_pair <= 1.05 else 1
+    lines, ratio_6dof = plants_report(med)
+    print("\n".join(lines))
+    return 0 if ratio <= 1.5 and ratio_pair <= 1.05 and ratio_6dof < 5 else 1
 
 
 if __name__ == "__main__":

@@ -1,0 +1,158 @@
+"""Benchmark part: the cost of a plant step, the nonlinear 6-DOF plant against the linear pair.
+
+The nonlinear plant DroneFlyHover6DOF replaces two linear plants, DroneFlyLateral and
+DroneFlyLongitudinal, so its cost per communication step is compared with theirs together:
+
+  model  in-process, the model classes alone: ``Hover6DOF.step`` against
+         ``LateralModel.step_list`` + ``LongitudinalModel.step_list`` (what the FMUs' doStep
+         call)
+  fmi    through fmpy, one communication step of a plant as a master drives it: set the
+         inputs, fmi2DoStep, get the outputs (6-DOF: 7 inputs, 8 state outputs; the pair: 3
+         and 4 inputs, 4 and 4 outputs, two doSteps)
+
+at communication steps of 0.1 wing beat (the closed-loop benchmark's step: one Runge-Kutta
+sub-step) and 1 wing beat (the comparison sweep's: ten sub-steps). Held controls of 0.01 rad
+from the Sect. 3.6 box edge (dp = 0.15, dgamma = 0.22). The plants are open-loop unstable, so
+every run restarts from that state after :data:`SEGMENT_WB` wing beats; the restart (through
+FMI an fmi2SetFMUstate to the state saved after initialization) is not timed. The nonlinear
+plant's cost grows with its rotation rate (shorter sub-steps): a state left to grow for
+hundreds of wing beats would time a tumbling body, not a plant near hover.
+
+Timed in CPU time of this process (``time.process_time``): on a shared machine the wall time
+of a step grows with the other processes' load, unevenly between the timings compared; the
+CPU time a step takes much less so.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from ctypes import c_double, c_uint
+from pathlib import Path
+
+#: communication steps timed, wing beats
+STEPS_WB = (0.1, 1.0)
+#: wing beats run from the initial state before a restart (the rates stay below 0.5 rad per
+#: wing beat, where the sub-steps are at their longest)
+SEGMENT_WB = 10.0
+_STARTS = {"delta_gamma_start": 0.22, "delta_p_start": 0.15 * 164.0}
+_LAT_IN = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
+_LON_IN = ("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2")
+_LAT_OUT = ("delta_v", "delta_p", "delta_r", "delta_gamma")
+_LON_OUT = ("delta_u", "delta_w", "delta_q", "delta_theta")
+
+
+class PlantBench:
+    """Timers of one plant step; ``keys`` name them, ``time(key, steps)`` -> us per step."""
+
+    def __init__(self, fmus: dict[str, Path], stack: contextlib.ExitStack) -> None:
+        from dronefly.harness.cosim.fmu import FMU
+        from dronefly.plant import model as lat
+        from dronefly.plant_6dof.model import Hover6DOF, quaternion_from_euler
+        from dronefly.plant_longitudinal import model as lon
+
+        lp, np_ = lat.default_parameters(), lon.default_parameters()
+        self._nl = Hover6DOF(lp, np_)
+        self._lat, self._lon = lat.LateralModel(lp), lon.LongitudinalModel(np_)
+        self._x6 = [0.0, 0.0, 0.0, 0.15, 0.0, 0.0, *quaternion_from_euler(0.22, 0.0, 0.0),
+                    0.0, 0.0, 0.0]
+        self._x4 = [0.0, 0.15, 0.0, 0.22]
+        self._inst = {}
+        for name in ("DroneFlyHover6DOF", "DroneFlyLateral", "DroneFlyLongitudinal"):
+            fmu = stack.enter_context(FMU(fmus[name]))
+            self._inst[name] = stack.enter_context(fmu.instantiate(logging=False))
+        self.keys = [f"{kind} {side} {h:g}" for h in STEPS_WB for kind in ("model", "fmi")
+                     for side in ("6dof", "pair")]
+
+    def time(self, key: str, steps: int) -> float:
+        kind, side, h = key.split()
+        h_wb = float(h)
+        if kind == "model":
+            return (self._model_6dof if side == "6dof" else self._model_pair)(h_wb, steps)
+        names = ["DroneFlyHover6DOF"] if side == "6dof" else ["DroneFlyLateral",
+                                                             "DroneFlyLongitudinal"]
+        return self._fmi([self._inst[n] for n in names], h_wb, steps)
+
+    def _model_6dof(self, h: float, steps: int) -> float:
+        step, cl, cn = self._nl.step, [0.01] * 3, [0.01] * 4
+        total = 0.0
+        for n in _segments(h, steps):
+            x = self._x6
+            t0 = time.process_time()
+            for _ in range(n):
+                x = step(x, cl, cn, h)
+            total += time.process_time() - t0
+        return total / steps * 1e6
+
+    def _model_pair(self, h: float, steps: int) -> float:
+        a, b = self._lat.step_list, self._lon.step_list
+        cl, cn = [0.01] * 3, [0.01] * 4
+        total = 0.0
+        for n in _segments(h, steps):
+            x, z = self._x4, [0.0] * 4
+            t0 = time.process_time()
+            for _ in range(n):
+                x = a(x, cl, h)
+                z = b(z, cn, h)
+            total += time.process_time() - t0
+        return total / steps * 1e6
+
+    @staticmethod
+    def _fmi(instances, h_wb: float, steps: int) -> float:
+        h, total = h_wb / 164.0, 0.0
+        calls = [_start(inst) for inst in instances]
+        saved = [(inst.slave, inst.slave.getFMUstate()) for inst in instances]
+        for n in _segments(h_wb, steps):
+            for s, state in saved:  # back to the initial state (the clock too)
+                s.setFMUstate(state)
+            status = 0
+            t0 = time.process_time()
+            for k in range(n):
+                t = k * h
+                for set_, do, get, c, in_vr, ni, u, out_vr, no, y in calls:
+                    set_(c, in_vr, ni, u)
+                    status |= do(c, t, h, 1)
+                    get(c, out_vr, no, y)
+            total += time.process_time() - t0
+            assert status == 0, "a step was refused"
+        for s, state in saved:
+            s.freeFMUstate(state)
+        return total / steps * 1e6
+
+
+def _segments(h_wb: float, steps: int) -> list[int]:
+    """``steps`` split into runs of at most :data:`SEGMENT_WB` wing beats."""
+    per = max(1, round(SEGMENT_WB / h_wb))
+    return [per] * (steps // per) + ([steps % per] if steps % per else [])
+
+
+def _start(inst) -> tuple:
+    """Reset and initialize an instance at the box edge; its set/doStep/get calls and buffers."""
+    s = inst.slave
+    s.reset()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    starts = {k: v for k, v in _STARTS.items() if k in inst.fmu.variables}
+    s.setReal(inst.vrs(list(starts)), list(starts.values()))
+    s.exitInitializationMode()
+    ins = [n for n in (*_LAT_IN, *_LON_IN) if n in inst.fmu.variables]
+    outs = [n for n in (*_LAT_OUT, *_LON_OUT) if n in inst.fmu.variables]
+    in_vr, out_vr = (c_uint * len(ins))(*inst.vrs(ins)), (c_uint * len(outs))(*inst.vrs(outs))
+    u, y = (c_double * len(ins))(*[0.01] * len(ins)), (c_double * len(outs))()
+    return (s.fmi2SetReal, s.fmi2DoStep, s.fmi2GetReal, s.component, in_vr, len(ins), u,
+            out_vr, len(outs), y)
+
+
+def report(med: dict[str, float]) -> tuple[list[str], float]:
+    """Lines of the report and the ratio 6-DOF / pair through FMI at 0.1 wing beat."""
+    lines = ["\nthe nonlinear 6-DOF plant against the linear pair (lateral + longitudinal), "
+             "per communication step [us/step]",
+             "  step [wb]  model: 6-DOF    pair   ratio    FMI: 6-DOF    pair   ratio"]
+    for h in STEPS_WB:
+        m6, mp = med[f"model 6dof {h:g}"], med[f"model pair {h:g}"]
+        f6, fp = med[f"fmi 6dof {h:g}"], med[f"fmi pair {h:g}"]
+        lines.append(f"  {h:9g} {m6:13.2f} {mp:7.2f} {m6 / mp:7.2f} {f6:13.2f} {fp:7.2f} "
+                     f"{f6 / fp:7.2f}")
+    ratio = med["fmi 6dof 0.1"] / med["fmi pair 0.1"]
+    lines.append(f"ratio 6-DOF/pair through FMI at 0.1 wing beat = {ratio:.2f} (target < 5)")
+    return lines, ratio

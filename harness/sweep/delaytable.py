@@ -19,13 +19,14 @@ import numpy as np
 
 from dronefly.harness.cosim.params import gain_matrix
 from dronefly.harness.cosim.stability import classify
+from dronefly.harness.latency.sampled import SampledMargin
 from dronefly.harness.paper.analysis import lateral_system
 from dronefly.harness.sweep.cases import CONTROL_BOUND, STATE_BOUNDS_SECT36, SweepSpec
 from dronefly.harness.sweep.timing import Timing, grid_simulate
 from dronefly.lateral import N_HZ
 
 __all__ = ["Cell", "MAP_COMMAND", "MAP_DELAYS_WB", "MAP_PERIODS_WB", "MAP_STEP_WB",
-           "TABLE_DELAYS_WB", "cell", "map_spec", "table"]
+           "TABLE_DELAYS_WB", "cell", "cells", "map_spec", "margins", "table"]
 
 MAP_STEP_WB = 0.5
 MAP_DELAYS_WB: tuple[float, ...] = (0, 1, 2, 3, 4, 5, 6, 8, 10, 12)
@@ -97,7 +98,7 @@ def cell(K: np.ndarray, delay: float, period: float) -> Cell:
     roll = np.array([0.0, 0.0, 0.0, box[3]])
     steps = int(round(_RECOVERY_HORIZON_WB / MAP_STEP_WB))
     xr, _ = grid_simulate(A, B, K, timing, roll[None, :], steps)
-    dev = np.max(np.abs(xr[:, 0]) / box, axis=1) / 1.0
+    dev = np.max(np.abs(xr[:, 0]) / box, axis=1)  # the roll starts at its bound: dev(0) = 1
     above = np.flatnonzero(dev > 0.05)
     recovery = (math.inf if len(above) and above[-1] == steps
                 else float((above[-1] + 1) * MAP_STEP_WB) if len(above) else 0.0)
@@ -110,22 +111,36 @@ def _text(c: Cell) -> str:
     return f"{c.verdict}: {100 * c.share:.0f} %, {c.peak_control:.2f} rad, {rec}"
 
 
-def table() -> list[str]:
-    """The doc's table: per gains and sample period, margin (b) and the cells at
-    :data:`TABLE_DELAYS_WB` (verdict; share within the bounds; peak control; roll recovery)."""
+def margins() -> dict[tuple[str, float], SampledMargin]:
+    """Margin (b) per gain set and sample period of the map (0: the step)."""
     from dronefly.harness.latency.loop import FeedbackLoop
     from dronefly.harness.latency.sampled import sampled_margin
 
     A, B = lateral_system()
+    return {(g, T): sampled_margin(FeedbackLoop(A, B, gain_matrix(g)), T or MAP_STEP_WB,
+                                   tau_limit=16.0)
+            for g in _GAINS for T in MAP_PERIODS_WB}
+
+
+def cells(delays: tuple[float, ...] = TABLE_DELAYS_WB) -> dict[tuple[str, float, float], Cell]:
+    """:func:`cell` per gain set, sample period and delay (of ``delays``)."""
+    return {(g, T, d): cell(gain_matrix(g), float(d), float(T))
+            for g in _GAINS for T in MAP_PERIODS_WB for d in delays}
+
+
+def table(m: dict | None = None, c: dict | None = None) -> list[str]:
+    """The doc's table: per gains and sample period, margin (b) and the cells at
+    :data:`TABLE_DELAYS_WB` (verdict; share within the bounds; peak control; roll recovery).
+    ``m``, ``c``: :func:`margins` and :func:`cells`, if computed already."""
+    m, c = m or margins(), c or cells()
     head = " | ".join(f"{d:g} wb ({1e3 * d / N_HZ:.1f} ms)" for d in TABLE_DELAYS_WB)
     out = [f"| gains | sample period | margin (b) | {head} |",
            "|---" * (3 + len(TABLE_DELAYS_WB)) + "|"]
     for g in _GAINS:
-        K = gain_matrix(g)
         for T in MAP_PERIODS_WB:
-            Ts = T or MAP_STEP_WB
-            m = sampled_margin(FeedbackLoop(A, B, K), Ts, tau_limit=16.0)
-            cells = " | ".join(_text(cell(K, float(d), float(T))) for d in TABLE_DELAYS_WB)
-            period = f"{T:g} wb ({1e3 * T / N_HZ:.1f} ms)" if T else "every step (0.5 wb)"
-            out.append(f"| {g} | {period} | {m.tau:.2f} wb ({m.ms(N_HZ):.1f} ms) | {cells} |")
+            row = " | ".join(_text(c[(g, T, d)]) for d in TABLE_DELAYS_WB)
+            period = (f"{T:g} wb ({1e3 * T / N_HZ:.1f} ms)" if T
+                      else f"every step ({MAP_STEP_WB:g} wb)")
+            out.append(f"| {g} | {period} | {m[(g, T)].tau:.2f} wb ({m[(g, T)].ms(N_HZ):.1f} ms) "
+                       f"| {row} |")
     return out

@@ -109,6 +109,8 @@ def test_delayed_verdicts_are_model_b_s(fmus, tmp_path):
     assert expected[("stabilising", 8.0, 0.0)] == "unstable"
     assert r.summary["stability_disagreements"] == 0
     assert [m.name for m in r.maps] == ["map_delay_period.png"]
+    again = run_sweep(spec, tmp_path / "out", workers=1, plot=False, progress_bar=False, **fmus)
+    assert again.summary["resumed_cases"] == 18 and again.csv.read_bytes() == r.csv.read_bytes()
 
 
 def test_grid_timing_is_the_fmus_and_model_b_where_it_applies(fmus, tmp_path):
@@ -161,14 +163,21 @@ def test_cli_bad_delay_input_exits_2(fmus, tmp_path, capsys, args, named):
     assert not out.exists()
 
 
-def test_delays_with_a_system_exit_2(built_fmus, tmp_path, capsys):
+@pytest.mark.parametrize("how, named", [("system", "--system"),
+                                        ("delayed", "sensing_delay defaults to 0")])
+def test_delays_with_a_system_or_a_delayed_controller_exit_2(built_fmus, tmp_path, capsys, how,
+                                                              named):
+    """A system's controllers take their timing by --set; StateFeedbackDelayed's default delay
+    would stay in the cases of delay 0, which set nothing."""
     from dronefly.cli import main
 
     out = tmp_path / "out"
-    assert main(["sweep", "--system", str(built_fmus["DroneFlyHover.ssp"]), "--delays", "1",
-                 "--out", str(out), "--no-progress"]) == 2
+    where = (["--system", str(built_fmus["DroneFlyHover.ssp"])] if how == "system" else
+             ["--plant", str(built_fmus["DroneFlyLateral"]),
+              "--controller", str(built_fmus["StateFeedbackDelayed"])])
+    assert main(["sweep", *where, "--delays", "0,1", "--out", str(out), "--no-progress"]) == 2
     err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "--system" in err and not out.exists()
+    assert len(err.strip().splitlines()) == 1 and named in err and not out.exists()
 
 
 def _flat(path: Path) -> str:

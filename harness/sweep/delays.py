@@ -144,7 +144,8 @@ def delay_results(cases: Sequence[Case], refs: tuple) -> dict[str, dict[str, Any
     ------
     SweepInputError
         The delay axes with ``--system``, or with ``--set controller.sensing_delay`` /
-        ``sample_period`` (one of the two ways, not both).
+        ``sample_period`` (one of the two ways, not both), or with a controller that lacks
+        the two parameters or does not default them to 0 (``StateFeedbackDelayed``).
     """
     if not is_delay_sweep(cases):
         return {}
@@ -162,6 +163,15 @@ def delay_results(cases: Sequence[Case], refs: tuple) -> dict[str, dict[str, Any
             raise SweepInputError(f"--set controller.{both[0]} and --delays/--sample-periods "
                                   "both set the controller's timing: use one")
     pair, p, c, _ = loop_for(refs, (None, None))
+    ctrl = pair.controller
+    for name in _TIMING:
+        if name not in ctrl.variables:
+            raise SweepInputError(f"--delays/--sample-periods: the controller {ctrl.name!r} has "
+                                  f"no parameter {name!r}")
+        if float(ctrl.start_values().get(name) or 0.0) != 0.0:  # a case of 0 would not set it
+            raise SweepInputError(f"--delays/--sample-periods need a controller whose {name} "
+                                  f"defaults to 0; {ctrl.name!r} has "
+                                  f"{ctrl.start_values()[name]!r} s (use StateFeedback)")
     groups: dict[tuple, dict[str, Any]] = {}
     plants: dict[tuple, Any] = {}
     out = {}

@@ -85,5 +85,5 @@ def write_zip(target: str | Path, files: Mapping[str, bytes]) -> Path:
             info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
             info.external_attr = 0o644 << 16
             info.compress_type = zipfile.ZIP_DEFLATED
-            z.writestr(info, files[rel])
+            z.writestr(info, files[rel], compresslevel=1)  # fast: builds are many in tests
     return target

@@ -2,10 +2,12 @@
 
 Measures, in one run, interleaved repeat by repeat (so that the machine's noise hits all
 alike):
-  ours    DroneFlyLateral + StateFeedback through the harness master (harness.cosim.master.Loop)
+  ours    DroneFlyLateral + StateFeedback through the harness's pair API (harness.cosim.master.
+          Loop, instances reused: the system master since issue 12)
   master  do-nothing pythonfmu FMUs with the same interface through the same master
   floor   the same six FMI calls per step on the do-nothing FMUs, no master, no recording
-  pair    the lateral pair through the pair master (Loop.run) and through the system master
+  pair    the lateral pair through the former pair master (benchmarks/pair_master.py: the
+          pre-issue-12 Loop, kept as the baseline) and through the system master
           (harness.system.master.SystemMaster), Gauss-Seidel, fresh instances in both
   systems 2, 3 and 4 FMUs through the system master: the lateral pair; the pair and the
           longitudinal plant in open loop; the hover system (both axes with their controllers)
@@ -14,7 +16,7 @@ alike):
           FMI, at steps of 0.1 and 1 wing beat (benchmarks/plants.py)
 Prints medians and the ratios ours/floor (target <= 1.5: everything we add, FMU code and
 master, over the unavoidable FMI calls), master/floor (what the master alone adds),
-SystemMaster/Loop for the pair (target <= 1.05), and per system the cost per step (a run of
+SystemMaster/former pair master (target <= 1.05), and per system the cost per step (a run of
 N steps less a run of 1 step, over N - 1: without instantiation), the FMI calls per step
 (counted) and the cost per FMI call; the plants' costs and the ratio 6-DOF/pair through
 FMI at 0.1 wing beat (target < 5).
@@ -34,6 +36,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+from pair_master import PairMaster  # noqa: E402
 from plants import PlantBench, report as plants_report  # noqa: E402
 
 
@@ -155,10 +158,10 @@ def main(argv: list[str] | None = None) -> int:
         x0 = systems[2].parameters["lateral"]
         # the pair master and the system master: whole runs with fresh instances (both
         # instantiate their FMUs), of N steps and of 1 step (the difference has no set-up).
-        # The pair master gets FMUs of its own so that, as for the system master, no live
-        # instance keeps their libraries loaded between runs (p and c do for P and C).
-        pair = Loop(*(stack.enter_context(FMU(fmus[m])) for m in ("DroneFlyLateral",
-                                                                   "StateFeedback")))
+        # The former pair master gets FMUs of its own so that, as for the system master, no
+        # live instance keeps their libraries loaded between runs (p and c do for P and C).
+        pair = PairMaster(*(stack.enter_context(FMU(fmus[m])) for m in ("DroneFlyLateral",
+                                                                         "StateFeedback")))
         runs = {"loop": lambda n: pair.run(h, n, plant_start=x0),
                 **{f"sys{k}": (lambda n, m=m: m.run(h, n)) for k, m in sm.items()}}
         assert pair.names == [v.partition(".")[2] for v in sm[2].names]  # the same recording
@@ -193,18 +196,18 @@ def main(argv: list[str] | None = None) -> int:
     step = {k: (med[f"{k}/{N}"] - med[f"{k}/1"]) / (N - 1) * 1e6 for k in runs}
     ratio_pair = whole["sys2"] / whole["loop"]
     print(f"\nlateral pair, Gauss-Seidel, fresh instances per run, {N} steps [us/step]")
-    for key, label in (("loop", "Loop         (harness.cosim.master): "),
+    for key, label in (("loop", "former pair master (pair_master.py): "),
                        ("sys2", "SystemMaster (harness.system.master):")):
         print(f"  {label} {whole[key]:8.2f} whole run, {step[key]:8.2f} per step without set-up")
-    print(f"ratio SystemMaster/Loop = {ratio_pair:.3f} (target <= 1.05); per step without set-up "
-          f"{step['sys2'] / step['loop']:.3f}")
+    print(f"ratio SystemMaster/former pair master = {ratio_pair:.3f} (target <= 1.05); per step "
+          f"without set-up {step['sys2'] / step['loop']:.3f}")
     print("\nsystems through SystemMaster, per step without set-up")
     print("  FMUs  us/step  FMI calls/step  us/FMI call  step cost / pair's")
     for n in sm:
         k = f"sys{n}"
         print(f"  {n:4d} {step[k]:8.2f} {calls[k]:15.1f} {step[k] / calls[k]:12.2f} "
               f"{step[k] / step['sys2']:19.2f}")
-    print(f"  (the pair through Loop: {calls['loop']:.1f} FMI calls per step)")
+    print(f"  (the pair through the former pair master: {calls['loop']:.1f} FMI calls per step)")
     lines, ratio_6dof = plants_report(med)
     print("\n".join(lines))
     return 0 if ratio <= 1.5 and ratio_pair <= 1.05 and ratio_6dof < 5 else 1

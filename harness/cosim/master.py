@@ -13,36 +13,23 @@ name. Two orderings:
     the controller's response to x_(k-1): u_k = K x_(k-1). Before the first
     step the controller is fed the plant's initial outputs (or ``u_source0``).
 
-Every instance is terminated and freed on every exit path.
+Every instance is terminated and freed on every exit path (instances a caller gives to
+:meth:`Loop.run` are reset, terminated and left to the caller).
 """
 
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import math
-from ctypes import c_double, c_uint
 from typing import Any, Mapping, Sequence
 
-import numpy as np
-
 from dronefly.errors import DroneflyError
-from dronefly.interrupt import deferred_sigint
 
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
-from dronefly.harness.cosim.records import LoopRun, StepFailure
+from dronefly.harness.cosim.records import MASTERS, MAX_STEPS, LoopRun, StepFailure
 
 __all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "connect_by_name",
            "step_count"]
-
-MASTERS = ("gauss-seidel", "jacobi")
-#: Communication steps per run at most: the recorded signals take 8 bytes per signal and step
-#: (about 56 MB here) and a run about 15 s.
-MAX_STEPS = 1_000_000
-
-
-class _Interrupted(Exception):
-    """SIGINT arrived during a run (raised between steps, turned into KeyboardInterrupt)."""
-
 
 class CoSimError(DroneflyError):
     """Bad co-simulation set-up (names the offending value)."""
@@ -107,21 +94,25 @@ def connect_by_name(plant_md: Any, controller_md: Any,
 
 
 class Loop:
-    """A plant/controller pair connected by name.
+    """A plant/controller pair connected by name, run on the system master.
 
     Parameters
     ----------
     plant, controller : FMU
-        Extracted FMUs (see :class:`harness.cosim.fmu.FMU`).
+        Extracted FMUs (see :class:`harness.cosim.fmu.FMU`); the system master uses them as
+        they are (they stay the caller's to close).
 
     Raises
     ------
     CoSimError
         A controller input has no plant output of the same name, or a plant input no
-        controller output (the message names the variable).
+        controller output (the message names the variable); a connection of different types
+        or units.
     """
 
     def __init__(self, plant: FMU, controller: FMU) -> None:
+        from dronefly.harness.system.description import System
+
         self.plant, self.controller = plant, controller
         self.states = plant.names("output")
         self.controls = plant.names("input")
@@ -129,6 +120,28 @@ class Loop:
                         where=(str(plant.path), str(controller.path)))
         self.sensed = controller.names("input")  # subset of states, controller order
         self.names = [*self.states, *self.controls]
+        self.system = System.by_name({"plant": plant, "controller": controller})
+        self._record = [*(f"plant.{s}" for s in self.states),
+                        *(f"controller.{u}" for u in self.controls)]
+        self._masters: dict[str, Any] = {}
+        self.master("gauss-seidel")  # checks the connections' types and units
+
+    def master(self, master: str = "gauss-seidel") -> Any:
+        """The :class:`SystemMaster` of the pair under ``master`` (made once)."""
+        from dronefly.harness.system.description import SystemSpecError
+        from dronefly.harness.system.graph import Order
+        from dronefly.harness.system.master import SystemMaster
+
+        if master not in self._masters:
+            try:
+                self._masters[master] = SystemMaster(
+                    self.system, master, fmus={"plant": self.plant, "controller": self.controller},
+                    order=Order(free=("plant",), chained=("controller",)),
+                    instance_names={"plant": self.plant.name,
+                                    "controller": self.controller.name})
+            except SystemSpecError as e:
+                raise CoSimError(str(e)) from e
+        return self._masters[master]
 
     def run(self, step_s: float, n_steps: int, *, master: str = "gauss-seidel",
             plant_start: Mapping[str, float] | None = None,
@@ -140,130 +153,36 @@ class Loop:
         ``plant_start`` and ``controller_params`` are set in initialization mode.
         ``u_source0`` (Jacobi only) is what the controller is fed before the first step
         (default: the plant's initial outputs). ``instances`` lets a caller reuse
-        instances across runs (they are reset first and not freed here).
+        instances across runs (they are reset first and not freed here). The recorded
+        names are :attr:`names` (the plant's outputs, then its inputs); a failure names
+        the FMU (its model name), the call and the time.
         """
+        from dronefly.harness.system.description import SystemSpecError
+
         if master not in MASTERS:
             raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
         if not (math.isfinite(step_s) and step_s > 0.0):
             raise CoSimError(f"step = {step_s!r} s must be finite and > 0")
         if not 1 <= n_steps <= MAX_STEPS:
             raise CoSimError(f"n_steps = {n_steps!r} must be in 1..{MAX_STEPS}")
-        if instances is None:
-            with self.plant.instantiate() as p, self.controller.instantiate() as c:
-                return self._run(p, c, step_s, n_steps, master, plant_start, controller_params,
-                                 u_source0)
-        p, c = instances
-        p.slave.reset()
-        c.slave.reset()
-        return self._run(p, c, step_s, n_steps, master, plant_start, controller_params, u_source0)
-
-    # -------------------------------------------------------------------------
-    def _run(self, p: Instance, c: Instance, step: float, n_steps: int, master: str,
-             plant_start: Mapping[str, float] | None,
-             controller_params: Mapping[str, float] | None,
-             u_source0: Sequence[float] | None) -> LoopRun:
-        from fmpy.fmi1 import FMICallException
-
-        ns, nu = len(self.states), len(self.controls)
-        rec = np.full((n_steps + 1, ns + nu), np.nan)
-        time = np.arange(n_steps + 1) * step
-        run = LoopRun(self.names, time, rec)
-        # preallocated ctypes buffers: plant outputs -> controller inputs -> plant inputs
-        y_vr = (c_uint * ns)(*p.vrs(self.states))
-        s_vr = (c_uint * len(self.sensed))(*c.vrs(self.sensed))
-        s_idx = [self.states.index(n) for n in self.sensed]
-        u_vr_c = (c_uint * nu)(*c.vrs(self.controls))
-        u_vr_p = (c_uint * nu)(*p.vrs(self.controls))
-        y = (c_double * ns)()
-        ys = (c_double * len(self.sensed))()
-        u = (c_double * nu)()
-        who, call, t = p, "initialization", 0.0
-        interrupt_scope = contextlib.ExitStack()
-        interrupt = interrupt_scope.enter_context(deferred_sigint())
+        inputs0 = None
+        if master == "jacobi" and u_source0 is not None:
+            if len(u_source0) != len(self.sensed):
+                raise CoSimError(f"u_source0 has {len(u_source0)} values; the controller has "
+                                 f"{len(self.sensed)} inputs ({', '.join(self.sensed)})")
+            inputs0 = {"controller": dict(zip(self.sensed, u_source0))}
+        sm = self.master(master)
         try:
-            for inst, values in ((p, plant_start), (c, controller_params)):
-                who = inst
-                inst.slave.setupExperiment(startTime=0.0, stopTime=n_steps * step)
-                inst.slave.enterInitializationMode()
-                for name, value in (values or {}).items():
-                    if isinstance(value, bool):
-                        inst.slave.setBoolean([inst.fmu.vr(name)], [value])
-                    else:
-                        inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
-            who = p
-            p.slave.exitInitializationMode()
-            who, call = p, "fmi2GetReal"
-            p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
-            if master == "jacobi" and u_source0 is not None:
-                ys[:] = [float(v) for v in u_source0]
-            else:
-                ys[:] = [y[i] for i in s_idx]
-            who, call = c, "fmi2SetReal"
-            c.slave.fmi2SetReal(c.slave.component, s_vr, len(ys), ys)
-            c.slave.exitInitializationMode()
-            pg, ps, pd, pc = (p.slave.fmi2GetReal, p.slave.fmi2SetReal, p.slave.fmi2DoStep,
-                              p.slave.component)
-            cg, cs, cd, cc = (c.slave.fmi2GetReal, c.slave.fmi2SetReal, c.slave.fmi2DoStep,
-                              c.slave.component)
-            gauss = master == "gauss-seidel"
-            nsense = len(self.sensed)
-            if sorted(self.sensed) == sorted(self.states):  # no gather: y feeds c as it is
-                s_vr = (c_uint * ns)(*c.vrs(self.states))
-                ys = y
-                s_idx = []
-            for k in range(n_steps + 1):
-                t = k * step
-                if interrupt.count:  # Ctrl-C: stop between steps, never inside an FMU
-                    raise _Interrupted
-                who, call = p, "fmi2GetReal"
-                pg(pc, y_vr, ns, y)
-                if gauss:
-                    if s_idx:
-                        ys[:] = [y[i] for i in s_idx]
-                    who, call = c, "fmi2SetReal"
-                    cs(cc, s_vr, nsense, ys)
-                    who, call = c, "fmi2GetReal"
-                    cg(cc, u_vr_c, nu, u)
-                else:  # controller still holds the previous point's inputs
-                    who, call = c, "fmi2GetReal"
-                    cg(cc, u_vr_c, nu, u)
-                    if s_idx:
-                        ys[:] = [y[i] for i in s_idx]
-                    who, call = c, "fmi2SetReal"
-                    cs(cc, s_vr, nsense, ys)
-                rec[k, :ns] = y
-                rec[k, ns:] = u
-                if k == n_steps:
-                    break
-                who, call = p, "fmi2SetReal"
-                ps(pc, u_vr_p, nu, u)
-                who, call = p, "fmi2DoStep"
-                pd(pc, t, step, 1)
-                who, call = c, "fmi2DoStep"
-                cd(cc, t, step, 1)
-            for inst in (p, c):
-                who, call = inst, "fmi2Terminate"
-                inst.slave.terminate()
-        except FMICallException as e:
-            last = who.messages[-1].message if who.messages else ""
-            run.failure = StepFailure(who.fmu.name, call, t, e.status, last)
-            for inst in (p, c):  # terminate what can be terminated; freeing follows anyway
-                try:
-                    inst.slave.terminate()
-                except FMICallException:
-                    pass
-            keep = int(np.argmax(np.isnan(rec).any(axis=1))) if np.isnan(rec).any() else len(rec)
-            run.time, run.signals = time[:keep], rec[:keep]
-        except _Interrupted:
-            for inst in (p, c):
-                try:
-                    inst.slave.terminate()
-                except FMICallException:
-                    pass
-            raise KeyboardInterrupt from None  # the instances are freed on the way out
-        except (FMUError, OSError) as e:
+            run = sm.run(step_s, n_steps, record=self._record,
+                         values={"plant": dict(plant_start or {}),
+                                 "controller": dict(controller_params or {})},
+                         instances=None if instances is None else dict(
+                             zip(("plant", "controller"), instances)),
+                         inputs0=inputs0)
+        except (SystemSpecError, FMUError, OSError) as e:
             raise CoSimError(str(e)) from e
-        finally:
-            interrupt_scope.close()
-        run.messages = [m.message for inst in (p, c) for m in inst.messages]
+        run.names = list(self.names)
+        if run.failure is not None:  # named by the FMU, as the pair's messages always were
+            fmu = {"plant": self.plant, "controller": self.controller}[run.failure.fmu]
+            run.failure = dataclasses.replace(run.failure, fmu=fmu.name)
         return run

@@ -1,8 +1,9 @@
 """What a co-simulation run records: :class:`LoopRun` (signals over time, the failure that
-stopped it early, the FMUs' messages) and :class:`StepFailure`.
+stopped it early, the FMUs' messages) and :class:`StepFailure`; the masters' names and the
+limit on the steps of a run.
 
-Shared by the pair master (:mod:`.master`) and the system master
-(:mod:`dronefly.harness.system.master`).
+Shared by the pair's :class:`~.master.Loop` and the system master
+(:mod:`dronefly.harness.system.master`) that runs it.
 """
 
 from __future__ import annotations
@@ -11,7 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["LoopRun", "StepFailure"]
+__all__ = ["MASTERS", "MAX_STEPS", "LoopRun", "StepFailure"]
+
+MASTERS = ("gauss-seidel", "jacobi")
+#: Communication steps per run at most: the recorded signals take 8 bytes per signal and step
+#: (about 56 MB here) and a run about 15 s.
+MAX_STEPS = 1_000_000
 
 
 @dataclass(frozen=True)

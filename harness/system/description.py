@@ -83,18 +83,21 @@ class System:
                       self.stop_s, self._tmp)
 
     @classmethod
-    def by_name(cls, fmus: Mapping[str, str | Path], **kw: Any) -> "System":
+    def by_name(cls, fmus: Mapping[str, Any], **kw: Any) -> "System":
         """Every input driven by the output of the same name of another instance.
 
-        An input that no other instance provides stays unconnected; one that two instances
-        provide is refused.
+        ``fmus`` maps instances to FMU files or to opened
+        :class:`~dronefly.harness.cosim.fmu.FMU` objects (their model descriptions are
+        used; the system holds their paths). An input that no other instance provides stays
+        unconnected; one that two instances provide is refused.
         """
         from fmpy import read_model_description
 
         outputs: dict[str, list[str]] = {}
         inputs: dict[str, list[str]] = {}
-        for inst, path in fmus.items():
-            for v in read_model_description(str(path)).modelVariables:
+        for inst, f in fmus.items():
+            md = getattr(f, "model_description", None) or read_model_description(str(f))
+            for v in md.modelVariables:
                 if v.causality == "output":
                     outputs.setdefault(v.name, []).append(inst)
                 elif v.causality == "input":
@@ -109,7 +112,7 @@ class System:
                                        "connect it explicitly")
                 if sources:
                     cons.append(Connection(sources[0], name, inst, name))
-        return cls(dict(fmus), cons, **kw)
+        return cls({i: getattr(f, "path", f) for i, f in fmus.items()}, cons, **kw)
 
     @classmethod
     def from_ssp(cls, path: str | Path) -> "System":

@@ -6,67 +6,34 @@ outputs in a producer-before-consumer order (:mod:`.graph`), then every other FM
 inputs, and all step. For a plant and a feedthrough controller this is u_k = K x_k.
 ``jacobi``: every FMU's outputs are read first (a feedthrough FMU answers from the inputs of
 the previous point), then all inputs are set and all FMUs step: u_k = K x_(k-1).
-Initialization propagates in the Gauss-Seidel order in both cases.
+Initialization propagates in the Gauss-Seidel order in both cases (``inputs0`` of
+:meth:`SystemMaster.run` can give some inputs other values before the first step).
 
+It is also the master of the plant/controller pair (:class:`dronefly.harness.cosim.master.Loop`
+runs the pair's system here, in the pair's fixed order and on instances reused across runs).
 Real, Integer and Boolean connections are supported. A failed call stops the run, naming the
 instance, the call and the time; what was recorded is kept and the run is marked incomplete.
-Every instance is terminated and freed on every exit path.
+Every instance is terminated on every exit path, and freed unless the caller gave it.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-from ctypes import c_double, c_int, c_uint
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from dronefly.interrupt import deferred_sigint
 
-from dronefly.harness.cosim.fmu import FMU, FMUError
-from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
-from dronefly.harness.cosim.records import LoopRun, StepFailure
+from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
+from dronefly.harness.cosim.records import MASTERS, MAX_STEPS, LoopRun, StepFailure
 from dronefly.harness.system.description import System, SystemSpecError
-from dronefly.harness.system.graph import check_connections, evaluation_order, feedthrough
+from dronefly.harness.system.graph import (Order, check_connections, evaluation_order,
+                                           feedthrough)
+from dronefly.harness.system.plan import Node, build_nodes, get_ops, put_ops, start_ops
 
 __all__ = ["SystemMaster"]
-
-
-class _Node:
-    """One instance's buffers: its Real outputs, and where each of its inputs comes from."""
-
-    def __init__(self, name: str, fmu: FMU, outputs: list[str]) -> None:
-        self.name, self.fmu = name, fmu
-        self.types = {v.name: v.type for v in fmu.model_description.modelVariables}
-        self.out_names = outputs
-        self.out_vr = (c_uint * len(outputs))(*[fmu.vr(n) for n in outputs])
-        self.out = (c_double * len(outputs))()
-        self.at = 0  # where ``out`` starts in the buffer of every output (see ``place``)
-        self.in_real: list[tuple[int, "_Node", int]] = []  # (vr, source node, source index)
-        self.in_other: list[tuple[str, int, "_Node", int]] = []  # (type, vr, node, index)
-        self.inst: Any = None
-
-    def place(self, every_out: Any, at: int) -> None:
-        """Make ``out`` a view of ``every_out`` from ``at`` on (one buffer for all outputs)."""
-        self.at = at
-        self.out = (c_double * len(self.out_names)).from_buffer(every_out, 8 * at)
-
-    def finish(self, every_out: Any) -> None:
-        """Input buffers; inputs that are one run of ``every_out`` read it in place (no copy)."""
-        real = sorted(self.in_real, key=lambda r: r[1].at + r[2])
-        where = [node.at + i for _, node, i in real]
-        if where and where == list(range(where[0], where[0] + len(where))):
-            self.in_real = real
-            self.in_buf = (c_double * len(real)).from_buffer(every_out, 8 * where[0])
-            self.in_src: list[tuple[Any, int]] = []
-        else:
-            self.in_buf = (c_double * len(self.in_real))()
-            self.in_src = [(node.out, i) for _, node, i in self.in_real]
-        self.in_vr = (c_uint * len(self.in_real))(*[vr for vr, _, _ in self.in_real])
-
-
-_Op = tuple[_Node, str, Any, tuple]  # one call of a step: node, FMI call, function, arguments
 
 
 class SystemMaster:
@@ -78,6 +45,16 @@ class SystemMaster:
         FMUs, connections, parameter values.
     master : str
         ``"gauss-seidel"`` or ``"jacobi"``; an algebraic loop is refused under Gauss-Seidel.
+    fmus : mapping, optional
+        Already opened :class:`FMU` objects of some instances, used instead of opening the
+        system's files (and not closed by :meth:`close`).
+    order : Order, optional
+        The evaluation order instead of the one derived from the ModelStructures (no
+        algebraic loop check): each instance exactly once, ``free`` ones read without their
+        inputs set first.
+    instance_names : mapping, optional
+        The names the instances made in :meth:`run` are given (what an FMU may write in its
+        messages); default: the system's instance names.
 
     Raises
     ------
@@ -85,19 +62,32 @@ class SystemMaster:
         A connection that does not fit, an algebraic loop, an FMU that cannot be loaded.
     """
 
-    def __init__(self, system: System, master: str = "gauss-seidel") -> None:
+    def __init__(self, system: System, master: str = "gauss-seidel", *,
+                 fmus: Mapping[str, FMU] | None = None, order: Order | None = None,
+                 instance_names: Mapping[str, str] | None = None) -> None:
         if master not in MASTERS:
             raise SystemSpecError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
         self.system, self.master = system, master
+        self.instance_names = {i: (instance_names or {}).get(i, i) for i in system.fmus}
         self.fmus: dict[str, FMU] = {}
+        self._own: list[FMU] = []
         try:
             for inst, path in system.fmus.items():
-                self.fmus[inst] = FMU(path)
+                if fmus is not None and inst in fmus:
+                    self.fmus[inst] = fmus[inst]
+                else:
+                    self.fmus[inst] = FMU(path)
+                    self._own.append(self.fmus[inst])
             mds = {i: f.model_description for i, f in self.fmus.items()}
             check_connections(mds, system.connections)
             self.feedthrough = {i: feedthrough(md) for i, md in mds.items()}
-            self.order = evaluation_order(list(system.fmus), self.feedthrough,
-                                          system.connections, allow_loops=master == "jacobi")
+            if order is None:
+                order = evaluation_order(list(system.fmus), self.feedthrough,
+                                         system.connections, allow_loops=master == "jacobi")
+            elif sorted((*order.free, *order.chained)) != sorted(system.fmus):
+                raise SystemSpecError(f"order {order} must name each instance of "
+                                      f"{', '.join(system.fmus)} once")
+            self.order = order
             self._check_values(mds)
         except BaseException:
             self.close()
@@ -118,7 +108,8 @@ class SystemMaster:
                                           f"in {self.system.fmus[inst].name}")
 
     def close(self) -> None:
-        for f in self.fmus.values():
+        """Close the FMUs this master opened."""
+        for f in self._own:
             f.close()
 
     def __enter__(self) -> "SystemMaster":
@@ -129,7 +120,9 @@ class SystemMaster:
 
     # -------------------------------------------------------------------------------------
     def run(self, step_s: float, n_steps: int, *, record: Sequence[str] | None = None,
-            values: Mapping[str, Mapping[str, Any]] | None = None) -> LoopRun:
+            values: Mapping[str, Mapping[str, Any]] | None = None,
+            instances: Mapping[str, Instance] | None = None,
+            inputs0: Mapping[str, Mapping[str, float]] | None = None) -> LoopRun:
         """Co-simulate ``n_steps`` steps of ``step_s`` seconds from t = 0.
 
         Parameters
@@ -143,63 +136,57 @@ class SystemMaster:
         values : mapping, optional
             ``{instance: {name: value}}`` for this run only, on top of the system's
             parameter values (e.g. other initial states).
+        instances : mapping, optional
+            ``{instance: Instance}`` of every instance, reused across runs: reset first
+            (fmi2Reset), terminated at the end, not freed here. Default: instantiated and
+            freed in this run.
+        inputs0 : mapping, optional
+            ``{instance: {input: value}}``: Real inputs set to these values at
+            initialization instead of their sources' initial outputs (under Jacobi, what
+            the FMU answers at the first point).
 
         A SIGINT (Ctrl-C) stops the run between two steps (never inside an FMU call): the
-        instances are freed and ``KeyboardInterrupt`` is raised.
+        instances are terminated (freed if made here) and ``KeyboardInterrupt`` is raised.
         """
         if not (math.isfinite(step_s) and step_s > 0.0):
             raise SystemSpecError(f"step = {step_s!r} s must be finite and > 0")
         if not 1 <= n_steps <= MAX_STEPS:
             raise SystemSpecError(f"n_steps = {n_steps!r} must be in 1..{MAX_STEPS}")
         params = {i: dict(v) for i, v in self.system.parameters.items()}
+        for what, given in (("values", values), ("inputs0", inputs0),
+                            ("instances", instances)):
+            for inst in given or {}:
+                if inst not in self.fmus:
+                    raise SystemSpecError(f"{what} for instance {inst!r}, which the system "
+                                          f"does not have (instances: {', '.join(self.fmus)})")
         for inst, extra in (values or {}).items():
-            if inst not in self.fmus:
-                raise SystemSpecError(f"values for instance {inst!r}, which the system does "
-                                      f"not have (instances: {', '.join(self.fmus)})")
             params.setdefault(inst, {}).update(extra)
+        if instances is not None and set(instances) != set(self.fmus):
+            raise SystemSpecError(f"instances must be given for every instance "
+                                  f"({', '.join(self.fmus)})")
         self._check_values({i: self.fmus[i].model_description for i in self.fmus}, params)
+        for inst, given in (inputs0 or {}).items():
+            for name in given:
+                v = self.fmus[inst].variables.get(name)
+                if v is None or v.causality != "input" or v.type != "Real":
+                    raise SystemSpecError(f"inputs0: {inst}.{name} is not a Real input")
         names = list(self.names if record is None else record)
-        nodes, every_out = self._nodes(names)
+        nodes, every_out = build_nodes(self.fmus, self.system.connections, names)
         with contextlib.ExitStack() as stack:
             interrupt = stack.enter_context(deferred_sigint())
             for node in nodes.values():
-                node.inst = stack.enter_context(node.fmu.instantiate(node.name))
-            return self._run(nodes, every_out, names, step_s, n_steps, params, interrupt)
+                if instances is None:
+                    node.inst = stack.enter_context(
+                        node.fmu.instantiate(self.instance_names[node.name]))
+                else:
+                    node.inst = instances[node.name]
+                    node.inst.slave.reset()
+            return self._run(nodes, every_out, names, step_s, n_steps, params, interrupt,
+                             inputs0 or {})
 
-    def _nodes(self, names: Sequence[str]) -> tuple[dict[str, _Node], Any]:
-        wanted: dict[str, list[str]] = {i: [] for i in self.fmus}
-        for c in self.system.connections:
-            if self.fmus[c.source].variables[c.output].type == "Real" and \
-                    c.output not in wanted[c.source]:
-                wanted[c.source].append(c.output)
-        for full in names:
-            inst, _, var = full.partition(".")
-            v = self.fmus.get(inst) and self.fmus[inst].variables.get(var)
-            if not v or v.causality != "output" or v.type != "Real":
-                raise SystemSpecError(f"cannot record {full!r}: not a Real output of an instance")
-            if var not in wanted[inst]:
-                wanted[inst].append(var)
-        nodes = {i: _Node(i, f, wanted[i]) for i, f in self.fmus.items()}
-        for c in self.system.connections:
-            src, dst = nodes[c.source], nodes[c.target]
-            kind = src.types[c.output]
-            vr = dst.fmu.vr(c.input)
-            if kind == "Real":
-                dst.in_real.append((vr, src, src.out_names.index(c.output)))
-            else:
-                dst.in_other.append((kind, vr, src, src.fmu.vr(c.output)))
-        every_out = (c_double * sum(len(n.out_names) for n in nodes.values()))()
-        at = 0
-        for n in nodes.values():
-            n.place(every_out, at)
-            at += len(n.out_names)
-        for n in nodes.values():
-            n.finish(every_out)
-        return nodes, every_out
-
-    def _run(self, nodes: dict[str, _Node], every_out: Any, names: Sequence[str], h: float,
-             n_steps: int, parameters: Mapping[str, Mapping[str, Any]],
-             interrupt: Any) -> LoopRun:
+    def _run(self, nodes: dict[str, Node], every_out: Any, names: Sequence[str], h: float,
+             n_steps: int, parameters: Mapping[str, Mapping[str, Any]], interrupt: Any,
+             inputs0: Mapping[str, Mapping[str, float]]) -> LoopRun:
         from fmpy.fmi1 import FMICallException
 
         free = [nodes[i] for i in self.order.free]
@@ -216,28 +203,7 @@ class SystemMaster:
         time = np.arange(n_steps + 1) * h
         run = LoopRun(list(names), time, rec)
         who, call, t = every[0], "initialization", 0.0
-        # the calls of a step, planned once per run: (node, FMI call, function, arguments)
-        def get(n: _Node) -> list[_Op]:
-            s = n.inst.slave
-            return [(n, "fmi2GetReal", s.fmi2GetReal, (s.component, n.out_vr, len(n.out), n.out))
-                    ] if len(n.out) else []
-
-        def put(n: _Node) -> list[_Op]:
-            s, ops = n.inst.slave, []
-            if n.in_src:  # inputs from scattered outputs: copied first
-                ops.append((n, "fmi2SetReal", _gather, (n.in_buf, n.in_src)))
-            if len(n.in_buf):
-                ops.append((n, "fmi2SetReal", s.fmi2SetReal,
-                            (s.component, n.in_vr, len(n.in_buf), n.in_buf)))
-            for kind, vr, src, svr in n.in_other:
-                value = (c_int * 1)()  # fmi2Integer and fmi2Boolean are both int
-                ss = src.inst.slave
-                ops.append((src, f"fmi2Get{kind}", getattr(ss, f"fmi2Get{kind}"),
-                            (ss.component, (c_uint * 1)(svr), 1, value)))
-                ops.append((n, f"fmi2Set{kind}", getattr(s, f"fmi2Set{kind}"),
-                            (s.component, (c_uint * 1)(vr), 1, value)))
-            return ops
-
+        get, put = get_ops, put_ops  # the calls of a step, planned once per run
         jacobi = self.master == "jacobi"
         read = [op for n in (every if jacobi else free) for op in get(n)]
         if not jacobi:
@@ -254,7 +220,7 @@ class SystemMaster:
                     kind = n.types[name]
                     getattr(s, f"set{kind}")([n.fmu.vr(name)], [value])
             for n in (*free, *chained):
-                for who, call, f, args in (put(n) if n in chained else []):
+                for who, call, f, args in start_ops(n, inputs0.get(n.name), n in chained):
                     f(*args)
                 who, call = n, "fmi2ExitInitializationMode"
                 n.inst.slave.exitInitializationMode()
@@ -266,7 +232,7 @@ class SystemMaster:
                     for n in every:
                         with contextlib.suppress(FMICallException):
                             n.inst.slave.terminate()
-                    raise KeyboardInterrupt  # the instances are freed on the way out
+                    raise KeyboardInterrupt  # ours are freed on the way out
                 for who, call, f, args in read:
                     f(*args)
                 rec[k] = outs[where_ix] if row is None else row
@@ -294,7 +260,3 @@ class SystemMaster:
         run.messages = [m.message for n in every for m in n.inst.messages]
         return run
 
-
-def _gather(buf: Any, src: list[tuple[Any, int]]) -> None:
-    """Copy the values of inputs whose sources are not one run of the outputs into ``buf``."""
-    buf[:] = [b[i] for b, i in src]

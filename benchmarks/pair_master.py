@@ -1,0 +1,94 @@
+"""The pair master as it was before issue 12 (commit c53815e), kept only as the benchmark's
+baseline: ``benchmarks/run.py`` compares the system master, which now runs every pair
+(``harness.cosim.master.Loop`` is a thin adapter onto it), with this in the same run.
+
+Gauss-Seidel only, fresh instances per run, a failed call raises: the per-step work is the
+former ``Loop._run``'s, line for line (the Ctrl-C check, the bookkeeping of which instance and
+call run, plant outputs -> controller inputs -> controller outputs -> plant inputs, then both
+step, through the same preallocated ctypes buffers).
+"""
+
+from __future__ import annotations
+
+from ctypes import c_double, c_uint
+from typing import Any, Mapping
+
+import numpy as np
+
+from dronefly.interrupt import deferred_sigint
+
+from dronefly.harness.cosim.records import LoopRun
+
+__all__ = ["PairMaster"]
+
+
+class PairMaster:
+    """The former pair master, Gauss-Seidel.
+
+    Parameters
+    ----------
+    plant, controller : FMU
+        Extracted FMUs (:class:`dronefly.harness.cosim.fmu.FMU`), connected by name.
+    """
+
+    def __init__(self, plant: Any, controller: Any) -> None:
+        self.plant, self.controller = plant, controller
+        self.states, self.controls = plant.names("output"), plant.names("input")
+        self.sensed = controller.names("input")
+        self.names = [*self.states, *self.controls]
+
+    def run(self, step: float, n_steps: int,
+            plant_start: Mapping[str, float] | None = None) -> LoopRun:
+        """Co-simulate ``n_steps`` steps of ``step`` s from t = 0 on fresh instances."""
+        with self.plant.instantiate() as p, self.controller.instantiate() as c, \
+                deferred_sigint() as interrupt:
+            return self._run(p, c, step, n_steps, plant_start or {}, interrupt)
+
+    def _run(self, p: Any, c: Any, step: float, n_steps: int,
+             plant_start: Mapping[str, float], interrupt: Any) -> LoopRun:
+        ns, nu = len(self.states), len(self.controls)
+        rec = np.full((n_steps + 1, ns + nu), np.nan)
+        run = LoopRun(self.names, np.arange(n_steps + 1) * step, rec)
+        y_vr = (c_uint * ns)(*p.vrs(self.states))
+        s_vr = (c_uint * ns)(*c.vrs(self.states))  # the controller senses every state
+        u_vr_c = (c_uint * nu)(*c.vrs(self.controls))
+        u_vr_p = (c_uint * nu)(*p.vrs(self.controls))
+        y, u = (c_double * ns)(), (c_double * nu)()
+        for inst, values in ((p, plant_start), (c, {})):
+            inst.slave.setupExperiment(startTime=0.0, stopTime=n_steps * step)
+            inst.slave.enterInitializationMode()
+            for name, value in values.items():
+                inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
+        p.slave.exitInitializationMode()
+        p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
+        c.slave.fmi2SetReal(c.slave.component, s_vr, ns, y)
+        c.slave.exitInitializationMode()
+        pg, ps, pd, pc = (p.slave.fmi2GetReal, p.slave.fmi2SetReal, p.slave.fmi2DoStep,
+                          p.slave.component)
+        cg, cs, cd, cc = (c.slave.fmi2GetReal, c.slave.fmi2SetReal, c.slave.fmi2DoStep,
+                          c.slave.component)
+        for k in range(n_steps + 1):
+            t = k * step
+            if interrupt.count:
+                raise KeyboardInterrupt
+            who, call = p, "fmi2GetReal"
+            pg(pc, y_vr, ns, y)
+            who, call = c, "fmi2SetReal"
+            cs(cc, s_vr, ns, y)
+            who, call = c, "fmi2GetReal"
+            cg(cc, u_vr_c, nu, u)
+            rec[k, :ns] = y
+            rec[k, ns:] = u
+            if k == n_steps:
+                break
+            who, call = p, "fmi2SetReal"
+            ps(pc, u_vr_p, nu, u)
+            who, call = p, "fmi2DoStep"
+            pd(pc, t, step, 1)
+            who, call = c, "fmi2DoStep"
+            cd(cc, t, step, 1)
+        del who, call  # named a failure in the pair master; here only the cost is kept
+        for inst in (p, c):
+            inst.slave.terminate()
+        run.messages = [m.message for inst in (p, c) for m in inst.messages]
+        return run

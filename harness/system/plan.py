@@ -1,0 +1,162 @@
+"""The buffers and the calls of one communication step of :class:`~.master.SystemMaster`.
+
+Every Real output that a connection or the record needs lies in one ctypes buffer; each
+instance's inputs read it in place where they lie in order (no copy), else through a gather.
+The calls of a step are planned once per run as :data:`Op` tuples (instance, FMI call,
+function, arguments), so that a failed call names its instance and call.
+"""
+
+from __future__ import annotations
+
+from ctypes import c_double, c_int, c_uint
+from typing import Any, Mapping, Sequence
+
+from dronefly.harness.system.description import Connection, SystemSpecError
+
+__all__ = ["Node", "Op", "build_nodes", "gather", "get_ops", "put_ops", "start_ops"]
+
+
+class Node:
+    """One instance's buffers: its Real outputs, and where each of its inputs comes from.
+
+    Parameters
+    ----------
+    name : str
+        The instance name.
+    fmu : FMU
+        The instance's FMU (:class:`~dronefly.harness.cosim.fmu.FMU`).
+    outputs : list of str
+        The Real outputs to read at every communication point.
+    """
+
+    def __init__(self, name: str, fmu: Any, outputs: list[str]) -> None:
+        self.name, self.fmu = name, fmu
+        self.types = {v.name: v.type for v in fmu.model_description.modelVariables}
+        self.out_names = outputs
+        self.out_vr = (c_uint * len(outputs))(*[fmu.vr(n) for n in outputs])
+        self.out = (c_double * len(outputs))()
+        self.at = 0  # where ``out`` starts in the buffer of every output (see ``place``)
+        self.in_real: list[tuple[int, "Node", int]] = []  # (vr, source node, source index)
+        self.in_other: list[tuple[str, int, "Node", int]] = []  # (type, vr, node, index)
+        self.inst: Any = None
+
+    def place(self, every_out: Any, at: int) -> None:
+        """Make ``out`` a view of ``every_out`` from ``at`` on (one buffer for all outputs)."""
+        self.at = at
+        self.out = (c_double * len(self.out_names)).from_buffer(every_out, 8 * at)
+
+    def finish(self, every_out: Any) -> None:
+        """Input buffers; inputs that are one run of ``every_out`` read it in place (no copy)."""
+        real = sorted(self.in_real, key=lambda r: r[1].at + r[2])
+        where = [node.at + i for _, node, i in real]
+        if where and where == list(range(where[0], where[0] + len(where))):
+            self.in_real = real
+            self.in_buf = (c_double * len(real)).from_buffer(every_out, 8 * where[0])
+            self.in_src: list[tuple[Any, int]] = []
+        else:
+            self.in_buf = (c_double * len(self.in_real))()
+            self.in_src = [(node.out, i) for _, node, i in self.in_real]
+        self.in_vr = (c_uint * len(self.in_real))(*[vr for vr, _, _ in self.in_real])
+
+
+#: one call of a step: (instance node, FMI call named on failure, function, arguments)
+Op = tuple[Node, str, Any, tuple]
+
+
+def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
+                names: Sequence[str]) -> tuple[dict[str, Node], Any]:
+    """The nodes of every instance and the buffer of every output they read.
+
+    Raises
+    ------
+    SystemSpecError
+        A name to record that is not a Real output ``instance.name`` of an instance.
+    """
+    wanted: dict[str, list[str]] = {i: [] for i in fmus}
+    for c in connections:
+        if fmus[c.source].variables[c.output].type == "Real" and \
+                c.output not in wanted[c.source]:
+            wanted[c.source].append(c.output)
+    for full in names:
+        inst, _, var = full.partition(".")
+        v = fmus.get(inst) and fmus[inst].variables.get(var)
+        if not v or v.causality != "output" or v.type != "Real":
+            raise SystemSpecError(f"cannot record {full!r}: not a Real output of an instance")
+        if var not in wanted[inst]:
+            wanted[inst].append(var)
+    nodes = {i: Node(i, f, wanted[i]) for i, f in fmus.items()}
+    for c in connections:
+        src, dst = nodes[c.source], nodes[c.target]
+        kind = src.types[c.output]
+        vr = dst.fmu.vr(c.input)
+        if kind == "Real":
+            dst.in_real.append((vr, src, src.out_names.index(c.output)))
+        else:
+            dst.in_other.append((kind, vr, src, src.fmu.vr(c.output)))
+    every_out = (c_double * sum(len(n.out_names) for n in nodes.values()))()
+    at = 0
+    for n in nodes.values():
+        n.place(every_out, at)
+        at += len(n.out_names)
+    for n in nodes.values():
+        n.finish(every_out)
+    return nodes, every_out
+
+
+def get_ops(n: Node) -> list[Op]:
+    """Read the node's Real outputs into its part of the output buffer."""
+    s = n.inst.slave
+    return [(n, "fmi2GetReal", s.fmi2GetReal, (s.component, n.out_vr, len(n.out), n.out))
+            ] if len(n.out) else []
+
+
+def _other_ops(n: Node) -> list[Op]:
+    s, ops = n.inst.slave, []
+    for kind, vr, src, svr in n.in_other:
+        value = (c_int * 1)()  # fmi2Integer and fmi2Boolean are both int
+        ss = src.inst.slave
+        ops.append((src, f"fmi2Get{kind}", getattr(ss, f"fmi2Get{kind}"),
+                    (ss.component, (c_uint * 1)(svr), 1, value)))
+        ops.append((n, f"fmi2Set{kind}", getattr(s, f"fmi2Set{kind}"),
+                    (s.component, (c_uint * 1)(vr), 1, value)))
+    return ops
+
+
+def put_ops(n: Node) -> list[Op]:
+    """Set the node's inputs from their sources' outputs."""
+    s, ops = n.inst.slave, []
+    if n.in_src:  # inputs from scattered outputs: copied first
+        ops.append((n, "fmi2SetReal", gather, (n.in_buf, n.in_src)))
+    if len(n.in_buf):
+        ops.append((n, "fmi2SetReal", s.fmi2SetReal,
+                    (s.component, n.in_vr, len(n.in_buf), n.in_buf)))
+    return ops + _other_ops(n)
+
+
+def start_ops(n: Node, given: Mapping[str, float] | None, connected: bool = True) -> list[Op]:
+    """:func:`put_ops` for initialization (only ``given`` if not ``connected``): the Real
+    inputs in ``given`` take these values instead of their sources' (connected or not), in
+    one fmi2SetReal with the other Real inputs."""
+    if not given:
+        return put_ops(n) if connected else []
+    s = n.inst.slave
+    fixed = {n.fmu.vr(name): float(v) for name, v in given.items()}
+    real = n.in_real if connected else []
+    vrs = [vr for vr, _, _ in real]
+    src = [(node.out, i) for _, node, i in real]
+    vrs += [vr for vr in fixed if vr not in vrs]
+    buf = (c_double * len(vrs))()
+
+    def fill() -> None:
+        buf[:] = [fixed[vr] if vr in fixed else src[k][0][src[k][1]]
+                  for k, vr in enumerate(vrs)]
+
+    return [(n, "fmi2SetReal", fill, ()),
+            (n, "fmi2SetReal", s.fmi2SetReal, (s.component, (c_uint * len(vrs))(*vrs),
+                                                len(vrs), buf)),
+            *(_other_ops(n) if connected else [])]
+
+
+def gather(buf: Any, src: list[tuple[Any, int]]) -> None:
+    """Copy the values of inputs whose sources are not one run of the outputs into ``buf``."""
+    buf[:] = [b[i] for b, i in src]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sys
 
 __all__ = ["PYTHONFMU_BESIDE_SHIM", "finalize_at_exit", "guarded_libraries", "inside_fmpy_container",
-           "leave_sys_path", "release_interpreter_guard"]
+           "leave_sys_path", "loaded_libraries", "release_interpreter_guard"]
 
 
 def leave_sys_path(resources: str | None) -> None:
@@ -82,25 +82,71 @@ def release_interpreter_guard(lib: str) -> str | None:
     ----------
     lib : str
         Path of the FMU's ``binaries/linux64/<model>.so`` (pythonfmu's library, or dronefly's
-        shim with pythonfmu's library beside it as ``<model>.pythonfmu.so``).
+        shim with pythonfmu's library beside it as ``<model>.pythonfmu.so``), in any spelling
+        of the path (the resources folder may come as ``//tmp/...``).
 
     Returns
     -------
     str or None
-        The library whose guard was released, or ``None`` if neither is loaded. Releasing
-        twice is harmless (the guard is then empty).
+        The loader's name of the library whose guard was released, or ``None`` if neither is
+        loaded. Releasing twice is harmless (the guard is then empty).
     """
     import ctypes
     import os
 
+    loaded = loaded_libraries()
     for path in (lib[:-len(".so")] + PYTHONFMU_BESIDE_SHIM, lib):
-        try:
-            handle = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if loaded
-            handle.finalizePythonInterpreter()
-            return path
-        except (OSError, AttributeError):
-            continue
+        for name in loaded.get(_same_file_key(path), ()):
+            try:
+                handle = ctypes.CDLL(name, mode=os.RTLD_NOLOAD | os.RTLD_NOW)  # only if loaded
+                handle.finalizePythonInterpreter()
+                return name
+            except (OSError, AttributeError):
+                continue
     return None
+
+
+def _same_file_key(path: str) -> str:
+    """``path`` normalised as the loader's names are compared here: one leading slash, no
+    ``.``/``..``, no doubled separators. The file itself may be gone (hosts that unpack FMUs
+    into a temporary folder delete it while the library is still mapped), so no ``stat``."""
+    import posixpath
+
+    return posixpath.normpath("/" + path.lstrip("/")) if path.startswith("/") \
+        else posixpath.normpath(path)
+
+
+def loaded_libraries() -> dict[str, list[str]]:
+    """The shared objects loaded in this process, as ``dl_iterate_phdr`` lists them.
+
+    Returns
+    -------
+    dict
+        Normalised path -> the loader's own names for it (what ``dlopen`` with
+        ``RTLD_NOLOAD`` matches without touching the file system).
+    """
+    import ctypes
+    import os
+
+    class _Info(ctypes.Structure):  # the leading fields of struct dl_phdr_info
+        _fields_ = [("addr", ctypes.c_void_p), ("name", ctypes.c_char_p)]
+
+    found: dict[str, list[str]] = {}
+
+    def visit(info, _size, _data) -> int:
+        name = info.contents.name
+        if name:
+            text = os.fsdecode(name)
+            found.setdefault(_same_file_key(text), []).append(text)
+        return 0
+
+    callback = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(_Info), ctypes.c_size_t,
+                                ctypes.c_void_p)(visit)
+    try:
+        ctypes.CDLL(None).dl_iterate_phdr(callback, None)
+    except (OSError, AttributeError):  # not glibc/ELF: nothing found, nothing released
+        return {}
+    return found
 
 
 def inside_fmpy_container(resources: str | None) -> bool:

@@ -18,6 +18,7 @@ import numpy as np
 from dronefly.lateral import plant_scales
 from dronefly.controller.law import default_gains, gain_name
 from dronefly.plant.model import STATE_NAMES, discretize_zoh
+from dronefly.harness.cosim.calculated import plant_matrices
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
@@ -118,18 +119,11 @@ def _fmt_complex(z: complex) -> str:
 
 def _read_plant_matrices(loop: Loop, values: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """A1 and B1 as the plant FMU computes them (calculated parameters) with ``values`` set."""
-    p = loop.plant
-    ns, nu = len(loop.states), len(loop.controls)
-    with p.instantiate(logging=False) as inst:
-        s = inst.slave
-        s.setupExperiment(startTime=0.0)
-        s.enterInitializationMode()
-        for name, value in values.items():
-            (s.setBoolean if isinstance(value, bool) else s.setReal)([p.vr(name)], [value])
-        s.exitInitializationMode()
-        A = s.getReal(inst.vrs([f"A[{i + 1},{j + 1}]" for i in range(ns) for j in range(ns)]))
-        B = s.getReal(inst.vrs([f"B[{i + 1},{j + 1}]" for i in range(ns) for j in range(nu)]))
-    return np.reshape(A, (ns, ns)), np.reshape(B, (ns, nu))
+    matrices = plant_matrices(loop.plant, len(loop.states), len(loop.controls), values)
+    if matrices is None:
+        raise CoSimError(f"the plant FMU {str(loop.plant.path)!r} does not expose its A and B "
+                         "as calculated parameters A[i,j], B[i,j]")
+    return matrices
 
 
 def _sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: float,

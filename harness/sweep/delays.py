@@ -32,6 +32,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dronefly.harness.cosim.calculated import plant_matrices
 from dronefly.harness.cosim.stability import classify, rates_from_transition
 from dronefly.harness.sweep.cases import Case, SweepInputError
 from dronefly.harness.sweep.results import DELAY_COLUMNS
@@ -54,22 +55,9 @@ def _plant_model(pair: Any, values: dict[str, Any]) -> tuple[np.ndarray, np.ndar
     """A (4x4, per wing beat) and B (4x3) as the plant FMU computes them with ``values`` set."""
     from dronefly.lateral import CONTROL_NAMES, STATE_NAMES
 
-    p = pair.plant
-    names = [f"A[{i},{j}]" for i in range(1, 5) for j in range(1, 5)]
-    names += [f"B[{i},{j}]" for i in range(1, 5) for j in range(1, 4)]
-    if (list(pair.states) != list(STATE_NAMES) or list(pair.controls) != list(CONTROL_NAMES)
-            or not all(nm in p.variables for nm in names)):
+    if list(pair.states) != list(STATE_NAMES) or list(pair.controls) != list(CONTROL_NAMES):
         return None
-    with p.instantiate(logging=False) as inst:
-        s = inst.slave
-        s.setupExperiment(startTime=0.0)
-        s.enterInitializationMode()
-        for name, value in values.items():
-            (s.setBoolean if isinstance(value, bool) else s.setReal)([p.vr(name)], [value])
-        s.exitInitializationMode()
-        v = np.array(s.getReal(inst.vrs(names)))
-        s.terminate()
-    return v[:16].reshape(4, 4), v[16:].reshape(4, 3)
+    return plant_matrices(pair.plant, len(STATE_NAMES), len(CONTROL_NAMES), values)
 
 
 def _integral_gains(pair: Any, values: dict[str, Any]) -> np.ndarray:

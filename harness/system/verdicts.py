@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from dronefly.harness.cosim.calculated import calculated_matrix
 from dronefly.harness.cosim.stability import (Identification, identify, rates_from_transition,
                                               sort_eigenvalues)
 from dronefly.harness.cosim.master import CoSimError
@@ -101,28 +102,11 @@ def find_plants(master: SystemMaster) -> list[PlantInfo]:
         states = tuple(v.name for v in outs)
         inputs = [v.name for v in md.modelVariables if v.causality == "input"]
         given = master.system.parameters.get(inst, {})
-        A = _matrix(fmu, "A", len(states), len(states), given)
-        B = _matrix(fmu, "B", len(states), len(inputs), given)
+        A = calculated_matrix(fmu, "A", len(states), len(states), given)
+        B = calculated_matrix(fmu, "B", len(states), len(inputs), given)
         K, ctrl = _gains(master, inst, states, inputs, conns)
         out.append(PlantInfo(inst, md.modelName, states, scale, n, A, B, K, ctrl))
     return out
-
-
-def _matrix(fmu: Any, name: str, rows: int, cols: int,
-            values: dict[str, Any]) -> np.ndarray | None:
-    """A calculated-parameter matrix ``name[i,j]`` as the FMU computes it with ``values``."""
-    names = [f"{name}[{i + 1},{j + 1}]" for i in range(rows) for j in range(cols)]
-    if not all(n in fmu.variables for n in names):
-        return None
-    with fmu.instantiate(logging=False) as inst:
-        s = inst.slave
-        s.setupExperiment(startTime=0.0)
-        s.enterInitializationMode()
-        for key, value in values.items():
-            kind = fmu.variables[key].type
-            getattr(s, f"set{kind}")([fmu.vr(key)], [value])
-        s.exitInitializationMode()
-        return np.reshape(s.getReal(inst.vrs(names)), (rows, cols))
 
 
 def _gains(master: SystemMaster, plant: str, states: tuple[str, ...], inputs: list[str],

@@ -225,10 +225,14 @@ class Instance:
         except Exception:  # pragma: no cover - fmpy without the proxy
             pass
         self._callbacks = cb  # keep the ctypes structure alive as long as the instance
+        self._register(callbacks=cb, loggingOn=self.logging)
+
+    def _register(self, **instantiate_args: Any) -> None:
+        """Call the slave's instantiate; the instance is live (freed at exit) if it succeeds."""
         self._freed = False
         _LIVE[self.name] = self
         try:
-            self.slave.instantiate(callbacks=cb, loggingOn=self.logging)
+            self.slave.instantiate(**instantiate_args)
         except Exception as e:
             self._freed = True
             _LIVE.pop(self.name, None)
@@ -239,19 +243,12 @@ class Instance:
 
         md = self.fmu.model_description3
         self.slave: Any = FMU3Adapter(md, str(self.fmu._unzipdir), self.name, self.fmu.elements)
-        self._freed = False
-        _LIVE[self.name] = self
 
         def log(env: Any, status: int, category: bytes, message: bytes) -> None:
             self.messages.append(LogMessage(self.name, int(status), (category or b"").decode(
                 "utf-8", "replace"), (message or b"").decode("utf-8", "replace")))
 
-        try:
-            self.slave.instantiate(logMessage=log, loggingOn=self.logging)
-        except Exception as e:
-            self._freed = True
-            _LIVE.pop(self.name, None)
-            raise FMUError(f"cannot instantiate {self.fmu.name!r}: {e}") from e
+        self._register(logMessage=log, loggingOn=self.logging)
 
     def vrs(self, names: Sequence[str]) -> list[int]:
         return [self.fmu.vr(n) for n in names]

@@ -14,6 +14,7 @@ parameters. The state is kept non-dimensional (x+).
 from __future__ import annotations
 
 import math
+from operator import mul
 from typing import Any, Callable, ClassVar
 
 from .axes import Axis
@@ -21,6 +22,14 @@ from .fmi import SlaveBase, Var
 from .linear import ZohModel
 
 __all__ = ["LinearPlantSlave", "plant_variables"]
+
+
+def _block(vrs: tuple[int, ...]) -> slice:
+    """The value references ``vrs`` as one slice of the value table (they must be consecutive,
+    as :func:`plant_variables` lists the controls and the states)."""
+    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
+        raise ValueError(f"value references {vrs} are not consecutive")
+    return slice(vrs[0], vrs[0] + len(vrs))
 
 
 def plant_variables(axis: Axis, defaults: Any, param_text: Callable[[str], str],
@@ -94,8 +103,9 @@ class LinearPlantSlave(SlaveBase):
         self._scale = [1.0] * len(axis.state_names)
         self._n = 1.0
         vr = self._vr
-        self._in_vr = tuple(vr[n] for n in axis.control_names)
-        self._out_vr = tuple(vr[n] for n in axis.state_names)
+        # the controls' and the states' rows of the value table
+        self._inputs = _block(tuple(vr[n] for n in axis.control_names))
+        self._outputs = _block(tuple(vr[n] for n in axis.state_names))
         self._params = self.PARAMETERS.names()
         self._starts = tuple(f"{s}_start" for s in axis.state_names)
         self._matrix = tuple(v.name for v in self.VARIABLES
@@ -133,20 +143,19 @@ class LinearPlantSlave(SlaveBase):
 
     def _advance(self, t: float, h: float) -> None:
         r = self._real
-        u = [r[i] for i in self._in_vr]
-        for v in u:
-            if v - v != 0.0:  # inf or nan
-                self._check_finite(self.AXIS.control_names, u)
+        u = r[self._inputs]
+        total = sum(u)
+        if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite
+            self._check_finite(self.AXIS.control_names, u)
         x = self._model.step_list(self._x, u, h * self._n)
-        y = [a * s for a, s in zip(x, self._scale)]
-        for v in y:
-            if v - v != 0.0:
-                inputs = ", ".join(f"{n} = {v!r}" for n, v in zip(self.AXIS.control_names, u))
-                raise ValueError(f"state overflow: outputs {y!r} after a step of {h!r} s with "
-                                 f"{inputs} (the linear model is far outside its range)")
+        y = list(map(mul, x, self._scale))
+        total = sum(y)
+        if total - total != 0.0 and not all(map(math.isfinite, y)):
+            inputs = ", ".join(f"{n} = {v!r}" for n, v in zip(self.AXIS.control_names, u))
+            raise ValueError(f"state overflow: outputs {y!r} after a step of {h!r} s with "
+                             f"{inputs} (the linear model is far outside its range)")
         self._x = x
-        for i, v in zip(self._out_vr, y):
-            r[i] = v
+        r[self._outputs] = y
 
     def _extra_state(self) -> dict[str, Any]:
         return {"x": list(self._x)}

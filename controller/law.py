@@ -146,10 +146,12 @@ class FeedbackLaw:
         return self.axis.to_nondimensional(x, self.U, self.n)
 
     @cached_property
-    def _rows(self) -> tuple[tuple[float, ...], ...]:
-        """K with the non-dimensionalisation folded in: u_i = sum_j Kd[i][j] x_j (x dimensional)."""
+    def _rows(self) -> tuple[tuple[float, ...] | None, ...]:
+        """K with the non-dimensionalisation folded in: u_i = sum_j Kd[i][j] x_j (x dimensional);
+        None for a row of zeros, whose control is 0.0 for every finite x (as its sum is)."""
         scale = self.axis.scale_vector(self.U, self.n)
-        return tuple(tuple(k / s for k, s in zip(row, scale)) for row in self.K)
+        rows = (tuple(k / s for k, s in zip(row, scale)) for row in self.K)
+        return tuple(row if any(row) else None for row in rows)
 
     @cached_property
     def scale(self) -> tuple[float, ...]:
@@ -181,19 +183,19 @@ class FeedbackLaw:
         LawParameterError
             A state value is not finite, or K x+ (+ KI z) overflows.
         """
-        for v in x:
-            if v - v != 0.0:  # inf or nan (cheaper than math.isfinite per element)
-                self.nondimensional_state(x)  # raises, naming the value
-        u = [dot(row, x) for row in self._rows]
+        total = sum(x)
+        if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite
+            self.nondimensional_state(x)  # raises, naming the value
+        u = [0.0 if row is None else dot(row, x) for row in self._rows]
         if z is not None and self.has_integral:
             u = [a + dot(row, z) for a, row in zip(u, self.KI)]  # type: ignore[arg-type]
-        for v in u:
-            if v - v != 0.0:
-                for name, value in zip(self.axis.control_names, u):
-                    if not math.isfinite(value):
-                        what = "K x+ + KI z" if self.has_integral else "K x+"
-                        raise LawParameterError(f"{name} = {value!r} is not finite ({what} "
-                                                "overflows)")
+        total = sum(u)
+        if total - total != 0.0:
+            for name, value in zip(self.axis.control_names, u):
+                if not math.isfinite(value):
+                    what = "K x+ + KI z" if self.has_integral else "K x+"
+                    raise LawParameterError(f"{name} = {value!r} is not finite ({what} "
+                                            "overflows)")
         saturated = False
         if self.limit_enabled:
             lim = self.u_max

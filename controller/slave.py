@@ -39,7 +39,7 @@ class _Feedback(SlaveBase):
         super().__init__(**kwargs)
         vr, axis = self._vr, self.AXIS
         self._in_vr = tuple(vr[n] for n in axis.state_names)
-        self._out_vr = tuple(vr[n] for n in axis.control_names)
+        self._outputs = self._block(axis.control_names)  # (controller_variables: in a row)
         self._sat_vr = vr["saturated"]
         self._law_vr = tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
                                              *LAW_PARAMETERS))
@@ -88,8 +88,7 @@ class _Feedback(SlaveBase):
                   else sensor.sensed(t, x, timing, self.DIRECT_FEEDTHROUGH))
         z = sensor.integral_in_effect(t, timing, self.DIRECT_FEEDTHROUGH) if law.has_integral else None
         u, saturated = law.evaluate(sensed, z)
-        for i, v in zip(self._out_vr, u):
-            r[i] = v
+        r[self._outputs] = u
         r[self._sat_vr] = saturated
 
     def _update_outputs(self) -> None:

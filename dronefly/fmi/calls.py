@@ -121,16 +121,16 @@ def do_step_status(self: Any, current_time: float, step_size: float) -> int:
             return self._refuse(f"communicationStepSize = {step_size!r} s must be finite and "
                                 f"> 0, with a finite end (from {current_time!r} s)")
         # float accumulation of the master's time: relative to the times, never to the step
-        last = self._time
-        tol = 1e-9 * (abs(current_time) + abs(last)) + 1e-300
-        if not (abs(current_time - last) <= tol):
-            return self._refuse(
-                f"currentCommunicationPoint = {current_time!r} s does not continue "
-                f"from the last communication point {self._time!r} s")
-        stop = self._stop_time
-        if stop is not None and end > stop + tol:
-            return self._refuse(f"a step of {step_size!r} s from {current_time!r} s goes "
-                                f"past stopTime = {stop!r} s ({self.FMI}SetupExperiment)")
+        last, stop = self._time, self._stop_time
+        if current_time != last or stop is not None:  # (else both checks pass)
+            tol = 1e-9 * (abs(current_time) + abs(last)) + 1e-300
+            if not (abs(current_time - last) <= tol):
+                return self._refuse(
+                    f"currentCommunicationPoint = {current_time!r} s does not continue "
+                    f"from the last communication point {self._time!r} s")
+            if stop is not None and end > stop + tol:
+                return self._refuse(f"a step of {step_size!r} s from {current_time!r} s goes "
+                                    f"past stopTime = {stop!r} s ({self.FMI}SetupExperiment)")
         if not self._initialized:
             self._initialize()
             self._initialized = True

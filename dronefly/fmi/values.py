@@ -20,6 +20,8 @@ from pythonfmu.enums import Fmi2Status
 __all__ = ["get_boolean", "get_integer", "get_real", "get_string", "set_boolean", "set_integer",
            "set_real", "set_rows", "set_string"]
 
+_NONE: frozenset[int] = frozenset()  # the settable rows of a type the FMU does not have
+
 
 def _vr_text(vr: int) -> str:
     return f"valueReference {vr & 0xFFFFFFFF}"  # the wrapper passes the unsigned reference as int
@@ -94,14 +96,18 @@ def set_rows(self: Any, vrs: list[int], values: list[Any], kind: str) -> None:
     """Set scalar rows ``vrs`` of type ``kind``; a row that may not be set is logged (status
     Error) and kept for the next doStep."""
     try:
-        ok = self._settable.get((self._mode, kind), ())
+        ok = self._settable.get((self._mode, kind), _NONE)
         r = self._real
-        boolean = kind == "Boolean"
-        for i, x in zip(vrs, values):
-            if i in ok:
-                r[i] = bool(x) if boolean else x
-            else:
-                _reject(self, i, x, _why_not_settable(self, i, kind), kind)
+        if kind != "Boolean" and ok.issuperset(vrs):  # the hot path: every row may be set
+            for i, x in zip(vrs, values):
+                r[i] = x
+        else:
+            boolean = kind == "Boolean"
+            for i, x in zip(vrs, values):
+                if i in ok:
+                    r[i] = bool(x) if boolean else x
+                else:
+                    _reject(self, i, x, _why_not_settable(self, i, kind), kind)
         # outputs follow sets only before initialization ends or with direct feedthrough
         if self.DIRECT_FEEDTHROUGH or not self._initialized:
             self._stale = True

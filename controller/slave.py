@@ -27,6 +27,14 @@ __all__ = ["StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
            "StateFeedbackLongitudinalDelayed"]
 
 
+def _block(vrs: tuple[int, ...]) -> slice:
+    """The value references ``vrs`` as one slice of the value table (they must be consecutive,
+    as :func:`.variables.controller_variables` lists the controls)."""
+    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
+        raise ValueError(f"value references {vrs} are not consecutive")
+    return slice(vrs[0], vrs[0] + len(vrs))
+
+
 class _Feedback(SlaveBase):
     """Full-state feedback with sensing delay, sampling and integral action on one axis;
     subclasses set ``AXIS``, ``VARIABLES`` and, for the delayed variants,
@@ -39,7 +47,7 @@ class _Feedback(SlaveBase):
         super().__init__(**kwargs)
         vr, axis = self._vr, self.AXIS
         self._in_vr = tuple(vr[n] for n in axis.state_names)
-        self._outputs = self._block(axis.control_names)  # (controller_variables: in a row)
+        self._outputs = _block(tuple(vr[n] for n in axis.control_names))
         self._sat_vr = vr["saturated"]
         self._law_vr = tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
                                              *LAW_PARAMETERS))

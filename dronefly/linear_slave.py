@@ -24,6 +24,14 @@ from .linear import ZohModel
 __all__ = ["LinearPlantSlave", "plant_variables"]
 
 
+def _block(vrs: tuple[int, ...]) -> slice:
+    """The value references ``vrs`` as one slice of the value table (they must be consecutive,
+    as :func:`plant_variables` lists the controls and the states)."""
+    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
+        raise ValueError(f"value references {vrs} are not consecutive")
+    return slice(vrs[0], vrs[0] + len(vrs))
+
+
 def plant_variables(axis: Axis, defaults: Any, param_text: Callable[[str], str],
                     matrix_dependencies: Callable[[int, int, bool], tuple[str, ...]],
                     n_hz: float, u_m_per_s: float, matrices: tuple[str, str]) -> tuple[Var, ...]:
@@ -94,8 +102,10 @@ class LinearPlantSlave(SlaveBase):
         self._model: Any = None
         self._scale = [1.0] * len(axis.state_names)
         self._n = 1.0
-        self._inputs = self._block(axis.control_names)  # (plant_variables lists them in a row)
-        self._outputs = self._block(axis.state_names)
+        vr = self._vr
+        # the controls' and the states' rows of the value table
+        self._inputs = _block(tuple(vr[n] for n in axis.control_names))
+        self._outputs = _block(tuple(vr[n] for n in axis.state_names))
         self._params = self.PARAMETERS.names()
         self._starts = tuple(f"{s}_start" for s in axis.state_names)
         self._matrix = tuple(v.name for v in self.VARIABLES

@@ -161,14 +161,6 @@ class SlaveBase(Fmi2Slave):
         r, vr = self._real, self._vr
         return [r[vr[n]] for n in names]
 
-    def _block(self, names: Sequence[str]) -> slice:
-        """The rows of the variables ``names`` in the value table, as one slice (``names`` must
-        be consecutive variables, in this order: ``ValueError`` if not)."""
-        first = self._vr[names[0]]
-        if [self._vr[n] for n in names] != list(range(first, first + len(names))):
-            raise ValueError(f"{', '.join(names)} are not consecutive variables")
-        return slice(first, first + len(names))
-
     def _set_values(self, names: Iterable[str], values: Iterable[Any]) -> None:
         r, vr = self._real, self._vr
         for n, x in zip(names, values):

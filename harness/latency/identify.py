@@ -134,11 +134,12 @@ def cosimulate_runs(plant: Any, controller: Any, loop: FeedbackLoop, Ts: float, 
         Sample periods per run.
     substeps : int
         Communication steps per sample period (Gauss-Seidel, step Ts / substeps). The
-        controller FMU puts a control into effect at the first communication point at or
-        after its instant, so a fractional delay needs the instants t_k + tau on the grid;
-        and it refreshes the integral term K x_s + KI z(t) at every communication point, so
-        the discrete model (b) (u held between effects) describes a PI loop only with
-        ``substeps`` = 1 and whole-sample delays.
+        controller FMU's control becomes visible at the first communication point at or
+        after its instant t_k + tau, so a fractional delay needs those instants on the grid
+        (tau a whole number of steps). The control, integral term included, is computed when
+        its sample takes effect and held until the next one does (u = K x_s + KI z(t_e)), as
+        model (b) has it, so any ``substeps`` that puts the instants on the grid describes
+        the same discrete loop.
 
     Returns
     -------

@@ -89,7 +89,8 @@ def test_every_fmu_built_and_validate_clean(built_fmus3):
     from fmpy.validation import validate_fmu
 
     assert set(FMUS) <= set(built_fmus3)
-    assert {"DroneFlyHover.ssp", "DroneFlyHover6DOF.ssp"} <= set(built_fmus3)
+    assert {"DroneFlyClosedLoop.ssp", "DroneFlyHover.ssp",
+            "DroneFlyHover6DOF.ssp"} <= set(built_fmus3)
     for name in FMUS:
         assert validate_fmu(str(built_fmus3[name])) == [], name
         assert _md(built_fmus3[name]).get("fmiVersion") == "3.0"
@@ -188,6 +189,33 @@ def test_hover_system_fmi3_ssp_and_mixed_equal_fmi2(built_fmus, built_fmus3):
         if verdicts:
             # the FMI 2.0 system's verdicts (tests/test_hover_system.py)
             assert [a.verdict for a in r.axes] == ["neutral", "stable"]
+
+
+def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
+    """build/fmi3/DroneFlyClosedLoop.ssp (FMI 3.0 FMUs, SSP 1.0) in our master: the paper's
+    neutral verdict and the FMI 2.0 SSP's trajectory over its 300 wing beats, to 1e-12. Its
+    controller.ssv binds the elements K[i,j] of the FMI 3.0 array K: with gains other than the
+    FMUs' defaults both SSPs still agree, and differ from the default run."""
+    from dronefly.controller.law import default_gains
+    from dronefly.harness.interop.closedloop import ClosedLoopSpec
+    from dronefly.harness.interop.ssp import write_ssp
+    from dronefly.harness.system.run import cosimulate_system
+
+    kw = dict(out_dir=None, plot=False)
+    ref = cosimulate_system(built_fmus["DroneFlyClosedLoop.ssp"], verdicts=False, **kw)
+    r = cosimulate_system(built_fmus3["DroneFlyClosedLoop.ssp"], **kw)
+    assert r.run.complete and r.run.names == ref.run.names and len(r.run.time) == 3001
+    assert np.max(np.abs(r.run.signals - ref.run.signals)) <= 1e-12
+    assert [(a.plant.instance, a.verdict) for a in r.axes] == [("plant", "neutral")]
+    gains = [list(row) for row in default_gains()]
+    gains[0][1], gains[1][0] = -0.25, 0.1
+    spec = ClosedLoopSpec(gains=tuple(map(tuple, gains)), stop_wingbeats=60)
+    runs = [cosimulate_system(write_ssp(f["DroneFlyLateral"], f["StateFeedback"],
+                                        tmp_path / f"fmi{v}", spec), verdicts=False, **kw).run
+            for v, f in ((2, built_fmus), (3, built_fmus3))]
+    assert all(run.complete and len(run.time) == 601 for run in runs)
+    assert np.max(np.abs(runs[1].signals - runs[0].signals)) <= 1e-12
+    assert np.max(np.abs(runs[1].signals - ref.run.signals[:601])) > 1e-3
 
 
 def test_check_passes_on_fmi3(built_fmus3):

@@ -156,13 +156,13 @@ def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
 
 def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
     """n [Hz] and the state scales of the plant component's FMU."""
-    from fmpy import read_model_description
+    from dronefly.harness.cosim.fmi3 import read_view  # FMI 2.0 or 3.0
 
     source = _component(ssp, plant).get("source")
     with zipfile.ZipFile(ssp) as z, tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:
         fmu = Path(tmp, "plant.fmu")
         fmu.write_bytes(z.read(source))
-        return reference_scales(read_model_description(str(fmu)))
+        return reference_scales(read_view(fmu))
 
 
 def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],

@@ -11,6 +11,11 @@
     reads the bound sets with fmpy's ``read_ssd`` and prefixes each name with its component's
     name. libcosim (``CosimExecution.from_ssp_file``) applies component bindings itself and
     runs the same file; a system-level binding it would ignore.
+
+``build/fmi3/DroneFlyClosedLoop.ssp`` is the same system of the FMI 3.0 FMUs (SSD and SSV files
+alike: SSP 1.0 binds the FMI 3.0 array ``K`` by its elements ``K[i,j]``, which
+``dronefly cosim --system`` resolves). fmpy's ``simulate_ssp`` cannot run it (it instantiates
+every FMU as FMI 2.0), so :func:`run_ssp` refuses it; docs/fmi3.md says what Ecos does with it.
 """
 
 from __future__ import annotations
@@ -22,12 +27,12 @@ from typing import Mapping
 from xml.etree import ElementTree as ET
 
 import numpy as np
-from fmpy import read_model_description
 
 from dronefly.files import write_zip
 from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec,
                         parameter_values, reference_scales)
 from dronefly.harness.cosim.master import CoSimError
+from dronefly.harness.cosim.fmi3 import read_view
 from dronefly.harness.cosim.master import connect_by_name
 from dronefly.harness.cosim.stability import identify
 from dronefly.harness.interop.container import Verdict
@@ -49,10 +54,21 @@ def _xml(root: ET.Element) -> bytes:
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
 
 
+def _versions(pmd, cmd) -> str:
+    """"" for two FMI 2.0 FMUs, else which FMI version each FMU is."""
+    v = [str(md.fmiVersion) for md in (pmd, cmd)]
+    return "" if v == ["2.0", "2.0"] else f"; FMI {v[0]} plant, FMI {v[1]} controller"
+
+
 def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
               spec: ClosedLoopSpec = ClosedLoopSpec()) -> Path:
-    """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path."""
-    pmd, cmd = read_model_description(plant), read_model_description(controller)
+    """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path.
+
+    The FMUs may be FMI 2.0 or FMI 3.0 (read through the harness's view,
+    :func:`dronefly.harness.cosim.fmi3.read_view`: an FMI 3.0 array ``K`` is bound by its
+    elements ``K[i,j]``, as SSP 1.0 has no array values; see docs/fmi3.md).
+    """
+    pmd, cmd = read_view(plant), read_view(controller)
     n, _ = reference_scales(pmd)
     params = parameter_values(pmd, spec)
     step = spec.step_wingbeats / n
@@ -62,7 +78,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
         "name": CLOSED_LOOP,
         "description": f"DroneFlyLateral plant with StateFeedback controller (Zhang & Sun, "
                        f"Eq. 27); communication step {spec.step_wingbeats:g} wing beat = "
-                       f"{float(step)!r} s"})
+                       f"{float(step)!r} s" + _versions(pmd, cmd)})
     elements = ET.SubElement(system, f"{{{_SSD}}}Elements")
     for comp, fmu, md in (("plant", PLANT, pmd), ("controller", CONTROLLER, cmd)):
         c = ET.SubElement(elements, f"{{{_SSD}}}Component", {
@@ -124,11 +140,27 @@ def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
     return 0.1 / n, stop
 
 
+def _fmi_versions(ssp: str | Path) -> dict[str, str]:
+    """fmiVersion of every FMU in the SSP's resources, by file name."""
+    import io
+    import re
+
+    out = {}
+    with zipfile.ZipFile(ssp) as z:
+        for name in z.namelist():
+            if name.startswith("resources/") and name.endswith(".fmu"):
+                with zipfile.ZipFile(io.BytesIO(z.read(name))) as fmu:
+                    head = fmu.read("modelDescription.xml")[:4096].decode("utf-8", "replace")
+                m = re.search(r'fmiVersion\s*=\s*"([^"]*)"', head)
+                out[name[len("resources/"):]] = m.group(1) if m else "?"
+    return out
+
+
 def _md_from_bytes(data: bytes):
     with tempfile.TemporaryDirectory(prefix="dronefly_md_") as tmp:
         p = Path(tmp, "x.fmu")
         p.write_bytes(data)
-        return read_model_description(p)
+        return read_view(p)
 
 
 def run_ssp(ssp: str | Path, *, step_s: float | None = None, stop_s: float | None = None,
@@ -146,6 +178,10 @@ def run_ssp(ssp: str | Path, *, step_s: float | None = None, stop_s: float | Non
     """
     from fmpy.ssp.simulation import simulate_ssp
 
+    fmi3 = [name for name, version in _fmi_versions(ssp).items() if version.startswith("3")]
+    if fmi3:  # fmpy/ssp/simulation.py instantiates every FMU as an FMU2Slave
+        raise CoSimError(f"fmpy's simulate_ssp runs FMI 2.0 FMUs only, and {str(ssp)!r} holds "
+                         f"FMI 3.0 ones ({', '.join(fmi3)}): run it with dronefly cosim --system")
     d_step, d_stop = _ssp_step_stop(ssp)
     pset = ssp_parameter_set(ssp)
     for name, value in (overrides or {}).items():

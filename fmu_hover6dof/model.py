@@ -13,41 +13,26 @@ linearisation of Sect. 3.6 drops in the rigid body is restored:
 - the exact projection of gravity on the body axes (sin and cos of the attitude);
 - the exact attitude kinematics (a unit quaternion: no gimbal lock at any attitude).
 
-Axes: body axes at the centre of mass, x forward, y right, z down, x and y horizontal at
-equilibrium; earth axes north-east-down with the origin at the initial position.
-Non-dimensional as the linear models (end of Sect. 2.1): velocities by U, rates by n, time in
-wing beats t+ = n t, lengths by U/n. The state (13 values) is
-
-    V+ = (u, v, w)           body-axis velocity / U
-    w+ = (p, q, r)           body-axis rates / n
-    e  = (e0, e1, e2, e3)    unit quaternion, body -> earth
-    P+ = (x, y, z)           earth-axis position n / U
-
-and with J+ = [[Ix+, 0, -Ixz+], [0, Iy+, 0], [-Ixz+, 0, Iz+]] and R = R(e) (body -> earth):
-
-    dV+/dt+ = a_aero(V+, w+, c) - w+ x V+ + g+ (R^T e_z - e_z)
-    dw+/dt+ = J+^-1 M_aero(V+, w+, c) - J+^-1 (w+ x J+ w+)
-    de/dt+  = e (x) (0, w+) / 2
-    dP+/dt+ = R V+
-
-where a_aero = the rows (v, u, w) of the linear models' A and B without their gravity column,
-and J+^-1 M_aero = their rows (p, r, q), as those rows are (Eqs. 2-3, 10-11; Sect. 3.5).
+Axes (body axes at the centre of mass, x forward, y right, z down; earth axes north-east-down),
+the non-dimensional 13-value state (V+ = (u, v, w), omega+ = (p, q, r), the unit quaternion e
+body -> earth, the earth-axis position P+) and the equations: fmu_hover6dof/README.md,
+"Equations"; in code they are :data:`_RHS`, line by line, with a_aero = the rows (v, u, w) of
+the linear models' A and B without their gravity column and J+^-1 M_aero = their rows (p, r, q).
 Linearised about hover this is exactly the two linear models (tests check the Jacobian).
 
-Integration: Butcher's Runge-Kutta method of order 6 (7 stages) on sub-steps of at most
-:data:`MAX_SUBSTEP_WB` wing beats (fewer where the body rotates fast), the quaternion
-normalised after each step. Order 6 rather than the classical order 4: at the same cost per
-communication step of 0.1 wing beat it is some 300 times more accurate (the classical
-method on 0.05 wing beats missed 1e-9 relative at twice the Sect. 3.6 box: 1.8e-8). Sub-steps
-of 0.2 wing beat keep 1e-9 relative with a margin of 4 (2.4e-10 at the box corner) at 0.65
-times the cost of 0.1.
-Pure Python arithmetic: the right-hand side costs about as much as one small numpy call.
+Integration: Butcher's Runge-Kutta method of order 6 (7 stages, :data:`_STAGES`) on sub-steps
+of at most :data:`MAX_SUBSTEP_WB` wing beats (shorter where the body turns fast), compiled with
+the right-hand side into straight-line Python (:func:`_make_functions`); the quaternion is
+normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost: the README and
+docs/benchmarks.md.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
+from operator import mul
 from typing import Callable, Sequence
 
 from ..errors import DroneflyError
@@ -58,8 +43,7 @@ __all__ = ["MAX_SUBSTEP_WB", "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF", "Hover6DOF
            "STATE_SIZE", "TERMS", "euler_from_quaternion", "gamma_from_quaternion",
            "initial_state", "outputs", "quaternion_from_euler"]
 
-#: largest Runge-Kutta sub-step, wing beats (global error ~3e-11 relative over 15 wing beats
-#: from twice the Sect. 3.6 box; tests/test_hover6dof.py)
+#: largest Runge-Kutta sub-step, wing beats (the accuracy this gives: tests/test_hover6dof.py)
 MAX_SUBSTEP_WB = 0.2
 #: largest rotation of the body per sub-step, rad (sub-steps shrink when it rotates faster
 #: than 0.5 rad per wing beat, the fastest rate of the linear dynamics)
@@ -109,55 +93,92 @@ def _aero_rows(A: object, B: object, rows: Sequence[int], gravity_column: int) -
     return a, b
 
 
-def _make_rhs(la: tuple, na: tuple, J: tuple, g: float,
-              terms: frozenset) -> Callable[[Sequence[float], Sequence[float], Sequence[float]],
-                                            list[float]]:
-    """dx/dt+ as a closure over the coefficients (local lookups: the hot loop of a step)."""
-    (l00, l01, l02), (l10, l11, l12), (l20, l21, l22) = la
-    (n00, n01, n02), (n10, n11, n12), (n20, n21, n22) = na
-    Ix, Iy, Iz, Ixz, det = J
-    gravity, transport, gyroscopic = ("gravity" in terms, "transport" in terms,
-                                      "gyroscopic" in terms)
-    asin = math.asin
+#: dx/dt+ of the state (u, v, w, p, q, r, e0, e1, e2, e3) as statements assigning a_u .. a_r and
+#: d6 .. d12; the lines tagged [term] are kept with that term, [-term] without it
+_RHS = """\
+a_v = l00 * v + l01 * p + l02 * r + bl0
+a_p = l10 * v + l11 * p + l12 * r + bl1
+a_r = l20 * v + l21 * p + l22 * r + bl2
+a_u = n00 * u + n01 * w + n02 * q + bn0
+a_w = n10 * u + n11 * w + n12 * q + bn1
+a_q = n20 * u + n21 * w + n22 * q + bn2
+R20 = 2.0 * (e1 * e3 - e0 * e2)
+R21 = 2.0 * (e2 * e3 + e0 * e1)
+R22 = 1.0 - 2.0 * (e1 * e1 + e2 * e2)
+a_u += g * R20  [gravity] g (R^T e_z - e_z): the third row of R
+a_v += g * R21  [gravity]
+a_w += g * (R22 - 1.0)  [gravity]
+a_u -= g * asin(max(-1.0, min(1.0, -R20)))  [-gravity] linear: g (-theta, gamma, 0)
+a_v += g * asin(max(-1.0, min(1.0, R21)))  [-gravity]
+a_u -= q * w - r * v  [transport] - omega x V
+a_v -= r * u - p * w  [transport]
+a_w -= p * v - q * u  [transport]
+hx, hy, hz = Ix * p - Ixz * r, Iy * q, Iz * r - Ixz * p  [gyroscopic] - J^-1 (omega x J omega)
+cx, cy, cz = q * hz - r * hy, r * hx - p * hz, p * hy - q * hx  [gyroscopic]
+a_p -= (Iz * cx + Ixz * cz) / det  [gyroscopic]
+a_q -= cy / Iy  [gyroscopic]
+a_r -= (Ixz * cx + Ix * cz) / det  [gyroscopic]
+d6 = 0.5 * (-e1 * p - e2 * q - e3 * r)
+d7 = 0.5 * (e0 * p + e2 * r - e3 * q)
+d8 = 0.5 * (e0 * q - e1 * r + e3 * p)
+d9 = 0.5 * (e0 * r + e1 * q - e2 * p)
+d10 = (1.0 - 2.0 * (e2 * e2 + e3 * e3)) * u + 2.0 * (e1 * e2 - e0 * e3) * v \\
++ 2.0 * (e1 * e3 + e0 * e2) * w
+d11 = 2.0 * (e1 * e2 + e0 * e3) * u + (1.0 - 2.0 * (e1 * e1 + e3 * e3)) * v \\
++ 2.0 * (e2 * e3 - e0 * e1) * w
+d12 = R20 * u + R21 * v + R22 * w
+"""
+_STATE, _OUT = ("u", "v", "w", "p", "q", "r", "e0", "e1", "e2", "e3"), (
+    "a_u", "a_v", "a_w", "a_p", "a_q", "a_r", *(f"d{j}" for j in range(6, 13)))
+#: Butcher's (1964) order 6, c = 0, 1/3, 2/3, 1/3, 1/2, 1/2, 1: each stage's input (y the start
+#: of the sub-step, K<s> the derivative of stage s), then the sub-step's result
+_STAGES = ("y", "y + h3 * K1", "y + 2.0 * h3 * K2", "y + h12 * (K1 - K3) + h3 * K2",
+           "y + h16 * (18.0 * K2 - K1 - 3.0 * K3 - 6.0 * K4)",
+           "y + h8 * (9.0 * K2 - 3.0 * K3 - 6.0 * K4 + 4.0 * K5)",
+           "y + h44 * (9.0 * K1 - 36.0 * K2 + 63.0 * K3 + 72.0 * K4 - 64.0 * K6)")
+_RESULT = "y + h120 * (11.0 * (K1 + K7) + 81.0 * (K3 + K4) - 32.0 * (K5 + K6))"
 
-    def rhs(x: Sequence[float], bl: Sequence[float], bn: Sequence[float]) -> list[float]:
-        u, v, w, p, q, r, e0, e1, e2, e3 = x[:10]
-        a_v = l00 * v + l01 * p + l02 * r + bl[0]
-        a_p = l10 * v + l11 * p + l12 * r + bl[1]
-        a_r = l20 * v + l21 * p + l22 * r + bl[2]
-        a_u = n00 * u + n01 * w + n02 * q + bn[0]
-        a_w = n10 * u + n11 * w + n12 * q + bn[1]
-        a_q = n20 * u + n21 * w + n22 * q + bn[2]
-        R20 = 2.0 * (e1 * e3 - e0 * e2)
-        R21 = 2.0 * (e2 * e3 + e0 * e1)
-        R22 = 1.0 - 2.0 * (e1 * e1 + e2 * e2)
-        if gravity:  # g (R^T e_z - e_z): the third row of R
-            a_u += g * R20
-            a_v += g * R21
-            a_w += g * (R22 - 1.0)
-        else:  # linear in the attitude angles, as in the linear models: g (-theta, gamma, 0)
-            a_u -= g * asin(max(-1.0, min(1.0, -R20)))
-            a_v += g * asin(max(-1.0, min(1.0, R21)))
-        if transport:  # - omega x V
-            a_u -= q * w - r * v
-            a_v -= r * u - p * w
-            a_w -= p * v - q * u
-        if gyroscopic:  # - J^-1 (omega x J omega)
-            hx, hy, hz = Ix * p - Ixz * r, Iy * q, Iz * r - Ixz * p
-            cx, cy, cz = q * hz - r * hy, r * hx - p * hz, p * hy - q * hx
-            a_p -= (Iz * cx + Ixz * cz) / det
-            a_q -= cy / Iy
-            a_r -= (Ixz * cx + Ix * cz) / det
-        return [a_u, a_v, a_w, a_p, a_q, a_r,
-                0.5 * (-e1 * p - e2 * q - e3 * r), 0.5 * (e0 * p + e2 * r - e3 * q),
-                0.5 * (e0 * q - e1 * r + e3 * p), 0.5 * (e0 * r + e1 * q - e2 * p),
-                (1.0 - 2.0 * (e2 * e2 + e3 * e3)) * u + 2.0 * (e1 * e2 - e0 * e3) * v
-                + 2.0 * (e1 * e3 + e0 * e2) * w,
-                2.0 * (e1 * e2 + e0 * e3) * u + (1.0 - 2.0 * (e1 * e1 + e3 * e3)) * v
-                + 2.0 * (e2 * e3 - e0 * e1) * w,
-                R20 * u + R21 * v + R22 * w]
 
-    return rhs
+def _rhs_source(terms: frozenset, out: str, indent: str) -> list[str]:
+    """The statements of :data:`_RHS` for ``terms``, writing the 13 derivatives to ``out``."""
+    lines = []
+    for line in _RHS.replace("\\\n", "").splitlines():
+        code, _, tag = line.partition("  [")
+        term = tag.split("]")[0]
+        if not term or (term.lstrip("-") in terms) != term.startswith("-"):
+            lines.append(indent + code)
+    return lines + [f"{indent}{out.format(j)} = {name}" for j, name in enumerate(_OUT)]
+
+
+def _value(formula: str, j: int) -> str:
+    """``formula`` (of :data:`_STAGES`) for state value j: y -> y<j>, K<s> -> k<s>_<j>."""
+    return re.sub(r"K(\d)", rf"k\g<1>_{j}", formula.replace("y", f"y{j}"))
+
+
+def _make_functions(la: tuple, na: tuple, J: tuple, g: float, terms: frozenset) -> tuple:
+    """``(rhs(x, bl, bn) -> dx/dt+, substeps(y, n, h, bl, bn) -> y after n sub-steps of h)``
+    compiled from :data:`_RHS` and :data:`_STAGES` into straight-line arithmetic on locals (no
+    lists and no calls inside a sub-step; every value computed by the same operations in the
+    same order as by the former loop over lists, so bit-identical to it, at about half its
+    cost). The coefficients are closure variables (exact floats, never printed as text)."""
+    names = [f"{a}{i}{j}" for a in "ln" for i in range(3) for j in range(3)]
+    values = [c for rows in (la, na) for row in rows for c in row]
+    head = ["        bl0, bl1, bl2 = bl", "        bn0, bn1, bn2 = bn"]
+    src = [f"def bind({', '.join(names)}, Ix, Iy, Iz, Ixz, det, g, asin):",
+           "    def rhs(x, bl, bn):", *head, f"        {', '.join(_STATE)} = x[:10]",
+           *_rhs_source(terms, "x{}", "        "),
+           f"        return [{', '.join(f'x{j}' for j in range(13))}]",
+           "    def substeps(y, n, h, bl, bn):", *head,
+           "        h3, h8, h12, h16, h44, h120 = h / 3, h / 8, h / 12, h / 16, h / 44, h / 120",
+           f"        {', '.join(f'y{j}' for j in range(13))}, = y", "        for _ in range(n):"]
+    for s, stage in enumerate(_STAGES, start=1):  # the positions (10-12) never enter the rhs
+        src += [f"            {name} = {_value(stage, j)}" for j, name in enumerate(_STATE)]
+        src += _rhs_source(terms, f"k{s}_{{}}", "            ")
+    src += [f"            y{j} = {_value(_RESULT, j)}" for j in range(13)]
+    src += [f"        return [{', '.join(f'y{j}' for j in range(13))}]", "    return rhs, substeps"]
+    namespace: dict[str, Callable[..., tuple]] = {}  # as dronefly.linear's products
+    exec(compile("\n".join(src) + "\n", "<dronefly.plant_6dof equations>", "exec"), namespace)
+    return namespace["bind"](*values, *J, g, math.asin)
 
 
 @dataclass(frozen=True)
@@ -193,8 +214,9 @@ class Hover6DOF:
         object.__setattr__(self, "_lon", _aero_rows(A, B, (0, 1, 2), 3))
         det = lp.Ix_plus * lp.Iz_plus - lp.Ixz_plus ** 2
         J = (lp.Ix_plus, np_.Iy_plus, lp.Iz_plus, lp.Ixz_plus, det)
-        object.__setattr__(self, "_rhs", _make_rhs(self._lat[0], self._lon[0], J, lp.g_plus,
-                                                   frozenset(self.terms)))
+        for name, f in zip(("_rhs", "_substeps"), _make_functions(
+                self._lat[0], self._lon[0], J, lp.g_plus, frozenset(self.terms))):
+            object.__setattr__(self, name, f)
 
     # -- the equations -------------------------------------------------------------------
     def derivative(self, x: Sequence[float], c_lat: Sequence[float],
@@ -217,8 +239,8 @@ class Hover6DOF:
         if not (math.isfinite(h_wb) and h_wb > 0.0):
             raise Hover6DOFError(f"step = {h_wb!r} wing beats must be finite and > 0")
         (_, lb), (_, nb) = self._lat, self._lon
-        bl = [sum(k * c for k, c in zip(row, c_lat)) for row in lb]
-        bn = [sum(k * c for k, c in zip(row, c_lon)) for row in nb]
+        bl = [sum(map(mul, row, c_lat)) for row in lb]
+        bn = [sum(map(mul, row, c_lon)) for row in nb]
         rate = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5])
         hmax = min(MAX_SUBSTEP_WB, MAX_TURN_PER_SUBSTEP_RAD / rate) if rate > 0 else MAX_SUBSTEP_WB
         n = max(1, math.ceil(h_wb / hmax - 1e-9))
@@ -226,24 +248,10 @@ class Hover6DOF:
             raise Hover6DOFError(f"a step of {h_wb!r} wing beats at a rate of {rate!r} rad per "
                                  f"wing beat needs {n} sub-steps; take shorter steps")
         h = h_wb / n
-        h3, h8, h12, h16, h44, h120 = h / 3, h / 8, h / 12, h / 16, h / 44, h / 120
-        f = self._rhs
-        y = list(x)
-        for _ in range(n):  # Butcher (1964): c = 0, 1/3, 2/3, 1/3, 1/2, 1/2, 1
-            k1 = f(y, bl, bn)
-            k2 = f([a + h3 * b for a, b in zip(y, k1)], bl, bn)
-            k3 = f([a + 2.0 * h3 * c for a, c in zip(y, k2)], bl, bn)
-            k4 = f([a + h12 * (b - d) + h3 * c for a, b, c, d in zip(y, k1, k2, k3)], bl, bn)
-            k5 = f([a + h16 * (18.0 * c - b - 3.0 * d - 6.0 * e)
-                    for a, b, c, d, e in zip(y, k1, k2, k3, k4)], bl, bn)
-            k6 = f([a + h8 * (9.0 * c - 3.0 * d - 6.0 * e + 4.0 * g)
-                    for a, c, d, e, g in zip(y, k2, k3, k4, k5)], bl, bn)
-            k7 = f([a + h44 * (9.0 * b - 36.0 * c + 63.0 * d + 72.0 * e - 64.0 * g)
-                    for a, b, c, d, e, g in zip(y, k1, k2, k3, k4, k6)], bl, bn)
-            y = [a + h120 * (11.0 * (b + k) + 81.0 * (d + e) - 32.0 * (g + j))
-                 for a, b, d, e, g, j, k in zip(y, k1, k3, k4, k5, k6, k7)]
+        y = self._substeps(x, n, h, bl, bn)  # Butcher's order 6 (see _STAGES)
         norm = math.sqrt(sum(c * c for c in y[6:10]))
-        if not all(math.isfinite(a) for a in y) or not norm > 0.0:
+        finite = math.isfinite(sum(y)) or all(math.isfinite(a) for a in y)  # the sum: faster
+        if not finite or not norm > 0.0:
             raise Hover6DOFError(f"the state is not finite after a step of {h_wb!r} wing beats "
                                  f"(from u, v, w, p, q, r = {list(x[:6])!r})")
         y[6:10] = [c / norm for c in y[6:10]]

@@ -3,14 +3,15 @@
 Every FMU of the project as an FMI 3.0 Co-Simulation FMU: fmpy validate clean; arrays, the
 independent variable, units and dependencies in the model description; the slave's FMI 3.0
 answers (statuses, arrays, states); co-simulation through fmpy's FMU3Slave equal to FMI 2.0
-(pairs and the hover system, FMI 3.0 only and mixed); dronefly check on FMI 3.0 FMUs, and a
-broken one failing it.
+(pairs, the closed-loop SSP and the hover system, FMI 3.0 only and mixed); dronefly check on
+every FMI 3.0 FMU, and broken ones (one defect per FMI 3.0 check, and a crash) failing it.
 """
 
 from __future__ import annotations
 
 import math
 import zipfile
+from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import numpy as np
@@ -111,7 +112,24 @@ def _array_of(name):
     return name.split("[")[0]
 
 
-@pytest.mark.parametrize("name", ["DroneFlyLateral", "StateFeedback"])
+#: the arrays of each FMU: (states x states) A, (states x controls) B, (controls x states) gains
+#: K and KI; lateral 4 states (v, p, r, gamma) and 3 controls (Phi_a, alpha_1a, alpha_2a),
+#: longitudinal 4 (u, w, q, theta) and 4 (Phi, alpha_1, phibar, alpha_2); the 6-DOF plant has
+#: no matrices
+ARRAYS = {"DroneFlyLateral": {"A": [4, 4], "B": [4, 3]},
+          "DroneFlyLongitudinal": {"A": [4, 4], "B": [4, 4]},
+          "StateFeedback": {"K": [3, 4], "KI": [3, 4]},
+          "StateFeedbackDelayed": {"K": [3, 4], "KI": [3, 4]},
+          "StateFeedbackLongitudinal": {"K": [4, 4], "KI": [4, 4]},
+          "StateFeedbackLongitudinalDelayed": {"K": [4, 4], "KI": [4, 4]},
+          "DroneFlyHover6DOF": {}}
+
+
+def test_arrays_cover_every_fmu():
+    assert set(ARRAYS) == set(FMUS)
+
+
+@pytest.mark.parametrize("name", list(ARRAYS))
 def test_model_description_arrays_units_dependencies(built_fmus, built_fmus3, name):
     md2, md3 = _md(built_fmus[name]), _md(built_fmus3[name])
     vars3 = list(md3.find("ModelVariables"))
@@ -124,8 +142,7 @@ def test_model_description_arrays_units_dependencies(built_fmus, built_fmus3, na
         if "[" in sv.get("name"):
             m, ij = sv.get("name")[:-1].split("[")
             grids[m] = [max(a, int(b)) for a, b in zip(grids.get(m, [0, 0]), ij.split(","))]
-    assert arrays == grids and ({"A", "B"} if name == "DroneFlyLateral" else {"K"}) <= set(arrays)
-    assert arrays.get("K", [3, 4]) == [3, 4] and arrays.get("A", [4, 4]) == [4, 4]
+    assert arrays == grids == ARRAYS[name]
     assert all(v.tag == "Float64" and v.get("unit") for v in vars3 if v.get("name") in arrays)
     units2 = {sv.get("name"): (sv[0].get("unit"), sv[0].get("displayUnit")) for sv in
               md2.find("ModelVariables") if "[" not in sv.get("name")}
@@ -218,39 +235,97 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     assert np.max(np.abs(runs[1].signals - ref.run.signals[:601])) > 1e-3
 
 
-def test_check_passes_on_fmi3(built_fmus3):
+@pytest.mark.parametrize("name", list(FMUS))
+def test_check_passes_on_fmi3(built_fmus3, name):
+    """dronefly check passes on every FMI 3.0 FMU (in this process, about 0.3 s each;
+    StateFeedback in its child process, as the CLI runs it, about 1 s)."""
     from dronefly.harness.compliance.suite import check_fmu
 
-    report = check_fmu(built_fmus3["StateFeedback"], fuzz=True)
+    report = check_fmu(built_fmus3[name], fuzz=True, isolate=name == "StateFeedback")
     assert report.passed, report.checks
     names = [c.name for c in report.checks]
     assert {"state-machine", "discard", "state-refusal", "reference"} <= set(names)
 
 
-def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, monkeypatch, capsys):
-    """An FMI 3.0 FMU whose doStep raises: pythonfmu3 answers fmi3Fatal and frees the Python
-    instance while keeping its pointer, so the next call (fmi3Terminate) crashes the host;
-    the check runs in a child process and reports it."""
+def _broken_build(tmp_path, rel, old, new, name="StateFeedback"):
+    """An FMI 3.0 FMU of ``name`` built with ``old`` replaced by ``new`` in its copy of the
+    dronefly module ``rel`` (nothing else changed)."""
     import dronefly.build as build
-    from dronefly.cli import main
 
     original = build._source_path
 
-    def patched(rel):
-        path = original(rel)
-        if rel == "fmi/fmi3.py":
+    def patched(path_rel):
+        path = original(path_rel)
+        if path_rel == rel:
             text = path.read_text()
-            bad = text.replace("        return _RESULTS[do_step_status(self, current_time, "
-                               "step_size)]", "        raise RuntimeError('broken doStep')")
-            assert bad != text
-            path = tmp_path / "fmi3.py"
-            path.write_text(bad)
+            assert old in text, f"{old!r} not in {rel}"
+            path = tmp_path / Path(rel).name
+            path.write_text(text.replace(old, new))
         return path
 
-    monkeypatch.setattr(build, "_source_path", patched)
-    fmu = build.build_fmu("DroneFlyLateral", tmp_path / "bad", fmi=3)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(build, "_source_path", patched)
+        return build.build_fmu(name, tmp_path / "fmu", fmi=3)
+
+
+#: a defect per FMI 3.0 check: (module, original text, broken text, the failed checks and
+#: the start of each one's report line)
+BROKEN3 = {
+    # illegal calls (doStep before initialization, after a refused set) answered Discard
+    "illegal-discard": ("fmi/fmi3.py", "ILLEGAL_STATUS: ClassVar[Fmi2Status] = Fmi2Status.error",
+                        "ILLEGAL_STATUS: ClassVar[Fmi2Status] = Fmi2Status.discard",
+                        {"state-machine": "fmi3DoStep before initialization: status 2, "
+                                          "expected 3"}),
+    # a step refused for a bad value (NaN input) answered OK
+    "bad-value-ok": ("fmi/fmi3.py", "_RESULTS = {s: _StepResult(s) for s in (0, 1, 2, 3)}",
+                     "_RESULTS = {s: _StepResult(0 if s == 2 else s) for s in (0, 1, 2, 3)}",
+                     {"bad-input": "delta_v = nan: doStep returned OK",
+                      "discard": "a NaN input: status 0, expected 2"}),
+    # corrupt state bytes taken without a refusal: fmi3SetFMUState says OK, logs nothing
+    "state-taken": ("fmi/state.py", """            self._report(f"{self.FMI}Set{self.STATE_API} refused, the instance is unchanged: "
+                         f"{why}", Fmi2Status.error)
+            return""", "            return",
+                    {"state-refusal": "corrupt state not refused in the log"}),
+}
+
+
+@pytest.fixture(scope="module")
+def broken3(tmp_path_factory):
+    """The FMUs of BROKEN3, each built once."""
+    return {k: _broken_build(tmp_path_factory.mktemp(k), *v[:3]) for k, v in BROKEN3.items()}
+
+
+@pytest.mark.parametrize("defect", list(BROKEN3))
+def test_check_names_the_failed_fmi3_check(broken3, defect):
+    """Each defect fails exactly the checks that test for it, with a report line naming the
+    check and what was wrong; every other check passes (the checks are specific)."""
+    from dronefly.harness.compliance.suite import check_fmu, format_reports
+
+    report = check_fmu(broken3[defect], fuzz=False, isolate=False)
+    failed = {c.name: c.detail for c in report.checks if not c.passed}
+    expected = BROKEN3[defect][3]
+    assert set(failed) == set(expected), failed
+    text = format_reports([report])
+    for name, detail in expected.items():
+        assert failed[name].startswith(detail)
+        assert f"[FAIL] {name:<14} {detail}" in text
+    assert text.splitlines()[0].endswith(": FAIL") and "0 of 1 FMUs passed" in text
+
+
+def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
+    """An FMI 3.0 FMU whose doStep raises: pythonfmu3 answers fmi3Fatal and frees the Python
+    instance while keeping its pointer, so the next call (fmi3Terminate) crashes the host;
+    the check runs in a child process and reports it, and lists the checks left out."""
+    from dronefly.cli import main
+
+    fmu = _broken_build(tmp_path, "fmi/fmi3.py", "        return _RESULTS[do_step_status(self, "
+                        "current_time, step_size)]", "        raise RuntimeError('broken doStep')",
+                        name="DroneFlyLateral")
     assert main(["check", "--no-fuzz", str(fmu)]) == 1
     out = capsys.readouterr().out
     assert "FAIL" in out and "0 of 1 FMUs passed" in out
     assert "[  ok] validate" in out
     assert "[FAIL] call-sequence  the checking process died (killed by SIGSEGV)" in out
+    assert ("[FAIL] not run        reset, two-instances, state, bad-input, reference, "
+            "state-machine, discard, state-refusal (the checking process died in "
+            "call-sequence)") in out

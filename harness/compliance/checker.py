@@ -35,7 +35,7 @@ import numpy as np
 
 from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
 
-__all__ = ["CheckResult", "FMUReport", "run_checks"]
+__all__ = ["CHECK_NAMES", "CheckResult", "FMUReport", "run_checks"]
 
 
 @dataclass(frozen=True)
@@ -267,6 +267,7 @@ _CHECKS: list[tuple[str, Callable[[FMU], str]]] = [
     ("bad-input", _check_bad_input),
     ("reference", _check_reference),
 ]
+CHECK_NAMES = tuple(name for name, _ in _CHECKS)  # in order; FMI 3.0 adds fmi3checks' too
 
 
 def run_checks(path: Path, progress: Callable[[dict], None] | None = None) -> FMUReport:

@@ -14,7 +14,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from dronefly.harness.compliance.checker import CheckResult, FMUReport, run_checks
+from dronefly.harness.compliance.checker import CHECK_NAMES, CheckResult, FMUReport, run_checks
 
 __all__ = ["check_fmu", "format_reports"]
 
@@ -81,7 +81,20 @@ def _check_isolated(path: Path, timeout_s: float = 600.0) -> FMUReport:
     if died is not None:
         report.checks.append(CheckResult(current or "process exit", False,
                                          f"the checking process died ({died})"))
+        report.checks += _not_run(path, report, current)
     return report
+
+
+def _not_run(path: Path, report: FMUReport, crashed: str | None) -> list[CheckResult]:
+    """One failed row listing the checks a crash left out (none if it left none out)."""
+    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS
+
+    names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS if _fmi_version(path) == "3.0")]
+    done = {c.name for c in report.checks}
+    rest = [n for n in names if n not in done]
+    where = f"in {crashed}" if crashed else "between checks"
+    return [CheckResult("not run", False, f"{', '.join(rest)} (the checking process died "
+                                          f"{where})")] if rest else []
 
 
 def _child(path: str, rows: str) -> None:

@@ -11,10 +11,11 @@ communication point t is the control of the latest sample with t_k + sensing_del
 (times compared to 1e-9 of the communication step, :data:`TOLERANCE`).
 
 FMI co-simulation holds the inputs over a communication step (``canInterpolateInputs`` is
-false), so a sample instant inside [t, t + h) sees exactly the input set at t: every delay and
-period can be honoured at every step size, none is refused for not being a whole number of
-steps. All instants of one step see the same input, so the delay line keeps one entry per step
-at most (the first instant in it), and none when the value equals the previous one.
+false): a sample instant inside [t, t + h) sees the input set at t (exact for what the importer
+supplied), and an effect inside a step is visible from the next communication point on. None is
+refused; :attr:`Sensor.off_grid` records the first such instant, for the FMU's warning. All
+instants of one step see the same input: one line entry per step, its instants counting one by
+one for the integral term as they take effect (:attr:`Sensor.tail`).
 
 :class:`Sensor` holds the delay line, the sample in effect and the integral state
 z = integral of x+_s dt+ (t+ = t n) of the sensed non-dimensional state x+_s, exact for the
@@ -23,8 +24,7 @@ The control is computed when a sample takes effect and held until the next one d
 integral term uses z at that instant: u = K x+_s + KI z(t_e), t_e the instant the held sample
 took effect (every sample instant counts, also one whose value repeats the previous).
 z integrates while integral action is on (any integral gain non-zero) and holds its value
-while it is off: from z = 0 at t_start when the gains are set before the run starts, and
-with no cost and no effect (no overflow either) when all integral gains are 0.
+while it is off (from z = 0 at t_start if the gains are set before the run starts).
 
 Pure Python (shipped inside the controller FMUs); imports only :mod:`.timing`.
 """
@@ -54,8 +54,12 @@ class Sensor:
 
     Attributes
     ----------
-    line : deque of (float, tuple)
-        Samples taken and not yet in effect, oldest first: (instant [s], dimensional state).
+    line : deque of (float, tuple, float, float)
+        Samples taken and not yet in effect, oldest first: (first instant [s], dimensional
+        state, last instant [s], period [s]), the instants of one communication step.
+    tail : tuple or None
+        (first instant [s], index of the next, index of the last, period [s]) of the instants
+        of the sample in effect that have not taken effect yet (None: none left).
     held : tuple
         The dimensional sample in effect (zeros: the equilibrium).
     z0, t_base : tuple, float
@@ -70,10 +74,13 @@ class Sensor:
         The last communication step [s] (0 before the first).
     t_effect : float
         The instant [s] the sample in effect took effect (``t0`` before the first).
+    off_grid : tuple or None or False
+        None until a sample or effect instant falls strictly inside a communication step, then
+        (what, instant [s], step start [s], step [s]) until reported; False once reported.
     """
 
     __slots__ = ("t0", "line", "held", "z0", "t_base", "x_plus", "scale", "n", "integrating",
-                 "last_k", "last_period", "h", "t_effect")
+                 "last_k", "last_period", "h", "t_effect", "tail", "off_grid")
 
     def __init__(self, size: int, t0: float = 0.0) -> None:
         zero = (0.0,) * size
@@ -88,6 +95,8 @@ class Sensor:
         self.last_period = 0.0
         self.h = 0.0
         self.t_effect = self.t0
+        self.tail: tuple[float, int, int, float] | None = None
+        self.off_grid: tuple[str, float, float, float] | None | bool = None
 
     def integral(self, t: float) -> State:
         """z(t) [non-dimensional] for t >= t_base (exact for the held sample)."""
@@ -110,27 +119,37 @@ class Sensor:
         self.z0, self.t_base, self.held, self.scale, self.n = z, t, x, scale, n
         self.x_plus = tuple(v / s for v, s in zip(x, scale))
 
-    def _instant(self, t: float, end: float, tol: float, period: float) -> float | None:
-        """The first sample instant in [t, end) [s] not taken yet (None: there is none)."""
+    def _take(self, t: float, h: float, tol: float, period: float, x: State,
+              timing: Timing) -> None:
+        """Append the sample of ``x`` if a sample instant in [t, t + h) [s] is not taken yet:
+        (first instant, x, last instant, period) of the instants in the step."""
+        ts = last = t
+        end = t + h
         if period <= tol:  # every communication point (or finer than the step resolves)
             self.last_k = None
-            return t
-        try:
-            k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end: before end
-            if self.last_k is None or self.last_period != period:
-                k = math.ceil((t - tol - self.t0) / period)
-            else:  # the next one on the grid, unless it lies before this step (by more than
-                # the tolerance of the previous step, which decided that it was not in it)
-                wide = TOLERANCE * max(self.h, end - t)
-                k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
-            if k >= k_end:
-                return None
-            ts = self.t0 + k * period
-        except (OverflowError, ValueError):  # an instant index beyond float range
-            self.last_k = None
-            return t
-        self.last_k, self.last_period = k_end - 1, period
-        return ts
+        else:
+            try:
+                k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end
+                if self.last_k is None or self.last_period != period:
+                    k = math.ceil((t - tol - self.t0) / period)
+                else:  # the next one on the grid, unless it lies before this step (by more
+                    # than the tolerance of the previous step, which decided it was not in it)
+                    wide = TOLERANCE * max(self.h, h)
+                    k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
+                if k >= k_end:
+                    return
+                ts = last = self.t0 + k * period
+                self.last_k, self.last_period = k_end - 1, period
+                if ts > t + tol or k_end - 1 > k:  # an instant strictly inside the step
+                    last = self.t0 + (k_end - 1) * period
+                    if self.off_grid is None:
+                        self.off_grid = ("sample instant", ts if ts > t + tol else ts + period,
+                                         t, h)
+            except (OverflowError, ValueError):  # an instant index beyond float range
+                self.last_k, ts, last = None, t, t
+        if len(self.line) >= MAX_SAMPLES:
+            raise SensingError(timing.too_long(h))
+        self.line.append((ts, x, last, period))
 
     def advance(self, t: float, h: float, x: State, scale: State, n: float,
                 timing: Timing, integrate: bool) -> tuple[Any, ...]:
@@ -146,10 +165,10 @@ class Sensor:
             The delay line would exceed :data:`MAX_SAMPLES`, or the integral overflows.
         """
         line = self.line
-        popped: list[tuple[float, State]] = []
+        popped: list[tuple[float, State, float, float]] = []
         token = (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n,
                  self.integrating, self.last_k, self.last_period, self.h, self.t_effect,
-                 len(line), popped)
+                 self.tail, self.off_grid, len(line), popped)
         try:
             tol, end = TOLERANCE * h, t + h
             if integrate != self.integrating:  # integral action switched on or off at t
@@ -164,32 +183,49 @@ class Sensor:
             if not line and d <= tol and period <= tol:  # the sample at t takes effect at t
                 if x != self.held:
                     self._switch(t, x, scale, n)
-                self.last_k, self.h, self.t_effect = None, h, t
+                self.last_k, self.h, self.t_effect, self.tail = None, h, t, None
                 return token
-            ts = self._instant(t, end, tol, period)
-            if ts is not None:  # also a repeated value: its instant updates the control
-                if len(line) >= MAX_SAMPLES:
-                    raise SensingError(timing.too_long(h))
-                line.append((ts, x))
-            while line:
-                e = line[0][0] + d
+            self._take(t, h, tol, period, x, timing)  # (also a repeated value: its
+            while line:  # instant updates the control)
+                entry = line[0]
+                e = entry[0] + d
                 if e > end + tol:
                     break
-                e = t if e < t + tol else end if e > end - tol else e
+                if e < t + tol:
+                    e = t
+                elif e > end - tol:
+                    e = end
+                elif self.off_grid is None:  # an effect strictly inside the step
+                    self.off_grid = ("effect instant", e, t, h)
                 popped.append(line.popleft())
-                if popped[-1][1] != self.held:  # a repeated value leaves z's base as it is
-                    self._switch(e, popped[-1][1], scale, n)
+                if entry[1] != self.held:  # a repeated value leaves z's base as it is
+                    self._switch(e, entry[1], scale, n)
                 self.t_effect = e
+                if entry[2] != entry[0] or self.tail is not None:
+                    self.tail = (entry[0], 1, round((entry[2] - entry[0]) / entry[3]),
+                                 entry[3]) if entry[2] > entry[0] else None
+            if self.tail is not None:  # later instants of the sample in effect
+                self._tail(d, t, end, tol)
             self.h = h
         except BaseException:
             self.undo(token)
             raise
         return token
 
+    def _tail(self, d: float, t: float, end: float, tol: float) -> None:
+        """Put into effect the instants of the sample in effect due by ``end`` [s]."""
+        first, i, last, period = self.tail  # type: ignore[misc]
+        j = min(last, math.floor((end + tol - d - first) / period))
+        if j >= i:
+            e = first + j * period + d
+            self.t_effect = t if e < t + tol else end if e > end - tol else e
+            self.tail = (first, j + 1, last, period) if j < last else None
+
     def undo(self, token: tuple[Any, ...]) -> None:
         """Return to the state before the :meth:`advance` that gave ``token``."""
         (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n, self.integrating,
-         self.last_k, self.last_period, self.h, self.t_effect, length, popped) = token
+         self.last_k, self.last_period, self.h, self.t_effect, self.tail, self.off_grid,
+         length, popped) = token
         for item in reversed(popped):
             self.line.appendleft(item)
         while len(self.line) > length:
@@ -227,11 +263,12 @@ class Sensor:
     # -- FMU state ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Everything, JSON-ready (floats exact)."""
-        return {"t0": self.t0, "line": [[ts, list(x)] for ts, x in self.line],
+        return {"t0": self.t0, "line": [[ts, list(x), last, p] for ts, x, last, p in self.line],
                 "held": list(self.held), "z0": list(self.z0), "t_base": self.t_base,
                 "x_plus": list(self.x_plus), "scale": list(self.scale), "n": self.n,
                 "integrating": self.integrating, "last_k": self.last_k,
-                "last_period": self.last_period, "h": self.h, "t_effect": self.t_effect}
+                "last_period": self.last_period, "h": self.h, "t_effect": self.t_effect,
+                "tail": None if self.tail is None else list(self.tail)}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], size: int) -> "Sensor":
@@ -246,7 +283,7 @@ class Sensor:
         if len(d["line"]) > MAX_SAMPLES:
             raise ValueError(f"the delay line holds {len(d['line'])} samples, more than "
                              f"{MAX_SAMPLES}")
-        s.line.extend((float(ts), vec(x)) for ts, x in d["line"])
+        s.line.extend((float(ts), vec(x), float(last), float(p)) for ts, x, last, p in d["line"])
         s.held, s.z0, s.x_plus = vec(d["held"]), vec(d["z0"]), vec(d["x_plus"])
         s.scale = vec(d["scale"], None)
         s.t_base, s.n, s.h = float(d["t_base"]), float(d["n"]), float(d["h"])
@@ -254,4 +291,7 @@ class Sensor:
         s.last_k = None if d["last_k"] is None else int(d["last_k"])
         s.last_period = float(d["last_period"])
         s.t_effect = float(d["t_effect"])
+        tail = d["tail"]
+        s.tail = None if tail is None else (float(tail[0]), int(tail[1]), int(tail[2]),
+                                            float(tail[3]))
         return s

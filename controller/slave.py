@@ -14,6 +14,8 @@ from __future__ import annotations
 from operator import itemgetter
 from typing import Any, ClassVar
 
+from pythonfmu.enums import Fmi2Status
+
 from ..axes import Axis
 from ..fmi import SlaveBase
 from ..lateral import LATERAL, N_HZ
@@ -109,8 +111,16 @@ class _Feedback(SlaveBase):
         self._outputs_valid = True
 
     def _initialize(self) -> None:
+        warned = self._sensor.off_grid is False
         self._sensor = Sensor(len(self.AXIS.state_names), self._time)
+        self._sensor.off_grid = False if warned else None
         self._update_outputs()
+
+    def _warn_off_grid(self, timing: Timing) -> None:
+        """Log, once per instance, that an instant fell inside a communication step."""
+        what, instant, t, h = self._sensor.off_grid  # type: ignore[misc]
+        self._sensor.off_grid = False
+        self._report(timing.off_grid_warning(what, instant, t, h), Fmi2Status.warning)
 
     def _advance(self, t: float, h: float) -> None:
         # the base class has called _initialize or _refresh after any parameter was set
@@ -144,12 +154,16 @@ class _Feedback(SlaveBase):
             sensor.undo(token)  # a refused step changes nothing
             raise
         self._outputs_valid, self._stale = True, False
+        if sensor.off_grid:  # an instant inside this step, the first in this instance
+            self._warn_off_grid(timing)
 
     def _extra_state(self) -> dict[str, Any]:
         return {"sensor": self._sensor.to_dict()}
 
     def _restore_extra_state(self, state: dict[str, Any]) -> None:
+        warned = self._sensor.off_grid is False  # the warning belongs to the instance
         self._sensor = Sensor.from_dict(state["sensor"], len(self.AXIS.state_names))
+        self._sensor.off_grid = False if warned else None
 
 
 _LATERAL_SOURCES = ("Eq. (27)", "default 0", "default 0")

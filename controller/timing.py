@@ -71,3 +71,32 @@ class Timing:
         (one per step or per sample period within the delay)."""
         if self.sensing_delay > MAX_SAMPLES * max(h, self.sample_period):
             raise SensingError(self.too_long(h))
+
+    def seen_latency(self, h: float, steps: int = 2000) -> tuple[float, float]:
+        """The shortest and longest time [s] from a communication point, where the importer
+        sets an input, to the first communication point that shows the control of a sample of
+        it, on a grid of steps ``h`` [s] from t_start (over the first ``steps`` steps)."""
+        d, period, tol = self.sensing_delay, self.sample_period, TOLERANCE * h
+        seen: list[float] = []
+        for m in range(steps):
+            t = m * h
+            ts = t if period <= tol else math.ceil((t - tol) / period) * period
+            if ts < t + h - tol:  # the first instant in [t, t + h)
+                seen.append(math.ceil((ts + d - tol) / h) * h - t)
+        return (min(seen), max(seen)) if seen else (math.inf, math.inf)
+
+    def off_grid_warning(self, what: str, instant: float, t: float, h: float) -> str:
+        """The warning for a ``what`` ("sample instant", "effect instant") at ``instant`` [s]
+        strictly inside the step [t, t + h) [s]: what the FMU does and what the importer sees."""
+        lo, hi = self.seen_latency(h)
+        seen = (f"{lo / h:.4g} step(s) ({lo:.6g} s)" if hi - lo <= TOLERANCE * h else
+                f"{lo / h:.4g} to {hi / h:.4g} steps ({lo:.6g} to {hi:.6g} s)")
+        return (f"sensing_delay = {self.sensing_delay!r} s and sample_period = "
+                f"{self.sample_period!r} s are not whole numbers of the communication step "
+                f"{h!r} s: a {what} (t = {instant!r} s) falls inside the step from {t!r} s. "
+                "Inputs are constant over a communication step (FMI 2.0), so the FMU samples the "
+                "input held since the start of the step, and a control that takes effect inside "
+                "a step is visible from the next communication point on: at this step size the "
+                f"importer sees the control of an input set at a communication point {seen} "
+                "later, not sensing_delay. Values are computed this way, not refused; make both "
+                "whole numbers of steps to get them exactly (warned once per instance)")

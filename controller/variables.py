@@ -23,7 +23,10 @@ TIMING = ("sensing_delay", "sample_period")
 
 _TIMING_TEXT = (
     "the control computed from the state sampled at t_k takes effect at t_k + sensing_delay "
-    "and is held until the next one does; before the first, the equilibrium (x = 0)")
+    "and is held until the next one does; before the first, the equilibrium (x = 0). Outputs "
+    "change only at communication points: an effect inside a communication step is seen at "
+    "the next one, so a delay that is not a whole number of steps is seen longer (logged "
+    "once as a warning)")
 
 
 def _row(axis: Axis, i: int, name: Callable[[int, int], str] = gain_name) -> tuple[str, ...]:
@@ -53,7 +56,10 @@ def _timing(delayed: bool) -> list[Var]:
                     start=0.0)
     period = Var("sample_period", "parameter", "tunable",
                  "period of the controller's sample instants t_k = t_start + k sample_period; "
-                 "0 (default): sample at every communication point", "s", "ms", start=0.0)
+                 "0 (default): sample at every communication point. Inputs are constant over "
+                 "a communication step (FMI 2.0), so an instant inside a step samples the "
+                 "input set at its start (logged once as a warning when a period that is not "
+                 "a whole number of steps puts one there)", "s", "ms", start=0.0)
     return [delay, period]
 
 

@@ -164,11 +164,17 @@ def test_integral_of_a_constant_input_is_KI_x_t_plus_exactly(delay_wb):
         assert u == (k * (x * ((t - t_e) * N_HZ)) if t_e is not None else 0.0), m
 
 
-def test_integral_follows_the_held_sensed_state_exactly():
-    """Mid-step effects (period 0.7, delay 1.3 wing beats, steps of 0.5): the control is
-    computed when a sample takes effect and held, so z is the exact integral of the held sensed
-    signal (Fractions) up to the instant the sample in effect took effect, to rounding."""
-    n, h, delay, period = 40, F(1, 2), F(13, 10), F(7, 10)
+@pytest.mark.parametrize("h,delay,period", [(F(1, 2), F(13, 10), F(7, 10)),
+                                            (F(1), F(2, 5), F(3, 10)),
+                                            (F(1, 2), F(1), F(3, 10))], ids=str)
+def test_integral_follows_the_held_sensed_state_exactly(h, delay, period):
+    """Mid-step effects (period 0.7, delay 1.3 wing beats, steps of 0.5; and periods of 0.3,
+    shorter than the step, so several instants fall in one step and take effect one by one):
+    the control is computed when a sample takes effect and held, so z is the exact integral of
+    the held sensed signal (Fractions) up to the instant the sample in effect took effect, to
+    rounding. (Before the fix of the audit, the instants after the first of a step did not
+    count: at delay 0.4, period 0.3, step 1 the control at t = 1 was KI z(0.4), not KI z(1.0).)"""
+    n = 40
     xs = _inputs(n + 1, seed=2)
     ki = np.random.default_rng(4).normal(0.0, 1.0, (3, 4))
     s = _slave(StateFeedback, **dict(zip(KI_NAMES, ki.ravel())),
@@ -336,19 +342,13 @@ def _fmpy_run(inst, h: float, xs: np.ndarray, m0: int = 0) -> list:
     return out
 
 
-@pytest.mark.integration
-@pytest.mark.parametrize("name,h,delay,period", [
-    ("StateFeedbackDelayed", F("0.1"), F(3), F(0)),
-    ("StateFeedbackDelayed", F("0.5"), F(2), F(1)),
-    ("StateFeedback", F(1), F(1), F(0)),
-    ("StateFeedbackDelayed", F("0.1"), F("0.25"), F(0)),
-])
-def test_built_fmus_output_the_input_sampled_the_delay_earlier(fmus, name, h, delay, period):
+def _built_run(fmus, name: str, h: F, delay: F, period: F) -> list:
+    """Run the built FMU ``name`` with the timing on steps of ``h`` wing beats and check each
+    output against the oracle; its log messages."""
     n = int(8 / h)
     xs = _inputs(n, seed=6)
     steps = [h] * n
-    fmu = fmus[name]
-    with fmu.instantiate("d") as a, fmus["StateFeedback"].instantiate("r") as r:
+    with fmus[name].instantiate("d") as a, fmus["StateFeedback"].instantiate("r") as r:
         _start(a, {"sensing_delay": float(delay) * WB, "sample_period": float(period) * WB})
         _start(r, {})
         got = _fmpy_run(a, float(h) * WB, xs)
@@ -358,8 +358,51 @@ def test_built_fmus_output_the_input_sampled_the_delay_earlier(fmus, name, h, de
             r.slave.setReal(r.vrs(STATE_NAMES), list(x))
             want.append(list(r.slave.getReal(r.vrs(CONTROL_NAMES))))
             r.slave.doStep(m * float(h) * WB, float(h) * WB)
+        messages = list(a.messages)
     for m, i in enumerate(_expected(steps, delay, period)[1:], start=1):  # after step m-1
         assert got[m - 1] == (want[i] if i is not None else [0.0, 0.0, 0.0]), (m, i)
+    return messages
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("name,h,delay,period", [
+    ("StateFeedbackDelayed", F("0.1"), F(3), F(0)),
+    ("StateFeedbackDelayed", F("0.5"), F(2), F(1)),
+    ("StateFeedback", F(1), F(1), F(0)),
+    ("StateFeedbackDelayed", F("0.1"), F("0.5"), F("0.3")),
+])
+def test_built_fmus_output_the_input_sampled_the_delay_earlier(fmus, name, h, delay, period):
+    """On the grid (delay and period whole numbers of steps): exact, and nothing logged."""
+    assert _built_run(fmus, name, h, delay, period) == []
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("h,delay,period,what,seen", [
+    (F(1), F("0.4"), F("0.3"), "sample instant", "1 step(s)"),
+    (F("0.5"), F("1.3"), F(0), "effect instant", "3 step(s)"),
+    (F("0.5"), F(1), F("0.7"), "sample instant", "2 to 3 steps"),
+    (F("0.1"), F("0.25"), F(0), "effect instant", "3 step(s)"),
+])
+def test_built_fmu_warns_once_off_the_grid_and_computes_as_stated(fmus, h, delay, period,
+                                                                    what, seen):
+    """A sample or effect instant inside a communication step: the values are the oracle's
+    (held input sampled, control visible from the next communication point), and one warning
+    (fmi2Warning, logStatusWarning) names both values, the step and the latency the importer
+    sees: delay 0.4 wb sampled every 0.3 wb on steps of 1 wb is seen as 1 step; 1.3 wb on
+    steps of 0.5 as 3 steps (1.5 wb); delay 1, period 0.7 on steps of 0.5 as 2 or 3 steps;
+    0.25 wb on steps of 0.1 as 3 steps."""
+    messages = _built_run(fmus, "StateFeedbackDelayed", h, delay, period)
+    assert len(messages) == 1, messages
+    msg = messages[0]
+    assert (msg.status, msg.category) == (1, "logStatusWarning")
+    hs = float(h) * WB
+    for part in (f"sensing_delay = {float(delay) * WB!r} s",
+                 f"sample_period = {float(period) * WB!r} s",
+                 f"communication step {hs!r} s", f"a {what} (t = ",
+                 "samples the input held since the start of the step",
+                 "visible from the next communication point on",
+                 f"input set at a communication point {seen} ("):
+        assert part in msg.message, (part, msg.message)
 
 
 @pytest.mark.integration

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import zipfile
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from dronefly.build import FMUS
 from dronefly.cli import main
 from dronefly.simulate import exact_open_loop
 
@@ -20,6 +23,11 @@ def test_help_lists_subcommands(capsys):
 def test_build_and_simulate_reproduce_reference(tmp_path, capsys):
     assert main(["build", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "DroneFlyLateral.fmu").is_file()
+    fmi3 = {p.name for p in (tmp_path / "fmi3").iterdir()}  # the FMI 3.0 half (docs/fmi3.md)
+    assert fmi3 == {f"{n}.fmu" for n in FMUS} | {"DroneFlyClosedLoop.ssp", "DroneFlyHover.ssp",
+                                                "DroneFlyHover6DOF.ssp"}
+    with zipfile.ZipFile(tmp_path / "fmi3" / "DroneFlyLateral.fmu") as z:
+        assert 'fmiVersion="3.0"' in z.read("modelDescription.xml").decode()
     assert main(["simulate", "--stop", "30", "--step", "0.1", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "max relative deviation from the exact solution" in out

@@ -21,7 +21,7 @@ from typing import Callable, Sequence
 from dronefly import __version__, commands
 from dronefly.commands import EXIT_FAILED, EXIT_USAGE
 from dronefly.cliargs import (converter, finite, floats_arg, int_arg, parse_assignment,
-                              parse_gains, parse_names, parse_x0, positive)
+                              parse_gains, parse_names, parse_setting, parse_x0, positive)
 from dronefly.errors import DroneflyError
 from dronefly.interrupt import EXIT_INTERRUPTED, deferred_sigint
 
@@ -112,8 +112,9 @@ def _parser() -> argparse.ArgumentParser:
                         "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
                         "--x0")
     c.add_argument("--record", type=converter(parse_names), default=None,
-                   metavar="INST.NAME,...", help="with --system: the outputs to record "
-                                                 "(default: every Real output)")
+                   metavar="INST.NAME,...", help="with --system: the variables to record, any "
+                   "Real, Integer or Boolean variable of any instance, e.g. lateral.delta_p,"
+                   "lateral_controller.K[1,1] (default: every Real output)")
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
@@ -126,9 +127,11 @@ def _parser() -> argparse.ArgumentParser:
                    metavar="dv+,dp+,dr+,dgamma",
                    help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll)")
     c.add_argument("--set", dest="set_values", action="append", default=[],
-                   type=converter(parse_assignment), metavar="NAME=VALUE",
+                   type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "
-                        "controller.NAME=VALUE, or NAME=VALUE if only one FMU has NAME; SI units")
+                        "controller.NAME=VALUE, or NAME=VALUE if only one FMU has NAME; SI units; "
+                        "with --system, instance.NAME=VALUE of any parameter or input, the value "
+                        "of its declared type (a number, a whole number, true/false/1/0, text)")
     c.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")

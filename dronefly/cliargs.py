@@ -14,7 +14,7 @@ from typing import Any, Callable
 from dronefly.errors import DroneflyError
 
 __all__ = ["converter", "finite", "floats_arg", "int_arg", "parse_assignment", "parse_gains",
-           "parse_names", "parse_x0", "positive"]
+           "parse_names", "parse_setting", "parse_x0", "positive"]
 
 
 def converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
@@ -55,8 +55,11 @@ def parse_gains(text: str) -> Any:
 
 
 def parse_names(text: str) -> list[str]:
-    """``a.x,b.y`` -> ["a.x", "b.y"]; each name must be instance.NAME."""
-    names = [t.strip() for t in text.split(",") if t.strip()]
+    """``a.x,b.K[1,2]`` -> ["a.x", "b.K[1,2]"]; each name must be instance.NAME (commas inside
+    brackets belong to the name)."""
+    import re
+
+    names = [t.strip() for t in re.split(r",(?![^\[\]]*\])", text) if t.strip()]
     bad = [n for n in names if not n.partition(".")[2]]
     if not names or bad:
         raise ValueError(f"{text!r}: expected instance.NAME[,instance.NAME...]")
@@ -73,6 +76,16 @@ def parse_assignment(text: str) -> Any:
     from dronefly.harness.cosim.params import parse_assignment as parse
 
     return parse(text)
+
+
+def parse_setting(text: str) -> tuple[str, str]:
+    """``NAME=VALUE`` -> (NAME, VALUE as text): converted later to the variable's declared
+    type (:mod:`dronefly.harness.system.values`) or by :func:`parse_assignment`."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip() or not value.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=VALUE, e.g. "
+                                         "plant.Lv_plus=0.2")
+    return name.strip(), value.strip()
 
 
 def finite(text: str) -> float:

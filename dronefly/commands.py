@@ -47,15 +47,18 @@ def cosim(args: argparse.Namespace) -> int:
     if args.record is not None:
         raise DroneflyError("--record is for --system; the plant/controller pair records both "
                             "FMUs' outputs")
+    from dronefly.harness.cosim.params import parse_assignment
     from dronefly.harness.cosim.run import cosimulate
 
+    # the pair's values: numbers or true/false, checked against the FMUs by cosimulate
+    values = dict(parse_assignment(f"{name}={text}") for name, text in args.set_values)
     result = cosimulate(args.plant, args.controller,
                         gains="paper" if args.gains is None else args.gains,
                         x0=(0.0, 0.0, 0.0, 0.1) if args.x0 is None else args.x0,
                         step_wingbeats=args.step,
                         stop_wingbeats=300.0 if args.stop is None else args.stop,
                         master=args.master, out_dir=args.out, plot=not args.no_plot,
-                        set_values=dict(args.set_values), build_dir=args.build)
+                        set_values=values, build_dir=args.build)
     print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
     if not result.run.complete:
         print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)

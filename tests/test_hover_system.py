@@ -158,11 +158,36 @@ def test_cli_system_json(hover_ssp, tmp_path, capsys):
     assert sorted(p.suffix for p in out.iterdir()) == [".csv", ".json"]
 
 
+def test_cli_system_typed_values_and_recording_any_variable(hover_ssp, tmp_path, capsys):
+    """A Boolean parameter set with 1 (the limit on), array elements, inputs, parameters and
+    a Boolean output recorded: the plant's input is the controller's output, limited."""
+    out = tmp_path / "o"
+    record = ("lateral_controller.K[1,4],lateral_controller.saturated,lateral.delta_Phi_a,"
+              "lateral_controller.limit_enabled,lateral_controller.delta_Phi_a")
+    code = main(["cosim", "--system", str(hover_ssp), "--stop", "2", "--no-plot", "--json",
+                 "--out", str(out), "--set", "lateral_controller.limit_enabled=1",
+                 "--set", "lateral_controller.u_max=0.005", "--record", record])
+    assert code == 0
+    j = json.loads(capsys.readouterr().out)
+    assert j["recorded"] == ["lateral_controller.K[1,4]", *record.split(",")[2:]]
+    rows = np.loadtxt(j["csv"], delimiter=",", skiprows=1)
+    assert rows.shape == (21, 6)
+    assert np.all(rows[:, 1] == PAPER_GAINS_EQ27[3]) and np.all(rows[:, 4] == 1.0)
+    assert np.array_equal(rows[:, 3], rows[:, 5])  # the input as set for the step
+    assert rows[0, 2] == 1.0 and rows[0, 3] == -0.005  # K x = -0.00643, limited
+    assert np.all(np.abs(rows[:, 3]) <= 0.005)
+
+
 @pytest.mark.parametrize("extra, fragment", [
     (["--gains", "open"], "--gains cannot be combined with --system"),
     (["--set", "nosuch.K[1,1]=0"], "nosuch"),
     (["--set", "lateral_controller.K[9,9]=0"], "K[9,9]"),
     (["--record", "lateral.nosuch"], "lateral.nosuch"),
+    (["--set", "lateral_controller.limit_enabled=2"],
+     "lateral_controller.limit_enabled = '2': a Boolean takes true, false, 1 or 0"),
+    (["--set", "lateral_controller.K[1,1]=true"], "lateral_controller.K[1,1] = 'true' is not a number"),
+    (["--set", "lateral_controller.K[1,1]=nan"], "lateral_controller.K[1,1] = 'nan' is not finite"),
+    (["--set", "lateral_controller.saturated=1"], "lateral_controller.saturated: no parameter or input"),
     (["--step", "0"], "step"),
 ])
 def test_cli_system_bad_input_exit_2_one_line(hover_ssp, tmp_path, capsys, extra, fragment):
@@ -221,3 +246,19 @@ def test_docs_systems_numbers_are_the_code_s(hover_ssp):
     given = {int(j): float(v) for j, v in
              re.findall(r"longitudinal_controller\.K\[3,(\d)\]=(-?[0-9.]+)", doc)}
     assert given == pytest.approx({j + 1: v for j, v in enumerate(k)}, abs=5e-9)
+
+
+def test_recording_the_same_variables_of_fmi3_and_fmi2_fmus(hover_ssp, built_fmus3):
+    """Array elements of FMI 3.0 FMUs (K and A are arrays there, their elements virtual
+    value references) and a Boolean: recorded as from the FMI 2.0 FMUs."""
+    names = ["lateral_controller.K[1,4]", "longitudinal.A[1,1]", "lateral_controller.saturated",
+             "lateral.delta_Phi_a", "lateral.delta_gamma"]
+    values = {"lateral_controller": {"limit_enabled": "1", "u_max": 0.005}}
+    runs = []
+    for ssp in (hover_ssp, built_fmus3["DroneFlyHover.ssp"]):
+        with SystemMaster(System.from_ssp(ssp)) as m:
+            runs.append(m.run(0.1 / 164, 10, record=names, values=values))
+    assert runs[0].complete and runs[1].complete and not np.isnan(runs[1].signals).any()
+    np.testing.assert_allclose(runs[1].signals, runs[0].signals, rtol=1e-12, atol=0)
+    A, _ = longitudinal_model.system_matrices(longitudinal_model.default_parameters())
+    assert runs[1].signals[0, :3].tolist() == [PAPER_GAINS_EQ27[3], np.asarray(A)[0, 0], 1.0]

@@ -6,15 +6,21 @@ of one system (same trajectory to 1e-12), an algebraic loop refused with its cyc
 
 from __future__ import annotations
 
+import contextlib
+import json
 import math
+import re
 import textwrap
 import zipfile
+from ctypes import c_double, c_uint
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from dronefly.cli import main
 from dronefly.harness.cosim.master import Loop
+from dronefly.harness.cosim.records import LoopRun
 from dronefly.harness.system.description import Connection, System, SystemSpecError
 from dronefly.harness.system.master import SystemMaster
 from dronefly.controller.law import PAPER_GAINS_EQ27
@@ -24,24 +30,40 @@ pytestmark = pytest.mark.integration
 
 H = 0.1 / 164.0  # s: 0.1 wing beat
 GAIN = textwrap.dedent('''
-    from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+    from pythonfmu import (Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real,
+                           String)
 
 
     class Gain(Fmi2Slave):
-        """y = k u, direct feedthrough (pythonfmu declares no dependencies: all)."""
+        """y = (-1 if negate else 1) m k u, direct feedthrough (pythonfmu declares no
+        dependencies: all); steps counts the steps done; a step from t >= fail_at_s fails."""
 
         def __init__(self, **kwargs):
             super().__init__(**kwargs)
-            self.u, self.k = 0.0, 1.0
+            self.u, self.k, self.m, self.negate, self.label = 0.0, 1.0, 1, False, "gain"
+            self.fail_at_s, self.steps = 1e300, 0
             self.register_variable(Real("u", causality=Fmi2Causality.input,
                                         variability=Fmi2Variability.continuous))
-            self.register_variable(Real("k", causality=Fmi2Causality.parameter,
-                                        variability=Fmi2Variability.tunable))
+            for name in ("k", "fail_at_s"):
+                self.register_variable(Real(name, causality=Fmi2Causality.parameter,
+                                            variability=Fmi2Variability.tunable))
+            self.register_variable(Integer("m", causality=Fmi2Causality.parameter,
+                                           variability=Fmi2Variability.tunable))
+            self.register_variable(Boolean("negate", causality=Fmi2Causality.parameter,
+                                           variability=Fmi2Variability.tunable))
+            self.register_variable(String("label", causality=Fmi2Causality.parameter,
+                                          variability=Fmi2Variability.tunable))
             self.register_variable(Real("y", causality=Fmi2Causality.output,
                                         variability=Fmi2Variability.continuous,
-                                        getter=lambda: self.k * self.u))
+                                        getter=lambda: (-1 if self.negate else 1) * self.m
+                                        * self.k * self.u))
+            self.register_variable(Integer("steps", causality=Fmi2Causality.output,
+                                           variability=Fmi2Variability.discrete))
 
         def do_step(self, t, h):
+            if t >= self.fail_at_s:
+                return False
+            self.steps += 1
             return True
 ''')
 
@@ -60,16 +82,132 @@ def _x0(plant_fmu) -> dict[str, float]:
     return {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, np.array([0, 0, 0, 0.1]) * scale)}
 
 
+def _former_pair_master():
+    """benchmarks/pair_master.py: the pair master as it was before issue 12 (Gauss-Seidel)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "pair_master.py"
+    spec = importlib.util.spec_from_file_location("former_pair_master", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.PairMaster
+
+
+class _GainsFirst:
+    """The controller FMU, its instances given ``gains`` before initialization (the former
+    master set no controller parameter; the FMU reads them when it computes)."""
+
+    def __init__(self, fmu, gains: dict[str, float]) -> None:
+        self.fmu, self.gains = fmu, gains
+
+    def names(self, causality: str) -> list[str]:
+        return self.fmu.names(causality)
+
+    @contextlib.contextmanager
+    def instantiate(self):
+        with self.fmu.instantiate() as c:
+            c.slave.setReal(c.vrs(list(self.gains)), list(self.gains.values()))
+            yield c
+
+
+def _former_jacobi(base):
+    """The former pair master's Jacobi ordering (c53815e's Loop._run with master="jacobi",
+    without its failure bookkeeping): benchmarks/pair_master.py keeps only Gauss-Seidel."""
+
+    class FormerJacobi(base):
+        u_source0 = None
+
+        def _run(self, p, c, step, n_steps, plant_start, interrupt):
+            ns, nu = len(self.states), len(self.controls)
+            rec = np.full((n_steps + 1, ns + nu), np.nan)
+            run = LoopRun(self.names, np.arange(n_steps + 1) * step, rec)
+            y_vr = (c_uint * ns)(*p.vrs(self.states))
+            s_vr = (c_uint * len(self.sensed))(*c.vrs(self.sensed))
+            s_idx = [self.states.index(n) for n in self.sensed]
+            u_vr_c = (c_uint * nu)(*c.vrs(self.controls))
+            u_vr_p = (c_uint * nu)(*p.vrs(self.controls))
+            y, ys, u = (c_double * ns)(), (c_double * len(self.sensed))(), (c_double * nu)()
+            for inst, values in ((p, plant_start), (c, {})):
+                inst.slave.setupExperiment(startTime=0.0, stopTime=n_steps * step)
+                inst.slave.enterInitializationMode()
+                for name, value in values.items():
+                    inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
+            p.slave.exitInitializationMode()
+            p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
+            if self.u_source0 is not None:
+                ys[:] = [float(v) for v in self.u_source0]
+            else:
+                ys[:] = [y[i] for i in s_idx]
+            c.slave.fmi2SetReal(c.slave.component, s_vr, len(ys), ys)
+            c.slave.exitInitializationMode()
+            for k in range(n_steps + 1):
+                t = k * step
+                p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
+                c.slave.fmi2GetReal(c.slave.component, u_vr_c, nu, u)  # the previous inputs'
+                ys[:] = [y[i] for i in s_idx]
+                c.slave.fmi2SetReal(c.slave.component, s_vr, len(ys), ys)
+                rec[k, :ns] = y
+                rec[k, ns:] = u
+                if k == n_steps:
+                    break
+                p.slave.fmi2SetReal(p.slave.component, u_vr_p, nu, u)
+                p.slave.fmi2DoStep(p.slave.component, t, step, 1)
+                c.slave.fmi2DoStep(c.slave.component, t, step, 1)
+            for inst in (p, c):
+                inst.slave.terminate()
+            return run
+
+    return FormerJacobi
+
+
+def _gain_sets() -> dict[str, np.ndarray]:
+    from dronefly.harness.cosim.params import gain_matrix
+
+    rng = np.random.default_rng(12)
+    return {"paper": gain_matrix("paper"), "stabilising": gain_matrix("stabilising"),
+            "open": gain_matrix("open"), "random": rng.normal(0.0, 0.3, (3, 4))}
+
+
 @pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
-def test_pair_equals_the_pair_master_bit_for_bit(built_fmus, plant, controller, master):
-    paths = {"plant": built_fmus["DroneFlyLateral"], "controller": built_fmus["StateFeedback"]}
-    system = System.by_name(paths, parameters={"plant": _x0(plant)})
-    with SystemMaster(system, master) as sm:
-        names = [f"plant.{s}" for s in STATE_NAMES] + [f"controller.{c}" for c in CONTROL_NAMES]
-        got = sm.run(H, 200, record=names)
-    ref = Loop(plant, controller).run(H, 200, master=master, plant_start=_x0(plant))
-    assert got.complete and ref.complete
-    assert np.array_equal(got.signals, ref.signals)
+def test_pair_through_the_system_master_equals_the_former_pair_master(built_fmus, plant,
+                                                                      controller, master):
+    """Oracle: the pair master kept in benchmarks/ (and its Jacobi ordering, kept above),
+    bit for bit, for the pair through SystemMaster (derived order, fresh instances) and
+    through Loop (the pair's order, reused instances, Jacobi's u_source0)."""
+    from dronefly.controller.law import gain_name
+
+    former = _former_pair_master()
+    if master == "jacobi":
+        former = _former_jacobi(former)
+    system = System.by_name({"plant": built_fmus["DroneFlyLateral"],
+                             "controller": built_fmus["StateFeedback"]})
+    names = [f"plant.{s}" for s in STATE_NAMES] + [f"controller.{c}" for c in CONTROL_NAMES]
+    scale = scale_vector()
+    loop = Loop(plant, controller)
+    with SystemMaster(system, master) as sm, plant.instantiate() as p, \
+            controller.instantiate() as c:
+        for (tag, K), step_wb, x0 in zip(_gain_sets().items(), (0.1, 1.0, 3.0, 0.1),
+                                         ([0, 0, 0, 0.1], [0.1, -0.2, 0.05, 0.0],
+                                          [0, 0.3, 0, -0.1], [0.2, 0, 0.1, 0.1])):
+            gains = {gain_name(i, j): float(K[i, j]) for i in range(3) for j in range(4)}
+            start = {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, np.array(x0) * scale)}
+            h, n = step_wb / 164.0, 60
+            ref = former(plant, _GainsFirst(controller, gains)).run(h, n, plant_start=start)
+            got = sm.run(h, n, record=names, values={"plant": start, "controller": gains})
+            via_loop = loop.run(h, n, master=master, plant_start=start,
+                                controller_params=gains, instances=(p, c))
+            assert got.complete and via_loop.complete
+            assert np.array_equal(got.signals, ref.signals), (tag, step_wb)
+            assert np.array_equal(via_loop.signals, ref.signals), (tag, step_wb)
+            assert np.any(ref.signals[1:] != ref.signals[0]), "it moved"
+        if master == "jacobi":  # the identification runs' start: another previous state
+            u0 = [0.0, 0.1 * scale[1], 0.0, 0.0]
+            former.u_source0 = u0
+            ref = former(plant, _GainsFirst(controller, gains)).run(h, n, plant_start=start)
+            via_loop = loop.run(h, n, master=master, plant_start=start,
+                                controller_params=gains, u_source0=u0, instances=(p, c))
+            assert np.array_equal(via_loop.signals, ref.signals)
+            assert not np.array_equal(via_loop.signals[:2], got.signals[:2])
 
 
 def _three(built_fmus, gain) -> System:
@@ -133,14 +271,28 @@ def test_ssp_and_python_give_the_same_trajectory(built_fmus, gain, tmp_path):
 
 
 def test_algebraic_loop_is_refused_with_its_cycle_and_runs_under_jacobi(gain):
+    """g1.u = 2 given (the input keeps it at initialization: its source g2 comes later in
+    the loop), then every FMU answers from the previous point's inputs."""
+    from dronefly.harness.system.run import cosimulate_system
+
+    k1, k2, u0 = 0.5, -0.8, 2.0
     system = System({"g1": gain, "g2": gain},
                     [Connection("g1", "y", "g2", "u"), Connection("g2", "y", "g1", "u")],
-                    {"g1": {"k": 0.5}, "g2": {"k": 0.5}})
+                    {"g1": {"k": k1}, "g2": {"k": k2}})
     with pytest.raises(SystemSpecError, match=r"algebraic loop .*g1\.y -> g2\.u -> g2\.y -> g1\.u"):
         SystemMaster(system)
-    with SystemMaster(system, "jacobi") as sm:
-        run = sm.run(0.1, 5)
-    assert run.complete and np.all(run.signals == 0.0)
+    r = cosimulate_system(system, master="jacobi", step_wingbeats=0.1, stop_wingbeats=0.8,
+                          set_values={"g1.u": "2"}, record=["g1.y", "g2.y", "g1.u"],
+                          verdicts=False, out_dir=None)
+    # expected: initialization in the declared order (g1 from its given input, g2 from g1),
+    # then y1[k+1] = k1 y2[k], y2[k+1] = k2 y1[k]; g1's input at k is y2[k] (from k = 0 on)
+    y1, y2, expected = k1 * u0, k2 * k1 * u0, []
+    for _ in range(9):
+        expected.append((y1, y2, y2))
+        y1, y2 = k1 * y2, k2 * y1
+    assert r.run.complete and len(r.run.time) == 9 and not r.axes
+    np.testing.assert_allclose(r.run.signals, expected, rtol=1e-15, atol=0)
+    assert r.run.signals[0, 0] == 1.0 and r.run.signals[1, 0] == pytest.approx(-0.4)
 
 
 @pytest.mark.parametrize("cons,fragment", [
@@ -172,8 +324,140 @@ def test_unconnected_inputs_keep_their_start_value_or_a_given_one(built_fmus):
 
 
 def test_failed_call_stops_the_run_naming_instance_call_and_time(built_fmus, gain):
-    system = _three(built_fmus, gain).with_values({"gain.k": math.inf})
-    with SystemMaster(system) as sm:
-        run = sm.run(H, 50, record=["plant.delta_gamma"])
-    assert not run.complete and run.failure.fmu == "plant" and run.failure.call == "fmi2DoStep"
-    assert len(run.time) >= 1
+    """The foreign gain block refuses its step from t = 20 h on: the run stops there, names
+    the gain, fmi2DoStep and the time, and keeps the 21 points recorded before."""
+    names = ["plant.delta_gamma", "controller.delta_Phi_a"]
+    with SystemMaster(_three(built_fmus, gain)) as sm:
+        full = sm.run(H, 50, record=names)
+        run = sm.run(H, 50, record=names, values={"gain": {"fail_at_s": 20 * H}})
+        early = sm.run(H, 50, record=names, values={"gain": {"fail_at_s": 0.0}})
+    assert full.complete and not run.complete
+    assert (run.failure.fmu, run.failure.call, run.failure.time) == ("gain", "fmi2DoStep", 20 * H)
+    assert run.failure.status == 2 and f"gain: fmi2DoStep at t = {20 * H!r} s" in str(run.failure)
+    assert len(run.time) == 21 and np.array_equal(run.signals, full.signals[:21])
+    assert (early.failure.fmu, early.failure.time, len(early.time)) == ("gain", 0.0, 1)
+
+
+def test_cli_marks_a_failed_run_incomplete_and_keeps_its_csv(built_fmus, gain, tmp_path, capsys):
+    from dronefly.harness.system.ssp import write_system_ssp
+
+    ssp = write_system_ssp(_three(built_fmus, gain), tmp_path / "three.ssp")
+    out = tmp_path / "o"
+    code = main(["cosim", "--system", str(ssp), "--stop", "5", "--no-plot", "--json", "--out",
+                 str(out), "--set", f"gain.fail_at_s={20 * H!r}"])
+    captured = capsys.readouterr()
+    assert code == 1
+    where = f"gain: fmi2DoStep at t = {20 * H!r} s"
+    assert captured.err.count("\n") == 1 and "run incomplete" in captured.err and where in captured.err
+    printed = json.loads(captured.out)
+    (written,) = out.glob("*.json")
+    assert json.loads(written.read_text()) == printed
+    assert printed["complete"] is False and printed["failure"].startswith(where)
+    assert printed["axes"] == []  # no verdict from a broken run
+    rows = Path(printed["csv"]).read_text().splitlines()
+    assert len(rows) == 1 + 21 and rows[0].split(",")[0] == "time"
+    assert float(rows[-1].split(",")[0]) == pytest.approx(20 * H, rel=1e-15)
+
+
+# ------------------------------------------------------------------ values of declared types
+def test_values_take_the_declared_types_of_a_foreign_fmu(gain):
+    """Text (as from --set), numbers and booleans, converted to Integer, Boolean, String
+    and Real; u unconnected: y = -(m k u)."""
+    system = System({"g": gain}, parameters={"g": {"m": "3", "negate": "1", "label": "x"}})
+    with SystemMaster(system.with_values({"g.k": "0.5", "g.u": 2})) as sm:
+        a = sm.run(0.1, 2, record=["g.y", "g.m", "g.negate"])
+        b = sm.run(0.1, 2, record=["g.y"], values={"g": {"m": 4.0, "negate": False,
+                                                         "label": "y"}})
+    assert a.signals.tolist() == [[-3.0, 3.0, 1.0]] * 3
+    assert b.signals[:, 0].tolist() == [4.0] * 3
+
+
+@pytest.mark.parametrize("name, value, fragment", [
+    ("m", 1.5, "g.m = 1.5: an Integer takes a whole number"),
+    ("m", "abc", "g.m = 'abc': an Integer takes a whole number"),
+    ("m", True, "g.m = True: an Integer"),
+    ("m", 2 ** 31, "g.m = 2147483648 is outside the Integer range"),
+    ("negate", 2, "g.negate = 2: a Boolean takes true, false, 1 or 0"),
+    ("negate", "yes", "g.negate = 'yes': a Boolean"),
+    ("k", True, "g.k = True: a Real takes a number"),
+    ("k", "true", "g.k = 'true' is not a number"),
+    ("k", math.nan, "g.k = nan is not finite"),
+    ("u", "inf", "g.u = 'inf' is not finite"),
+    ("label", 3, "g.label = 3: a String takes text"),
+    ("y", 1.0, "g.y: no parameter or input of that name"),
+])
+def test_values_of_the_wrong_type_are_refused_naming_them(gain, name, value, fragment):
+    with pytest.raises(SystemSpecError, match=re.escape(fragment)):
+        SystemMaster(System({"g": gain}, parameters={"g": {name: value}}))
+    with SystemMaster(System({"g": gain})) as sm, \
+            pytest.raises(SystemSpecError, match=re.escape(fragment)):
+        sm.run(0.1, 2, values={"g": {name: value}})
+
+
+@pytest.mark.parametrize("setting, fragment", [
+    ("controller.limit_enabled=2", "a Boolean parameter takes true or false"),
+    ("controller.K[1,1]=true", "a Real parameter takes a number"),
+    ("controller.u_max=abc", "u_max = 'abc' is not a number"),
+])
+def test_pair_values_of_the_wrong_type_exit_2(built_fmus, tmp_path, capsys, setting, fragment):
+    """The --plant/--controller path refuses them the same way (one line, exit 2, nothing
+    written), and so does its Python API."""
+    from dronefly.errors import DroneflyError
+    from dronefly.harness.cosim.params import parse_assignment
+    from dronefly.harness.cosim.run import cosimulate
+
+    out = tmp_path / "o"
+    code = main(["cosim", "--plant", str(built_fmus["DroneFlyLateral"]), "--controller",
+                 str(built_fmus["StateFeedback"]), "--no-plot", "--out", str(out),
+                 "--set", setting])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and fragment in err and not out.exists()
+    with pytest.raises(DroneflyError, match=re.escape(fragment)):
+        cosimulate(built_fmus["DroneFlyLateral"], built_fmus["StateFeedback"], out_dir=None,
+                   set_values=dict([parse_assignment(setting)]))
+
+
+# ------------------------------------------------------------------ recording any variable
+def test_record_any_variable_of_any_instance(built_fmus, gain):
+    """Inputs (as set for the step from each point), parameters, calculated parameters,
+    Integer and Boolean outputs, array elements; the Real outputs unchanged by them."""
+    from dronefly.plant import model
+
+    states = [f"plant.{s}" for s in STATE_NAMES]
+    extra = ["plant.delta_Phi_a", "gain.u", "gain.k", "gain.m", "gain.negate", "gain.steps",
+             "plant.A[2,1]", "controller.K[1,4]", "controller.saturated"]
+    with SystemMaster(_three(built_fmus, gain)) as sm:
+        plain = sm.run(H, 40, record=states + ["controller.delta_Phi_a"])
+        run = sm.run(H, 40, record=[*states, *extra, "controller.delta_Phi_a"])
+    assert run.complete and run.names[len(states):-1] == extra
+    assert np.array_equal(run.signals[:, :4], plain.signals[:, :4])
+    col = dict(zip(run.names, run.signals.T))
+    u = plain.signals[:, 4]
+    assert np.array_equal(col["controller.delta_Phi_a"], u)
+    assert np.array_equal(col["plant.delta_Phi_a"], u) and np.array_equal(col["gain.u"], u)
+    assert np.all(col["gain.k"] == 1.0) and np.all(col["gain.m"] == 1.0)
+    assert np.all(col["gain.negate"] == 0.0) and np.all(col["controller.saturated"] == 0.0)
+    assert col["gain.steps"].tolist() == list(range(41))
+    A, _ = model.system_matrices(model.default_parameters())
+    assert np.all(col["plant.A[2,1]"] == np.asarray(A)[1, 0]) and np.asarray(A)[1, 0] != 0
+    assert np.all(col["controller.K[1,4]"] == PAPER_GAINS_EQ27[3])
+
+
+def test_default_recording_reads_nothing_more(built_fmus, gain):
+    """Without extra names no call is added to a step (the plan's record ops are empty)."""
+    from dronefly.harness.system.plan import build_nodes, record_ops
+
+    with SystemMaster(_three(built_fmus, gain)) as sm:
+        nodes, every_out, where = build_nodes(sm.fmus, sm.system.connections, sm.names)
+        assert record_ops(nodes, every_out) == []
+        assert len(every_out) == len({*sm.names, "controller.delta_alpha_1a"})
+
+
+@pytest.mark.parametrize("name, fragment", [
+    ("g.label", "a String variable"), ("g.nosuch", "g has no variable 'nosuch'"),
+    ("nosuch.y", "no instance 'nosuch'"),
+])
+def test_record_refuses_what_cannot_be_recorded(gain, name, fragment):
+    with SystemMaster(System({"g": gain})) as sm, \
+            pytest.raises(SystemSpecError, match=re.escape(f"cannot record {name!r}: {fragment}")):
+        sm.run(0.1, 2, record=[name])

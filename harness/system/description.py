@@ -172,9 +172,15 @@ def _stop_time(ssd: Path) -> float | None:
 
 
 def _ssv_value(p: Any) -> Any:
+    """An SSV parameter's value as its SSV type says (converted to the FMU variable's type
+    when the system is opened, :mod:`.values`)."""
     kind = (p.type or "Real").lower()
+    if kind == "string":
+        return str(p.value)
     if kind == "boolean":
-        return str(p.value).lower() in ("true", "1")
-    if kind == "integer":
-        return int(p.value)
-    return float(p.value)
+        return str(p.value).strip().lower() in ("true", "1")
+    try:
+        return int(p.value) if kind in ("integer", "enumeration") else float(p.value)
+    except (TypeError, ValueError) as e:
+        raise SystemSpecError(f"SSV parameter {p.name} = {p.value!r} is not a valid "
+                              f"{p.type or 'Real'}") from e

@@ -11,8 +11,13 @@ Initialization propagates in the Gauss-Seidel order in both cases (``inputs0`` o
 
 It is also the master of the plant/controller pair (:class:`dronefly.harness.cosim.master.Loop`
 runs the pair's system here, in the pair's fixed order and on instances reused across runs).
-Real, Integer and Boolean connections are supported. A failed call stops the run, naming the
-instance, the call and the time; what was recorded is kept and the run is marked incomplete.
+Real, Integer and Boolean connections are supported. Parameter and input values are converted
+to their variables' declared types when the master is made (and those of a run when it
+starts), :mod:`.values`. Any Real, Integer or Boolean variable can be recorded; those that are
+not Real outputs are read after the inputs of each point are set (no call is added otherwise).
+In an algebraic loop (Jacobi), an input whose source is initialized later keeps its start or
+given value at initialization. A failed call stops the run, naming the instance, the call and
+the time; what was recorded is kept and the run is marked incomplete.
 Every instance is terminated on every exit path, and freed unless the caller gave it.
 """
 
@@ -31,7 +36,9 @@ from dronefly.harness.cosim.records import MASTERS, MAX_STEPS, LoopRun, StepFail
 from dronefly.harness.system.description import System, SystemSpecError
 from dronefly.harness.system.graph import (Order, check_connections, evaluation_order,
                                            feedthrough)
-from dronefly.harness.system.plan import Node, build_nodes, get_ops, put_ops, start_ops
+from dronefly.harness.system.plan import (Node, build_nodes, get_ops, put_ops, record_ops,
+                                          start_ops)
+from dronefly.harness.system.values import SETTER, settable, typed_values
 
 __all__ = ["SystemMaster"]
 
@@ -88,24 +95,19 @@ class SystemMaster:
                 raise SystemSpecError(f"order {order} must name each instance of "
                                       f"{', '.join(system.fmus)} once")
             self.order = order
-            self._check_values(mds)
+            self._settable = {i: settable(md) for i, md in mds.items()}
+            self._values = self._typed(system.parameters)
         except BaseException:
             self.close()
             raise
         self.names = [f"{i}.{v.name}" for i, md in mds.items() for v in md.modelVariables
                       if v.causality == "output" and v.type == "Real"]
 
-    def _check_values(self, mds: Mapping[str, Any],
-                      parameters: Mapping[str, Mapping[str, Any]] | None = None) -> None:
-        for inst, values in (self.system.parameters if parameters is None
-                             else parameters).items():
-            settable = {v.name: v for v in mds[inst].modelVariables
-                        if v.causality in ("parameter", "input")
-                        and v.variability in ("fixed", "tunable", "continuous", "discrete")}
-            for name in values:
-                if name not in settable:
-                    raise SystemSpecError(f"{inst}.{name}: no parameter or input of that name "
-                                          f"in {self.system.fmus[inst].name}")
+    def _typed(self, values: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
+        """``{instance: {name: value}}`` converted to the variables' declared types."""
+        return {inst: typed_values(inst, self._settable[inst], given,
+                                   self.system.fmus[inst].name)
+                for inst, given in values.items()}
 
     def close(self) -> None:
         """Close the FMUs this master opened."""
@@ -132,7 +134,10 @@ class SystemMaster:
         n_steps : int
             Number of steps (1 to ``MAX_STEPS``).
         record : sequence of str, optional
-            Real outputs ``instance.name`` to record (default: every Real output).
+            Variables ``instance.name`` to record, of any causality (outputs, inputs,
+            parameters, calculated parameters, locals) and of type Real, Integer or Boolean
+            (default: every Real output). Inputs are recorded as set for the step from
+            each point; the others after that.
         values : mapping, optional
             ``{instance: {name: value}}`` for this run only, on top of the system's
             parameter values (e.g. other initial states).
@@ -152,26 +157,25 @@ class SystemMaster:
             raise SystemSpecError(f"step = {step_s!r} s must be finite and > 0")
         if not 1 <= n_steps <= MAX_STEPS:
             raise SystemSpecError(f"n_steps = {n_steps!r} must be in 1..{MAX_STEPS}")
-        params = {i: dict(v) for i, v in self.system.parameters.items()}
+        params = {i: dict(v) for i, v in self._values.items()}
         for what, given in (("values", values), ("inputs0", inputs0),
                             ("instances", instances)):
             for inst in given or {}:
                 if inst not in self.fmus:
                     raise SystemSpecError(f"{what} for instance {inst!r}, which the system "
                                           f"does not have (instances: {', '.join(self.fmus)})")
-        for inst, extra in (values or {}).items():
+        for inst, extra in self._typed(values or {}).items():
             params.setdefault(inst, {}).update(extra)
         if instances is not None and set(instances) != set(self.fmus):
             raise SystemSpecError(f"instances must be given for every instance "
                                   f"({', '.join(self.fmus)})")
-        self._check_values({i: self.fmus[i].model_description for i in self.fmus}, params)
         for inst, given in (inputs0 or {}).items():
             for name in given:
                 v = self.fmus[inst].variables.get(name)
                 if v is None or v.causality != "input" or v.type != "Real":
                     raise SystemSpecError(f"inputs0: {inst}.{name} is not a Real input")
         names = list(self.names if record is None else record)
-        nodes, every_out = build_nodes(self.fmus, self.system.connections, names)
+        nodes, every_out, where = build_nodes(self.fmus, self.system.connections, names)
         with contextlib.ExitStack() as stack:
             interrupt = stack.enter_context(deferred_sigint())
             for node in nodes.values():
@@ -181,11 +185,12 @@ class SystemMaster:
                 else:
                     node.inst = instances[node.name]
                     node.inst.slave.reset()
-            return self._run(nodes, every_out, names, step_s, n_steps, params, interrupt,
-                             inputs0 or {})
+            return self._run(nodes, every_out, names, where, step_s, n_steps, params,
+                             interrupt, inputs0 or {})
 
-    def _run(self, nodes: dict[str, Node], every_out: Any, names: Sequence[str], h: float,
-             n_steps: int, parameters: Mapping[str, Mapping[str, Any]], interrupt: Any,
+    def _run(self, nodes: dict[str, Node], every_out: Any, names: Sequence[str],
+             where: list[int], h: float, n_steps: int,
+             parameters: Mapping[str, Mapping[str, Any]], interrupt: Any,
              inputs0: Mapping[str, Mapping[str, float]]) -> LoopRun:
         from fmpy.fmi1 import FMICallException
 
@@ -193,8 +198,6 @@ class SystemMaster:
         chained = [nodes[i] for i in self.order.chained]
         every = [nodes[i] for i in self.system.fmus]
         outs = np.frombuffer(every_out, dtype=np.float64)
-        where = [nodes[n.partition(".")[0]].at + nodes[n.partition(".")[0]].out_names.index(
-            n.partition(".")[2]) for n in names]
         # one view of the outputs in record order when they lie in order, else a gather
         row = outs[where[0]:where[0] + len(where)] if where and where == list(
             range(where[0], where[0] + len(where))) else None
@@ -209,23 +212,32 @@ class SystemMaster:
         if not jacobi:
             read += [op for n in chained for op in (*put(n), *get(n))]
         write = [op for n in (every if jacobi else free) for op in put(n)]
+        # other recorded variables: read once the inputs of the point are set (also at the
+        # last point); without them a step is read, record, write, step as before
+        extra = record_ops(nodes, every_out)
+        if extra:
+            read, write = read + write + extra, []
         steps = [(n, "fmi2DoStep", n.inst.slave.fmi2DoStep, n.inst.slave.component)
                  for n in every]
         try:
             for n in every:
-                who, s = n, n.inst.slave
+                who, s, call = n, n.inst.slave, "fmi2SetupExperiment"
                 s.setupExperiment(startTime=0.0, stopTime=n_steps * h)
+                call = "fmi2EnterInitializationMode"
                 s.enterInitializationMode()
                 for name, value in parameters.get(n.name, {}).items():
-                    kind = n.types[name]
-                    getattr(s, f"set{kind}")([n.fmu.vr(name)], [value])
+                    call = f"fmi2Set{SETTER[n.types[name]]} of {name}"
+                    getattr(s, f"set{SETTER[n.types[name]]}")([n.fmu.vr(name)], [value])
+            ready: set[str] = set()  # initialized: their outputs can be read
             for n in (*free, *chained):
-                for who, call, f, args in start_ops(n, inputs0.get(n.name), n in chained):
+                for who, call, f, args in start_ops(n, inputs0.get(n.name), n in chained,
+                                                    ready):
                     f(*args)
                 who, call = n, "fmi2ExitInitializationMode"
                 n.inst.slave.exitInitializationMode()
                 for who, call, f, args in get(n):
                     f(*args)
+                ready.add(n.name)
             for k in range(n_steps + 1):
                 t = k * h
                 if interrupt.count:  # Ctrl-C: stop between steps, never inside an FMU

@@ -2,18 +2,22 @@
 
 Every Real output that a connection or the record needs lies in one ctypes buffer; each
 instance's inputs read it in place where they lie in order (no copy), else through a gather.
-The calls of a step are planned once per run as :data:`Op` tuples (instance, FMI call,
-function, arguments), so that a failed call names its instance and call.
+The other recorded variables (inputs, parameters, Integer and Boolean ones...) follow the
+outputs in that buffer (:func:`record_ops`). The calls of a step are planned once per run as
+:data:`Op` tuples (instance, FMI call, function, arguments), so that a failed call names its
+instance and call.
 """
 
 from __future__ import annotations
 
 from ctypes import c_double, c_int, c_uint
-from typing import Any, Mapping, Sequence
+from typing import Any, Container, Mapping, Sequence
 
+from dronefly.harness.cosim.fmi3 import VIRTUAL
 from dronefly.harness.system.description import Connection, SystemSpecError
 
-__all__ = ["Node", "Op", "build_nodes", "gather", "get_ops", "put_ops", "start_ops"]
+__all__ = ["RECORDABLE", "Node", "Op", "build_nodes", "gather", "get_ops", "put_ops", "record_ops",
+           "start_ops"]
 
 
 class Node:
@@ -38,6 +42,7 @@ class Node:
         self.at = 0  # where ``out`` starts in the buffer of every output (see ``place``)
         self.in_real: list[tuple[int, "Node", int]] = []  # (vr, source node, source index)
         self.in_other: list[tuple[str, int, "Node", int]] = []  # (type, vr, node, index)
+        self.extra: dict[str, list[str]] = {}  # other recorded variables by getter type
         self.inst: Any = None
 
     def place(self, every_out: Any, at: int) -> None:
@@ -63,27 +68,46 @@ class Node:
 Op = tuple[Node, str, Any, tuple]
 
 
+#: variable types that can be recorded, and the FMI getter of each (Integer ones into ints)
+RECORDABLE = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer",
+              "Boolean": "Boolean"}
+
+
 def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
-                names: Sequence[str]) -> tuple[dict[str, Node], Any]:
-    """The nodes of every instance and the buffer of every output they read.
+                names: Sequence[str]) -> tuple[dict[str, Node], Any, list[int]]:
+    """The nodes of every instance, the buffer of every value they read, and where each of
+    ``names`` lies in that buffer.
+
+    The buffer holds the Real outputs that connections or ``names`` need, then the other
+    recorded variables (``Node.extra``: inputs, parameters, calculated parameters, locals,
+    Integer and Boolean variables), read by :func:`record_ops`.
 
     Raises
     ------
     SystemSpecError
-        A name to record that is not a Real output ``instance.name`` of an instance.
+        A name to record that is not ``instance.name`` of a Real, Integer or Boolean variable.
     """
     wanted: dict[str, list[str]] = {i: [] for i in fmus}
+    extra: dict[str, dict[str, list[str]]] = {i: {} for i in fmus}
     for c in connections:
         if fmus[c.source].variables[c.output].type == "Real" and \
                 c.output not in wanted[c.source]:
             wanted[c.source].append(c.output)
     for full in names:
         inst, _, var = full.partition(".")
-        v = fmus.get(inst) and fmus[inst].variables.get(var)
-        if not v or v.causality != "output" or v.type != "Real":
-            raise SystemSpecError(f"cannot record {full!r}: not a Real output of an instance")
-        if var not in wanted[inst]:
-            wanted[inst].append(var)
+        if inst not in fmus:
+            raise SystemSpecError(f"cannot record {full!r}: no instance {inst!r} (instances: "
+                                  f"{', '.join(fmus)})")
+        v = fmus[inst].variables.get(var)
+        if v is None or v.type not in RECORDABLE:
+            raise SystemSpecError(f"cannot record {full!r}: " + (
+                f"{inst} has no variable {var!r}" if v is None else
+                f"a {v.type} variable (Real, Integer and Boolean ones can be recorded)"))
+        if v.causality == "output" and v.type == "Real":
+            if var not in wanted[inst]:
+                wanted[inst].append(var)
+        elif var not in extra[inst].setdefault(RECORDABLE[v.type], []):
+            extra[inst][RECORDABLE[v.type]].append(var)
     nodes = {i: Node(i, f, wanted[i]) for i, f in fmus.items()}
     for c in connections:
         src, dst = nodes[c.source], nodes[c.target]
@@ -93,14 +117,58 @@ def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
             dst.in_real.append((vr, src, src.out_names.index(c.output)))
         else:
             dst.in_other.append((kind, vr, src, src.fmu.vr(c.output)))
-    every_out = (c_double * sum(len(n.out_names) for n in nodes.values()))()
-    at = 0
+    n_out = sum(len(n.out_names) for n in nodes.values())
+    at = {}  # recorded variable -> its place in the buffer
+    for kind in ("Real", "Integer", "Boolean"):  # Real extras first, the ints in one run
+        for i, n in nodes.items():
+            for var in extra[i].get(kind, []):
+                n.extra.setdefault(kind, []).append(var)
+                at[f"{i}.{var}"] = n_out + len(at)
+    every_out = (c_double * (n_out + len(at)))()
+    k = 0
     for n in nodes.values():
-        n.place(every_out, at)
-        at += len(n.out_names)
+        n.place(every_out, k)
+        k += len(n.out_names)
     for n in nodes.values():
         n.finish(every_out)
-    return nodes, every_out
+    where = [at[full] if full in at else nodes[full.partition(".")[0]].at
+             + nodes[full.partition(".")[0]].out_names.index(full.partition(".")[2])
+             for full in names]
+    return nodes, every_out, where
+
+
+def record_ops(nodes: Mapping[str, Node], every_out: Any) -> list[Op]:
+    """Read the recorded variables that are not Real outputs into their places in the
+    buffer (Integer and Boolean ones through an int buffer, converted by a last copy)."""
+    import numpy as np
+
+    ops: list[Op] = []
+    base = sum(len(n.out_names) for n in nodes.values())
+    reals = sum(len(n.extra.get("Real", [])) for n in nodes.values())
+    ints = (c_int * (sum(len(v) for n in nodes.values() for v in n.extra.values()) - reals))()
+    k = {"Real": base, "Integer": 0, "Boolean": 0}
+    for kind in ("Real", "Integer", "Boolean"):
+        for n in nodes.values():
+            names = n.extra.get(kind, [])
+            if not names:
+                continue
+            s, vrs = n.inst.slave, [n.fmu.vr(v) for v in names]
+            if kind == "Real":
+                buf = (c_double * len(names)).from_buffer(every_out, 8 * k["Real"])
+            else:
+                buf = (c_int * len(names)).from_buffer(ints, 4 * (k["Integer"] + k["Boolean"]))
+            if kind == "Real" and max(vrs) >= VIRTUAL:  # FMI 3.0 array elements
+                ops.append((n, "fmi3GetFloat64", _elements, (s, vrs, buf)))
+            else:
+                ops.append((n, f"fmi2Get{kind}", getattr(s, f"fmi2Get{kind}"),
+                            (s.component, (c_uint * len(names))(*vrs), len(names), buf)))
+            k[kind] += len(names)
+    if len(ints):
+        dst = np.frombuffer(every_out, dtype=np.float64)[base + reals:]
+        src = np.frombuffer(ints, dtype=np.int32)
+        first = next(iter(nodes.values()))
+        ops.append((first, "recording", np.copyto, (dst, src)))
+    return ops
 
 
 def get_ops(n: Node) -> list[Op]:
@@ -110,9 +178,11 @@ def get_ops(n: Node) -> list[Op]:
             ] if len(n.out) else []
 
 
-def _other_ops(n: Node) -> list[Op]:
+def _other_ops(n: Node, ready: Container[str] | None = None) -> list[Op]:
     s, ops = n.inst.slave, []
     for kind, vr, src, svr in n.in_other:
+        if ready is not None and src.name not in ready:
+            continue
         value = (c_int * 1)()  # fmi2Integer and fmi2Boolean are both int
         ss = src.inst.slave
         ops.append((src, f"fmi2Get{kind}", getattr(ss, f"fmi2Get{kind}"),
@@ -133,15 +203,20 @@ def put_ops(n: Node) -> list[Op]:
     return ops + _other_ops(n)
 
 
-def start_ops(n: Node, given: Mapping[str, float] | None, connected: bool = True) -> list[Op]:
+def start_ops(n: Node, given: Mapping[str, float] | None, connected: bool = True,
+              ready: Container[str] | None = None) -> list[Op]:
     """:func:`put_ops` for initialization (only ``given`` if not ``connected``): the Real
     inputs in ``given`` take these values instead of their sources' (connected or not), in
-    one fmi2SetReal with the other Real inputs."""
-    if not given:
+    one fmi2SetReal with the other Real inputs. Inputs whose source instance is not in
+    ``ready`` (not yet initialized: later in an algebraic loop) keep their start or given
+    value."""
+    late = ready is not None and any(
+        src.name not in ready for src in [*(r[1] for r in n.in_real), *(o[2] for o in n.in_other)])
+    if not given and not late:
         return put_ops(n) if connected else []
     s = n.inst.slave
-    fixed = {n.fmu.vr(name): float(v) for name, v in given.items()}
-    real = n.in_real if connected else []
+    fixed = {n.fmu.vr(name): float(v) for name, v in (given or {}).items()}
+    real = [r for r in n.in_real if ready is None or r[1].name in ready] if connected else []
     vrs = [vr for vr, _, _ in real]
     src = [(node.out, i) for _, node, i in real]
     vrs += [vr for vr in fixed if vr not in vrs]
@@ -151,10 +226,16 @@ def start_ops(n: Node, given: Mapping[str, float] | None, connected: bool = True
         buf[:] = [fixed[vr] if vr in fixed else src[k][0][src[k][1]]
                   for k, vr in enumerate(vrs)]
 
+    others = _other_ops(n, ready) if connected else []
+    if not vrs:
+        return others
     return [(n, "fmi2SetReal", fill, ()),
             (n, "fmi2SetReal", s.fmi2SetReal, (s.component, (c_uint * len(vrs))(*vrs),
-                                                len(vrs), buf)),
-            *(_other_ops(n) if connected else [])]
+                                                len(vrs), buf)), *others]
+
+
+def _elements(slave: Any, vrs: list[int], buf: Any) -> None:
+    buf[:] = slave.getReal(vrs)
 
 
 def gather(buf: Any, src: list[tuple[Any, int]]) -> None:

@@ -126,9 +126,12 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         Stop time in wing beats (default: the SSP's DefaultExperiment, else 300).
     master : {'gauss-seidel', 'jacobi'}
     set_values : mapping, optional
-        ``{"instance.NAME": value}``: parameter or input values, in the FMU's unit.
+        ``{"instance.NAME": value}``: parameter or input values, in the FMU's unit, as
+        numbers, booleans or text (as ``--set`` gives them), converted to each variable's
+        declared type when the system is opened (:mod:`.values`).
     record : sequence of str, optional
-        Real outputs ``instance.name`` to record (default: all).
+        Variables ``instance.name`` to record: any Real, Integer or Boolean variable of any
+        instance (default: every Real output).
     verdicts : bool
         Identify each plant's loop (extra short runs).
     out_dir : path or None

@@ -1,0 +1,135 @@
+"""Parameter and input values of a system's instances, converted to each variable's declared type.
+
+A value comes from the command line (text), an SSV file or Python (numbers, booleans, text).
+:func:`typed_values` converts every value of an instance against its FMU's model description
+when a system is opened, so that a value of the wrong type is refused naming
+``instance.NAME`` and the value before anything runs, never passed to an FMI setter:
+
+- Real: a number (not a boolean) or its text, finite;
+- Integer (and Enumeration): a whole number (``3``, ``3.0``, ``"3"``) in the 32-bit range;
+- Boolean: ``true``/``false``/``1``/``0`` (a boolean, 0 or 1, or that text);
+- String: text.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any, Mapping
+
+import numpy as np
+
+from dronefly.harness.system.description import SystemSpecError
+
+__all__ = ["SETTER", "settable", "typed_value", "typed_values"]
+
+#: the fmpy setter of each FMI 2.0 type (``set<SETTER>``)
+SETTER = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+          "String": "String"}
+_INT_RANGE = (-2 ** 31, 2 ** 31 - 1)
+_BOOLS = (bool, np.bool_)
+
+
+def settable(md: Any) -> dict[str, Any]:
+    """The variables of a model description that a system may set: parameters and inputs,
+    by name (not constants, not calculated parameters)."""
+    return {v.name: v for v in md.modelVariables
+            if v.causality in ("parameter", "input")
+            and v.variability in ("fixed", "tunable", "continuous", "discrete")}
+
+
+def _real(where: str, value: Any) -> float:
+    if isinstance(value, str):
+        try:
+            x = float(value.strip())
+        except ValueError:
+            raise SystemSpecError(f"{where} = {value!r} is not a number (a Real)") from None
+    elif isinstance(value, numbers.Real) and not isinstance(value, _BOOLS):
+        x = float(value)
+    else:
+        raise SystemSpecError(f"{where} = {value!r}: a Real takes a number")
+    if not math.isfinite(x):
+        raise SystemSpecError(f"{where} = {value!r} is not finite")
+    return x
+
+
+def _integer(where: str, value: Any) -> int:
+    x: Any = None
+    if isinstance(value, str):
+        text = value.strip()
+        try:
+            x = int(text)
+        except ValueError:
+            try:
+                x = float(text)
+            except ValueError:
+                x = None
+    elif isinstance(value, numbers.Real) and not isinstance(value, _BOOLS):
+        x = value
+    if x is None or not math.isfinite(float(x)) or float(x) != int(x):
+        raise SystemSpecError(f"{where} = {value!r}: an Integer takes a whole number")
+    if not _INT_RANGE[0] <= int(x) <= _INT_RANGE[1]:
+        raise SystemSpecError(f"{where} = {value!r} is outside the Integer range "
+                              f"{_INT_RANGE[0]}..{_INT_RANGE[1]}")
+    return int(x)
+
+
+def _boolean(where: str, value: Any) -> bool:
+    if isinstance(value, _BOOLS):
+        return bool(value)
+    if isinstance(value, str) and value.strip().lower() in ("true", "false", "1", "0"):
+        return value.strip().lower() in ("true", "1")
+    if isinstance(value, numbers.Real) and value in (0, 1):
+        return bool(value)
+    raise SystemSpecError(f"{where} = {value!r}: a Boolean takes true, false, 1 or 0")
+
+
+def typed_value(where: str, v: Any, value: Any) -> Any:
+    """``value`` as the type of the fmpy model variable ``v``.
+
+    Parameters
+    ----------
+    where : str
+        ``instance.NAME``, named in the error.
+    v : fmpy ScalarVariable
+        The variable (its ``type``: Real, Integer, Enumeration, Boolean or String).
+    value : object
+        The value given (number, boolean or text).
+
+    Raises
+    ------
+    SystemSpecError
+        A value that the type cannot take (names ``where`` and the value).
+    """
+    if v.type == "Real":
+        return _real(where, value)
+    if v.type in ("Integer", "Enumeration"):
+        return _integer(where, value)
+    if v.type == "Boolean":
+        return _boolean(where, value)
+    if v.type == "String":
+        if not isinstance(value, str):
+            raise SystemSpecError(f"{where} = {value!r}: a String takes text")
+        return value
+    raise SystemSpecError(f"{where} is a {v.type} variable, which a system cannot set")
+
+
+def typed_values(inst: str, variables: Mapping[str, Any], values: Mapping[str, Any],
+                 fmu_name: str = "") -> dict[str, Any]:
+    """``values`` of instance ``inst`` converted to their variables' types.
+
+    ``variables`` are the instance's settable variables (:func:`settable`).
+
+    Raises
+    ------
+    SystemSpecError
+        A name that is not a parameter or input, or a value of the wrong type.
+    """
+    out = {}
+    for name, value in values.items():
+        v = variables.get(name)
+        if v is None:
+            raise SystemSpecError(f"{inst}.{name}: no parameter or input of that name"
+                                  + (f" in {fmu_name}" if fmu_name else ""))
+        out[name] = typed_value(f"{inst}.{name}", v, value)
+    return out

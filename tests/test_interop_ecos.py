@@ -242,8 +242,37 @@ sim.init(parameter_set="lateral")
 out["hover_lateral_set"] = [sim.get_real("lateral::delta_gamma"),
                             sim.get_real("longitudinal::delta_theta")]
 sim.terminate(); sim.free()
+for tag, path in zip(("Float64", "Real"), sys.argv[3:5]):  # SSP 2.0 array parameters
+    try:
+        sim = EcosSimulation(step_size=0.1 / 164, ssp_path=path)
+    except Exception as e:
+        out[tag] = str(e)
+        continue
+    EcosLib.set_log_level("debug")  # shows the FMUs' messages
+    out[tag] = sim.init(parameter_set="controller")
+    sim.step(1)
+    EcosLib.set_log_level("error")
+    sim.terminate(); sim.free()
 print(json.dumps(out))
 """
+
+
+def _ssp2_gains(ssp, out, tag):
+    """A copy of the closed-loop SSP whose controller.ssv binds the array K as SSP 2.0 writes
+    it: one Parameter, ``ssv:<tag>`` with 12 values row-major, two ``ssc:Dimension``."""
+    import zipfile
+
+    ssv = ('<?xml version="1.0" encoding="utf-8"?>\n<ssv:ParameterSet xmlns:ssv="http://'
+           'ssp-standard.org/SSP1/SystemStructureParameterValues" xmlns:ssc="http://ssp-standard'
+           '.org/SSP1/SystemStructureCommon" version="2.0" name="controller"><ssv:Parameters>'
+           f'<ssv:Parameter name="K"><ssv:{tag} value="'
+           + " ".join(repr(k) for row in default_gains() for k in row)
+           + '"/><ssc:Dimension size="3"/><ssc:Dimension size="4"/></ssv:Parameter>'
+           '</ssv:Parameters></ssv:ParameterSet>\n')
+    with zipfile.ZipFile(ssp) as zi, zipfile.ZipFile(out, "w") as zo:
+        for name in zi.namelist():
+            zo.writestr(name, ssv if name == "resources/controller.ssv" else zi.read(name))
+    return out
 
 
 def test_ecos_takes_an_fmi3_array_for_a_scalar(ecos, built_fmus3, tmp_path):
@@ -258,15 +287,31 @@ def test_ecos_takes_an_fmi3_array_for_a_scalar(ecos, built_fmus3, tmp_path):
     - after a read of K before init, it reads the controller's values in one fmi3GetFloat64
       call that includes K, one value per variable: the 11 further values of K shift the rest,
       and delta_Phi_a reads K[1,2] = -0.2879;
-    - it applies one SSV set per init (hover: the lateral set, not the longitudinal one).
+    - it applies one SSV set per init (hover: the lateral set, not the longitudinal one);
+    - K bound as an SSP 2.0 array parameter: ``ssv:Float64`` is no SSP 1.0 element to it
+      (the SSP is not loaded); ``ssv:Real`` with 12 values: it sets K with one value, which
+      the FMU refuses (logged; the step after is refused), and Ecos goes on. fmpy's read_ssd
+      refuses both (SSP 1.0 schema).
     """
+    from fmpy.ssp.ssd import read_ssd
+
     loop, hover = built_fmus3["DroneFlyClosedLoop.ssp"], built_fmus3["DroneFlyHover.ssp"]
     r = run_ecos(loop, n_steps=10)
     assert not r.complete and "No real property controller::K[1,1] found!" in r.error
-    p = subprocess.run([sys.executable, "-c", _PROBE, str(loop), str(hover)],
+    ssp2 = [_ssp2_gains(loop, tmp_path / f"{tag}.ssp", tag) for tag in ("Float64", "Real")]
+    for path, why in zip(ssp2, ("Float64': This element is not expected",
+                                "is not a valid value of the atomic type 'xs:double'")):
+        with pytest.raises(Exception, match=r"(?s)The value '2.0' is not accepted.*" + why):
+            read_ssd(str(path))
+    p = subprocess.run([sys.executable, "-c", _PROBE, str(loop), str(hover), *map(str, ssp2)],
                        env={**ecos_env(), "TMPDIR": str(tmp_path)}, capture_output=True,
                        text=True, timeout=300)
     out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert out["Float64"] == "Unknown XML node in ssv:Parameter encountered!"
+    assert out["Real"] is True
+    log = p.stdout + p.stderr
+    assert "fmi3SetFloat64: K = -0.3192 rejected: 12 values needed, 1 given" in log
+    assert "step refused at t = 0.0 s: fmi3SetFloat64: K = -0.3192 rejected" in log
     assert "No real property controller::K[1,1] found!" in out["set_element"]
     assert out["K"] == default_gains()[0][0] == -0.3192
     assert out["delta_gamma"] == 0.01068443219382669

@@ -15,7 +15,7 @@ false): a sample instant inside [t, t + h) sees the input set at t (exact for wh
 supplied), and an effect inside a step is visible from the next communication point on. None is
 refused; :attr:`Sensor.off_grid` records the first such instant, for the FMU's warning. All
 instants of one step see the same input: one line entry per step, its instants counting one by
-one for the integral term as they take effect (:attr:`Sensor.tail`).
+one for the integral term as they take effect (:meth:`Sensor.integral_in_effect`).
 
 :class:`Sensor` holds the delay line, the sample in effect and the integral state
 z = integral of x+_s dt+ (t+ = t n) of the sensed non-dimensional state x+_s, exact for the
@@ -54,12 +54,12 @@ class Sensor:
 
     Attributes
     ----------
-    line : deque of (float, tuple, float, float)
-        Samples taken and not yet in effect, oldest first: (first instant [s], dimensional
-        state, last instant [s], period [s]), the instants of one communication step.
-    tail : tuple or None
-        (first instant [s], index of the next, index of the last, period [s]) of the instants
-        of the sample in effect that have not taken effect yet (None: none left).
+    line : deque of tuple
+        Samples taken and not yet in effect, oldest first: (instant [s], dimensional state),
+        or (first instant, state, last instant, period) [s] for several in one step.
+    current : tuple or None
+        The line entry in effect (None: the equilibrium, or the sample of a step without
+        delay): its instants after the first take effect one by one.
     held : tuple
         The dimensional sample in effect (zeros: the equilibrium).
     z0, t_base : tuple, float
@@ -80,7 +80,7 @@ class Sensor:
     """
 
     __slots__ = ("t0", "line", "held", "z0", "t_base", "x_plus", "scale", "n", "integrating",
-                 "last_k", "last_period", "h", "t_effect", "tail", "off_grid")
+                 "last_k", "last_period", "h", "t_effect", "current", "off_grid")
 
     def __init__(self, size: int, t0: float = 0.0) -> None:
         zero = (0.0,) * size
@@ -95,7 +95,7 @@ class Sensor:
         self.last_period = 0.0
         self.h = 0.0
         self.t_effect = self.t0
-        self.tail: tuple[float, int, int, float] | None = None
+        self.current: tuple[Any, ...] | None = None
         self.off_grid: tuple[str, float, float, float] | None | bool = None
 
     def integral(self, t: float) -> State:
@@ -119,43 +119,46 @@ class Sensor:
         self.z0, self.t_base, self.held, self.scale, self.n = z, t, x, scale, n
         self.x_plus = tuple(v / s for v, s in zip(x, scale))
 
-    def _take(self, t: float, h: float, tol: float, period: float, x: State,
-              timing: Timing) -> None:
-        """Append the sample of ``x`` if a sample instant in [t, t + h) [s] is not taken yet:
-        (first instant, x, last instant, period) of the instants in the step."""
-        ts = last = t
-        end = t + h
+    def _instant(self, t: float, end: float, tol: float, period: float,
+                 x: State) -> float | None:
+        """The first sample instant in [t, end) [s] not taken yet (None: none, or taken here:
+        several instants in the step, appended as (first, ``x``, last, period))."""
         if period <= tol:  # every communication point (or finer than the step resolves)
             self.last_k = None
-        else:
-            try:
-                k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end
-                if self.last_k is None or self.last_period != period:
-                    k = math.ceil((t - tol - self.t0) / period)
-                else:  # the next one on the grid, unless it lies before this step (by more
-                    # than the tolerance of the previous step, which decided it was not in it)
-                    wide = TOLERANCE * max(self.h, h)
-                    k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
+            return t
+        try:
+            k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end: before end
+            if self.last_k is None or self.last_period != period:
+                k = math.ceil((t - tol - self.t0) / period)
+            else:  # the next one on the grid, unless it lies before this step (by more than
+                # the tolerance of the previous step, which decided that it was not in it)
+                wide = TOLERANCE * max(self.h, end - t)
+                k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
+            if k_end - k != 1:
                 if k >= k_end:
-                    return
-                ts = last = self.t0 + k * period
+                    return None
+                ts = self.t0 + k * period  # several instants: the second is inside the step
                 self.last_k, self.last_period = k_end - 1, period
-                if ts > t + tol or k_end - 1 > k:  # an instant strictly inside the step
-                    last = self.t0 + (k_end - 1) * period
-                    if self.off_grid is None:
-                        self.off_grid = ("sample instant", ts if ts > t + tol else ts + period,
-                                         t, h)
-            except (OverflowError, ValueError):  # an instant index beyond float range
-                self.last_k, ts, last = None, t, t
-        if len(self.line) >= MAX_SAMPLES:
-            raise SensingError(timing.too_long(h))
-        self.line.append((ts, x, last, period))
+                if self.off_grid is None:
+                    self.off_grid = ("sample instant", ts if ts > t + tol else ts + period, t,
+                                     end - t)
+                if len(self.line) >= MAX_SAMPLES:  # refused by the caller
+                    return ts
+                self.line.append((ts, x, self.t0 + (k_end - 1) * period, period))
+                return None
+            ts = self.t0 + k * period
+        except (OverflowError, ValueError):  # an instant index beyond float range
+            self.last_k = None
+            return t
+        self.last_k, self.last_period = k, period
+        if ts > t + tol and self.off_grid is None:  # the one instant inside the step
+            self.off_grid = ("sample instant", ts, t, end - t)
+        return ts
 
     def advance(self, t: float, h: float, x: State, scale: State, n: float,
                 timing: Timing, integrate: bool) -> tuple[Any, ...]:
-        """One communication step [t, t + h) [s] with the input ``x`` (dimensional) held.
-
-        Takes the sample (if an instant falls in the step) and puts into effect every sample
+        """One communication step [t, t + h) [s] with the input ``x`` (dimensional) held:
+        takes the sample (if an instant falls in the step) and puts into effect every sample
         due by t + h; z integrates over the step if ``integrate`` (integral action on).
         Returns a token for :meth:`undo`; on an exception nothing is changed.
 
@@ -165,10 +168,10 @@ class Sensor:
             The delay line would exceed :data:`MAX_SAMPLES`, or the integral overflows.
         """
         line = self.line
-        popped: list[tuple[float, State, float, float]] = []
+        popped: list[tuple[Any, ...]] = []
         token = (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n,
                  self.integrating, self.last_k, self.last_period, self.h, self.t_effect,
-                 self.tail, self.off_grid, len(line), popped)
+                 self.current, self.off_grid, len(line), popped)
         try:
             tol, end = TOLERANCE * h, t + h
             if integrate != self.integrating:  # integral action switched on or off at t
@@ -183,10 +186,14 @@ class Sensor:
             if not line and d <= tol and period <= tol:  # the sample at t takes effect at t
                 if x != self.held:
                     self._switch(t, x, scale, n)
-                self.last_k, self.h, self.t_effect, self.tail = None, h, t, None
+                self.last_k, self.h, self.t_effect, self.current = None, h, t, None
                 return token
-            self._take(t, h, tol, period, x, timing)  # (also a repeated value: its
-            while line:  # instant updates the control)
+            ts = self._instant(t, end, tol, period, x)
+            if ts is not None:  # also a repeated value: its instant updates the control
+                if len(line) >= MAX_SAMPLES:
+                    raise SensingError(timing.too_long(h))
+                line.append((ts, x))
+            while line:
                 entry = line[0]
                 e = entry[0] + d
                 if e > end + tol:
@@ -200,31 +207,17 @@ class Sensor:
                 popped.append(line.popleft())
                 if entry[1] != self.held:  # a repeated value leaves z's base as it is
                     self._switch(e, entry[1], scale, n)
-                self.t_effect = e
-                if entry[2] != entry[0] or self.tail is not None:
-                    self.tail = (entry[0], 1, round((entry[2] - entry[0]) / entry[3]),
-                                 entry[3]) if entry[2] > entry[0] else None
-            if self.tail is not None:  # later instants of the sample in effect
-                self._tail(d, t, end, tol)
+                self.t_effect, self.current = e, entry
             self.h = h
         except BaseException:
             self.undo(token)
             raise
         return token
 
-    def _tail(self, d: float, t: float, end: float, tol: float) -> None:
-        """Put into effect the instants of the sample in effect due by ``end`` [s]."""
-        first, i, last, period = self.tail  # type: ignore[misc]
-        j = min(last, math.floor((end + tol - d - first) / period))
-        if j >= i:
-            e = first + j * period + d
-            self.t_effect = t if e < t + tol else end if e > end - tol else e
-            self.tail = (first, j + 1, last, period) if j < last else None
-
     def undo(self, token: tuple[Any, ...]) -> None:
         """Return to the state before the :meth:`advance` that gave ``token``."""
         (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n, self.integrating,
-         self.last_k, self.last_period, self.h, self.t_effect, self.tail, self.off_grid,
+         self.last_k, self.last_period, self.h, self.t_effect, self.current, self.off_grid,
          length, popped) = token
         for item in reversed(popped):
             self.line.appendleft(item)
@@ -255,20 +248,27 @@ class Sensor:
         """z for the control at the communication point ``t`` [s]: z(t) if the sample at ``t``
         is in effect at once (as in :meth:`sensed`), else z at the instant the held sample took
         effect (the control is held between samples)."""
-        if (feedthrough and timing.sensing_delay <= TOLERANCE * self.h
-                and self.is_instant(t, timing.sample_period)):
+        d, tol = timing.sensing_delay, TOLERANCE * self.h
+        if feedthrough and d <= tol and self.is_instant(t, timing.sample_period):
             return self.integral(t)
-        return self.integral(max(self.t_effect, self.t_base))
+        te, c = self.t_effect, self.current
+        if c is not None and len(c) > 2:  # several instants: the latest in effect by t
+            first, _, last, period = c
+            j = min(round((last - first) / period), math.floor((t + tol - d - first) / period))
+            e = first + j * period + d
+            te = max(te, t if e > t - tol else e)
+        return self.integral(max(te, self.t_base))
 
     # -- FMU state ------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """Everything, JSON-ready (floats exact)."""
-        return {"t0": self.t0, "line": [[ts, list(x), last, p] for ts, x, last, p in self.line],
+        return {"t0": self.t0, "line": [[e[0], list(e[1]), *e[2:]] for e in self.line],
                 "held": list(self.held), "z0": list(self.z0), "t_base": self.t_base,
                 "x_plus": list(self.x_plus), "scale": list(self.scale), "n": self.n,
                 "integrating": self.integrating, "last_k": self.last_k,
                 "last_period": self.last_period, "h": self.h, "t_effect": self.t_effect,
-                "tail": None if self.tail is None else list(self.tail)}
+                "current": None if self.current is None else
+                [self.current[0], list(self.current[1]), *self.current[2:]]}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], size: int) -> "Sensor":
@@ -279,11 +279,16 @@ class Sensor:
                 raise ValueError(f"the sensor state holds {len(out)} values, expected {n}")
             return out
 
+        def entry(e: Sequence[Any]) -> tuple[Any, ...]:  # (ts, x) or (ts, x, last, period)
+            if len(e) not in (2, 4):
+                raise ValueError(f"a delay-line entry holds {len(e)} items, expected 2 or 4")
+            return (float(e[0]), vec(e[1]), *(float(v) for v in e[2:]))
+
         s = cls(size, float(d["t0"]))
         if len(d["line"]) > MAX_SAMPLES:
             raise ValueError(f"the delay line holds {len(d['line'])} samples, more than "
                              f"{MAX_SAMPLES}")
-        s.line.extend((float(ts), vec(x), float(last), float(p)) for ts, x, last, p in d["line"])
+        s.line.extend(entry(e) for e in d["line"])
         s.held, s.z0, s.x_plus = vec(d["held"]), vec(d["z0"]), vec(d["x_plus"])
         s.scale = vec(d["scale"], None)
         s.t_base, s.n, s.h = float(d["t_base"]), float(d["n"]), float(d["h"])
@@ -291,7 +296,5 @@ class Sensor:
         s.last_k = None if d["last_k"] is None else int(d["last_k"])
         s.last_period = float(d["last_period"])
         s.t_effect = float(d["t_effect"])
-        tail = d["tail"]
-        s.tail = None if tail is None else (float(tail[0]), int(tail[1]), int(tail[2]),
-                                            float(tail[3]))
+        s.current = None if d["current"] is None else entry(d["current"])
         return s

@@ -288,10 +288,13 @@ def test_a_refused_step_changes_nothing_in_the_sensor():
 
 
 # -- the FMU state -----------------------------------------------------------------------------
-def test_state_round_trip_holds_the_delay_line_and_the_integral():
+@pytest.mark.parametrize("h_wb", [0.2, 0.7])
+def test_state_round_trip_holds_the_delay_line_and_the_integral(h_wb):
+    """Period 0.3 wb on steps of 0.2 (one instant per step at most) and of 0.7 (two or three:
+    entries with their last instant, and the sample in effect, are part of the state)."""
     s = _slave(StateFeedbackDelayed, **{"KI[1,2]": 0.3}, sensing_delay=2.5 * WB,
                sample_period=0.3 * WB)
-    xs, h = _inputs(60, seed=9), 0.2 * WB
+    xs, h = _inputs(60, seed=9), h_wb * WB
 
     def run(a: int, b: int) -> list:
         out = []
@@ -303,6 +306,7 @@ def test_state_round_trip_holds_the_delay_line_and_the_integral():
 
     run(0, 20)
     assert len(s._sensor.line) > 1 and any(s._sensor.z0)
+    assert (len(s._sensor.current) == 4) is (h_wb > 0.3)  # several instants in the step
     state = s._get_fmu_state()
     blob = type(s)._fmu_state_to_bytes(state)
     first = run(20, 60)

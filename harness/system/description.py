@@ -79,7 +79,13 @@ class System:
                 raise SystemSpecError(f"{key!r}: expected instance.NAME with an instance of "
                                    f"{', '.join(self.fmus)}")
             params.setdefault(inst, {})[name] = value
-        return System(self.fmus, list(self.connections), params, self.name, self.step_s,
+        return self.with_parameters(params)
+
+    def with_parameters(self, parameters: Mapping[str, Mapping[str, Any]]) -> "System":
+        """A copy with ``parameters`` (``{instance: {name: value}}``) in place of its own
+        (the same FMU files, extracted ones included)."""
+        return System(self.fmus, list(self.connections),
+                      {i: dict(v) for i, v in parameters.items()}, self.name, self.step_s,
                       self.stop_s, self._tmp)
 
     @classmethod

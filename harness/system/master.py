@@ -97,6 +97,8 @@ class SystemMaster:
             self.order = order
             self._settable = {i: settable(md) for i, md in mds.items()}
             self._values = self._typed(system.parameters)
+            # what readers of ``system.parameters`` see (verdicts, sweeps): the typed values
+            self.system = system.with_parameters(self._values)
         except BaseException:
             self.close()
             raise

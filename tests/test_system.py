@@ -461,3 +461,16 @@ def test_record_refuses_what_cannot_be_recorded(gain, name, fragment):
     with SystemMaster(System({"g": gain})) as sm, \
             pytest.raises(SystemSpecError, match=re.escape(f"cannot record {name!r}: {fragment}")):
         sm.run(0.1, 2, record=[name])
+
+
+def test_the_pair_records_more_variables_after_its_own(plant, controller):
+    """Loop.run(record=...): the pair's columns unchanged, then the variables asked for."""
+    extra = ["plant.delta_Phi_a", "controller.K[1,4]", "controller.saturated", "plant.A[2,1]"]
+    loop = Loop(plant, controller)
+    ref = loop.run(H, 30, plant_start=_x0(plant))
+    run = loop.run(H, 30, plant_start=_x0(plant), record=extra)
+    assert run.names == [*ref.names, *extra]
+    assert np.array_equal(run.signals[:, :len(ref.names)], ref.signals)
+    assert np.array_equal(run.column("plant.delta_Phi_a"), ref.column("delta_Phi_a"))
+    assert np.all(run.column("controller.K[1,4]") == PAPER_GAINS_EQ27[3])
+    assert np.all(run.column("controller.saturated") == 0.0)

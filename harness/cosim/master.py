@@ -147,15 +147,18 @@ class Loop:
             plant_start: Mapping[str, float] | None = None,
             controller_params: Mapping[str, float] | None = None,
             u_source0: Sequence[float] | None = None,
-            instances: tuple[Instance, Instance] | None = None) -> LoopRun:
+            instances: tuple[Instance, Instance] | None = None,
+            record: Sequence[str] = ()) -> LoopRun:
         """Co-simulate ``n_steps`` communication steps of ``step_s`` seconds from t = 0.
 
         ``plant_start`` and ``controller_params`` are set in initialization mode.
         ``u_source0`` (Jacobi only) is what the controller is fed before the first step
         (default: the plant's initial outputs). ``instances`` lets a caller reuse
         instances across runs (they are reset first and not freed here). The recorded
-        names are :attr:`names` (the plant's outputs, then its inputs); a failure names
-        the FMU (its model name), the call and the time.
+        names are :attr:`names` (the plant's outputs, then its inputs), then ``record``:
+        more variables ``plant.NAME`` or ``controller.NAME`` of any causality and of type
+        Real, Integer or Boolean (see :meth:`SystemMaster.run`). A failure names the FMU
+        (its model name), the call and the time.
         """
         from dronefly.harness.system.description import SystemSpecError
 
@@ -173,7 +176,7 @@ class Loop:
             inputs0 = {"controller": dict(zip(self.sensed, u_source0))}
         sm = self.master(master)
         try:
-            run = sm.run(step_s, n_steps, record=self._record,
+            run = sm.run(step_s, n_steps, record=[*self._record, *record],
                          values={"plant": dict(plant_start or {}),
                                  "controller": dict(controller_params or {})},
                          instances=None if instances is None else dict(
@@ -181,7 +184,7 @@ class Loop:
                          inputs0=inputs0)
         except (SystemSpecError, FMUError, OSError) as e:
             raise CoSimError(str(e)) from e
-        run.names = list(self.names)
+        run.names = [*self.names, *record]
         if run.failure is not None:  # named by the FMU, as the pair's messages always were
             fmu = {"plant": self.plant, "controller": self.controller}[run.failure.fmu]
             run.failure = dataclasses.replace(run.failure, fmu=fmu.name)

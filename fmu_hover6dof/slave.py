@@ -30,6 +30,13 @@ _ATTITUDE = ("delta_gamma_start", "delta_theta_start", "psi_start")
 _VELOCITY = ("delta_u_start", "delta_v_start", "delta_w_start")
 
 
+def _slice(vrs: tuple[int, ...]) -> slice:
+    """Consecutive value references ``vrs`` as one slice of the value table."""
+    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
+        raise ValueError(f"value references {vrs} are not consecutive")
+    return slice(vrs[0], vrs[0] + len(vrs))
+
+
 def _initial_dependencies(name: str) -> tuple[str, ...]:
     """The knowns an output's initial value is computed from (FMI 2.0 InitialUnknowns)."""
     if name in ("delta_gamma", "delta_theta", "theta"):
@@ -94,10 +101,10 @@ class DroneFlyHover6DOF(SlaveBase):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         vr = self._vr
-        self._lat_vr = tuple(vr[n] for n in LATERAL.control_names)
-        self._lon_vr = tuple(vr[n] for n in LONGITUDINAL.control_names)
         self._controls = (*LATERAL.control_names, *LONGITUDINAL.control_names)
-        self._out_vr = tuple(vr[n] for n in OUTPUT_NAMES)
+        # the controls' and the outputs' rows of the value table, as slices
+        self._inputs = _slice(tuple(vr[n] for n in self._controls))
+        self._outputs = _slice(tuple(vr[n] for n in OUTPUT_NAMES))
         self._x = initial_state(dict.fromkeys(_STARTS, 0.0), U_M_PER_S, N_HZ)
         self._model: Hover6DOF | None = None
         self._U, self._n = U_M_PER_S, N_HZ
@@ -123,9 +130,7 @@ class DroneFlyHover6DOF(SlaveBase):
         return initial_state(dict(zip(_STARTS, starts)), self._U, self._n)
 
     def _write(self, x: list[float]) -> None:
-        r = self._real
-        for i, v in zip(self._out_vr, outputs(x, self._U, self._n)):
-            r[i] = v
+        self._real[self._outputs] = outputs(x, self._U, self._n)
 
     def _update_outputs(self) -> None:
         if not self._initialized:  # initial unknowns follow the starts until initialized
@@ -136,10 +141,11 @@ class DroneFlyHover6DOF(SlaveBase):
         self._write(self._x)
 
     def _advance(self, t: float, h: float) -> None:
-        r = self._real
-        c_lat = [r[i] for i in self._lat_vr]
-        c_lon = [r[i] for i in self._lon_vr]
-        self._check_finite(self._controls, [*c_lat, *c_lon])
+        c = self._real[self._inputs]
+        total = sum(c)
+        if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite
+            self._check_finite(self._controls, c)
+        c_lat, c_lon = c[:3], c[3:]
         try:
             x = self._model.step(self._x, c_lat, c_lon, h * self._n)  # type: ignore[union-attr]
         except Hover6DOFError as e:  # name the inputs: the likely cause

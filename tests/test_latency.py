@@ -287,12 +287,55 @@ def _doc_table(key: str) -> str:
     return m.group(1)
 
 
-def test_doc_tables_and_numbers_are_the_code_s():
+@pytest.fixture(scope="module")
+def margin_data():
+    """The margins of the five designs (a few seconds): computed once for the doc tests."""
+    from dronefly.harness.latency import report
+
+    return report.margin_rows()
+
+
+def test_doc_prose_numbers_are_the_code_s(margin_data):
+    """The numbers of docs/latency.md's prose outside the tables, recomputed: the latencies in
+    wing beats, 'N times the roll reflex', Eq. (27)'s kept eigenvalues and their 5 % time, the
+    cost of sampling once per wing beat (half, third, eighth of a wing beat), the LQR's peak."""
+    text = " ".join(DOC.read_text(encoding="utf-8").split())
+    rows = {r.name: r for r in margin_data}
+    assert f"n = 164 Hz one wing beat (wb) is {1e3 / 164:.3f} ms" in text
+    assert f"these latencies are {ms_to_wb(5.0):.1f} to {ms_to_wb(30.0):.1f} wing beats" in text
+    eq27 = rows["eq27"].continuous.ms(164)
+    assert eq27 > 2 * 30.0 and "more than twice the slowest (visual) latency" in text
+    assert f"and {eq27 / 5.0:.0f} times the roll reflex's 5 ms" in text
+    loop = rows["eq27_exact"].loop
+    ev = np.linalg.eigvals(loop.A + loop.B @ loop.K)
+    ev = ev[np.abs(ev) > 1e-9]  # the neutral root (|lambda_1| ~ 1e-17) dropped
+    pair, real = ev[np.argmax(ev.imag)], ev[np.abs(ev.imag) < 1e-12].real
+    assert len(ev) == 3 and len(real) == 1
+    assert (f"keeps Eq. (27)'s three non-zero ones ({pair.real:.4f} ± {pair.imag:.4f}i, "
+            f"{real[0]:.4f})") in text
+    t5 = math.log(20.0) / -pair.real  # the slow pair's envelope down to 5 %
+    assert (f"({pair.real:.3f} ± {pair.imag:.3f}i per wing beat, about {t5:.0f} wing beats = "
+            f"{t5 / 164:.1f} s to 5 %)") in text
+    lam1 = float(np.max(np.linalg.eigvals(loop.A).real))
+    assert f"moves lambda_1 to {lam1:.4f} (1 - alpha) per wing beat" in text
+    assert ("costs about half a wing beat of margin for Eq. (27) and the stabilising design "
+            "(the zero-order hold delays the control by Ts / 2 on average), a third of one for "
+            "the LQR and an eighth for the PI design") in text
+    for name, share in (("eq27", 1 / 2), ("eq27_exact", 1 / 2), ("stabilising", 1 / 2),
+                        ("lqr", 1 / 3), ("pi", 1 / 8)):
+        cost = rows[name].continuous.tau - rows[name].sampled.tau  # wing beats
+        assert abs(cost / share - 1.0) < 0.05, (name, cost)
+    peak = rows["lqr"].undelayed.peak_control
+    assert (f"it needs {peak:.1f} rad per rad of roll ({0.22 * peak:.2f} rad at the 0.22 rad "
+            "bound, past the 0.4 rad limit)") in text and 0.22 * peak > 0.4
+
+
+def test_doc_tables_and_numbers_are_the_code_s(margin_data):
     """The three tables verbatim; the numbers of the text recomputed (one test: the tables
     take a few seconds)."""
     from dronefly.harness.latency import report
 
-    margin_data, redesign_data = report.margin_rows(), report.redesigns()
+    redesign_data = report.redesigns()
     assert _doc_table("margins") == "\n".join(report.margin_table(margin_data))
     assert _doc_table("costs") == "\n".join(report.cost_table())
     assert _doc_table("redesigns") == "\n".join(report.redesign_table(redesign_data))

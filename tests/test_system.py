@@ -474,3 +474,16 @@ def test_the_pair_records_more_variables_after_its_own(plant, controller):
     assert np.array_equal(run.column("plant.delta_Phi_a"), ref.column("delta_Phi_a"))
     assert np.all(run.column("controller.K[1,4]") == PAPER_GAINS_EQ27[3])
     assert np.all(run.column("controller.saturated") == 0.0)
+
+
+def test_ssp_round_trip_keeps_integer_boolean_and_string_values(gain, tmp_path):
+    """Our SSP writer and reader: each SSV value keeps its type, and the system runs."""
+    from dronefly.harness.system.ssp import write_system_ssp
+
+    values = {"k": 0.25, "m": 3, "negate": True, "label": "g1", "u": 2.0}
+    back = System.from_ssp(write_system_ssp(System({"g": gain}, parameters={"g": values}),
+                                            tmp_path / "g.ssp"))
+    assert back.parameters == {"g": values}
+    assert [type(v) for v in back.parameters["g"].values()] == [float, int, bool, str, float]
+    with SystemMaster(back) as sm:
+        assert sm.run(0.1, 1, record=["g.y"]).signals[:, 0].tolist() == [-1.5, -1.5]

@@ -49,6 +49,8 @@ def _ssv_type(value: object) -> tuple[str, str]:
         return "Boolean", "true" if value else "false"
     if isinstance(value, int):
         return "Integer", str(value)
+    if isinstance(value, str):
+        return "String", value
     return "Real", repr(float(value))  # type: ignore[arg-type]
 
 
@@ -92,11 +94,12 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
             ET.SubElement(bindings, f"{{{_SSD}}}ParameterBinding",
                           {"source": f"resources/{inst}.ssv"})
             files[f"resources/{inst}.ssv"] = _ssv(inst, values)
-    connections = ET.SubElement(sys_el, f"{{{_SSD}}}Connections")
-    for c in system.connections:
-        ET.SubElement(connections, f"{{{_SSD}}}Connection", {
-            "startElement": c.source, "startConnector": c.output,
-            "endElement": c.target, "endConnector": c.input})
+    if system.connections:  # the schema wants a Connection in Connections: none without
+        connections = ET.SubElement(sys_el, f"{{{_SSD}}}Connections")
+        for c in system.connections:
+            ET.SubElement(connections, f"{{{_SSD}}}Connection", {
+                "startElement": c.source, "startConnector": c.output,
+                "endElement": c.target, "endConnector": c.input})
     stop = system.stop_s if stop_s is None else stop_s
     if stop is not None:
         ET.SubElement(root, f"{{{_SSD}}}DefaultExperiment",

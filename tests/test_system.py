@@ -392,6 +392,10 @@ def test_values_of_the_wrong_type_are_refused_naming_them(gain, name, value, fra
     with SystemMaster(System({"g": gain})) as sm, \
             pytest.raises(SystemSpecError, match=re.escape(fragment)):
         sm.run(0.1, 2, values={"g": {name: value}})
+    from dronefly.harness.system.run import cosimulate_system
+
+    with pytest.raises(SystemSpecError, match=re.escape(fragment)):
+        cosimulate_system(System({"g": gain}), set_values={f"g.{name}": value}, out_dir=None)
 
 
 @pytest.mark.parametrize("setting, fragment", [

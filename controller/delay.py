@@ -8,7 +8,8 @@ and the control computed from the sample at t_k takes effect at t_k + sensing_de
 (zero-order hold) until the next one takes effect. Before the first sample takes effect the
 sensed state is the equilibrium x = 0 (the insect hovered before t_start). The output at a
 communication point t is the control of the latest sample with t_k + sensing_delay <= t
-(times compared to 1e-9 of the communication step, :data:`TOLERANCE`).
+(times compared to 1e-9 of the communication step plus the drift of a master that adds up its
+steps, :func:`.timing.tolerance`).
 
 FMI co-simulation holds the inputs over a communication step (``canInterpolateInputs`` is
 false): a sample instant inside [t, t + h) sees the input set at t (exact for what the importer
@@ -20,11 +21,10 @@ one for the integral term as they take effect (:meth:`Sensor.integral_in_effect`
 :class:`Sensor` holds the delay line, the sample in effect and the integral state
 z = integral of x+_s dt+ (t+ = t n) of the sensed non-dimensional state x+_s, exact for the
 held signal: z(t) = z(t_b) + x+_s (t - t_b) n since the last change t_b of the held sample.
-The control is computed when a sample takes effect and held until the next one does, so its
-integral term uses z at that instant: u = K x+_s + KI z(t_e), t_e the instant the held sample
-took effect (every sample instant counts, also one whose value repeats the previous).
-z integrates while integral action is on (any integral gain non-zero) and holds its value
-while it is off (from z = 0 at t_start if the gains are set before the run starts).
+The control, computed when a sample takes effect and held until the next one does, is
+u = K x+_s + KI z(t_e), t_e the instant the held sample took effect (every sample instant
+counts, also one whose value repeats). z integrates while integral action is on (any integral
+gain non-zero), from z = 0 at t_start if the gains are set before the run starts.
 
 Pure Python (shipped inside the controller FMUs); imports only :mod:`.timing`.
 """
@@ -35,7 +35,7 @@ import math
 from collections import deque
 from typing import Any, Sequence
 
-from .timing import MAX_SAMPLES, TOLERANCE, SensingError, Timing
+from .timing import DRIFT, MAX_SAMPLES, TOLERANCE, SensingError, Timing, tolerance
 
 __all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
 
@@ -85,15 +85,12 @@ class Sensor:
     def __init__(self, size: int, t0: float = 0.0) -> None:
         zero = (0.0,) * size
         self.t0 = float(t0)
-        self.line: deque[tuple[float, State]] = deque()
+        self.line: deque[tuple[Any, ...]] = deque()
         self.held, self.z0, self.x_plus = zero, zero, zero
         self.t_base = self.t0
         self.scale: State = ()
         self.n = 0.0
-        self.integrating = False
-        self.last_k: int | None = None
-        self.last_period = 0.0
-        self.h = 0.0
+        self.integrating, self.last_k, self.last_period, self.h = False, None, 0.0, 0.0
         self.t_effect = self.t0
         self.current: tuple[Any, ...] | None = None
         self.off_grid: tuple[str, float, float, float] | None | bool = None
@@ -119,20 +116,21 @@ class Sensor:
         self.z0, self.t_base, self.held, self.scale, self.n = z, t, x, scale, n
         self.x_plus = tuple(v / s for v, s in zip(x, scale))
 
-    def _instant(self, t: float, end: float, tol: float, period: float,
+    def _instant(self, t: float, h: float, tol: float, period: float,
                  x: State) -> float | None:
         """The first sample instant in [t, end) [s] not taken yet (None: none, or taken here:
         several instants in the step, appended as (first, ``x``, last, period))."""
         if period <= tol:  # every communication point (or finer than the step resolves)
             self.last_k = None
             return t
+        end = t + h
         try:
             k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end: before end
             if self.last_k is None or self.last_period != period:
                 k = math.ceil((t - tol - self.t0) / period)
             else:  # the next one on the grid, unless it lies before this step (by more than
                 # the tolerance of the previous step, which decided that it was not in it)
-                wide = TOLERANCE * max(self.h, end - t)
+                wide = max(tol, TOLERANCE * self.h)
                 k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
             if k_end - k != 1:
                 if k >= k_end:
@@ -141,7 +139,7 @@ class Sensor:
                 self.last_k, self.last_period = k_end - 1, period
                 if self.off_grid is None:
                     self.off_grid = ("sample instant", ts if ts > t + tol else ts + period, t,
-                                     end - t)
+                                     h)
                 if len(self.line) >= MAX_SAMPLES:  # refused by the caller
                     return ts
                 self.line.append((ts, x, self.t0 + (k_end - 1) * period, period))
@@ -152,7 +150,7 @@ class Sensor:
             return t
         self.last_k, self.last_period = k, period
         if ts > t + tol and self.off_grid is None:  # the one instant inside the step
-            self.off_grid = ("sample instant", ts, t, end - t)
+            self.off_grid = ("sample instant", ts, t, h)
         return ts
 
     def advance(self, t: float, h: float, x: State, scale: State, n: float,
@@ -173,7 +171,9 @@ class Sensor:
                  self.integrating, self.last_k, self.last_period, self.h, self.t_effect,
                  self.current, self.off_grid, len(line), popped)
         try:
-            tol, end = TOLERANCE * h, t + h
+            # tol = tolerance(t0, t, h), inline: t >= t0 (the base class checks h > 0)
+            tol = TOLERANCE * h + DRIFT * (t if t > 0.0 else -t) * (t - self.t0) / h
+            end = t + h
             if integrate != self.integrating:  # integral action switched on or off at t
                 if self.integrating:
                     self._switch(t, self.held, scale, n)  # z up to t, held from then on
@@ -188,7 +188,7 @@ class Sensor:
                     self._switch(t, x, scale, n)
                 self.last_k, self.h, self.t_effect, self.current = None, h, t, None
                 return token
-            ts = self._instant(t, end, tol, period, x)
+            ts = self._instant(t, h, tol, period, x)
             if ts is not None:  # also a repeated value: its instant updates the control
                 if len(line) >= MAX_SAMPLES:
                     raise SensingError(timing.too_long(h))
@@ -226,7 +226,7 @@ class Sensor:
 
     def is_instant(self, t: float, period: float) -> bool:
         """Whether the communication point ``t`` [s] is a sample instant."""
-        tol = TOLERANCE * self.h
+        tol = tolerance(self.t0, t, self.h)
         if period <= tol:
             return True
         try:
@@ -239,7 +239,7 @@ class Sensor:
         """The sensed (dimensional) state at the communication point ``t`` [s]: the live input
         if the delay is 0 and ``t`` a sample instant (``feedthrough``: the FMU may use the
         input of the same instant), else the sample in effect."""
-        if (feedthrough and timing.sensing_delay <= TOLERANCE * self.h
+        if (feedthrough and timing.sensing_delay <= tolerance(self.t0, t, self.h)
                 and self.is_instant(t, timing.sample_period)):
             return x_live
         return self.held
@@ -248,7 +248,7 @@ class Sensor:
         """z for the control at the communication point ``t`` [s]: z(t) if the sample at ``t``
         is in effect at once (as in :meth:`sensed`), else z at the instant the held sample took
         effect (the control is held between samples)."""
-        d, tol = timing.sensing_delay, TOLERANCE * self.h
+        d, tol = timing.sensing_delay, tolerance(self.t0, t, self.h)
         if feedthrough and d <= tol and self.is_instant(t, timing.sample_period):
             return self.integral(t)
         te, c = self.t_effect, self.current

@@ -13,12 +13,24 @@ from functools import cached_property
 
 from ..errors import DroneflyError
 
-__all__ = ["MAX_SAMPLES", "TOLERANCE", "SensingError", "Timing"]
+__all__ = ["DRIFT", "MAX_SAMPLES", "TOLERANCE", "SensingError", "Timing", "tolerance"]
 
 #: bound of the delay line (samples taken, not yet in effect) of one instance
 MAX_SAMPLES = 100_000
-#: times closer than TOLERANCE * (communication step) count as equal
+#: times closer than TOLERANCE * (communication step) count as equal ...
 TOLERANCE = 1e-9
+#: ... plus the drift of a master's time t_m = t_(m-1) + h: up to one rounding, 2^-53 |t|,
+#: per step, so m = (t - t_start) / h steps give m DRIFT |t| (DRIFT: two roundings)
+DRIFT = 2.0 ** -52
+
+
+def tolerance(t0: float, t: float, h: float) -> float:
+    """Times within this of each other [s] count as equal at ``t`` [s] on steps of ``h`` [s]
+    from ``t0`` [s]: TOLERANCE h + DRIFT |t| (t - t0) / h (0 before the first step, h = 0).
+    The drift term reaches TOLERANCE h after about 2100 steps from t0 = 0 and h/2 after 5e7."""
+    if not h > 0.0:
+        return 0.0
+    return TOLERANCE * h + DRIFT * abs(t) * abs(t - t0) / h
 
 class SensingError(DroneflyError):
     """A sensing delay or sample period is not acceptable, or the integral state overflows."""
@@ -76,7 +88,7 @@ class Timing:
         """The shortest and longest time [s] from a communication point, where the importer
         sets an input, to the first communication point that shows the control of a sample of
         it, on a grid of steps ``h`` [s] from t_start (over the first ``steps`` steps)."""
-        d, period, tol = self.sensing_delay, self.sample_period, TOLERANCE * h
+        d, period, tol = self.sensing_delay, self.sample_period, TOLERANCE * h  # (no drift)
         seen: list[float] = []
         for m in range(steps):
             t = m * h

@@ -81,6 +81,26 @@ def test_slave_state_round_trip_and_foreign_state(feedback3):
 # -- the built FMUs --------------------------------------------------------------------------
 
 
+def test_fmi3_binary_releases_its_interpreter_guard_at_exit(built_fmus3):
+    """pythonfmu3's binary (binaries/x86_64-linux/<model>.so) frees its interpreter guard twice
+    at process exit unless an exit handler released it first (dronefly/fmi/host.py): the FMU
+    registers that handler for the library the host loaded. Without it an Ecos child aborted
+    at exit ("corrupted double-linked list") in 6 of 30 runs of build/fmi3/DroneFlyHover.ssp."""
+    import posixpath
+    import sys
+
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(built_fmus3["StateFeedback"]) as fmu, fmu.instantiate("guard"):
+        hosts = [m for n, m in sys.modules.items()
+                 if n.startswith("dronefly3_statefeedback_") and n.endswith(".fmi.host")]
+        assert hosts
+        guarded = {posixpath.normpath(lib) for h in hosts for lib in h.guarded_libraries()}
+        loaded = hosts[0].loaded_libraries()
+        assert [lib for lib in guarded if lib in loaded
+                and lib.endswith("/binaries/x86_64-linux/StateFeedback.so")]
+
+
 def _md(path):
     with zipfile.ZipFile(path) as z:
         return ET.fromstring(z.read("modelDescription.xml"))

@@ -20,7 +20,9 @@ the class and how this side answers:
   reach Python): the first fmi3DoStep's currentCommunicationPoint is taken as the start, and
   steps past the stop time are not refused.
 - log messages need a ``debug`` attribute (pythonfmu 0.7.0's LogMsg has none) and are not
-  printf formats.
+  printf formats;
+- its binary releases its interpreter guard twice at process exit, as pythonfmu's does: the
+  guard is released from an exit handler, as for FMI 2.0.
 
 Shipped inside every FMI 3.0 FMU; imports only the standard library and its siblings.
 """
@@ -34,6 +36,7 @@ from typing import Any, ClassVar
 from pythonfmu.enums import Fmi2Status
 
 from .calls import do_step_status
+from .host import finalize_at_exit
 from .table3 import Var3, fmi3_table
 from .values import set_rows
 
@@ -82,6 +85,11 @@ class Fmi3Side:
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._t0_known = False
+        # pythonfmu3's binary has pythonfmu's double release of its interpreter guard at exit
+        # (:func:`.host.finalize_at_exit`; "corrupted double-linked list" in about 1 of 10
+        # Ecos runs of build/fmi3/DroneFlyHover.ssp), but lives in the FMI 3.0 platform folder
+        # binaries/x86_64-linux: name it relative to the FMI 2.0 one that function expects
+        finalize_at_exit(self.resources, f"../x86_64-linux/{self.MODEL_NAME}")
 
     # -- logging --------------------------------------------------------------
     def log(self, msg: str, status: Any = Fmi2Status.ok, category: str | None = None,

@@ -138,7 +138,7 @@ class Sensor:
                 ts = self.t0 + k * period  # several instants: the second is inside the step
                 self.last_k, self.last_period = k_end - 1, period
                 if self.off_grid is None:
-                    self.off_grid = ("sample instant", ts if ts > t + tol else ts + period, t,
+                    self.off_grid = ("a sample instant", ts if ts > t + tol else ts + period, t,
                                      h)
                 if len(self.line) >= MAX_SAMPLES:  # refused by the caller
                     return ts
@@ -150,7 +150,7 @@ class Sensor:
             return t
         self.last_k, self.last_period = k, period
         if ts > t + tol and self.off_grid is None:  # the one instant inside the step
-            self.off_grid = ("sample instant", ts, t, h)
+            self.off_grid = ("a sample instant", ts, t, h)
         return ts
 
     def advance(self, t: float, h: float, x: State, scale: State, n: float,
@@ -203,7 +203,7 @@ class Sensor:
                 elif e > end - tol:
                     e = end
                 elif self.off_grid is None:  # an effect strictly inside the step
-                    self.off_grid = ("effect instant", e, t, h)
+                    self.off_grid = ("an effect instant", e, t, h)
                 popped.append(line.popleft())
                 if entry[1] != self.held:  # a repeated value leaves z's base as it is
                     self._switch(e, entry[1], scale, n)

@@ -98,14 +98,14 @@ class Timing:
         return (min(seen), max(seen)) if seen else (math.inf, math.inf)
 
     def off_grid_warning(self, what: str, instant: float, t: float, h: float) -> str:
-        """The warning for a ``what`` ("sample instant", "effect instant") at ``instant`` [s]
+        """The warning for ``what`` ("a sample instant", "an effect instant") at ``instant`` [s]
         strictly inside the step [t, t + h) [s]: what the FMU does and what the importer sees."""
         lo, hi = self.seen_latency(h)
         seen = (f"{lo / h:.4g} step(s) ({lo:.6g} s)" if hi - lo <= TOLERANCE * h else
                 f"{lo / h:.4g} to {hi / h:.4g} steps ({lo:.6g} to {hi:.6g} s)")
         return (f"sensing_delay = {self.sensing_delay!r} s and sample_period = "
                 f"{self.sample_period!r} s are not whole numbers of the communication step "
-                f"{h!r} s: a {what} (t = {instant!r} s) falls inside the step from {t!r} s. "
+                f"{h!r} s: {what} (t = {instant!r} s) falls inside the step from {t!r} s. "
                 "Inputs are constant over a communication step (FMI 2.0), so the FMU samples the "
                 "input held since the start of the step, and a control that takes effect inside "
                 "a step is visible from the next communication point on: at this step size the "

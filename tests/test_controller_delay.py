@@ -407,10 +407,10 @@ def test_built_fmus_output_the_input_sampled_the_delay_earlier(fmus, name, h, de
 
 @pytest.mark.integration
 @pytest.mark.parametrize("h,delay,period,what,seen", [
-    (F(1), F("0.4"), F("0.3"), "sample instant", "1 step(s)"),
-    (F("0.5"), F("1.3"), F(0), "effect instant", "3 step(s)"),
-    (F("0.5"), F(1), F("0.7"), "sample instant", "2 to 3 steps"),
-    (F("0.1"), F("0.25"), F(0), "effect instant", "3 step(s)"),
+    (F(1), F("0.4"), F("0.3"), "a sample instant", "1 step(s)"),
+    (F("0.5"), F("1.3"), F(0), "an effect instant", "3 step(s)"),
+    (F("0.5"), F(1), F("0.7"), "a sample instant", "2 to 3 steps"),
+    (F("0.1"), F("0.25"), F(0), "an effect instant", "3 step(s)"),
 ])
 def test_built_fmu_warns_once_off_the_grid_and_computes_as_stated(fmus, h, delay, period,
                                                                     what, seen):
@@ -427,7 +427,7 @@ def test_built_fmu_warns_once_off_the_grid_and_computes_as_stated(fmus, h, delay
     hs = float(h) * WB
     for part in (f"sensing_delay = {float(delay) * WB!r} s",
                  f"sample_period = {float(period) * WB!r} s",
-                 f"communication step {hs!r} s", f"a {what} (t = ",
+                 f"communication step {hs!r} s", f"s: {what} (t = ",
                  "samples the input held since the start of the step",
                  "visible from the next communication point on",
                  f"input set at a communication point {seen} ("):

@@ -235,7 +235,8 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     FMUs' defaults both SSPs still agree, and differ from the default run."""
     from dronefly.controller.law import default_gains
     from dronefly.harness.interop.closedloop import ClosedLoopSpec
-    from dronefly.harness.interop.ssp import write_ssp
+    from dronefly.harness.cosim.master import CoSimError
+    from dronefly.harness.interop.ssp import run_ssp, write_ssp
     from dronefly.harness.system.run import cosimulate_system
 
     kw = dict(out_dir=None, plot=False)
@@ -244,6 +245,8 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     assert r.run.complete and r.run.names == ref.run.names and len(r.run.time) == 3001
     assert np.max(np.abs(r.run.signals - ref.run.signals)) <= 1e-12
     assert [(a.plant.instance, a.verdict) for a in r.axes] == [("plant", "neutral")]
+    with pytest.raises(CoSimError, match="simulate_ssp runs FMI 2.0 FMUs only"):
+        run_ssp(built_fmus3["DroneFlyClosedLoop.ssp"])  # fmpy instantiates FMU2Slave only
     gains = [list(row) for row in default_gains()]
     gains[0][1], gains[1][0] = -0.25, 0.1
     spec = ClosedLoopSpec(gains=tuple(map(tuple, gains)), stop_wingbeats=60)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from dronefly.cli import main
-from dronefly.harness.nonlinear.terms import linearisation_error, term_errors
+from dronefly.harness.nonlinear.terms import line_profile, linearisation_error, term_errors
 from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36, SweepInputError, SweepSpec, \
     direction_vector
 from dronefly.harness.sweep.compare import LONGITUDINAL_AXES, compare_summary
@@ -23,6 +23,8 @@ from dronefly.harness.sweep.run import run_sweep
 pytestmark = pytest.mark.integration
 
 DOC = (Path(__file__).resolve().parents[1] / "docs" / "validity.md").read_text(encoding="utf-8")
+#: the document with its line breaks as spaces (the fragments below do not depend on them)
+TEXT = " ".join(DOC.split())
 AXES = ("dv", "dp", "dr", "dgamma")
 
 
@@ -66,14 +68,56 @@ def test_docs_in_box_numbers_through_the_fmus(systems, tmp_path):
                      stop_wb=100.0)
     r = _compare(systems, spec, tmp_path / "box", workers=2)
     c = compare_summary(r.rows)
-    assert c["in_box_cases"] == c["cases"] == 283
-    assert f"Of the {c['in_box_cases']} initial states inside the box, the " \
-           f"{c['in_box_staying_cases']} whose" in DOC
-    assert f"at most {_pct(c['in_box_staying_max_err_lateral'])} of the bounds" in DOC
-    assert f"{100 * c['in_box_fraction_lateral_within_10pct']:.0f} % of the initial states" in DOC
-    assert f"up to {100 * c['in_box_max_err_lateral']:.0f} % of\nthe bounds" in DOC
-    assert f"up to {1000 * c['in_box_max_altitude_lost_m']:.1f} mm" in DOC
+    n, stay = c["in_box_cases"], c["in_box_staying_cases"]
+    assert n == c["cases"] == 283
+    assert f"Of the {n} initial states inside the box, the {stay} whose" in TEXT
+    assert f"at most {_pct(c['in_box_staying_max_err_lateral'])} of the bounds in the lateral" \
+           in TEXT
+    assert c["in_box_staying_lateral_within_10pct"] == stay  # "there ... within 10 %"
+    lon_ok = c["in_box_staying_longitudinal_within_10pct"]
+    assert f"by up to {_pct(c['in_box_staying_max_err_longitudinal'])} of the bounds, and only " \
+           f"{lon_ok} of the {stay} are within 10 %" in TEXT
+    assert f"({stay - lon_ok} of them exceed 10 %)" in TEXT
+    assert f"{100 * c['in_box_fraction_lateral_within_10pct']:.0f} % of the initial states in " \
+           f"the box are within 10 % laterally and " \
+           f"{100 * c['in_box_fraction_longitudinal_within_10pct']:.0f} % longitudinally" in TEXT
+    assert f"up to {100 * c['in_box_max_err_lateral']:.0f} % of the bounds laterally and " \
+           f"{100 * c['in_box_max_err_longitudinal']:.0f} % longitudinally" in TEXT
+    assert f"up to {1000 * c['in_box_max_altitude_lost_m']:.1f} mm" in TEXT
     assert c["in_box_staying_max_err_lateral"] < 0.10 < c["in_box_max_err_lateral"]
+    assert c["in_box_staying_max_err_longitudinal"] > 0.10 and lon_ok < stay
+
+
+def _first_over(profile, column: int, limit: float = 0.10):
+    """The first amplitude of a :func:`line_profile` whose ``column`` exceeds ``limit``."""
+    return next(row for row in profile if row[column] > limit)
+
+
+def test_docs_the_10pct_contour_outside_the_box():
+    """Along the diagonals of the dr x dp slice, at the default comparison's quarter-box
+    amplitudes (model loops: equal to the FMUs' to 1e-8, test above): along dr = -dp the
+    lateral error stays within 10 % far beyond where the linear loop leaves the bounds; along
+    dr = dp it passes 10 % where the linear loop leaves them too."""
+    amplitudes = [k / 4 for k in range(1, 13)]
+    anti = line_profile((0.0, 1.0, -1.0, 0.0), amplitudes)
+    last_in = max(a for a, lat, lon, peak in anti if peak <= 1.0)
+    first_out = min(a for a, lat, lon, peak in anti if peak > 1.0)
+    within = [row for row in anti if row[1] <= 0.10]
+    assert within == anti[:len(within)], "within 10 % up to an amplitude, not beyond"
+    best, over = within[-1], _first_over(anti, 1)
+    assert (last_in, first_out) == (1.0, 1.25) and best[0] == 2.5
+    assert f"along dr = -dp (roll and yaw rates of opposite signs) it stays below 10 % out to " \
+           f"{best[0]:g} times the box ({_pct(best[1])} there, {_pct(over[1])} at {over[0]:g})" \
+           f", while the linear loop leaves the bounds from {first_out:g} times the box on" \
+           in TEXT
+    lon_over = _first_over(anti, 2)
+    assert f"the longitudinal error passes 10 % at {lon_over[0]:g} times the box " \
+           f"({_pct(lon_over[2])})" in TEXT
+    diag = line_profile((0.0, 1.0, 1.0, 0.0), amplitudes[:2])
+    lat_over = _first_over(diag, 1)
+    assert lat_over[3] > 1.0 and diag[0][3] < 1.0  # the linear loop leaves there too
+    assert f"along dr = dp, the lateral error passes 10 % at {lat_over[0]:g} times the box " \
+           f"({_pct(lat_over[1])}), where the linear loop leaves the bounds too" in TEXT
 
 
 def _row(direction: str) -> list[str]:
@@ -98,26 +142,28 @@ def test_docs_box_edge_table(direction):
             break
         best = a
     assert row[3] == (f"{best:g} or more" if best == 3.0 else f"{best:g}")
+    lon = e[4:].max()
+    assert row[4] == (f"{100 * lon:.1f} %" if lon >= 0.005 else f"{100 * lon:.2f} %")
     sink = term_errors(d, 1.0).altitude_lost_m["all"]
-    assert row[4] == f"{1000 * sink:.1f} mm"
+    assert row[5] == f"{1000 * sink:.1f} mm"
 
 
 def test_docs_terms():
     dr, dp = term_errors("+dr"), term_errors("+dp")
     assert dr.first == "gyroscopic" and dp.first == "kinematics"
     assert f"its error is {_pct(dr.lateral['all'])} with all terms and " \
-           f"{_pct(dr.lateral['no gyroscopic'])} without the" in DOC
-    assert f"({_pct(dp.lateral['kinematics only'])} with every" in DOC
-    assert f"({_pct(dp.lateral['all'])} with all terms)" in DOC
+           f"{_pct(dr.lateral['no gyroscopic'])} without the" in TEXT
+    assert f"({_pct(dp.lateral['kinematics only'])} with every" in TEXT
+    assert f"({_pct(dp.lateral['all'])} with all terms)" in TEXT
     gravity = max(abs(term_errors(d).contributions["gravity"])
                   for d in ("+dv", "+dp", "+dr", "+dgamma", "+mode1"))
-    assert gravity <= 0.002 and "by more than 0.2 % of\nthe bounds" in DOC
+    assert gravity <= 0.002 and "by more than 0.2 % of the bounds" in TEXT
     pitch = [linearisation_error(direction_vector(d) * np.array(STATE_BOUNDS_SECT36))
              for d in ("+dp", "+dr")]
     worst = max(p[4:].max() for p in pitch)
     assert all(LONGITUDINAL_AXES[int(np.argmax(p[4:]))] == "dtheta" for p in pitch)
-    assert f"by {100 * worst:.0f} % of its bound" in DOC
-    m = re.search(r"box-edge roll of 0\.22 rad it loses ([0-9.]+) mm", DOC)
+    assert f"by {100 * worst:.0f} % of its bound" in TEXT
+    m = re.search(r"box-edge roll of 0\.22 rad it loses ([0-9.]+) mm", TEXT)
     assert m and float(m.group(1)) == round(1000 * term_errors("+dgamma").altitude_lost_m["all"],
                                             1)
 
@@ -154,3 +200,7 @@ def test_readme_quotes_the_same_answer():
     for fragment in re.findall(r"\d+\.\d %|\d+\.\d mm|\d+ % of the pitch", section):
         number = fragment.split()[0]
         assert number in DOC, fragment  # every number of the README's answer is the doc's
+    counts = re.findall(r"\d+ of the \d+|[\d.]+ times the box", " ".join(section.split()))
+    assert len(counts) >= 3
+    for fragment in counts:
+        assert fragment in TEXT, fragment

@@ -26,9 +26,9 @@ from dronefly.plant import model as lateral
 from dronefly.plant_6dof.model import TERMS, Hover6DOF, gamma_from_quaternion
 from dronefly.plant_longitudinal import model as longitudinal
 
-from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36, direction_vector
+from dronefly.harness.sweep.cases import CONTROL_BOUND, STATE_BOUNDS_SECT36, direction_vector
 
-__all__ = ["TermErrors", "VARIANTS", "linearisation_error", "term_errors"]
+__all__ = ["TermErrors", "VARIANTS", "line_profile", "linearisation_error", "term_errors"]
 
 #: the nonlinear variants compared: all terms, each one off, all off (kinematics only)
 VARIANTS: dict[str, frozenset] = {
@@ -69,9 +69,25 @@ def linearisation_error(x0_lateral: Sequence[float], *, terms: frozenset = TERMS
     return _errors(x0_lateral, terms, step_wb, stop_wb)[0]
 
 
+def line_profile(direction: Sequence[float], amplitudes: Sequence[float], *,
+                 step_wb: float = 1.0, stop_wb: float = 100.0) -> list[tuple[float, ...]]:
+    """Along a line of initial states: per amplitude a (box units), from the lateral state a *
+    direction * the Sect. 3.6 bounds, ``(a, lateral error, longitudinal error, linear peak)``:
+    the largest linearisation errors of :func:`linearisation_error` (fractions of the bounds)
+    and the linear loop's peak over the run of max(|x_i| / bound_i, |u| / 0.4 rad), the
+    sweep's ``peak`` (below 1: the linear trajectory stays within the bounds)."""
+    out = []
+    for a in amplitudes:
+        x0 = float(a) * np.asarray(direction, float) * np.array(STATE_BOUNDS_SECT36)
+        e, _, peak = _errors(x0, TERMS, step_wb, stop_wb)
+        out.append((float(a), float(e[:4].max()), float(e[4:].max()), peak))
+    return out
+
+
 def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: float = 1.0,
-            stop_wb: float = 100.0) -> tuple[np.ndarray, float]:
-    """(the errors of :func:`linearisation_error`, the largest sink z_earth [m])."""
+            stop_wb: float = 100.0) -> tuple[np.ndarray, float, float]:
+    """(the errors of :func:`linearisation_error`, the largest sink z_earth [m], the linear
+    loop's peak of :func:`line_profile`)."""
     lp, np_ = lateral.default_parameters(), longitudinal.default_parameters()
     model = Hover6DOF(lp, np_, terms)
     Kl, Kn = _gains()
@@ -85,7 +101,7 @@ def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: floa
          float(np.cos(g0 / 2)), float(np.sin(g0 / 2)), 0.0, 0.0, 0.0, 0.0, 0.0]
     lat, lon = np.array(x0_lateral, float), np.zeros(4)
     bounds = np.array(STATE_BOUNDS_SECT36 * 2)
-    worst, sink = np.zeros(8), 0.0
+    worst, sink, peak = np.zeros(8), 0.0, 0.0
     n_steps = int(round(stop_wb / step_wb))
     for k in range(n_steps + 1):  # every communication point, the last one included
         sink = max(sink, x[12])
@@ -93,10 +109,12 @@ def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: floa
         theta = float(np.arcsin(np.clip(-2.0 * (x[7] * x[9] - x[6] * x[8]), -1.0, 1.0)))
         nl_lon = np.array([x[0], x[2], x[4], theta])
         worst = np.maximum(worst, np.abs(np.concatenate([nl_lat - lat, nl_lon - lon])) / bounds)
+        peak = max(peak, float(np.max(np.abs(lat) / bounds[:4])),
+                   float(np.max(np.abs(Kl @ lat))) / CONTROL_BOUND)
         if k < n_steps:
             x = model.step(x, (Kl @ nl_lat).tolist(), (Kn @ nl_lon).tolist(), step_wb)
             lat, lon = F1 @ lat, F2 @ lon
-    return worst, sink * lateral.U_M_PER_S / lateral.N_HZ
+    return worst, sink * lateral.U_M_PER_S / lateral.N_HZ, peak
 
 
 @dataclass(frozen=True)
@@ -133,6 +151,6 @@ def term_errors(direction: str, amplitude: float = 1.0, **kw: float) -> TermErro
     x0 = amplitude * direction_vector(direction) * np.array(STATE_BOUNDS_SECT36)
     lat, lon, alt = {}, {}, {}
     for name, terms in VARIANTS.items():
-        e, z = _errors(x0, terms, **kw)
+        e, z, _ = _errors(x0, terms, **kw)
         lat[name], lon[name], alt[name] = float(e[:4].max()), float(e[4:].max()), z
     return TermErrors(direction, amplitude, lat, lon, alt)

@@ -101,8 +101,9 @@ def compare_summary(rows: list[dict[str, str]]) -> dict[str, Any]:
     """JSON-ready answer of a comparison: where is the linear theory within 5 % and 10 %?
 
     ``in_box``: the cases whose initial state lies in the Sect. 3.6 box; for them the
-    largest lateral and longitudinal errors and the share within 10 %; ``in_box_staying``:
-    those whose reference trajectory also stays within the bounds. ``directions``: per
+    largest lateral and longitudinal errors and the shares within 10 %; ``in_box_staying``:
+    those whose reference trajectory also stays within the bounds, their largest errors and
+    how many are within 10 % (lateral and longitudinal). ``directions``: per
     direction, the error at the box edge (amplitude 1), the largest sampled amplitude up to
     which the lateral error stays within 5 % and 10 % of the bounds, and the altitude lost
     at the box edge.
@@ -115,10 +116,14 @@ def compare_summary(rows: list[dict[str, str]]) -> dict[str, Any]:
         lon = [_num(r["err_longitudinal"]) for r in box]
         out.update(in_box_max_err_lateral=max(lat), in_box_max_err_longitudinal=max(lon),
                    in_box_fraction_lateral_within_10pct=sum(e <= 0.10 for e in lat) / len(lat),
+                   in_box_fraction_longitudinal_within_10pct=sum(e <= 0.10 for e in lon) / len(lon),
                    in_box_max_altitude_lost_m=max(_num(r["altitude_lost_m"]) for r in box))
-        stay = [_num(r["err_lateral"]) for r in box if r["verdict"] == "within"]
-        out.update(in_box_staying_cases=len(stay),
-                   in_box_staying_max_err_lateral=max(stay) if stay else None)
+        stay = [r for r in box if r["verdict"] == "within"]
+        out["in_box_staying_cases"] = len(stay)
+        for axis in ("lateral", "longitudinal"):
+            e = [_num(r[f"err_{axis}"]) for r in stay]
+            out[f"in_box_staying_max_err_{axis}"] = max(e) if e else None
+            out[f"in_box_staying_{axis}_within_10pct"] = sum(x <= 0.10 for x in e)
     dirs: dict[str, list[dict[str, str]]] = {}
     for r in ok:
         if r["family"] == "direction":
@@ -153,12 +158,18 @@ def format_comparison(c: dict[str, Any]) -> list[str]:
         lines.append(f"  in the box: lateral error <= {100 * c['in_box_max_err_lateral']:.1f} % of "
                      f"the bounds ({100 * c['in_box_fraction_lateral_within_10pct']:.0f} % of the "
                      f"cases within 10 %), longitudinal <= "
-                     f"{100 * c['in_box_max_err_longitudinal']:.1f} %, altitude lost <= "
+                     f"{100 * c['in_box_max_err_longitudinal']:.1f} % ("
+                     f"{100 * c['in_box_fraction_longitudinal_within_10pct']:.0f} % within 10 %), "
+                     f"altitude lost <= "
                      f"{1000 * c['in_box_max_altitude_lost_m']:.1f} mm")
         if c.get("in_box_staying_cases"):
-            lines.append(f"  the {c['in_box_staying_cases']} of them whose linear trajectory stays "
-                         f"within the bounds: lateral error <= "
-                         f"{100 * c['in_box_staying_max_err_lateral']:.1f} %")
+            n = c["in_box_staying_cases"]
+            lines.append(f"  the {n} of them whose linear trajectory stays within the bounds: "
+                         f"lateral error <= {100 * c['in_box_staying_max_err_lateral']:.1f} % "
+                         f"({c['in_box_staying_lateral_within_10pct']} of {n} within 10 %), "
+                         f"longitudinal <= "
+                         f"{100 * c['in_box_staying_max_err_longitudinal']:.1f} % "
+                         f"({c['in_box_staying_longitudinal_within_10pct']} of {n} within 10 %)")
     for d in c["directions"]:
         if "err_lateral_at_box_edge" in d:
             w5, w10 = (d[f"largest_amplitude_within_{p}pct"] for p in (5, 10))

@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"started {start:%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, {_load()}")
     times: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
-        fmus = {n: build_fmu(n, tmp) for s in SIDES.values() for n in s}
+        fmus = {n: build_fmu(n, tmp) for n in dict.fromkeys(n for s in SIDES.values() for n in s)}
         bench = PlantBench(fmus, stack)
         for key in bench.keys:  # warm up (the linear models' matrix exponentials)
             bench.time(key, 2)

@@ -35,7 +35,7 @@ import math
 from collections import deque
 from typing import Any, Sequence
 
-from .timing import DRIFT, MAX_SAMPLES, TOLERANCE, SensingError, Timing, tolerance
+from .timing import DRIFT, MAX_SAMPLES, TOLERANCE, SensingError, Timing
 
 __all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
 
@@ -57,11 +57,9 @@ class Sensor:
     line : deque of tuple
         Samples taken and not yet in effect, oldest first: (instant [s], dimensional state),
         or (first instant, state, last instant, period) [s] for several in one step.
-    current : tuple or None
-        The line entry in effect (None: the equilibrium, or the sample of a step without
-        delay): its instants after the first take effect one by one.
-    held : tuple
-        The dimensional sample in effect (zeros: the equilibrium).
+    current, held : tuple or None, tuple
+        The line entry in effect (None: the equilibrium, or a sample without delay; its
+        instants after the first take effect one by one) and its state (zeros: equilibrium).
     z0, t_base : tuple, float
         The integral state (non-dimensional) at ``t_base`` [s], the last change of ``held``.
     x_plus, scale, n : tuple, tuple, float
@@ -70,8 +68,8 @@ class Sensor:
         Whether z integrates (integral action on) since t_base.
     last_k, last_period : int or None, float
         Index of the last sample instant taken on the grid of ``last_period`` [s].
-    h : float
-        The last communication step [s] (0 before the first).
+    h, drift : float
+        The last communication step [s] (0 before the first) and its tolerance's drift term.
     t_effect : float
         The instant [s] the sample in effect took effect (``t0`` before the first).
     off_grid : tuple or None or False
@@ -80,7 +78,7 @@ class Sensor:
     """
 
     __slots__ = ("t0", "line", "held", "z0", "t_base", "x_plus", "scale", "n", "integrating",
-                 "last_k", "last_period", "h", "t_effect", "current", "off_grid")
+                 "last_k", "last_period", "h", "drift", "t_effect", "current", "off_grid")
 
     def __init__(self, size: int, t0: float = 0.0) -> None:
         zero = (0.0,) * size
@@ -90,7 +88,8 @@ class Sensor:
         self.t_base = self.t0
         self.scale: State = ()
         self.n = 0.0
-        self.integrating, self.last_k, self.last_period, self.h = False, None, 0.0, 0.0
+        self.integrating, self.last_k, self.last_period, self.h, self.drift = (False, None, 0.0,
+                                                                              0.0, 0.0)
         self.t_effect = self.t0
         self.current: tuple[Any, ...] | None = None
         self.off_grid: tuple[str, float, float, float] | None | bool = None
@@ -116,21 +115,20 @@ class Sensor:
         self.z0, self.t_base, self.held, self.scale, self.n = z, t, x, scale, n
         self.x_plus = tuple(v / s for v, s in zip(x, scale))
 
-    def _instant(self, t: float, h: float, tol: float, period: float,
+    def _instant(self, t: float, h: float, end: float, tol: float, period: float,
                  x: State) -> float | None:
-        """The first sample instant in [t, end) [s] not taken yet (None: none, or taken here:
-        several instants in the step, appended as (first, ``x``, last, period))."""
+        """The first sample instant in [t, end = t + h) [s] not taken yet (None: none, or
+        taken here: several instants in the step, appended as (first, ``x``, last, period))."""
         if period <= tol:  # every communication point (or finer than the step resolves)
             self.last_k = None
             return t
-        end = t + h
         try:
             k_end = math.ceil((end - tol - self.t0) / period)  # instants k < k_end: before end
             if self.last_k is None or self.last_period != period:
                 k = math.ceil((t - tol - self.t0) / period)
             else:  # the next one on the grid, unless it lies before this step (by more than
                 # the tolerance of the previous step, which decided that it was not in it)
-                wide = max(tol, TOLERANCE * self.h)
+                wide = max(tol, TOLERANCE * self.h + self.drift)
                 k = max(self.last_k + 1, math.ceil((t - wide - self.t0) / period))
             if k_end - k != 1:
                 if k >= k_end:
@@ -168,12 +166,13 @@ class Sensor:
         line = self.line
         popped: list[tuple[Any, ...]] = []
         token = (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n,
-                 self.integrating, self.last_k, self.last_period, self.h, self.t_effect,
+                 self.integrating, self.last_k, self.last_period, self.h, self.drift,
+                 self.t_effect,
                  self.current, self.off_grid, len(line), popped)
         try:
-            # tol = tolerance(t0, t, h), inline: t >= t0 (the base class checks h > 0)
-            tol = TOLERANCE * h + DRIFT * (t if t > 0.0 else -t) * (t - self.t0) / h
-            end = t + h
+            # tolerance(t0, t, h) inline: t >= t0 (the base class checks h > 0)
+            drift = DRIFT * (t if t > 0.0 else -t) * (t - self.t0) / h
+            tol, end = TOLERANCE * h + drift, t + h
             if integrate != self.integrating:  # integral action switched on or off at t
                 if self.integrating:
                     self._switch(t, self.held, scale, n)  # z up to t, held from then on
@@ -186,9 +185,10 @@ class Sensor:
             if not line and d <= tol and period <= tol:  # the sample at t takes effect at t
                 if x != self.held:
                     self._switch(t, x, scale, n)
-                self.last_k, self.h, self.t_effect, self.current = None, h, t, None
+                self.last_k, self.h, self.drift, self.t_effect, self.current = (None, h, drift,
+                                                                                t, None)
                 return token
-            ts = self._instant(t, h, tol, period, x)
+            ts = self._instant(t, h, end, tol, period, x)
             if ts is not None:  # also a repeated value: its instant updates the control
                 if len(line) >= MAX_SAMPLES:
                     raise SensingError(timing.too_long(h))
@@ -208,7 +208,7 @@ class Sensor:
                 if entry[1] != self.held:  # a repeated value leaves z's base as it is
                     self._switch(e, entry[1], scale, n)
                 self.t_effect, self.current = e, entry
-            self.h = h
+            self.h, self.drift = h, drift
         except BaseException:
             self.undo(token)
             raise
@@ -217,7 +217,8 @@ class Sensor:
     def undo(self, token: tuple[Any, ...]) -> None:
         """Return to the state before the :meth:`advance` that gave ``token``."""
         (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n, self.integrating,
-         self.last_k, self.last_period, self.h, self.t_effect, self.current, self.off_grid,
+         self.last_k, self.last_period, self.h, self.drift, self.t_effect, self.current,
+         self.off_grid,
          length, popped) = token
         for item in reversed(popped):
             self.line.appendleft(item)
@@ -226,8 +227,7 @@ class Sensor:
 
     def is_instant(self, t: float, period: float) -> bool:
         """Whether the communication point ``t`` [s] is a sample instant."""
-        tol = tolerance(self.t0, t, self.h)
-        if period <= tol:
+        if period <= (tol := TOLERANCE * self.h + self.drift):  # (the last step's)
             return True
         try:
             k = round((t - self.t0) / period)
@@ -236,24 +236,23 @@ class Sensor:
             return True
 
     def sensed(self, t: float, x_live: State, timing: Timing, feedthrough: bool) -> State:
-        """The sensed (dimensional) state at the communication point ``t`` [s]: the live input
-        if the delay is 0 and ``t`` a sample instant (``feedthrough``: the FMU may use the
-        input of the same instant), else the sample in effect."""
-        if (feedthrough and timing.sensing_delay <= tolerance(self.t0, t, self.h)
+        """The sensed state at the communication point ``t`` [s]: the live input if the delay is
+        0, ``t`` a sample instant and ``feedthrough`` declared, else the sample in effect."""
+        if (feedthrough and timing.sensing_delay <= TOLERANCE * self.h + self.drift
                 and self.is_instant(t, timing.sample_period)):
             return x_live
         return self.held
 
     def integral_in_effect(self, t: float, timing: Timing, feedthrough: bool) -> State:
-        """z for the control at the communication point ``t`` [s]: z(t) if the sample at ``t``
-        is in effect at once (as in :meth:`sensed`), else z at the instant the held sample took
-        effect (the control is held between samples)."""
-        d, tol = timing.sensing_delay, tolerance(self.t0, t, self.h)
-        if feedthrough and d <= tol and self.is_instant(t, timing.sample_period):
+        """z for the control at the communication point ``t`` [s]: z(t) if the sample at ``t`` is
+        in effect at once (see :meth:`sensed`), else z when the sample in effect took effect."""
+        if (feedthrough and timing.sensing_delay <= TOLERANCE * self.h + self.drift
+                and self.is_instant(t, timing.sample_period)):
             return self.integral(t)
         te, c = self.t_effect, self.current
         if c is not None and len(c) > 2:  # several instants: the latest in effect by t
             first, _, last, period = c
+            d, tol = timing.sensing_delay, TOLERANCE * self.h + self.drift
             j = min(round((last - first) / period), math.floor((t + tol - d - first) / period))
             e = first + j * period + d
             te = max(te, t if e > t - tol else e)
@@ -266,7 +265,8 @@ class Sensor:
                 "held": list(self.held), "z0": list(self.z0), "t_base": self.t_base,
                 "x_plus": list(self.x_plus), "scale": list(self.scale), "n": self.n,
                 "integrating": self.integrating, "last_k": self.last_k,
-                "last_period": self.last_period, "h": self.h, "t_effect": self.t_effect,
+                "last_period": self.last_period, "h": self.h, "drift": self.drift,
+                "t_effect": self.t_effect,
                 "current": None if self.current is None else
                 [self.current[0], list(self.current[1]), *self.current[2:]]}
 
@@ -291,7 +291,7 @@ class Sensor:
         s.line.extend(entry(e) for e in d["line"])
         s.held, s.z0, s.x_plus = vec(d["held"]), vec(d["z0"]), vec(d["x_plus"])
         s.scale = vec(d["scale"], None)
-        s.t_base, s.n, s.h = float(d["t_base"]), float(d["n"]), float(d["h"])
+        s.t_base, s.n, s.h, s.drift = (float(d[k]) for k in ("t_base", "n", "h", "drift"))
         s.integrating = bool(d["integrating"])
         s.last_k = None if d["last_k"] is None else int(d["last_k"])
         s.last_period = float(d["last_period"])

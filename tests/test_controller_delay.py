@@ -154,6 +154,9 @@ def test_a_long_run_on_the_grid_stays_on_it(h_wb):
             k = (m + 1) // per - 1
             assert _controls(s) == list(law.evaluate(list(xs[k]))[0]), m
     assert _messages(s) == []
+    # the step's tolerance (inlined in Sensor.advance) is timing.tolerance at its start
+    assert T.TOLERANCE * h + s._sensor.drift == pytest.approx(T.tolerance(0.0, t - h, h),
+                                                              rel=1e-9)
 
 
 def test_zero_delay_and_period_is_the_old_law_bit_for_bit():

@@ -112,9 +112,11 @@ def _parser() -> argparse.ArgumentParser:
                         "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
                         "--x0")
     c.add_argument("--record", type=converter(parse_names), default=None,
-                   metavar="INST.NAME,...", help="with --system: the variables to record, any "
-                   "Real, Integer or Boolean variable of any instance, e.g. lateral.delta_p,"
-                   "lateral_controller.K[1,1] (default: every Real output)")
+                   metavar="INST.NAME,...", help="the variables to record, any Real, Integer "
+                   "or Boolean variable of any instance, e.g. lateral.delta_p,"
+                   "lateral_controller.K[1,1] with --system (default: every Real output); with "
+                   "--plant/--controller, plant.NAME or controller.NAME, recorded after the "
+                   "states and controls")
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
@@ -129,9 +131,10 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--set", dest="set_values", action="append", default=[],
                    type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "
-                        "controller.NAME=VALUE, or NAME=VALUE if only one FMU has NAME; SI units; "
-                        "with --system, instance.NAME=VALUE of any parameter or input, the value "
-                        "of its declared type (a number, a whole number, true/false/1/0, text)")
+                        "controller.NAME=VALUE, or NAME=VALUE if only one FMU has NAME; with "
+                        "--system, instance.NAME=VALUE of any parameter or input; SI units; the "
+                        "value of its declared type (a number, a whole number, true/false/1/0, "
+                        "text)")
     c.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")

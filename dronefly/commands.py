@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from dronefly.errors import DroneflyError
 from dronefly.extras import require
@@ -38,28 +39,29 @@ def simulate(args: argparse.Namespace) -> int:
 
 
 def cosim(args: argparse.Namespace) -> int:
-    import json
-
     if not args.no_plot:
         require("matplotlib", "pass --no-plot")
     if args.system is not None:
         return _cosim_system(args)
-    if args.record is not None:
-        raise DroneflyError("--record is for --system; the plant/controller pair records both "
-                            "FMUs' outputs")
-    from dronefly.harness.cosim.params import parse_assignment
     from dronefly.harness.cosim.run import cosimulate
 
-    # the pair's values: numbers or true/false, checked against the FMUs by cosimulate
-    values = dict(parse_assignment(f"{name}={text}") for name, text in args.set_values)
+    # the --set values as text: converted to the variables' types by cosimulate
     result = cosimulate(args.plant, args.controller,
                         gains="paper" if args.gains is None else args.gains,
                         x0=(0.0, 0.0, 0.0, 0.1) if args.x0 is None else args.x0,
                         step_wingbeats=args.step,
                         stop_wingbeats=300.0 if args.stop is None else args.stop,
                         master=args.master, out_dir=args.out, plot=not args.no_plot,
-                        set_values=values, build_dir=args.build)
-    print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
+                        set_values=dict(args.set_values), record=args.record or (),
+                        build_dir=args.build)
+    return _cosim_report(result, args.json)
+
+
+def _cosim_report(result: Any, as_json: bool) -> int:
+    """Print the summary (or the JSON) of a co-simulation; exit 1 if it stopped early."""
+    import json
+
+    print(json.dumps(result.to_json(), indent=2) if as_json else result.summary())
     if not result.run.complete:
         print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
         return EXIT_FAILED
@@ -67,8 +69,6 @@ def cosim(args: argparse.Namespace) -> int:
 
 
 def _cosim_system(args: argparse.Namespace) -> int:
-    import json
-
     from dronefly.harness.system.run import cosimulate_system
 
     given = [f"--{k}" for k in ("plant", "controller", "gains", "x0")
@@ -82,11 +82,7 @@ def _cosim_system(args: argparse.Namespace) -> int:
     result = cosimulate_system(args.system, step_wingbeats=args.step, stop_wingbeats=args.stop,
                                master=args.master, set_values=dict(args.set_values),
                                record=args.record, out_dir=args.out, plot=not args.no_plot)
-    print(json.dumps(result.to_json(), indent=2) if args.json else result.summary())
-    if not result.run.complete:
-        print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
+    return _cosim_report(result, args.json)
 
 
 def check(args: argparse.Namespace) -> int:

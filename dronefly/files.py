@@ -1,7 +1,8 @@
 """Every result file is written next to its final name and then renamed: never half-written.
 
 One mechanism (:func:`atomic_path`) for every writer of the project: text, CSV
-tables, plots and reproducible zip archives (FMUs, SSP files).
+tables, plots and reproducible zip archives (FMUs, SSP files), and one writer of a
+co-simulation's CSV, PNG and JSON (:func:`write_run_files`).
 """
 
 from __future__ import annotations
@@ -12,9 +13,10 @@ import io
 import os
 import zipfile
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
-__all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_text_atomic", "write_zip"]
+__all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_run_files",
+           "write_text_atomic", "write_zip"]
 
 #: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
@@ -74,6 +76,47 @@ def write_csv_atomic(path: str | Path, header: Sequence[str],
         cells = [row.get(c) for c in header] if isinstance(row, Mapping) else row
         w.writerow([format_cell(c) for c in cells])
     return write_text_atomic(path, buf.getvalue())
+
+
+def write_run_files(result: Any, out_dir: str | Path, name: str,
+                    plot: Callable[[Any, Path], Any] | None = None) -> None:
+    """Write a co-simulation's ``name.csv``, ``name.png`` and ``name.json`` into ``out_dir``.
+
+    Each file is written next to its final name and all are renamed together once all are
+    written (on an error none is left, half-written or not).
+
+    Parameters
+    ----------
+    result : object
+        A result with ``run`` (a ``LoopRun``: ``time`` [s], ``names``, ``signals``),
+        ``to_json()`` and the attributes ``csv`` and ``plot``, which are set to the paths
+        written before ``to_json()`` is called (the JSON names them).
+    out_dir : path
+        The folder (made if missing).
+    name : str
+        The files' name without suffix.
+    plot : callable, optional
+        ``plot(result, path)`` writes the PNG to ``path``; None writes no PNG.
+    """
+    import json
+
+    import numpy as np
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    run = result.run
+    with contextlib.ExitStack() as stack:
+        csv_path = out / f"{name}.csv"
+        write_csv_atomic(stack.enter_context(atomic_path(csv_path)), ["time", *run.names],
+                         np.column_stack([run.time, run.signals]).tolist())
+        result.csv = csv_path
+        if plot is not None:
+            png = out / f"{name}.png"
+            plot(result, stack.enter_context(atomic_path(png)))
+            result.plot = png
+        summary = out / f"{name}.json"
+        stack.enter_context(atomic_path(summary)).write_text(
+            json.dumps(result.to_json(), indent=2, default=format_cell) + "\n", encoding="utf-8")
 
 
 def write_zip(target: str | Path, files: Mapping[str, bytes]) -> Path:

@@ -6,8 +6,10 @@ parameters (not from the FMU), and python's own behaviour for --version.
 
 from __future__ import annotations
 
+import csv
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,7 +20,7 @@ from dronefly.cli import main
 from dronefly.errors import DroneflyError
 from dronefly.harness.cosim.params import parse_gains
 from dronefly.harness.cosim.run import cosimulate
-from dronefly.lateral import sort_eigenvalues
+from dronefly.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, sort_eigenvalues
 from dronefly.plant import model
 
 pytestmark = pytest.mark.integration
@@ -87,6 +89,79 @@ def test_set_and_gains_reach_the_sweep(fmus, tmp_path):
     ra, rb = a.rows[0], b.rows[0]
     assert float(ra["final_dv"]) != float(rb["final_dv"])  # gravity off: no sideslip from roll
     assert abs(float(rb["final_dv"])) < 1e-12
+
+
+def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    rows = list(csv.reader(path.read_text(encoding="utf-8").splitlines()))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+#: gains on dp+ and dr+ from dp+ = 0.1, dgamma = 0.1: |delta_Phi_a| falls from 0.03 to about
+#: 0.0105 rad in 10 wing beats, so that a limit of 0.015 rad clips it for a while, not throughout
+K_TEST = np.array([[0.0, -0.3, 0.0, 0.0], [0.0, 0.0, 0.2, 0.0], [0.0, 0.0, 0.0, 0.0]])
+U_MAX = 0.015
+LIMIT = ["--gains", ";".join(",".join(map(str, row)) for row in K_TEST), "--x0", "0,0.1,0,0.1",
+         "--set", "controller.limit_enabled=1", "--set", f"controller.u_max={U_MAX}"]
+RECORD = ["plant.delta_Phi_a", "controller.saturated", "controller.K[1,2]", "plant.n"]
+
+
+def test_set_boolean_as_1_limits_and_record_adds_variables_of_both_fmus(fmus, tmp_path, capsys):
+    """--set controller.limit_enabled=1 (a Boolean given as 1) clips every control to u_max;
+    --record adds an input, a Boolean output and parameters of both FMUs to the CSV. Oracle:
+    u = clip(K x+, -u_max, u_max), saturated = any |K x+| > u_max, with the K given and
+    x+ = x / (U, n, n, 1) from the flight data, computed here from the recorded states."""
+    argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--stop", "10",
+            *LIMIT, "--record", ",".join(RECORD), "--json", "--no-plot", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    header, data = _read_csv(Path(out["csv"]))
+    assert header == ["time", *STATE_NAMES, *CONTROL_NAMES, *RECORD]
+    assert out["recorded"] == header[1:]
+    col = dict(zip(header, data.T))
+    xplus = np.column_stack([col[s] for s in STATE_NAMES]) / [U_M_PER_S, N_HZ, N_HZ, 1.0]
+    free = xplus @ K_TEST.T
+    u = np.column_stack([col[c] for c in CONTROL_NAMES])
+    assert_allclose(u, np.clip(free, -U_MAX, U_MAX), rtol=1e-12, atol=1e-15)
+    saturated = np.any(np.abs(free) > U_MAX, axis=1)
+    assert 0 < saturated.sum() < len(saturated)  # limited for a while, not throughout
+    assert np.array_equal(col["controller.saturated"], saturated.astype(float))
+    assert np.array_equal(col["plant.delta_Phi_a"], col["delta_Phi_a"])  # the input as set
+    assert np.all(col["controller.K[1,2]"] == K_TEST[0, 1]) and np.all(col["plant.n"] == N_HZ)
+
+
+def test_python_values_are_typed_as_on_the_command_line(fmus):
+    """cosimulate(set_values=): 1, True and "1" are the same Boolean (same run bit for bit),
+    and the limit holds; what a Boolean cannot take is refused, one line naming it."""
+    runs = [cosimulate(*fmus, gains=K_TEST, x0=(0, 0.1, 0, 0.1), stop_wingbeats=5,
+                       out_dir=None,
+                       set_values={"controller.limit_enabled": v, "controller.u_max": U_MAX})
+            for v in (1, True, "1")]
+    for r in runs[1:]:
+        assert np.array_equal(r.run.signals, runs[0].run.signals)
+    u = runs[0].run.column("delta_Phi_a")
+    assert np.max(np.abs(u)) == U_MAX
+    for bad in ("maybe", 2, 0.5):
+        with pytest.raises(DroneflyError) as e:
+            cosimulate(*fmus, stop_wingbeats=5, out_dir=None,
+                       set_values={"controller.limit_enabled": bad})
+        assert str(e.value) == (f"controller.limit_enabled = {bad!r}: a Boolean takes true, "
+                                "false, 1 or 0")
+
+
+@pytest.mark.parametrize("args, line", [
+    (["--set", "controller.limit_enabled=maybe"],
+     "controller.limit_enabled = 'maybe': a Boolean takes true, false, 1 or 0"),
+    (["--set", "controller.u_max=abc"], "controller.u_max = 'abc' is not a number (a Real)"),
+    (["--record", "plant.nope"], "cannot record 'plant.nope': plant has no variable 'nope'"),
+    (["--record", "controller.K"], "cannot record 'controller.K': controller has no variable 'K'"),
+])
+def test_pair_bad_set_or_record_is_one_line_exit_2(fmus, tmp_path, capsys, args, line):
+    out = tmp_path / "o"
+    argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--stop", "5",
+            "--no-plot", "--out", str(out), *args]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == f"dronefly cosim: error: {line}\n"
+    assert not out.exists(), "nothing written"
 
 
 def test_version(capsys):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 
 import numpy as np
@@ -135,7 +136,10 @@ def test_cli_json(fmus, tmp_path, capsys):
     (["--set", "plant.nope=1"], "plant has no variable 'nope'"),
     (["--set", "n=164"], "'n' is a variable of plant and controller"),
     (["--set", "plant.delta_v=1"], "only parameters and inputs can be set"),
-    (["--set", "controller.limit_enabled=1"], "a Boolean parameter takes true or false"),
+    (["--set", "controller.limit_enabled=2"], "controller.limit_enabled = '2': a Boolean takes "
+                                              "true, false, 1 or 0"),
+    (["--set", "controller.K[1,1]=true"], "controller.K[1,1] = 'true' is not a number (a Real)"),
+    (["--record", "controller.nope"], "cannot record 'controller.nope'"),
     (["--x0", "0,0,x,0"], "x0 = '0,0,x,0'"),
     (["--x0", "0,0,0,inf"], "x0 = '0,0,0,inf'"),
     (["--step", "0"], "'0' must be > 0"),
@@ -199,3 +203,97 @@ def test_plant_without_reference_scales_is_refused(tmp_path, fmus):
     with pytest.raises(DroneflyError, match="has no parameter 'n'"):
         cosimulate(null, fmus[1], out_dir=tmp_path / "o")
     assert not (tmp_path / "o").exists()
+
+
+def test_record_adds_columns_and_leaves_the_default_ones_bit_for_bit(fmus, tmp_path):
+    """cosimulate(record=): the CSV is the default one with the recorded columns appended
+    (each line byte for byte); the recorded values against independent oracles: the
+    controller's input as set equals the plant's output at the point (Gauss-Seidel), A[1,1]
+    is Eq. (9)'s A1[1,1] from dronefly.plant.model, no limit means never saturated."""
+    from dronefly.plant import model
+
+    record = ["controller.delta_p", "plant.A[1,1]", "controller.saturated"]
+    base = cosimulate(*fmus, stop_wingbeats=10, out_dir=tmp_path / "a", plot=False, name="r")
+    more = cosimulate(*fmus, stop_wingbeats=10, out_dir=tmp_path / "b", plot=False, name="r",
+                      record=record)
+    lines = base.csv.read_text().splitlines()
+    with_more = more.csv.read_text().splitlines()
+    assert with_more[0] == lines[0] + "," + ",".join(f'"{n}"' if "," in n else n for n in record)
+    assert [line.rsplit(",", len(record))[0] for line in with_more[1:]] == lines[1:]
+    assert more.run.names == [*base.run.names, *record]
+    assert json.loads(more.csv.with_suffix(".json").read_text())["recorded"] == more.run.names
+    assert np.array_equal(more.run.column("controller.delta_p"), more.run.column("delta_p"))
+    A, _ = model.system_matrices(model.default_parameters())
+    assert_allclose(more.run.column("plant.A[1,1]"), A[0, 0], rtol=1e-12)
+    assert not more.run.column("controller.saturated").any()
+    with pytest.raises(DroneflyError, match=r"cannot record 'delta_v': no instance 'delta_v'"):
+        cosimulate(*fmus, stop_wingbeats=1, out_dir=None, record=["delta_v"])
+
+
+def test_plot_draws_the_controls_by_name_not_the_recorded_columns(fmus, tmp_path, monkeypatch):
+    """The controls panel holds the plant's three inputs (each its run column in degrees),
+    whatever else is recorded after them."""
+    plt = pytest.importorskip("matplotlib.pyplot")
+    figures, close = [], plt.close
+    monkeypatch.setattr(plt, "close", figures.append)
+    r = cosimulate(*fmus, stop_wingbeats=5, out_dir=tmp_path, record=["plant.n",
+                   "controller.saturated", "controller.K[1,1]"])
+    assert r.plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    controls = figures[0].axes[4]
+    assert [line.get_label() for line in controls.get_lines()] == [
+        "delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a"]
+    assert_allclose(controls.get_lines()[0].get_ydata(),
+                    np.degrees(r.run.column("delta_Phi_a")), rtol=1e-15)
+    close(figures[0])
+
+
+def test_values_are_converted_to_the_declared_types(fmus):
+    """resolve_assignments types values as the system master does (Integer whole, Boolean
+    true/false/1/0), against a model description with every type, and names the bad ones."""
+    from types import SimpleNamespace as V
+
+    from dronefly.harness.cosim.params import ParameterError, resolve_assignments
+
+    md = V(modelVariables=[V(name="count", causality="parameter", variability="fixed",
+                             type="Integer"),
+                           V(name="on", causality="parameter", variability="tunable",
+                             type="Boolean"),
+                           V(name="label", causality="parameter", variability="fixed",
+                             type="String"),
+                           V(name="gain", causality="input", variability="continuous",
+                             type="Real")])
+    got = resolve_assignments({"c.count": "3", "on": "0", "label": "x", "c.gain": "2.5"},
+                              {"c": md})
+    assert got == {"c": {"count": 3, "on": False, "label": "x", "gain": 2.5}}
+    assert type(got["c"]["count"]) is int and type(got["c"]["on"]) is bool
+    for given, message in [({"count": "3.5"}, "c.count = '3.5': an Integer takes a whole number"),
+                           ({"c.count": 2 ** 31}, "c.count = 2147483648 is outside the Integer"),
+                           ({"on": "yes"}, "c.on = 'yes': a Boolean takes true, false, 1 or 0"),
+                           ({"gain": "inf"}, "c.gain = 'inf' is not finite")]:
+        with pytest.raises(ParameterError, match=re.escape(message)):
+            resolve_assignments(given, {"c": md})
+
+
+def test_result_files_are_written_together_or_not_at_all(tmp_path):
+    """dronefly.files.write_run_files (both cosim commands): a failing plot leaves no file;
+    otherwise CSV, PNG and JSON, the JSON naming the other two."""
+    from types import SimpleNamespace
+
+    from dronefly.files import write_run_files
+    from dronefly.harness.cosim.records import LoopRun
+
+    run = LoopRun(["a"], np.array([0.0, 0.5]), np.array([[1.0], [0.1 + 0.2]]))
+    result = SimpleNamespace(run=run, csv=None, plot=None)
+    result.to_json = lambda: {"csv": str(result.csv), "plot": str(result.plot)}
+
+    def broken(res, path):
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        write_run_files(result, tmp_path / "o", "r", broken)
+    assert list((tmp_path / "o").iterdir()) == []
+    write_run_files(result, tmp_path / "o", "r", lambda res, path: path.write_bytes(b"png"))
+    assert (tmp_path / "o" / "r.csv").read_text() == "time,a\n0.0,1.0\n0.5,0.30000000000000004\n"
+    assert json.loads((tmp_path / "o" / "r.json").read_text()) == {
+        "csv": str(tmp_path / "o" / "r.csv"), "plot": str(tmp_path / "o" / "r.png")}
+    assert (tmp_path / "o" / "r.png").read_bytes() == b"png"

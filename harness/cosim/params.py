@@ -139,12 +139,23 @@ def parse_assignment(text: str) -> tuple[str, float | bool]:
 
 def resolve_assignments(values: Mapping[str, Any],
                         model_descriptions: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    """Values by instance, checked against each FMU's model description.
+    """Values by instance, converted to the declared types of the FMUs' variables.
 
     A name is ``instance.NAME`` or a bare ``NAME`` that exactly one instance has. It must be
-    a parameter (fixed or tunable) or an input of type Real (a number) or Boolean (true or
-    false). Values are in the FMU's own (SI) unit.
+    a parameter (fixed or tunable) or an input; its value (a number, a boolean or text, as
+    ``--set`` gives it) is converted as the system master converts every value
+    (:func:`dronefly.harness.system.values.typed_value`: Real a finite number, Integer a whole
+    number, Boolean true/false/1/0, String text). Values are in the FMU's own (SI) unit.
+
+    Raises
+    ------
+    ParameterError
+        An unknown or ambiguous name, a variable that cannot be set, a value its type cannot
+        take (one line naming ``instance.NAME`` and the value).
     """
+    from dronefly.harness.system.description import SystemSpecError
+    from dronefly.harness.system.values import settable, typed_value
+
     out: dict[str, dict[str, Any]] = {}
     for key, value in values.items():
         inst, dot, name = key.partition(".")
@@ -163,15 +174,11 @@ def resolve_assignments(values: Mapping[str, Any],
         v = next((x for x in model_descriptions[inst].modelVariables if x.name == name), None)
         if v is None:
             raise ParameterError(f"{key!r}: {inst} has no variable {name!r}")
-        if v.causality not in ("parameter", "input") or v.variability == "constant":
+        if name not in settable(model_descriptions[inst]):
             raise ParameterError(f"{key!r} is a {v.causality} {v.variability} variable of "
                                  f"{inst}; only parameters and inputs can be set")
-        if v.type == "Boolean" and not isinstance(value, bool):
-            raise ParameterError(f"{key} = {value!r}: a Boolean parameter takes true or false")
-        if v.type == "Real" and isinstance(value, bool):
-            raise ParameterError(f"{key} = {value!r}: a Real parameter takes a number"
-                                 + (f" in {v.unit}" if getattr(v, "unit", None) else ""))
-        if v.type not in ("Real", "Boolean"):
-            raise ParameterError(f"{key!r} is a {v.type} variable; only Real and Boolean are set")
-        out.setdefault(inst, {})[name] = value
+        try:
+            out.setdefault(inst, {})[name] = typed_value(f"{inst}.{name}", v, value)
+        except SystemSpecError as e:
+            raise ParameterError(str(e)) from e
     return out

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from dronefly.lateral import STATE_BOUNDS_SECT36, STATE_NAMES
+from dronefly.lateral import CONTROL_NAMES, STATE_BOUNDS_SECT36, STATE_NAMES
 
 __all__ = ["plot_loop"]
 
@@ -21,6 +21,10 @@ _LABELS = {
 
 def plot_loop(result: Any, path: Path) -> bool:
     """Write the plot; returns False when matplotlib (extra ``plot``) is not installed.
+
+    The states and the controls are the run's columns of those names (the controls are
+    ``result.extra["controls"]``, the plant's inputs; default the lateral plant's); other
+    recorded columns (``plant.NAME``, ``controller.NAME``) are in the CSV, not drawn.
 
     The run solid (labelled open loop when K = 0), the open loop for comparison (if
     recorded) dashed. The time where the run leaves the Sect. 3.6 validity box of the linear
@@ -62,7 +66,7 @@ def plot_loop(result: Any, path: Path) -> bool:
         if t_exit is not None:
             ax.axvline(t_exit, color="k", lw=0.8)
             ax.axvspan(t_exit, wb[-1], color="0.5", alpha=0.12, lw=0)
-    for j, name in enumerate(run.names[4:]):
+    for j, name in enumerate(result.extra.get("controls", CONTROL_NAMES)):
         axes[4].plot(wb, run.column(name) * 180 / np.pi, color=f"C{j}", label=name)
     axes[4].set_ylabel("controls [deg]")
     axes[4].grid(True, alpha=0.3)

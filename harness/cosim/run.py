@@ -7,7 +7,6 @@ co-simulation, the verdict and the cross-checks.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,6 +82,7 @@ class CosimResult:
             "stop_wingbeats": self.stop_wingbeats,
             "csv": None if self.csv is None else str(self.csv),
             "plot": None if self.plot is None else str(self.plot),
+            "recorded": list(self.run.names),
         }
 
     def summary(self) -> str:
@@ -142,8 +142,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
                step_wingbeats: float = 0.1, stop_wingbeats: float = 300.0,
                master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
                plot: bool = True, name: str | None = None,
-               set_values: Mapping[str, float | bool] | None = None,
-               build_dir: str | Path = "build") -> CosimResult:
+               set_values: Mapping[str, Any] | None = None,
+               record: Sequence[str] = (), build_dir: str | Path = "build") -> CosimResult:
     """Co-simulate the loop, identify its eigenvalues and classify its stability.
 
     Parameters
@@ -164,9 +164,16 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     out_dir : path or None
         Where the CSV (and PNG) go; None writes nothing.
     set_values : mapping, optional
-        ``{"plant.Lv_plus": 0.2, "controller.u_max": 0.3, ...}``: parameter (or input) values
-        in each FMU's unit, set in initialization mode; a bare name that only one FMU has is
-        enough. Checked against the model descriptions before anything runs.
+        ``{"plant.Lv_plus": 0.2, "controller.limit_enabled": "1", ...}``: parameter (or
+        input) values in each FMU's unit, set in initialization mode; a bare name that only
+        one FMU has is enough. Numbers, booleans or text (as ``--set`` gives them), converted
+        to each variable's declared type before anything runs
+        (:func:`~dronefly.harness.cosim.params.resolve_assignments`).
+    record : sequence of str
+        More variables to record after the states and controls, ``plant.NAME`` or
+        ``controller.NAME``: any Real, Integer or Boolean variable of any causality (e.g.
+        ``plant.n``, ``controller.K[1,1]``, ``controller.saturated``, ``plant.delta_Phi_a``),
+        in the run's CSV and its JSON's ``recorded``; Booleans as 0 and 1.
     build_dir : path
         Where the project's FMUs are built when ``plant`` or ``controller`` is not given.
     """
@@ -184,7 +191,7 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         values = resolve_assignments(dict(set_values or {}), {
             "plant": pf.model_description, "controller": cf.model_description})
         result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
-                             plot, name, values)
+                             plot, name, values, tuple(record))
     result.extra["requested_stop_wb"] = stop_wingbeats
     if built is not None:
         result.extra["built_into"] = str(built)
@@ -193,7 +200,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
 
 def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
-                name: str | None, values: Mapping[str, Mapping[str, Any]]) -> CosimResult:
+                name: str | None, values: Mapping[str, Mapping[str, Any]],
+                record: Sequence[str] = ()) -> CosimResult:
     pf, cf = loop.plant, loop.controller
     plant_values, ctrl_values = dict(values.get("plant", {})), dict(values.get("controller", {}))
     scale = np.array(plant_scales({**pf.start_values(), **plant_values}))
@@ -210,7 +218,7 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
 
     with pf.instantiate() as p, cf.instantiate() as c:
         run = loop.run(h, n_steps, master=master, plant_start=start(x0),
-                       controller_params=gains, instances=(p, c))
+                       controller_params=gains, instances=(p, c), record=record)
         id_runs = []
         units = [(e, e) for e in np.eye(4)]
         if jacobi:
@@ -245,10 +253,15 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
     err = float(np.max(np.abs(xs - ref) / peak)) if len(xs) else math.nan
     result = CosimResult(run, K, master, step_wb, stop_wb, ident, cont, sampled, err)
     result.extra["scale"] = scale.tolist()
+    result.extra["controls"] = list(loop.controls)  # what the plot draws as controls
     if open_run is not None:
         result.extra["open_loop"] = open_run
     if out_dir is not None:
-        _write_outputs(result, Path(out_dir), name or _default_name(K, master), plot)
+        from dronefly.files import write_run_files
+        from dronefly.harness.cosim.plot import plot_loop
+
+        write_run_files(result, out_dir, name or _default_name(K, master),
+                        plot_loop if plot else None)
     return result
 
 
@@ -261,26 +274,3 @@ def _default_name(K: np.ndarray, master: str) -> str:
         tag = "custom"
     return f"cosim_{tag}_{master}"
 
-
-def _write_outputs(result: CosimResult, out: Path, name: str, plot: bool) -> None:
-    """CSV, PNG and JSON: all written next to their final names and renamed together."""
-    import contextlib
-
-    from dronefly.files import atomic_path, format_cell, write_csv_atomic
-
-    out.mkdir(parents=True, exist_ok=True)
-    run = result.run
-    with contextlib.ExitStack() as stack:
-        csv = out / f"{name}.csv"
-        write_csv_atomic(stack.enter_context(atomic_path(csv)), ["time", *run.names],
-                         np.column_stack([run.time, run.signals]).tolist())
-        result.csv = csv
-        if plot:
-            from dronefly.harness.cosim.plot import plot_loop
-
-            png = out / f"{name}.png"
-            plot_loop(result, stack.enter_context(atomic_path(png)))
-            result.plot = png
-        summary = out / f"{name}.json"
-        stack.enter_context(atomic_path(summary)).write_text(
-            json.dumps(result.to_json(), indent=2, default=format_cell) + "\n", encoding="utf-8")

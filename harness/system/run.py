@@ -16,8 +16,6 @@ plants, which must agree); a system without one counts in seconds (n = 1 Hz).
 
 from __future__ import annotations
 
-import contextlib
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +23,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from dronefly.files import write_run_files
 from dronefly.harness.cosim.master import LoopRun, step_count
 from dronefly.harness.system.description import System, SystemSpecError
 from dronefly.harness.system.master import SystemMaster
@@ -160,28 +159,9 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
                 deviation[fine.plant.instance] = dev
     result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation)
     if out_dir is not None:
-        _write_outputs(result, Path(out_dir), name or f"cosim_{system.name}_{master}", plot)
+        write_run_files(result, out_dir, name or f"cosim_{system.name}_{master}",
+                        _plot if plot else None)
     return result
-
-
-def _write_outputs(result: SystemResult, out: Path, name: str, plot: bool) -> None:
-    """CSV, PNG and JSON, written next to their final names and renamed together."""
-    from dronefly.files import atomic_path, format_cell, write_csv_atomic
-
-    out.mkdir(parents=True, exist_ok=True)
-    run = result.run
-    with contextlib.ExitStack() as stack:
-        csv = out / f"{name}.csv"
-        write_csv_atomic(stack.enter_context(atomic_path(csv)), ["time", *run.names],
-                         np.column_stack([run.time, run.signals]).tolist())
-        result.csv = csv
-        if plot:
-            png = out / f"{name}.png"
-            _plot(result, stack.enter_context(atomic_path(png)))
-            result.plot = png
-        summary = out / f"{name}.json"
-        stack.enter_context(atomic_path(summary)).write_text(
-            json.dumps(result.to_json(), indent=2, default=format_cell) + "\n", encoding="utf-8")
 
 
 def _plot(result: SystemResult, path: Path) -> None:

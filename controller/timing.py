@@ -104,11 +104,12 @@ class Timing:
         seen = (f"{lo / h:.4g} step(s) ({lo:.6g} s)" if hi - lo <= TOLERANCE * h else
                 f"{lo / h:.4g} to {hi / h:.4g} steps ({lo:.6g} to {hi:.6g} s)")
         return (f"sensing_delay = {self.sensing_delay!r} s and sample_period = "
-                f"{self.sample_period!r} s are not whole numbers of the communication step "
-                f"{h!r} s: {what} (t = {instant!r} s) falls inside the step from {t!r} s. "
+                f"{self.sample_period!r} s on a communication step of {h!r} s: {what} "
+                f"(t = {instant!r} s) falls inside the step from {t!r} s. "
                 "Inputs are constant over a communication step (FMI 2.0), so the FMU samples the "
                 "input held since the start of the step, and a control that takes effect inside "
                 "a step is visible from the next communication point on: at this step size the "
                 f"importer sees the control of an input set at a communication point {seen} "
-                "later, not sensing_delay. Values are computed this way, not refused; make both "
-                "whole numbers of steps to get them exactly (warned once per instance)")
+                "later, instead of sensing_delay. Values are computed this way, not refused; "
+                "make both whole numbers of steps to get them exactly (warned once per "
+                "instance)")

@@ -430,7 +430,7 @@ def test_built_fmu_warns_once_off_the_grid_and_computes_as_stated(fmus, h, delay
     hs = float(h) * WB
     for part in (f"sensing_delay = {float(delay) * WB!r} s",
                  f"sample_period = {float(period) * WB!r} s",
-                 f"communication step {hs!r} s", f"s: {what} (t = ",
+                 f"communication step of {hs!r} s: {what} (t = ",
                  "samples the input held since the start of the step",
                  "visible from the next communication point on",
                  f"input set at a communication point {seen} ("):

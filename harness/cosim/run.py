@@ -173,7 +173,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         More variables to record after the states and controls, ``plant.NAME`` or
         ``controller.NAME``: any Real, Integer or Boolean variable of any causality (e.g.
         ``plant.n``, ``controller.K[1,1]``, ``controller.saturated``, ``plant.delta_Phi_a``),
-        in the run's CSV and its JSON's ``recorded``; Booleans as 0 and 1.
+        in the run's CSV and its JSON's ``recorded``; Booleans as 0 and 1 (a str is one
+        name).
     build_dir : path
         Where the project's FMUs are built when ``plant`` or ``controller`` is not given.
     """
@@ -191,7 +192,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         values = resolve_assignments(dict(set_values or {}), {
             "plant": pf.model_description, "controller": cf.model_description})
         result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
-                             plot, name, values, tuple(record))
+                             plot, name, values,
+                             (record,) if isinstance(record, str) else tuple(record))
     result.extra["requested_stop_wb"] = stop_wingbeats
     if built is not None:
         result.extra["built_into"] = str(built)

@@ -20,7 +20,7 @@ from typing import Callable, Sequence
 
 from dronefly import __version__, commands
 from dronefly.commands import EXIT_FAILED, EXIT_USAGE
-from dronefly.cliargs import (converter, finite, floats_arg, int_arg, parse_assignment,
+from dronefly.cliargs import (converter, finite, floats_arg, int_arg,
                               parse_gains, parse_names, parse_setting, parse_x0, positive)
 from dronefly.errors import DroneflyError
 from dronefly.interrupt import EXIT_INTERRUPTED, deferred_sigint
@@ -210,7 +210,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="gain sets: paper (Eq. 27), stabilising (lambda1 -> -0.1), open, or a "
                         ".csv/.json file with a 3x4 matrix (default paper,stabilising)")
     w.add_argument("--set", dest="set_values", action="append", default=[],
-                   type=converter(parse_assignment), metavar="NAME=VALUE",
+                   type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller for every case (repeatable; "
                         "SI units)")
     w.add_argument("--steps", type=floats_arg("steps"), default=None, metavar="LIST",

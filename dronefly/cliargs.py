@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 from dronefly.errors import DroneflyError
 
-__all__ = ["converter", "finite", "floats_arg", "int_arg", "parse_assignment", "parse_gains",
+__all__ = ["converter", "finite", "floats_arg", "int_arg", "parse_gains",
            "parse_names", "parse_setting", "parse_x0", "positive"]
 
 
@@ -72,15 +72,9 @@ def parse_x0(text: str) -> Any:
     return parse(text)
 
 
-def parse_assignment(text: str) -> Any:
-    from dronefly.harness.cosim.params import parse_assignment as parse
-
-    return parse(text)
-
-
 def parse_setting(text: str) -> tuple[str, str]:
     """``NAME=VALUE`` -> (NAME, VALUE as text): converted later to the variable's declared
-    type (:mod:`dronefly.harness.system.values`) or by :func:`parse_assignment`."""
+    type (:mod:`dronefly.harness.system.values`)."""
     name, sep, value = text.partition("=")
     if not sep or not name.strip() or not value.strip():
         raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=VALUE, e.g. "

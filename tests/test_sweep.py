@@ -184,6 +184,8 @@ def test_cli_sweep(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     (["--grid", "100000"], "exceed the limit of 200000"),
     (["--disturbances", "lhs", "--lhs", "100000000"], "exceed the limit of 200000"),
     (["--set", "plant.nope=1"], "plant has no variable 'nope'"),
+    (["--set", "controller.limit_enabled=maybe"], "'maybe': a Boolean takes true, false, 1 or 0"),
+    (["--set", "plant.Lv_plus=abc"], "plant.Lv_plus = 'abc' is not a number"),
     (["--gains", "paper,missing.json"], "gains file 'missing.json'"),
 ])
 def test_cli_bad_input(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],

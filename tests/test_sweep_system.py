@@ -45,9 +45,11 @@ def test_system_sweep_equals_the_pair_sweep(built_fmus, tmp_path, master, pair_s
     assert {r["verdict"] for r in system.rows} >= {"within"}
     assert system.summary["plant"] == "lateral"
     assert system.summary["controller"] == "lateral_controller"
-    # the --set values are part of the case: a rerun resumes every case
+    # the --set values are part of the case, converted to their declared types: a rerun
+    # with the same values as text (as --set gives them) resumes every case
     again = run_sweep(spec, tmp_path / "system", workers=1, progress_bar=False, plot=False,
-                      system=built_fmus["DroneFlyHover.ssp"], set_values=system_set)
+                      system=built_fmus["DroneFlyHover.ssp"],
+                      set_values={k: str(v) for k, v in system_set.items()})
     assert again.summary["resumed_cases"] == len(system.rows)
     assert again.summary["computed_cases"] == 0
 
@@ -98,6 +100,8 @@ def test_a_system_without_a_lateral_plant_is_refused(built_fmus, tmp_path):
     (["--plant", "x.fmu"], "cannot be combined with --system"),
     (["--set", "lateral.nosuch=1"], "lateral.nosuch"),
     (["--set", "nobody.K[1,1]=1"], "nobody"),
+    (["--set", "lateral_controller.limit_enabled=maybe"],
+     "lateral_controller.limit_enabled = 'maybe': a Boolean takes true, false, 1 or 0"),
 ])
 def test_cli_sweep_system_bad_input(built_fmus, tmp_path, capsys, extra, fragment):
     out = tmp_path / "out"

@@ -21,7 +21,6 @@ from dronefly.errors import DroneflyError
 from dronefly.lateral import CONTROL_NAMES, STATE_NAMES
 
 __all__ = ["GAIN_SETS", "STABILISING_LAMBDA1", "ParameterError", "as_gain_matrix", "gain_matrix",
-           "parse_assignment",
            "parse_gains", "resolve_assignments"]
 
 #: Named gain sets (rows: controls, columns: x+; rad per unit of x+).
@@ -118,23 +117,6 @@ def _gains_file(path: Path) -> np.ndarray:
         except ValueError:
             rows = rows[1:]  # a header line
     return _matrix(rows, f"in {str(path)!r}")
-
-
-def parse_assignment(text: str) -> tuple[str, float | bool]:
-    """``NAME=VALUE`` (NAME may be ``instance.NAME``); VALUE a number or true/false."""
-    name, sep, value = text.partition("=")
-    name, value = name.strip(), value.strip()
-    if not sep or not name or not value:
-        raise ParameterError(f"{text!r}: expected NAME=VALUE, e.g. plant.Lv_plus=0.2")
-    if value.lower() in ("true", "false"):
-        return name, value.lower() == "true"
-    try:
-        number = float(value)
-    except ValueError:
-        raise ParameterError(f"{name} = {value!r} is not a number") from None
-    if not math.isfinite(number):
-        raise ParameterError(f"{name} = {value!r} is not finite")
-    return name, number
 
 
 def resolve_assignments(values: Mapping[str, Any],

@@ -88,7 +88,7 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
     if plant is not None or controller is not None:
         raise SweepInputError("--plant/--controller cannot be combined with --system (set "
                               "values of the system's instances with --set instance.NAME=VALUE)")
-    refs, lateral, used = [], None, set()
+    refs, lateral, used, typed = [], None, set(), {}
     for option, given in (("--system", system), ("--compare", compare)):
         if given is None:
             continue
@@ -99,13 +99,14 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
         ref = SystemRef(**vars(FmuRef.of(path)))
         mine = _values_for(ref, set_values)
         used |= set(mine)
-        loop = check_system(ref, mine, (spec or SweepSpec()).master)
+        loop, values = check_system(ref, mine, (spec or SweepSpec()).master)
+        typed.update(values)
         lateral = lateral or loop
         refs.append(ref)
     unused = sorted(set(set_values or {}) - used)
     if unused:
         raise SweepInputError(f"--set {unused[0]}: no system has that instance")
-    return tuple(refs), {"plant": dict(set_values or {})}, lateral
+    return tuple(refs), {"plant": typed}, lateral
 
 
 def _values_for(ref: Any, set_values: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -123,9 +123,10 @@ def _lateral_loop(master: Any) -> LateralLoop:
 
 
 def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
-                 master: str = "gauss-seidel") -> LateralLoop:
+                 master: str = "gauss-seidel") -> tuple[LateralLoop, dict[str, Any]]:
     """Open the system here, before any file is written; apply ``--set`` values and find
-    the lateral loop.
+    the lateral loop. Returns it and the ``--set`` values converted to their variables'
+    declared types (:mod:`dronefly.harness.system.values`), by ``instance.NAME``.
 
     Raises
     ------
@@ -140,7 +141,9 @@ def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
         system = System.from_ssp(ref.path).with_values(dict(set_values or {}))
         with SystemMaster(system, master) as m:
             m.run(1e-3, 1, record=[])  # one step: every --set name is checked by the master
-            return _lateral_loop(m)
+            typed = {key: m.system.parameters[key.partition(".")[0]][key.partition(".")[2]]
+                     for key in (set_values or {})}
+            return _lateral_loop(m), typed
     except (SystemSpecError, FMUError) as e:
         raise SweepInputError(str(e)) from e
 

@@ -88,7 +88,7 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
     if plant is not None or controller is not None:
         raise SweepInputError("--plant/--controller cannot be combined with --system (set "
                               "values of the system's instances with --set instance.NAME=VALUE)")
-    refs, lateral, used, typed = [], None, set(), {}
+    refs, lateral, typed = [], None, {}
     for option, given in (("--system", system), ("--compare", compare)):
         if given is None:
             continue
@@ -97,13 +97,11 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
             raise SweepInputError(f"{option} {str(given)!r} " + (
                 "is a folder, not an SSP file" if path.is_dir() else "does not exist"))
         ref = SystemRef(**vars(FmuRef.of(path)))
-        mine = _values_for(ref, set_values)
-        used |= set(mine)
-        loop, values = check_system(ref, mine, (spec or SweepSpec()).master)
+        loop, values = check_system(ref, _values_for(ref, set_values), (spec or SweepSpec()).master)
         typed.update(values)
         lateral = lateral or loop
         refs.append(ref)
-    unused = sorted(set(set_values or {}) - used)
+    unused = sorted(set(set_values or {}) - set(typed))
     if unused:
         raise SweepInputError(f"--set {unused[0]}: no system has that instance")
     return tuple(refs), {"plant": typed}, lateral

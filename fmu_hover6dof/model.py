@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 from operator import mul
 from typing import Callable, Sequence
 
@@ -158,6 +159,7 @@ def _value(formula: str, j: int) -> str:
     return re.sub(r"K(\d)", rf"k\g<1>_{j}", formula.replace("y", f"y{j}"))
 
 
+@lru_cache(maxsize=16)  # a bounded cache: instances with equal parameters share one compile
 def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tuple:
     """``(rhs(x, bl, bn) -> dx/dt+, substeps(y, n, h, bl, bn) -> y after n sub-steps of h)``
     compiled from :data:`_RHS` and :data:`_STAGES` into straight-line arithmetic on locals: no
@@ -248,9 +250,8 @@ class Hover6DOF:
                                  f"wing beat needs {n} sub-steps; take shorter steps")
         h = h_wb / n
         y = self._substeps(x, n, h, bl, bn)  # Butcher's order 6 (see _STAGES)
-        norm = math.sqrt(sum(c * c for c in y[6:10]))
-        finite = math.isfinite(sum(y)) or all(math.isfinite(a) for a in y)  # the sum: faster
-        if not finite or not norm > 0.0:
+        norm = math.sqrt(sum(c * c for c in y[6:10]))  # finiteness on the sum: faster
+        if not (math.isfinite(sum(y)) or all(math.isfinite(a) for a in y)) or not norm > 0.0:
             raise Hover6DOFError(f"the state is not finite after a step of {h_wb!r} wing beats "
                                  f"(from u, v, w, p, q, r = {list(x[:6])!r})")
         y[6:10] = [c / norm for c in y[6:10]]
@@ -287,8 +288,7 @@ def initial_state(starts: dict[str, float], U: float, n: float) -> list[float]:
 def outputs(x: Sequence[float], U: float, n: float) -> list[float]:
     """The FMU's outputs (SI) in the order of :data:`dronefly.hover6dof.OUTPUT_NAMES`."""
     u, v, w, p, q, r = x[:6]
-    e = x[6:10]
-    e0, e1, e2, e3 = e
+    e0, e1, e2, e3 = e = x[6:10]
     phi, theta, psi = euler_from_quaternion(e)
     R = ((1.0 - 2.0 * (e2 * e2 + e3 * e3), 2.0 * (e1 * e2 - e0 * e3), 2.0 * (e1 * e3 + e0 * e2)),
          (2.0 * (e1 * e2 + e0 * e3), 1.0 - 2.0 * (e1 * e1 + e3 * e3), 2.0 * (e2 * e3 - e0 * e1)),

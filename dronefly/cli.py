@@ -38,10 +38,12 @@ _EPILOG = {
              "  dronefly cosim --gains 'k11,k12,k13,k14;k21,k22,k23,k24;k31,k32,k33,k34'\n"
              "  dronefly cosim --gains my_gains.json --set plant.Lv_plus=0.25 --set u_max=0.3\n"
              "  dronefly cosim --system build/DroneFlyHover.ssp\n"
+             "  dronefly cosim --system build/DroneFlyHover.ssp --open-loop\n"
              "  dronefly cosim --system my.ssp --set lateral.delta_p_start=1 "
              "--record lateral.delta_p,lateral.delta_gamma\n"
-             "exit codes: 0 ok, 1 the run stopped early (partial result kept), 2 bad input, "
-             "130 interrupted" + _UNITS,
+             "exit codes: 0 ok, 1 the run stopped early (partial result kept) or, with "
+             "--system, an identified loop failed its cross-check against eig(A + B K) (open "
+             "loop: eig(A); outputs kept), 2 bad input, 130 interrupted" + _UNITS,
     "demo": "examples:\n  dronefly demo",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
              "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
@@ -111,6 +113,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="co-simulate the system of an SSP file (any number of FMI 2.0 CS FMUs); "
                         "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
                         "--x0")
+    c.add_argument("--open-loop", action="store_true",
+                   help="with --system: also identify each plant's open loop, from runs with the "
+                        "gains K[i,j] of the controller that drives it set to zero, and "
+                        "cross-check it against eig(A)")
     c.add_argument("--record", type=converter(parse_names), default=None,
                    metavar="INST.NAME,...", help="the variables to record, any Real, Integer "
                    "or Boolean variable of any instance, e.g. lateral.delta_p,"

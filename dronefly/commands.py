@@ -43,6 +43,9 @@ def cosim(args: argparse.Namespace) -> int:
         require("matplotlib", "pass --no-plot")
     if args.system is not None:
         return _cosim_system(args)
+    if args.open_loop:
+        raise DroneflyError("--open-loop needs --system (the plant/controller pair opens its "
+                            "loop with --gains open)")
     from dronefly.harness.cosim.run import cosimulate
 
     # the --set values as text: converted to the variables' types by cosimulate
@@ -81,8 +84,12 @@ def _cosim_system(args: argparse.Namespace) -> int:
             "is a folder, not an SSP file" if Path(args.system).is_dir() else "does not exist"))
     result = cosimulate_system(args.system, step_wingbeats=args.step, stop_wingbeats=args.stop,
                                master=args.master, set_values=dict(args.set_values),
-                               record=args.record, out_dir=args.out, plot=not args.no_plot)
-    return _cosim_report(result, args.json)
+                               record=args.record, out_dir=args.out, plot=not args.no_plot,
+                               open_loop=args.open_loop)
+    code = _cosim_report(result, args.json)
+    for failure in result.check_failures:
+        print(f"dronefly cosim: error: cross-check failed: {failure}", file=sys.stderr)
+    return EXIT_FAILED if result.check_failures else code
 
 
 def check(args: argparse.Namespace) -> int:

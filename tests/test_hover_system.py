@@ -18,7 +18,7 @@ import pytest
 
 from dronefly.cli import main
 from dronefly.controller.law import PAPER_GAINS_EQ27, LONGITUDINAL_GAINS_DESIGN_B, gain_name
-from dronefly.harness.system.description import System
+from dronefly.harness.system.description import Connection, System
 from dronefly.harness.system.master import SystemMaster
 from dronefly.harness.system.run import cosimulate_system
 from dronefly.harness.system.ssp import hover_system, write_system_ssp
@@ -92,9 +92,17 @@ def test_hover_ssp_describes_four_fmus_both_loops(hover_ssp):
                    for c in system.connections)  # the axes are not coupled
 
 
-def test_default_hover_system_lateral_neutral_longitudinal_stable(hover_ssp):
+def test_default_hover_system_lateral_neutral_longitudinal_stable(hover_ssp, monkeypatch):
+    import dronefly.harness.system.run as run_module
+
+    def no_open_loop(*args, **kw):
+        raise AssertionError("open-loop runs without open_loop")
+
+    monkeypatch.setattr(run_module, "open_loop_verdicts", no_open_loop)
     r = cosimulate_system(hover_ssp, stop_wingbeats=30, out_dir=None)
     assert r.run.complete and len(r.run.time) == 301
+    assert r.open_loop is None and r.check_failures == []
+    assert "open loop" not in r.summary() and "open_loop" not in r.to_json()["axes"][0]
     _check_axis(r, "lateral", "neutral", _eig_lateral(np.array(PAPER_GAINS_EQ27)))
     _check_axis(r, "longitudinal", "stable",
                 _eig_longitudinal(np.array(LONGITUDINAL_GAINS_DESIGN_B)))
@@ -117,14 +125,99 @@ def test_design_a_makes_the_longitudinal_loop_neutral(hover_ssp):
     _check_axis(r, "lateral", "neutral", _eig_lateral(np.array(PAPER_GAINS_EQ27)))
 
 
+def _eig_open(model) -> np.ndarray:
+    A, _ = model.system_matrices(model.default_parameters())
+    return np.array(sort_eigenvalues(np.linalg.eigvals(np.asarray(A))))
+
+
 @pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
 def test_open_loop_is_unstable_in_both_axes(hover_ssp, master):
-    values = {**_set_row("lateral_controller", 0, [0.0] * 4, rows=3),
-              **_set_row("longitudinal_controller", PHIBAR_ROW, [0.0] * 4)}
+    """open_loop: after the closed loop (unchanged), each plant's loop with its controller's
+    gains zeroed, identified and checked against eig(A) of the models (not the FMUs)."""
     r = cosimulate_system(hover_ssp, stop_wingbeats=30, out_dir=None, master=master,
-                          set_values=values)
-    _check_axis(r, "lateral", "unstable", _eig_lateral(np.zeros(4)))
-    _check_axis(r, "longitudinal", "unstable", _eig_longitudinal(np.zeros(4)))
+                          open_loop=True)
+    if master == "gauss-seidel":
+        _check_axis(r, "lateral", "neutral", _eig_lateral(np.array(PAPER_GAINS_EQ27)))
+        _check_axis(r, "longitudinal", "stable",
+                    _eig_longitudinal(np.array(LONGITUDINAL_GAINS_DESIGN_B)))
+    else:  # the Jacobi loop's delay modes: no comparison with eig(A + B K)
+        assert [(a.plant.instance, a.verdict) for a in r.axes] == [
+            ("lateral", "neutral"), ("longitudinal", "stable")]
+        assert set(r.continuous_deviation.values()) == {None}
+    lat, lon = r.open_loop["lateral"], r.open_loop["longitudinal"]
+    for o, model, rows in ((lat, lateral_model, 3), (lon, longitudinal_model, 4)):
+        expected = _eig_open(model)
+        assert o.verdict == "unstable"
+        np.testing.assert_allclose(o.continuous, expected, atol=1e-12)
+        np.testing.assert_allclose(o.identification.dominant_growth_rate,
+                                   max(expected.real), atol=1e-6)
+        assert r.open_loop_deviation[o.plant.instance] <= 1e-6
+        assert set(o.plant.gains) == {gain_name(i, j) for i in range(rows) for j in range(4)}
+    assert lat.identification.dominant_growth_rate == pytest.approx(0.0786, abs=5e-5)
+    pair = [z for z in lon.identification.eigenvalues if abs(z.imag) > 1e-3]
+    assert len(pair) == 2 and all(abs(z - complex(0.0481, np.sign(z.imag) * 0.0976)) < 5e-5
+                                  for z in pair)
+    assert r.check_failures == []
+    j = r.to_json()["axes"]
+    assert [a["open_loop"]["verdict"] for a in j] == ["unstable", "unstable"]
+    assert j[0]["open_loop"]["zeroed"][0] == "lateral_controller.K[1,1]"
+    assert j[0]["open_loop"]["continuous_check"]["passed"] is True
+
+
+def test_open_loop_names_a_plant_without_gains_to_zero(built_fmus):
+    """A plant driven by an instance without gains K[i,j] (here the other plant's pitch into
+    the roll control) is not guessed at; a plant with no input connected is its open loop."""
+    system = System({"lateral": built_fmus["DroneFlyLateral"],
+                     "longitudinal": built_fmus["DroneFlyLongitudinal"]},
+                    [Connection("longitudinal", "delta_theta", "lateral", "delta_Phi_a")], {})
+    r = cosimulate_system(system, stop_wingbeats=2, out_dir=None, open_loop=True)
+    assert r.open_loop["lateral"].verdict is None
+    assert ("  open loop: not identified (longitudinal has no gains K[i,j] for the inputs of "
+            "lateral to set to zero)") in r.summary().splitlines()
+    lon = r.open_loop["longitudinal"]
+    assert lon.verdict == "unstable" and lon.plant.gains == ()
+    np.testing.assert_allclose(lon.continuous, _eig_open(longitudinal_model), atol=1e-12)
+    assert r.open_loop_deviation["longitudinal"] <= 1e-6 and r.check_failures == []
+
+
+def test_cli_a_failed_cross_check_exits_1_with_the_outputs(hover_ssp, tmp_path, capsys):
+    """A saturating lateral controller is not the linear law of its gains: its identified loop
+    is far from eig(A + B K), which must fail the command (the open loop still passes)."""
+    out = tmp_path / "o"
+    code = main(["cosim", "--system", str(hover_ssp), "--stop", "5", "--no-plot", "--out",
+                 str(out), "--open-loop", "--set", "lateral_controller.limit_enabled=1",
+                 "--set", "lateral_controller.u_max=1e-9"])
+    cap = capsys.readouterr()
+    assert code == 1, cap.err
+    lines = cap.out.splitlines()
+    assert sum("cross-check failed" in ln for ln in lines) == 1
+    assert [ln.startswith("  eig(A + B K)") for ln in lines if "cross-check failed" in ln] == [True]
+    assert "lateral: the eigenvalues identified at a step of 1e-05 wing beats deviate from " \
+           "eig(A + B K) by" in cap.err
+    assert cap.err.count("\n") == 1 and "Traceback" not in cap.err
+    assert sorted(p.suffix for p in out.iterdir()) == [".csv", ".json"]
+    j = json.loads(next(out.glob("*.json")).read_text())
+    assert len(j["check_failures"]) == 1 and j["complete"]
+    assert [a["continuous_check"]["passed"] for a in j["axes"]] == [False, True]
+    assert [a["open_loop"]["continuous_check"]["passed"] for a in j["axes"]] == [True, True]
+
+
+def test_cli_open_loop_cross_check_is_enforced_too(hover_ssp, tmp_path, capsys, monkeypatch):
+    """With a tolerance no identification meets, every check fails, the open loop's too."""
+    import dronefly.harness.system.run as run_module
+
+    monkeypatch.setattr(run_module, "CHECK_TOL_PER_WINGBEAT", 1e-14)
+    code = main(["cosim", "--system", str(hover_ssp), "--stop", "2", "--no-plot", "--out",
+                 str(tmp_path / "o"), "--open-loop"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.count("eig(A) (open loop)") == 2 and err.count("eig(A + B K)") == 2
+
+
+def test_cli_open_loop_needs_a_system(tmp_path, capsys):
+    code = main(["cosim", "--open-loop", "--no-plot", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--open-loop needs --system" in err and err.count("\n") == 1
 
 
 def test_write_system_ssp_round_trip(built_fmus, tmp_path):
@@ -167,7 +260,7 @@ def test_cli_system_typed_values_and_recording_any_variable(hover_ssp, tmp_path,
     code = main(["cosim", "--system", str(hover_ssp), "--stop", "2", "--no-plot", "--json",
                  "--out", str(out), "--set", "lateral_controller.limit_enabled=1",
                  "--set", "lateral_controller.u_max=0.005", "--record", record])
-    assert code == 0
+    assert code == 1  # the saturating loop is not eig(A + B K): the cross-check fails
     j = json.loads(capsys.readouterr().out)
     assert j["recorded"] == ["lateral_controller.K[1,4]", *record.split(",")[2:]]
     rows = np.loadtxt(j["csv"], delimiter=",", skiprows=1)
@@ -239,9 +332,15 @@ def test_docs_systems_numbers_are_the_code_s(hover_ssp):
     from dronefly.harness.paper.longitudinal import design
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "systems.md").read_text()
-    r = cosimulate_system(hover_ssp, stop_wingbeats=60, out_dir=None)
-    printed = doc.split("prints\n\n```\n", 1)[1].split("```", 1)[0].splitlines()
-    assert [ln for ln in printed if not ln.startswith("csv:")] == r.summary().splitlines()
+    blocks = [b.split("```", 1)[0].splitlines() for b in doc.split("prints\n\n```\n")[1:]]
+    assert len(blocks) == 2  # the default output, then --open-loop's
+    for printed, open_loop in zip(blocks, (False, True)):
+        r = cosimulate_system(hover_ssp, stop_wingbeats=60, out_dir=None, open_loop=open_loop)
+        assert [ln for ln in printed if not ln.startswith("csv:")] == r.summary().splitlines()
+    from dronefly.harness.system.run import CHECK_STEP_WB, CHECK_TOL_PER_WINGBEAT
+
+    assert "by more than 1e-6 per\nwing beat at the 1e-5 step" in doc
+    assert (CHECK_TOL_PER_WINGBEAT, CHECK_STEP_WB) == (1e-6, 1e-5)
     k = design("neutral", ("delta_phibar",)).K[PHIBAR_ROW]
     given = {int(j): float(v) for j, v in
              re.findall(r"longitudinal_controller\.K\[3,(\d)\]=(-?[0-9.]+)", doc)}

@@ -8,7 +8,14 @@ file or a :class:`System`), applies ``instance.NAME=VALUE`` settings, runs it wi
 - at the run's communication step: the verdict, and the deviation from the exact
   sampled-data loop at that step;
 - at a step of :data:`CHECK_STEP_WB` wing beats: the deviation from eig(A + B K) of the
-  continuous loop (the sampled-data loop differs from it by O(step)).
+  continuous loop (the sampled-data loop differs from it by O(step)), which must not exceed
+  :data:`CHECK_TOL_PER_WINGBEAT`: a larger one is a failed cross-check
+  (:attr:`SystemResult.check_failures`; ``dronefly cosim`` exits 1). Where the identified
+  eigenvalues are not as many (the Jacobi loop's delay modes) there is no comparison.
+
+With ``open_loop`` each plant's open loop is identified as well, from runs with the gains of
+its controller set to zero (:func:`.verdicts.open_loop_verdicts`), and cross-checked against
+eig(A) in the same way.
 
 Times are in wing beats of the system's wing-beat frequency (the parameter ``n`` of its
 plants, which must agree); a system without one counts in seconds (n = 1 Hz).
@@ -27,12 +34,16 @@ from dronefly.files import write_run_files
 from dronefly.harness.cosim.master import LoopRun, step_count
 from dronefly.harness.system.description import System, SystemSpecError
 from dronefly.harness.system.master import SystemMaster
-from dronefly.harness.system.verdicts import AxisVerdict, axis_verdicts
+from dronefly.harness.system.verdicts import (AxisVerdict, NotIdentified, axis_verdicts,
+                                              open_loop_verdicts)
 
-__all__ = ["CHECK_STEP_WB", "SystemResult", "cosimulate_system"]
+__all__ = ["CHECK_STEP_WB", "CHECK_TOL_PER_WINGBEAT", "SystemResult", "cosimulate_system"]
 
 #: step of the identification that is compared with eig(A + B K), wing beats
 CHECK_STEP_WB = 1e-5
+#: largest deviation of the eigenvalues identified at CHECK_STEP_WB from eig(A + B K) (open
+#: loop: eig(A)) that passes the cross-check, per wing beat
+CHECK_TOL_PER_WINGBEAT = 1e-6
 
 
 @dataclass
@@ -49,21 +60,41 @@ class SystemResult:
     continuous_deviation: dict[str, float | None] = field(default_factory=dict)
     csv: Path | None = None
     plot: Path | None = None
+    #: per plant instance, with ``open_loop``: its open-loop verdict (or why there is none)
+    open_loop: dict[str, AxisVerdict | NotIdentified] | None = None
+    open_loop_deviation: dict[str, float | None] = field(default_factory=dict)
+    #: the failed cross-checks, one sentence each (empty: all passed or none possible)
+    check_failures: list[str] = field(default_factory=list)
+    check_tol: float = CHECK_TOL_PER_WINGBEAT
 
     def to_json(self) -> dict[str, Any]:
         axes = []
         for a in self.axes:
             j = a.to_json()
-            j["continuous_check"] = {"step_wingbeats": CHECK_STEP_WB, "max_deviation":
-                                     self.continuous_deviation.get(a.plant.instance)}
+            j["continuous_check"] = self._check_json(self.continuous_deviation, a)
+            if self.open_loop is not None:
+                o = self.open_loop[a.plant.instance]
+                j["open_loop"] = o.to_json()
+                if isinstance(o, AxisVerdict):
+                    j["open_loop"]["zeroed"] = [f"{a.plant.controller}.{k}"
+                                                for k in a.plant.gains]
+                    j["open_loop"]["continuous_check"] = self._check_json(
+                        self.open_loop_deviation, o)
             axes.append(j)
         return {"system": self.system, "complete": self.run.complete,
                 "failure": None if self.run.complete else str(self.run.failure),
                 "master": self.master, "step_wingbeats": self.step_wingbeats,
                 "stop_wingbeats": self.stop_wingbeats, "wingbeat_frequency_hz": self.n_hz,
-                "axes": axes, "recorded": list(self.run.names),
+                "axes": axes, "check_failures": list(self.check_failures),
+                "recorded": list(self.run.names),
                 "csv": None if self.csv is None else str(self.csv),
                 "plot": None if self.plot is None else str(self.plot)}
+
+    def _check_json(self, deviation: dict[str, float | None], a: AxisVerdict) -> dict[str, Any]:
+        dev = deviation.get(a.plant.instance)
+        return {"step_wingbeats": CHECK_STEP_WB, "max_deviation": dev,
+                "tolerance": self.check_tol,
+                "passed": None if dev is None else _passed(dev, self.check_tol)}
 
     def summary(self) -> str:
         lines = [f"system {self.system}: {self.master} master, step {self.step_wingbeats:g} "
@@ -74,17 +105,37 @@ class SystemResult:
             lines.append(f"{a.plant.instance} ({a.plant.model}): {a.verdict} (dominant rate "
                          f"{a.identification.dominant_growth_rate:+.5f} per wing beat); "
                          f"identified {ev}")
-            dev = self.continuous_deviation.get(a.plant.instance)
             if a.continuous is not None:
                 lines.append(f"  eig(A + B K): {', '.join(_fmt(z) for z in a.continuous)}"
-                             + ("" if dev is None else f" (identified at a step of "
-                                f"{CHECK_STEP_WB:g} wing beats: max deviation {dev:.1e})"))
+                             + self._check_text(self.continuous_deviation, a))
+            o = None if self.open_loop is None else self.open_loop[a.plant.instance]
+            if isinstance(o, NotIdentified):
+                lines.append(f"  open loop: not identified ({o.reason})")
+            elif o is not None:
+                lines.append(f"  open loop: {o.verdict} (dominant rate "
+                             f"{o.identification.dominant_growth_rate:+.5f} per wing beat)"
+                             + ("" if o.continuous is None else "; eig(A): " + ", ".join(
+                                 _fmt(z) for z in o.continuous)
+                                 + self._check_text(self.open_loop_deviation, o)))
         if not self.run.complete:
             lines.append(f"INCOMPLETE: {self.run.failure}")
+        lines += [f"CROSS-CHECK FAILED: {f}" for f in self.check_failures]
         for label, path in (("csv", self.csv), ("plot", self.plot)):
             if path:
                 lines.append(f"{label}: {path}")
         return "\n".join(lines)
+
+    def _check_text(self, deviation: dict[str, float | None], a: AxisVerdict) -> str:
+        dev = deviation.get(a.plant.instance)
+        if dev is None:
+            return ""
+        return (f" (identified at a step of {CHECK_STEP_WB:g} wing beats: max deviation "
+                f"{dev:.1e}" + ("" if _passed(dev, self.check_tol) else
+                                f" > {self.check_tol:g}: cross-check failed") + ")")
+
+
+def _passed(dev: float, tol: float) -> bool:
+    return dev <= tol  # False for NaN
 
 
 def _fmt(z: complex) -> str:
@@ -112,7 +163,7 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
                       set_values: Mapping[str, Any] | None = None,
                       record: Sequence[str] | None = None, verdicts: bool = True,
                       out_dir: str | Path | None = "build/cosim", plot: bool = True,
-                      name: str | None = None) -> SystemResult:
+                      name: str | None = None, open_loop: bool = False) -> SystemResult:
     """Co-simulate a system and identify each plant's loop.
 
     Parameters
@@ -135,6 +186,12 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         Identify each plant's loop (extra short runs).
     out_dir : path or None
         Where the CSV, JSON (and PNG) go; None writes nothing.
+    open_loop : bool
+        With ``verdicts``: also identify each plant's open loop (its controller's gains set
+        to zero) and cross-check it against eig(A).
+
+    A failed cross-check (see the module text) does not raise: it is listed in the result's
+    ``check_failures``, and the outputs are written as for any run.
     """
     if not isinstance(system, System):
         system = System.from_ssp(system)
@@ -147,21 +204,51 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         n_steps = step_count(stop, step_wingbeats)
         stop = round(n_steps * step_wingbeats, 12)
         run = m.run(step_wingbeats / n, n_steps, record=record)
-        axes, deviation = [], {}
+        axes, deviation, opened, open_dev = [], {}, None, {}
         if verdicts and run.complete:
             axes = axis_verdicts(m, step_wingbeats)
-            for fine in (axis_verdicts(m, CHECK_STEP_WB) if axes else []):
-                dev = None
-                if fine.continuous is not None and len(fine.continuous) == len(
-                        fine.identification.eigenvalues):
-                    dev = float(np.max(np.abs(fine.identification.eigenvalues
-                                              - fine.continuous)))
-                deviation[fine.plant.instance] = dev
-    result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation)
+            deviation = _deviations(axis_verdicts(m, CHECK_STEP_WB) if axes else [])
+            if open_loop:
+                opened = {o.plant.instance: o for o in open_loop_verdicts(m, step_wingbeats)}
+                open_dev = _deviations([o for o in open_loop_verdicts(m, CHECK_STEP_WB)
+                                        if isinstance(o, AxisVerdict)])
+    tol = CHECK_TOL_PER_WINGBEAT
+    failures = _failures(axes, deviation, "eig(A + B K)", tol) + _failures(
+        [o for o in (opened or {}).values() if isinstance(o, AxisVerdict)], open_dev,
+        "eig(A) (open loop)", tol)
+    result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation,
+                          open_loop=opened, open_loop_deviation=open_dev,
+                          check_failures=failures, check_tol=tol)
     if out_dir is not None:
         write_run_files(result, out_dir, name or f"cosim_{system.name}_{master}",
                         _plot if plot else None)
     return result
+
+
+def _deviations(fine: list[AxisVerdict]) -> dict[str, float | None]:
+    """Per plant: max |identified - continuous| (None: nothing to compare, or not as many)."""
+    out: dict[str, float | None] = {}
+    for a in fine:
+        ident = a.identification.eigenvalues
+        out[a.plant.instance] = (float(np.max(np.abs(ident - a.continuous)))
+                                 if a.continuous is not None and len(a.continuous) == len(ident)
+                                 else None)
+    return out
+
+
+def _failures(axes: list[AxisVerdict], deviation: dict[str, float | None], against: str,
+              tol: float) -> list[str]:
+    out = []
+    for a in axes:
+        if a.continuous is None:
+            continue  # nothing to check against (no A, B or K)
+        # None: not as many eigenvalues (the Jacobi loop's delay modes): no comparison
+        dev = deviation.get(a.plant.instance)
+        if dev is not None and not dev <= tol:
+            out.append(f"{a.plant.instance}: the eigenvalues identified at a step of "
+                       f"{CHECK_STEP_WB:g} wing beats deviate from {against} by {dev:.1e} "
+                       f"> {tol:g} per wing beat")
+    return out
 
 
 def _plot(result: SystemResult, path: Path) -> None:

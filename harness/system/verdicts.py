@@ -13,6 +13,11 @@ the closed-loop rates, and their dominant real part the verdict. The axes being 
 each plant's runs show its own loop. Where the plant's inputs are driven by one controller
 with gains ``K[i,j]`` (the project's controllers) the verdict is cross-checked against the
 exact sampled-data loop at the same step and against eig(A + B K) of the continuous loop.
+
+The open loop (:func:`open_loop_verdicts`) is identified the same way, from runs of the same
+system with those gains ``K[i,j]`` of the controller that drives the plant set to zero, and
+cross-checked against eig(A); a plant whose inputs are not driven by one controller with
+gains gets the reason instead (:class:`NotIdentified`).
 """
 
 from __future__ import annotations
@@ -29,7 +34,8 @@ from dronefly.harness.cosim.master import CoSimError
 from dronefly.harness.system.master import SystemMaster
 from dronefly.linear import discretize_zoh
 
-__all__ = ["AxisVerdict", "PlantInfo", "axis_verdicts", "find_plants"]
+__all__ = ["AxisVerdict", "NotIdentified", "PlantInfo", "axis_verdicts", "find_plants",
+           "open_loop_verdicts"]
 
 _UNIT_SCALE = {"m/s": "U", "rad/s": "n", "rad": "1"}
 
@@ -47,6 +53,7 @@ class PlantInfo:
     B: np.ndarray | None = None
     K: np.ndarray | None = None  # rows = the plant's inputs, columns = its states (x+)
     controller: str | None = None
+    gains: tuple[str, ...] = ()  # the controller's parameters K[i,j] read into K
 
 
 @dataclass(frozen=True)
@@ -55,7 +62,7 @@ class AxisVerdict:
 
     plant: PlantInfo
     identification: Identification
-    continuous: np.ndarray | None  # eig(A + B K), per wing beat
+    continuous: np.ndarray | None  # eig(A + B K) (open loop: eig(A)), per wing beat
     sampled: np.ndarray | None  # exact sampled-data loop at the step, per wing beat
 
     @property
@@ -76,6 +83,19 @@ class AxisVerdict:
                 "continuous_eigenvalues_per_wingbeat": cx(self.continuous),
                 "sampled_data_eigenvalues_per_wingbeat": cx(self.sampled),
                 "max_deviation_from_sampled_data": dev}
+
+
+@dataclass(frozen=True)
+class NotIdentified:
+    """A plant whose open loop was not identified, and why (no gains to zero)."""
+
+    plant: PlantInfo
+    reason: str
+
+    verdict = None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"instance": self.plant.instance, "verdict": None, "reason": self.reason}
 
 
 def _start(md: Any) -> dict[str, Any]:
@@ -104,18 +124,20 @@ def find_plants(master: SystemMaster) -> list[PlantInfo]:
         given = master.system.parameters.get(inst, {})
         A = calculated_matrix(fmu, "A", len(states), len(states), given)
         B = calculated_matrix(fmu, "B", len(states), len(inputs), given)
-        K, ctrl = _gains(master, inst, states, inputs, conns)
-        out.append(PlantInfo(inst, md.modelName, states, scale, n, A, B, K, ctrl))
+        K, ctrl, gains = _gains(master, inst, states, inputs, conns)
+        out.append(PlantInfo(inst, md.modelName, states, scale, n, A, B, K, ctrl, gains))
     return out
 
 
 def _gains(master: SystemMaster, plant: str, states: tuple[str, ...], inputs: list[str],
-           conns: Any) -> tuple[np.ndarray | None, str | None]:
-    """K over the plant's inputs x states from the one controller that closes its loop."""
+           conns: Any) -> tuple[np.ndarray | None, str | None, tuple[str, ...]]:
+    """K over the plant's inputs x states from the one controller that closes its loop, the
+    controller, and the names of the gains read (every column of each row that drives the
+    plant)."""
     feeds = {c.input: c for c in conns if c.target == plant}
     sources = {c.source for c in feeds.values()}
     if len(sources) != 1:
-        return None, None
+        return None, None, ()
     ctrl = sources.pop()
     fmu = master.fmus[ctrl]
     values = {**_start(fmu.model_description), **master.system.parameters.get(ctrl, {})}
@@ -124,6 +146,7 @@ def _gains(master: SystemMaster, plant: str, states: tuple[str, ...], inputs: li
     c_outputs = [v.name for v in fmu.model_description.modelVariables
                  if v.causality == "output" and v.type == "Real"]
     K = np.zeros((len(inputs), len(states)))
+    read = []
     for a, name in enumerate(inputs):
         if name not in feeds:
             continue
@@ -131,10 +154,11 @@ def _gains(master: SystemMaster, plant: str, states: tuple[str, ...], inputs: li
         for col, c_in in enumerate(c_inputs):
             key = f"K[{row + 1},{col + 1}]"
             if key not in values:
-                return None, ctrl
+                return None, ctrl, ()
+            read.append(key)
             if c_in in sensed:
                 K[a, states.index(sensed[c_in])] += float(values[key])
-    return K, ctrl
+    return K, ctrl, tuple(read)
 
 
 def axis_verdicts(master: SystemMaster, step_wb: float, n_steps: int = 20) -> list[AxisVerdict]:
@@ -148,32 +172,73 @@ def axis_verdicts(master: SystemMaster, step_wb: float, n_steps: int = 20) -> li
         An identification run failed (the message says where).
     """
     plants = find_plants(master)
-    zero = {p.instance: {f"{s}_start": 0.0 for s in p.states} for p in plants}
-    jacobi = master.master == "jacobi"
-    out = []
+    return [_verdict(master, p, plants, step_wb, n_steps, False) for p in plants]
+
+
+def open_loop_verdicts(master: SystemMaster, step_wb: float,
+                       n_steps: int = 20) -> list[AxisVerdict | NotIdentified]:
+    """Every plant's open loop: its runs with the gains of its controller set to zero.
+
+    As :func:`axis_verdicts`, in runs where every gain ``K[i,j]`` the verdicts read for the
+    plant (each column of every controller output that drives it) is 0; ``continuous`` is
+    then eig(A). A plant with no connected input is run as it is; one whose inputs come from
+    several instances, or from a controller without gains ``K[i,j]``, is
+    :class:`NotIdentified`.
+
+    Raises
+    ------
+    CoSimError
+        An identification run failed (the message says where).
+    """
+    plants = find_plants(master)
+    out: list[AxisVerdict | NotIdentified] = []
     for p in plants:
-        h = step_wb / p.n_hz
-        runs = []
-        for e in np.eye(len(p.states)):
-            values = {**zero, p.instance: {f"{s}_start": float(v)
-                                           for s, v in zip(p.states, e * p.scale)}}
-            r = master.run(h, n_steps, record=[f"{p.instance}.{s}" for s in p.states],
-                           values=values)
-            if not r.complete:
-                raise CoSimError(f"identification run of {p.instance} failed: {r.failure}")
-            xs = r.signals / p.scale
-            # Jacobi: the controller's first answer is to x_0 itself (initialization runs in
-            # Gauss-Seidel order), so x_(-1) = x_0
-            runs.append(np.vstack([xs[:1], xs]) if jacobi else xs)
-        ident = identify(runs, step_wb, delay=jacobi)
-        cont = sampled = None
-        if p.A is not None and p.B is not None and p.K is not None:
-            cont = sort_eigenvalues(np.linalg.eigvals(p.A + p.B @ p.K))
-            Phi, Gamma = discretize_zoh(p.A, p.B, step_wb)
-            F = Phi + Gamma @ p.K
-            if jacobi:
-                k = len(p.A)
-                F = np.block([[Phi, Gamma @ p.K], [np.eye(k), np.zeros((k, k))]])
-            sampled = rates_from_transition(F, step_wb)
-        out.append(AxisVerdict(p, ident, cont, sampled))
+        sources = sorted({c.source for c in master.system.connections
+                          if c.target == p.instance})
+        if len(sources) > 1:
+            out.append(NotIdentified(p, f"the inputs of {p.instance} come from "
+                                        f"{len(sources)} instances ({', '.join(sources)}), "
+                                        "not one controller with gains K[i,j]"))
+        elif sources and not p.gains:
+            out.append(NotIdentified(p, f"{sources[0]} has no gains K[i,j] for the inputs of "
+                                        f"{p.instance} to set to zero"))
+        else:
+            out.append(_verdict(master, p, plants, step_wb, n_steps, True))
     return out
+
+
+def _verdict(master: SystemMaster, p: PlantInfo, plants: list[PlantInfo], step_wb: float,
+             n_steps: int, open_loop: bool) -> AxisVerdict:
+    zero = {q.instance: {f"{s}_start": 0.0 for s in q.states} for q in plants}
+    if open_loop and p.controller is not None:
+        zero[p.controller] = {**zero.get(p.controller, {}), **dict.fromkeys(p.gains, 0.0)}
+    jacobi = master.master == "jacobi"
+    h = step_wb / p.n_hz
+    runs = []
+    for e in np.eye(len(p.states)):
+        values = {**zero, p.instance: {**zero[p.instance], **{
+            f"{s}_start": float(v) for s, v in zip(p.states, e * p.scale)}}}
+        r = master.run(h, n_steps, record=[f"{p.instance}.{s}" for s in p.states],
+                       values=values)
+        if not r.complete:
+            raise CoSimError(f"{'open-loop ' if open_loop else ''}identification run of "
+                             f"{p.instance} failed: {r.failure}")
+        xs = r.signals / p.scale
+        # Jacobi: the controller's first answer is to x_0 itself (initialization runs in
+        # Gauss-Seidel order), so x_(-1) = x_0
+        runs.append(np.vstack([xs[:1], xs]) if jacobi else xs)
+    ident = identify(runs, step_wb, delay=jacobi)
+    cont = sampled = None
+    K = p.K
+    if open_loop and p.A is not None:
+        K = np.zeros((0 if p.B is None else p.B.shape[1], len(p.A)))
+    if p.A is not None and K is not None and (p.B is not None or not K.size):
+        k = len(p.A)
+        B = np.zeros((k, 0)) if p.B is None else p.B
+        cont = sort_eigenvalues(np.linalg.eigvals(p.A + B @ K))
+        Phi, Gamma = discretize_zoh(p.A, B, step_wb)
+        F = Phi + Gamma @ K
+        if jacobi:
+            F = np.block([[Phi, Gamma @ K], [np.eye(k), np.zeros((k, k))]])
+        sampled = rates_from_transition(F, step_wb)
+    return AxisVerdict(p, ident, cont, sampled)

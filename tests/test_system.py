@@ -490,3 +490,55 @@ def test_ssp_round_trip_keeps_integer_boolean_and_string_values(gain, tmp_path):
     assert [type(v) for v in back.parameters["g"].values()] == [float, int, bool, str, float]
     with SystemMaster(back) as sm:
         assert sm.run(0.1, 1, record=["g.y"]).signals[:, 0].tolist() == [-1.5, -1.5]
+
+
+class _CountingSlave:
+    """An fmpy slave that counts the FMI set calls made through it (everything else passes)."""
+
+    def __init__(self, slave) -> None:
+        self._s, self.sets = slave, 0
+
+    def __getattr__(self, name: str):
+        f = getattr(self._s, name)
+        if not name.startswith("fmi2Set"):
+            return f
+
+        def counted(*args):
+            self.sets += 1
+            return f(*args)
+        return counted
+
+
+@pytest.mark.parametrize("master", ["gauss-seidel", "jacobi"])
+def test_recording_is_a_pure_observer(built_fmus, plant, controller, master):
+    """Recorded variables are read with the point's outputs: with the limit binding on some
+    rows only, ``saturated`` is 1 exactly in the rows where a recorded control is at u_max
+    (under Jacobi the controller answers from the previous inputs for both); the plant's
+    recorded inputs are the controller's outputs; the default columns are the same bit for
+    bit, and recording sets nothing (no set at the last point)."""
+    u_max = 0.1503718
+    x0 = np.array([0, 0.5, 0, 0.1]) * scale_vector()
+    values = {"plant": {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x0)},
+              "controller": {"limit_enabled": True, "u_max": u_max}}
+    extra = ["controller.saturated", *(f"plant.{u}" for u in CONTROL_NAMES)]
+    system = System.by_name({"plant": built_fmus["DroneFlyLateral"],
+                             "controller": built_fmus["StateFeedback"]})
+    with SystemMaster(system, master) as sm, plant.instantiate() as p, \
+            controller.instantiate() as c:
+        p.slave, c.slave = _CountingSlave(p.slave), _CountingSlave(c.slave)
+        runs = []
+        for record in (None, [*sm.names, *extra]):
+            p.slave.sets = c.slave.sets = 0
+            runs.append(sm.run(1 / 164.0, 40, record=record, values=values,
+                               instances={"plant": p, "controller": c}))
+            runs[-1].sets = (p.slave.sets, c.slave.sets)
+    plain, rec = runs
+    assert plain.complete and rec.complete and rec.sets == plain.sets
+    assert np.array_equal(rec.signals[:, :len(sm.names)], plain.signals)
+    col = dict(zip(rec.names, rec.signals.T))
+    u = np.array([col[f"controller.{n}"] for n in CONTROL_NAMES]).T
+    sat = col["controller.saturated"]
+    assert 0 < sat.sum() < len(sat) - 5, "the limit binds on some rows, not on others"
+    assert np.array_equal(sat == 1.0, np.any(np.abs(u) >= u_max, axis=1))
+    for n in CONTROL_NAMES:
+        assert np.array_equal(col[f"plant.{n}"], col[f"controller.{n}"])

@@ -13,8 +13,12 @@ It is also the master of the plant/controller pair (:class:`dronefly.harness.cos
 runs the pair's system here, in the pair's fixed order and on instances reused across runs).
 Real, Integer and Boolean connections are supported. Parameter and input values are converted
 to their variables' declared types when the master is made (and those of a run when it
-starts), :mod:`.values`. Any Real, Integer or Boolean variable can be recorded; those that are
-not Real outputs are read after the inputs of each point are set (no call is added otherwise).
+starts), :mod:`.values`. Any Real, Integer or Boolean variable can be recorded, as a pure
+observer: every recorded variable is read together with the point's outputs, before the
+inputs of the next step are set, and nothing is set at the last point. A recorded input is
+the value set for the step from that point: its source's output of that point (read from the
+output buffer, no call, when it is Real); an unconnected input is read itself. Without extra
+names no call is added to a step.
 In an algebraic loop (Jacobi), an input whose source is initialized later keeps its start or
 given value at initialization. A failed call stops the run, naming the instance, the call and
 the time; what was recorded is kept and the run is marked incomplete.
@@ -37,7 +41,7 @@ from dronefly.harness.system.description import System, SystemSpecError
 from dronefly.harness.system.graph import (Order, check_connections, evaluation_order,
                                            feedthrough)
 from dronefly.harness.system.plan import (Node, build_nodes, get_ops, put_ops, record_ops,
-                                          start_ops)
+                                          split_sources, start_ops)
 from dronefly.harness.system.values import SETTER, settable, typed_values
 
 __all__ = ["SystemMaster"]
@@ -138,8 +142,8 @@ class SystemMaster:
         record : sequence of str, optional
             Variables ``instance.name`` to record, of any causality (outputs, inputs,
             parameters, calculated parameters, locals) and of type Real, Integer or Boolean
-            (default: every Real output). Inputs are recorded as set for the step from
-            each point; the others after that.
+            (default: every Real output), read with the outputs of each point. Inputs are
+            recorded as set for the step from each point (their sources' outputs).
         values : mapping, optional
             ``{instance: {name: value}}`` for this run only, on top of the system's
             parameter values (e.g. other initial states).
@@ -214,11 +218,12 @@ class SystemMaster:
         if not jacobi:
             read += [op for n in chained for op in (*put(n), *get(n))]
         write = [op for n in (every if jacobi else free) for op in put(n)]
-        # other recorded variables: read once the inputs of the point are set (also at the
-        # last point); without them a step is read, record, write, step as before
-        extra = record_ops(nodes, every_out)
-        if extra:
-            read, write = read + write + extra, []
+        if jacobi:  # Integer and Boolean sources read with the point's outputs, then set
+            sources, write = split_sources(write)
+            read += sources
+        # other recorded variables: read with the point's outputs, before the next inputs
+        # are set; a step stays read, record, write, step (no write at the last point)
+        read += record_ops(nodes, every_out)
         steps = [(n, "fmi2DoStep", n.inst.slave.fmi2DoStep, n.inst.slave.component)
                  for n in every]
         try:

@@ -2,8 +2,10 @@
 
 Every Real output that a connection or the record needs lies in one ctypes buffer; each
 instance's inputs read it in place where they lie in order (no copy), else through a gather.
-The other recorded variables (inputs, parameters, Integer and Boolean ones...) follow the
-outputs in that buffer (:func:`record_ops`). The calls of a step are planned once per run as
+The other recorded variables (parameters, locals, Integer and Boolean ones...) follow the
+outputs in that buffer (:func:`record_ops`); a recorded input that a Real output drives is
+that output's place in the buffer (no call), one that an Integer or Boolean output drives is
+read as that output, an unconnected one as itself. The calls of a step are planned once per run as
 :data:`Op` tuples (instance, FMI call, function, arguments), so that a failed call names its
 instance and call.
 """
@@ -13,11 +15,10 @@ from __future__ import annotations
 from ctypes import c_double, c_int, c_uint
 from typing import Any, Container, Mapping, Sequence
 
-from dronefly.harness.cosim.fmi3 import VIRTUAL
 from dronefly.harness.system.description import Connection, SystemSpecError
 
 __all__ = ["RECORDABLE", "Node", "Op", "build_nodes", "gather", "get_ops", "put_ops", "record_ops",
-           "start_ops"]
+           "split_sources", "start_ops"]
 
 
 class Node:
@@ -79,8 +80,11 @@ def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
     ``names`` lies in that buffer.
 
     The buffer holds the Real outputs that connections or ``names`` need, then the other
-    recorded variables (``Node.extra``: inputs, parameters, calculated parameters, locals,
-    Integer and Boolean variables), read by :func:`record_ops`.
+    recorded variables (``Node.extra``: parameters, calculated parameters, locals, Integer
+    and Boolean variables, unconnected inputs), read by :func:`record_ops`. A connected
+    input is recorded as its source output (the value set for the step from each point):
+    a Real one from the source's place in the buffer, an Integer or Boolean one read as
+    the source's variable.
 
     Raises
     ------
@@ -93,6 +97,8 @@ def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
         if fmus[c.source].variables[c.output].type == "Real" and \
                 c.output not in wanted[c.source]:
             wanted[c.source].append(c.output)
+    driven = {(c.target, c.input): c for c in connections}
+    alias: dict[str, str] = {}  # recorded input -> the source output read for it
     for full in names:
         inst, _, var = full.partition(".")
         if inst not in fmus:
@@ -103,6 +109,11 @@ def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
             raise SystemSpecError(f"cannot record {full!r}: " + (
                 f"{inst} has no variable {var!r}" if v is None else
                 f"a {v.type} variable (Real, Integer and Boolean ones can be recorded)"))
+        c = driven.get((inst, var))
+        if c is not None:  # the value the source gives it: read with the point's outputs
+            alias[full] = f"{c.source}.{c.output}"
+            inst, var = c.source, c.output
+            v = fmus[inst].variables[var]
         if v.causality == "output" and v.type == "Real":
             if var not in wanted[inst]:
                 wanted[inst].append(var)
@@ -131,15 +142,20 @@ def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
         k += len(n.out_names)
     for n in nodes.values():
         n.finish(every_out)
-    where = [at[full] if full in at else nodes[full.partition(".")[0]].at
-             + nodes[full.partition(".")[0]].out_names.index(full.partition(".")[2])
-             for full in names]
+    where = []
+    for full in names:
+        key = alias.get(full, full)
+        inst, _, var = key.partition(".")
+        where.append(at[key] if key in at else nodes[inst].at + nodes[inst].out_names.index(var))
     return nodes, every_out, where
 
 
 def record_ops(nodes: Mapping[str, Node], every_out: Any) -> list[Op]:
     """Read the recorded variables that are not Real outputs into their places in the
-    buffer (Integer and Boolean ones through an int buffer, converted by a last copy)."""
+    buffer (Integer and Boolean ones through an int buffer, converted by a last copy).
+
+    Only gets: the master reads them together with the point's outputs, before the inputs
+    of the next step are set (and sets nothing more at the last point)."""
     import numpy as np
 
     ops: list[Op] = []
@@ -157,7 +173,8 @@ def record_ops(nodes: Mapping[str, Node], every_out: Any) -> list[Op]:
                 buf = (c_double * len(names)).from_buffer(every_out, 8 * k["Real"])
             else:
                 buf = (c_int * len(names)).from_buffer(ints, 4 * (k["Integer"] + k["Boolean"]))
-            if kind == "Real" and max(vrs) >= VIRTUAL:  # FMI 3.0 array elements
+            if kind == "Real" and n.fmu.fmi_version == 3 and any(
+                    vr in n.fmu.elements for vr in vrs):  # FMI 3.0 array elements
                 ops.append((n, "fmi3GetFloat64", _elements, (s, vrs, buf)))
             else:
                 ops.append((n, f"fmi2Get{kind}", getattr(s, f"fmi2Get{kind}"),
@@ -190,6 +207,14 @@ def _other_ops(n: Node, ready: Container[str] | None = None) -> list[Op]:
         ops.append((n, f"fmi2Set{kind}", getattr(s, f"fmi2Set{kind}"),
                     (s.component, (c_uint * 1)(vr), 1, value)))
     return ops
+
+
+def split_sources(ops: Sequence[Op]) -> tuple[list[Op], list[Op]]:
+    """The gets of :func:`put_ops` calls (the Integer and Boolean source outputs of the
+    connections) and the rest (the sets), in order: a Jacobi master reads the sources with
+    the point's outputs, before any input is set."""
+    gets = [op for op in ops if op[1].startswith("fmi2Get")]
+    return gets, [op for op in ops if not op[1].startswith("fmi2Get")]
 
 
 def put_ops(n: Node) -> list[Op]:

@@ -385,6 +385,12 @@ def test_values_take_the_declared_types_of_a_foreign_fmu(gain):
     ("u", "inf", "g.u = 'inf' is not finite"),
     ("label", 3, "g.label = 3: a String takes text"),
     ("y", 1.0, "g.y: no parameter or input of that name"),
+    pytest.param("m", "9" * 400, "g.m = '" + "9" * 29 + "... (402 characters) is outside",
+                 id="m-400-digits"),
+    pytest.param("m", 10 ** 400, "g.m = 1" + "0" * 29 + "... (401 characters) is outside",
+                 id="m-10**400"),
+    pytest.param("k", -10 ** 400, "g.k = -1" + "0" * 28 + "... (402 characters) is beyond "
+                 "the range of a Real", id="k--10**400"),
 ])
 def test_values_of_the_wrong_type_are_refused_naming_them(gain, name, value, fragment):
     with pytest.raises(SystemSpecError, match=re.escape(fragment)):
@@ -418,6 +424,21 @@ def test_pair_values_of_the_wrong_type_exit_2(built_fmus, tmp_path, capsys, sett
     with pytest.raises(DroneflyError, match=re.escape(fragment)):
         cosimulate(built_fmus["DroneFlyLateral"], built_fmus["StateFeedback"], out_dir=None,
                    set_values=dict([setting.split("=", 1)]))  # text, as --set gives it
+
+
+def test_a_huge_value_exits_2_naming_it(built_fmus, gain, tmp_path, capsys):
+    """--set of 400 digits on an Integer: one line naming instance.NAME, exit 2 (it raised
+    OverflowError, an internal error)."""
+    from dronefly.harness.system.ssp import write_system_ssp
+
+    ssp = write_system_ssp(_three(built_fmus, gain), tmp_path / "three.ssp")
+    out = tmp_path / "o"
+    code = main(["cosim", "--system", str(ssp), "--stop", "1", "--no-plot", "--out", str(out),
+                 "--set", "gain.m=" + "9" * 400])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and not out.exists()
+    assert "gain.m = '99999" in err and "(402 characters) is outside the Integer range" in err
+    assert len(err) < 200
 
 
 # ------------------------------------------------------------------ recording any variable

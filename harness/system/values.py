@@ -21,7 +21,7 @@ import numpy as np
 
 from dronefly.harness.system.description import SystemSpecError
 
-__all__ = ["SETTER", "settable", "typed_value", "typed_values"]
+__all__ = ["SETTER", "settable", "shown", "typed_value", "typed_values"]
 
 #: the fmpy setter of each FMI 2.0 type (``set<SETTER>``)
 SETTER = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
@@ -38,40 +38,64 @@ def settable(md: Any) -> dict[str, Any]:
             and v.variability in ("fixed", "tunable", "continuous", "discrete")}
 
 
+def shown(value: Any, limit: int = 40) -> str:
+    """``repr(value)``, cut to about ``limit`` characters (a 400-digit value is named by its
+    first digits and its length)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit - 10]}... ({len(text)} characters)"
+
+
 def _real(where: str, value: Any) -> float:
     if isinstance(value, str):
         try:
             x = float(value.strip())
         except ValueError:
-            raise SystemSpecError(f"{where} = {value!r} is not a number (a Real)") from None
+            raise SystemSpecError(f"{where} = {shown(value)} is not a number (a Real)") from None
     elif isinstance(value, numbers.Real) and not isinstance(value, _BOOLS):
-        x = float(value)
+        try:
+            x = float(value)
+        except OverflowError:  # a Python int (or Fraction) beyond the double range
+            raise SystemSpecError(f"{where} = {shown(value)} is beyond the range of a Real "
+                                  "(a double)") from None
     else:
-        raise SystemSpecError(f"{where} = {value!r}: a Real takes a number")
+        raise SystemSpecError(f"{where} = {shown(value)}: a Real takes a number")
     if not math.isfinite(x):
-        raise SystemSpecError(f"{where} = {value!r} is not finite")
+        raise SystemSpecError(f"{where} = {shown(value)} is not finite")
     return x
 
 
-def _integer(where: str, value: Any) -> int:
-    x: Any = None
+def _whole(value: Any) -> int | None:
+    """``value`` (text or number) as a whole number, or None; no float of a huge int."""
     if isinstance(value, str):
         text = value.strip()
         try:
-            x = int(text)
+            return int(text)
         except ValueError:
             try:
-                x = float(text)
+                value = float(text)
             except ValueError:
-                x = None
-    elif isinstance(value, numbers.Real) and not isinstance(value, _BOOLS):
-        x = value
-    if x is None or not math.isfinite(float(x)) or float(x) != int(x):
-        raise SystemSpecError(f"{where} = {value!r}: an Integer takes a whole number")
-    if not _INT_RANGE[0] <= int(x) <= _INT_RANGE[1]:
-        raise SystemSpecError(f"{where} = {value!r} is outside the Integer range "
+                return None
+    if isinstance(value, _BOOLS) or not isinstance(value, numbers.Real):
+        return None
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Rational) and value.denominator == 1:
+        return int(value.numerator)
+    try:
+        x = float(value)
+    except OverflowError:  # a Fraction beyond the double range
+        return None
+    return int(x) if math.isfinite(x) and x == int(x) else None
+
+
+def _integer(where: str, value: Any) -> int:
+    x = _whole(value)
+    if x is None:
+        raise SystemSpecError(f"{where} = {shown(value)}: an Integer takes a whole number")
+    if not _INT_RANGE[0] <= x <= _INT_RANGE[1]:
+        raise SystemSpecError(f"{where} = {shown(value)} is outside the Integer range "
                               f"{_INT_RANGE[0]}..{_INT_RANGE[1]}")
-    return int(x)
+    return x
 
 
 def _boolean(where: str, value: Any) -> bool:
@@ -81,7 +105,7 @@ def _boolean(where: str, value: Any) -> bool:
         return value.strip().lower() in ("true", "1")
     if isinstance(value, numbers.Real) and value in (0, 1):
         return bool(value)
-    raise SystemSpecError(f"{where} = {value!r}: a Boolean takes true, false, 1 or 0")
+    raise SystemSpecError(f"{where} = {shown(value)}: a Boolean takes true, false, 1 or 0")
 
 
 def typed_value(where: str, v: Any, value: Any) -> Any:
@@ -109,7 +133,7 @@ def typed_value(where: str, v: Any, value: Any) -> Any:
         return _boolean(where, value)
     if v.type == "String":
         if not isinstance(value, str):
-            raise SystemSpecError(f"{where} = {value!r}: a String takes text")
+            raise SystemSpecError(f"{where} = {shown(value)}: a String takes text")
         return value
     raise SystemSpecError(f"{where} is a {v.type} variable, which a system cannot set")
 

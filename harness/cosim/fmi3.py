@@ -27,10 +27,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-__all__ = ["VIRTUAL", "Element", "FMU3Adapter", "fmi2_view", "read_view"]
+__all__ = ["INT_TYPES", "VIRTUAL", "Element", "FMU3Adapter", "fmi2_view", "read_view"]
 
 #: first virtual value reference of an array element (FMI 3.0 references stay below it)
 VIRTUAL = 1 << 30
+
+#: the FMU3Slave ``get``/``set`` suffix of each FMI 3.0 integer type (an Enumeration is Int64)
+INT_TYPES = {**{t: t for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64",
+                              "UInt64")}, "Enumeration": "Int64"}
 
 
 @dataclass(frozen=True)
@@ -106,6 +110,7 @@ class FMU3Adapter:
                             modelIdentifier=md.coSimulation.modelIdentifier,
                             instanceName=instance_name)
         self._elements = elements
+        self._types = {v.valueReference: v.type for v in md.modelVariables}
         self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
         flags = (c_bool(), c_bool(), c_bool(), c_double())
         self._flags = flags
@@ -169,6 +174,37 @@ class FMU3Adapter:
 
     def fmi2SetBoolean(self, c: Any, vr: Any, n: int, values: Any) -> int:
         return self._s.fmi3SetBoolean(c, vr, n, (c_bool * n)(*[bool(x) for x in values[:n]]), n)
+
+    def fmi2GetInteger(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        values[:n] = self.getInteger(list(vr[:n]))
+        return 0  # a failed get raised FMICallException
+
+    def fmi2SetInteger(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        self.setInteger(list(vr[:n]), list(values[:n]))
+        return 0
+
+    # -- Integer (any FMI 3.0 integer type, Enumeration) and String values -------
+    def _int(self, vr: int) -> str:
+        kind = INT_TYPES.get(self._types.get(vr, ""))
+        if kind is None:
+            from dronefly.errors import DroneflyError
+
+            raise DroneflyError(f"value reference {vr} is a {self._types.get(vr, 'unknown')} "
+                                "variable, not an integer one")
+        return kind
+
+    def getInteger(self, vr: Sequence[int]) -> list[int]:
+        return [int(getattr(self._s, f"get{self._int(v)}")([v])[0]) for v in vr]
+
+    def setInteger(self, vr: Sequence[int], values: Sequence[int]) -> None:
+        for v, x in zip(vr, values):
+            getattr(self._s, f"set{self._int(v)}")([v], [int(x)])
+
+    def getString(self, vr: Sequence[int]) -> list[str]:
+        return self._s.getString(list(vr))
+
+    def setString(self, vr: Sequence[int], values: Sequence[str]) -> None:
+        self._s.setString(list(vr), [str(x) for x in values])
 
     # -- values by (possibly virtual) value reference ----------------------------
     def _split(self, vrs: Sequence[int]) -> bool:

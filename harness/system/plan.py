@@ -69,9 +69,11 @@ class Node:
 Op = tuple[Node, str, Any, tuple]
 
 
-#: variable types that can be recorded, and the FMI getter of each (Integer ones into ints)
+#: variable types that can be recorded or connected, and the FMI getter of each (Integer
+#: ones into 32-bit ints: FMI 3.0's integer types up to Int32, read through the adapter)
 RECORDABLE = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer",
-              "Boolean": "Boolean"}
+              "Boolean": "Boolean",
+              **{t: "Integer" for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32")}}
 
 
 def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
@@ -122,8 +124,12 @@ def build_nodes(fmus: Mapping[str, Any], connections: Sequence[Connection],
     nodes = {i: Node(i, f, wanted[i]) for i, f in fmus.items()}
     for c in connections:
         src, dst = nodes[c.source], nodes[c.target]
-        kind = src.types[c.output]
+        kind = RECORDABLE.get(src.types[c.output])
         vr = dst.fmu.vr(c.input)
+        if kind is None:
+            raise SystemSpecError(f"connection {c}: a {src.types[c.output]} connection, which "
+                                  "the master cannot carry (Real, Integer, Boolean, and FMI "
+                                  "3.0 integers up to Int32)")
         if kind == "Real":
             dst.in_real.append((vr, src, src.out_names.index(c.output)))
         else:

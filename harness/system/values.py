@@ -7,6 +7,7 @@ when a system is opened, so that a value of the wrong type is refused naming
 
 - Real: a number (not a boolean) or its text, finite;
 - Integer (and Enumeration): a whole number (``3``, ``3.0``, ``"3"``) in the 32-bit range;
+  FMI 3.0's Int8 ... UInt64: a whole number in the type's range;
 - Boolean: ``true``/``false``/``1``/``0`` (a boolean, 0 or 1, or that text);
 - String: text.
 """
@@ -23,10 +24,15 @@ from dronefly.harness.system.description import SystemSpecError
 
 __all__ = ["SETTER", "settable", "shown", "typed_value", "typed_values"]
 
-#: the fmpy setter of each FMI 2.0 type (``set<SETTER>``)
-SETTER = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+#: the integer types (FMI 2.0's Integer and Enumeration, FMI 3.0's Int8 ... UInt64) and
+#: their ranges
+_INT_RANGES = {"Integer": (-2 ** 31, 2 ** 31 - 1), "Enumeration": (-2 ** 31, 2 ** 31 - 1),
+               **{f"{u}Int{b}": (0, 2 ** b - 1) if u else (-2 ** (b - 1), 2 ** (b - 1) - 1)
+                  for u in ("", "U") for b in (8, 16, 32, 64)}}
+#: the setter of each type (``set<SETTER>`` of fmpy's FMU2Slave or of the FMI 3.0 adapter,
+#: :class:`~dronefly.harness.cosim.fmi3.FMU3Adapter`)
+SETTER = {"Real": "Real", **{t: "Integer" for t in _INT_RANGES}, "Boolean": "Boolean",
           "String": "String"}
-_INT_RANGE = (-2 ** 31, 2 ** 31 - 1)
 _BOOLS = (bool, np.bool_)
 
 
@@ -88,13 +94,15 @@ def _whole(value: Any) -> int | None:
     return int(x) if math.isfinite(x) and x == int(x) else None
 
 
-def _integer(where: str, value: Any) -> int:
+def _integer(where: str, value: Any, kind: str = "Integer") -> int:
     x = _whole(value)
     if x is None:
         raise SystemSpecError(f"{where} = {shown(value)}: an Integer takes a whole number")
-    if not _INT_RANGE[0] <= x <= _INT_RANGE[1]:
-        raise SystemSpecError(f"{where} = {shown(value)} is outside the Integer range "
-                              f"{_INT_RANGE[0]}..{_INT_RANGE[1]}")
+    low, high = _INT_RANGES[kind]
+    if not low <= x <= high:
+        raise SystemSpecError(f"{where} = {shown(value)} is outside the "
+                              f"{'Integer' if kind == 'Enumeration' else kind} range "
+                              f"{low}..{high}")
     return x
 
 
@@ -116,7 +124,8 @@ def typed_value(where: str, v: Any, value: Any) -> Any:
     where : str
         ``instance.NAME``, named in the error.
     v : fmpy ScalarVariable
-        The variable (its ``type``: Real, Integer, Enumeration, Boolean or String).
+        The variable (its ``type``: Real, Integer, Enumeration, Int8 ... UInt64, Boolean or
+        String).
     value : object
         The value given (number, boolean or text).
 
@@ -127,8 +136,8 @@ def typed_value(where: str, v: Any, value: Any) -> Any:
     """
     if v.type == "Real":
         return _real(where, value)
-    if v.type in ("Integer", "Enumeration"):
-        return _integer(where, value)
+    if v.type in _INT_RANGES:
+        return _integer(where, value, v.type)
     if v.type == "Boolean":
         return _boolean(where, value)
     if v.type == "String":

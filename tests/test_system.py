@@ -563,3 +563,64 @@ def test_recording_is_a_pure_observer(built_fmus, plant, controller, master):
     assert np.array_equal(sat == 1.0, np.any(np.abs(u) >= u_max, axis=1))
     for n in CONTROL_NAMES:
         assert np.array_equal(col[f"plant.{n}"], col[f"controller.{n}"])
+
+
+def test_ssv_enumeration_items_are_resolved_by_name(gain, tmp_path):
+    """An SSV Enumeration given by an item name (SSP allows names or numbers) is kept as
+    that name and resolved against the variable's type definition; an unknown name is refused
+    naming it and the items (int('left') raised 'not a valid Enumeration')."""
+    from types import SimpleNamespace as NS
+
+    from dronefly.harness.system.values import typed_value
+
+    ssv = ('<?xml version="1.0" encoding="UTF-8"?><ssv:ParameterSet version="1.0" name="g" '
+           'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">'
+           '<ssv:Parameters><ssv:Parameter name="mode"><ssv:Enumeration value="left"/>'
+           '</ssv:Parameter><ssv:Parameter name="gear"><ssv:Enumeration value="-2"/>'
+           '</ssv:Parameter></ssv:Parameters></ssv:ParameterSet>')
+    ssd = ('<?xml version="1.0" encoding="UTF-8"?><ssd:SystemStructureDescription version="1.0" '
+           'name="e" xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription">'
+           '<ssd:System name="e"><ssd:Elements><ssd:Component name="g" source="resources/g.fmu" '
+           'type="application/x-fmu-sharedlibrary"><ssd:ParameterBindings><ssd:ParameterBinding '
+           'source="resources/g.ssv"/></ssd:ParameterBindings></ssd:Component></ssd:Elements>'
+           '</ssd:System></ssd:SystemStructureDescription>')
+    with zipfile.ZipFile(tmp_path / "e.ssp", "w") as z:
+        z.writestr("SystemStructure.ssd", ssd)
+        z.write(gain, "resources/g.fmu")
+        z.writestr("resources/g.ssv", ssv)
+    assert System.from_ssp(tmp_path / "e.ssp").parameters == {"g": {"mode": "left", "gear": -2}}
+    v = NS(type="Enumeration", declaredType=NS(items=[NS(name="left", value="1"),
+                                                      NS(name="right", value="2")]))
+    assert typed_value("g.mode", v, "left") == 1 and typed_value("g.mode", v, "2") == 2
+    with pytest.raises(SystemSpecError, match=re.escape(
+            "g.mode = 'up' is not an item of the variable's Enumeration (items: left = 1, "
+            "right = 2)")):
+        typed_value("g.mode", v, "up")
+
+
+def test_a_large_fmi2_value_reference_is_read_as_fmi2():
+    """FMI 2.0 value references may be >= 2**30 (the harness's virtual references of FMI 3.0
+    array elements start there): the record reads such a Real local with fmi2GetReal, as the
+    FMU's FMI version says (the plan took it for an FMI 3.0 array element and called
+    getReal)."""
+    from ctypes import c_double
+    from types import SimpleNamespace as NS
+
+    from dronefly.harness.system.plan import build_nodes, record_ops
+
+    variables = [NS(name="loc", type="Real", causality="local", valueReference=2 ** 30 + 5)]
+    fmu = NS(model_description=NS(modelVariables=variables), fmi_version=2, elements={},
+             variables={v.name: v for v in variables}, vr=lambda n: 2 ** 30 + 5)
+    reads = []
+
+    def get_real(component, vr, n, values):
+        reads.append(list(vr))
+        values[0] = 4.5
+
+    nodes, every_out, where = build_nodes({"x": fmu}, [], ["x.loc"])
+    nodes["x"].inst = NS(slave=NS(component=None, fmi2GetReal=get_real,
+                                  getReal=lambda vr: pytest.fail("getReal called")))
+    (op,) = record_ops(nodes, every_out)
+    op[2](*op[3])
+    assert op[1] == "fmi2GetReal" and reads == [[2 ** 30 + 5]]
+    assert (c_double * len(every_out)).from_buffer(every_out)[where[0]] == 4.5

@@ -179,12 +179,16 @@ def _stop_time(ssd: Path) -> float | None:
 
 def _ssv_value(p: Any) -> Any:
     """An SSV parameter's value as its SSV type says (converted to the FMU variable's type
-    when the system is opened, :mod:`.values`)."""
+    when the system is opened, :mod:`.values`; an Enumeration given by an item name stays
+    that name, resolved there against the variable's type definition)."""
     kind = (p.type or "Real").lower()
     if kind == "string":
         return str(p.value)
     if kind == "boolean":
         return str(p.value).strip().lower() in ("true", "1")
+    if kind == "enumeration":  # a number, or an item name resolved against the FMU's type
+        text = str(p.value).strip()
+        return int(text) if text.lstrip("+-").isdigit() else text
     try:
         return int(p.value) if kind in ("integer", "enumeration") else float(p.value)
     except (TypeError, ValueError) as e:

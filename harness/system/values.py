@@ -8,6 +8,7 @@ when a system is opened, so that a value of the wrong type is refused naming
 - Real: a number (not a boolean) or its text, finite;
 - Integer (and Enumeration): a whole number (``3``, ``3.0``, ``"3"``) in the 32-bit range;
   FMI 3.0's Int8 ... UInt64: a whole number in the type's range;
+- Enumeration: also an item name (``"left"``), its value from the variable's type definition;
 - Boolean: ``true``/``false``/``1``/``0`` (a boolean, 0 or 1, or that text);
 - String: text.
 """
@@ -106,6 +107,17 @@ def _integer(where: str, value: Any, kind: str = "Integer") -> int:
     return x
 
 
+def _item(where: str, v: Any, name: str) -> int:
+    """The value of the Enumeration item ``name`` in the variable's type definition."""
+    items = getattr(getattr(v, "declaredType", None), "items", None) or []
+    for item in items:
+        if item.name == name.strip():
+            return _integer(where, item.value)
+    known = ", ".join(f"{i.name} = {i.value}" for i in items) or "none declared"
+    raise SystemSpecError(f"{where} = {shown(name)} is not an item of the variable's "
+                          f"Enumeration (items: {known})")
+
+
 def _boolean(where: str, value: Any) -> bool:
     if isinstance(value, _BOOLS):
         return bool(value)
@@ -136,6 +148,8 @@ def typed_value(where: str, v: Any, value: Any) -> Any:
     """
     if v.type == "Real":
         return _real(where, value)
+    if v.type == "Enumeration" and isinstance(value, str) and _whole(value) is None:
+        return _item(where, v, value)
     if v.type in _INT_RANGES:
         return _integer(where, value, v.type)
     if v.type == "Boolean":

@@ -9,7 +9,7 @@ and the control computed from the sample at t_k takes effect at t_k + sensing_de
 sensed state is the equilibrium x = 0 (the insect hovered before t_start). The output at a
 communication point t is the control of the latest sample with t_k + sensing_delay <= t
 (times compared to 1e-9 of the communication step plus the drift of a master that adds up its
-steps, :func:`.timing.tolerance`).
+steps, capped: :func:`.timing.tolerance`).
 
 FMI co-simulation holds the inputs over a communication step (``canInterpolateInputs`` is
 false): a sample instant inside [t, t + h) sees the input set at t (exact for what the importer
@@ -35,7 +35,7 @@ import math
 from collections import deque
 from typing import Any, Sequence
 
-from .timing import DRIFT, MAX_SAMPLES, TOLERANCE, SensingError, Timing
+from .timing import DRIFT, DRIFT_CAP, MAX_SAMPLES, TOLERANCE, SensingError, Timing
 
 __all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
 
@@ -171,7 +171,7 @@ class Sensor:
                  self.current, self.off_grid, len(line), popped)
         try:
             # tolerance(t0, t, h) inline: t >= t0 (the base class checks h > 0)
-            drift = DRIFT * (t if t > 0.0 else -t) * (t - self.t0) / h
+            drift = min(DRIFT * (t if t > 0.0 else -t) * (t - self.t0) / h, DRIFT_CAP * h)
             tol, end = TOLERANCE * h + drift, t + h
             if integrate != self.integrating:  # integral action switched on or off at t
                 if self.integrating:

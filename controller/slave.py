@@ -117,10 +117,25 @@ class _Feedback(SlaveBase):
         self._update_outputs()
 
     def _warn_off_grid(self, timing: Timing) -> None:
-        """Log, once per instance, that an instant fell inside a communication step."""
-        what, instant, t, h = self._sensor.off_grid  # type: ignore[misc]
-        self._sensor.off_grid = False
-        self._report(timing.off_grid_warning(what, instant, t, h), Fmi2Status.warning)
+        """Log, once per instance, that an instant fell inside a communication step.
+
+        Runs after the step is committed, so it cannot fail it: if the full warning cannot be
+        formed, a plain one is logged instead."""
+        try:
+            what, instant, t, h = self._sensor.off_grid  # type: ignore[misc]
+            self._sensor.off_grid = False
+            msg = timing.off_grid_warning(what, instant, t, h, self.FMI_TEXT)
+        except BaseException as e:  # (off_grid_warning guards its arithmetic; and if not)
+            self._sensor.off_grid = False
+            msg = (f"sensing_delay = {timing.sensing_delay!r} s and sample_period = "
+                   f"{timing.sample_period!r} s: an instant falls inside a communication step "
+                   f"(the latency the importer sees could not be computed: {e!r}); the input "
+                   "held over the step is sampled, and a control is visible from the next "
+                   "communication point on (warned once per instance)")
+        try:
+            self._report(msg, Fmi2Status.warning)
+        except BaseException:  # pragma: no cover - nothing left to log with; the step is OK
+            pass
 
     def _advance(self, t: float, h: float) -> None:
         # the base class has called _initialize or _refresh after any parameter was set

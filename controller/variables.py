@@ -57,7 +57,7 @@ def _timing(delayed: bool) -> list[Var]:
     period = Var("sample_period", "parameter", "tunable",
                  "period of the controller's sample instants t_k = t_start + k sample_period; "
                  "0 (default): sample at every communication point. Inputs are constant over "
-                 "a communication step (FMI 2.0), so an instant inside a step samples the "
+                 "a communication step (co-simulation), so an instant inside a step samples the "
                  "input set at its start (logged once as a warning when a period that is not "
                  "a whole number of steps puts one there)", "s", "ms", start=0.0)
     return [delay, period]

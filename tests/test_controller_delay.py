@@ -159,6 +159,69 @@ def test_a_long_run_on_the_grid_stays_on_it(h_wb):
                                                               rel=1e-9)
 
 
+@pytest.mark.parametrize("h_wb", [1.0, 0.5, 0.1])
+def test_summed_steps_stay_within_the_drift_cap_for_a_million_steps(h_wb):
+    """The drift cap's premise (timing.DRIFT_CAP, 5e-5 of a step): a master that adds up its
+    steps, for the 1e6 steps the project's masters allow, stays within it: at most 2.4e-5 of
+    a step from the exact sum m h (Fractions) on steps of 1 and 0.5 wing beat, 9e-7 on 0.1."""
+    from dronefly.harness.cosim.records import MAX_STEPS
+
+    h = h_wb * WB
+    exact, t, worst = F(h), 0.0, F(0)
+    for k in range(1, MAX_STEPS // 1000 + 1):
+        for _ in range(1000):
+            t += h
+        worst = max(worst, abs(F(t) - k * 1000 * exact))
+    assert worst / exact <= 2.4e-5 < T.DRIFT_CAP == 5e-5  # controller/README.md
+    assert 4.6e5 < math.sqrt(T.DRIFT_CAP / T.DRIFT) < 4.8e5  # the cap reached after 4.7e5 steps
+    assert 6.6e5 < math.sqrt(1e-4 / T.DRIFT) < 6.8e5  # uncapped: 1e-4 h after 6.7e5 steps
+    assert float(worst) < T.tolerance(0.0, t, h) - T.TOLERANCE * h  # still on the grid
+
+
+@pytest.mark.parametrize("m", [1, 10**6])
+def test_an_effect_just_off_the_grid_stays_off_it_after_a_million_steps(m):
+    """An effect 1e-4 step after a communication point is inside the next step, the same at
+    step 1 and step 1e6 (t = k h computed directly, as fmpy's master does): in effect from the
+    point after, the latency unchanged mid-run. (Without the drift cap the drift term reached
+    2.2e-4 of a step by 1e6 steps and snapped the effect onto the point before.)"""
+    h, d = WB, WB * (1.0 + 1e-4)
+    timing, x, scale = T.Timing(sensing_delay=d), (0.1, 5.0, 3.0, 0.1), (1.0,) * 4
+    s = D.Sensor(4, 0.0)
+    t = (m - 1) * h
+    s.advance(t, h, x, scale, N_HZ, timing, False)  # samples x at t: effect at t + h + 1e-4 h
+    assert s.held == (0.0,) * 4 and len(s.line) == 1 and s.off_grid is None  # not yet at t + h
+    s.advance(t + h, h, x, scale, N_HZ, timing, False)
+    assert s.held == x and s.off_grid == ("an effect instant", t + d, t + h, h)
+    assert T.tolerance(0.0, m * h, h) <= (T.TOLERANCE + T.DRIFT_CAP) * h < 1e-4 * h
+
+
+def test_the_off_grid_warning_cannot_fail_the_committed_step(monkeypatch):
+    """The warning is formed after the step's state moved on. Steps of 1e306 s with samples
+    every 0.7e306 s: an instant inside the first step, and a latency grid that leaves float
+    range (its instant index was math.ceil(inf): OverflowError, the step refused after the
+    sensor had advanced). The step is OK, its result kept, and the warning logged; if the
+    warning still cannot be formed, a plain one is logged and the step is OK as well."""
+    h = 1e306
+    for broken in (False, True):
+        if broken:
+            def fail(*args, **kwargs):
+                raise OverflowError("int too large to convert to float")
+
+            monkeypatch.setattr(T.Timing, "off_grid_warning", fail)
+        s = _slave(StateFeedback, sample_period=0.7e306)
+        _set(s, dict(zip(STATE_NAMES, [0.1, 5.0, 3.0, 0.1])))
+        assert s.do_step(0.0, h), _messages(s)
+        assert s._time == h and s._sensor.last_k == 1 and s._sensor.off_grid is False
+        assert _controls(s) == list(L.FeedbackLaw(L.default_gains()).evaluate(
+            [0.1, 5.0, 3.0, 0.1])[0])
+        [msg] = s.log_queue
+        assert msg.status == 1 and "sample_period = 7e+305 s" in msg.msg, msg.msg
+        assert ("latency the importer sees could not be computed" in msg.msg) == broken
+        if not broken:
+            assert "(FMI 2.0 co-simulation)" in msg.msg and "0 to 1 steps" in msg.msg
+        assert s.do_step(h, h) and len(s.log_queue) == 1  # warned once
+
+
 def test_zero_delay_and_period_is_the_old_law_bit_for_bit():
     """Defaults (no delay, no sampling, KI = 0): u = K x+ of the current input at once."""
     s = _slave()

@@ -10,6 +10,7 @@ every FMI 3.0 FMU, and broken ones (one defect per FMI 3.0 check, and a crash) f
 from __future__ import annotations
 
 import math
+import os
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -76,6 +77,44 @@ def test_slave_state_round_trip_and_foreign_state(feedback3):
     assert s._time == 0.251 and s._t0_known
     s._set_fmu_state(fmi2._get_fmu_state())  # a state of the FMI 2.0 class: refused
     assert "fmi3SetFMUState refused" in s.log_queue[-1].msg
+
+
+def test_slave_warns_off_the_grid_naming_fmi_3(feedback3):
+    """The off-grid warning names the FMU's own standard: 'FMI 3.0 co-simulation'."""
+    from dronefly.lateral import N_HZ
+
+    s = feedback3
+    s.enter_initialization_mode()
+    s.set_float64([_vr(s, "sample_period")], [0.3 / N_HZ])
+    s.exit_initialization_mode()
+    assert s.do_step(0.0, 1.0 / N_HZ).status == 0
+    [msg] = [m for m in s.log_queue if m.status == 1]
+    assert "(FMI 3.0 co-simulation)" in msg.msg and "FMI 2.0" not in msg.msg, msg.msg
+
+
+def test_fmi3_binary_folder_is_the_loaded_librarys_or_this_machines_platform_tuple(
+        monkeypatch, tmp_path):
+    """The exit handler of pythonfmu3's binary (binaries/<platform tuple>/<model>.so) is
+    registered for the folder the host loaded it from (an aarch64-linux FMU: aarch64-linux),
+    else this machine's FMI 3.0 platform tuple (the standard's <arch>-<sys> names)."""
+    from dronefly.fmi import host
+
+    assert [host.platform_tuple(m, s) for m, s in (
+        ("x86_64", "Linux"), ("aarch64", "Linux"), ("AMD64", "Windows"), ("arm64", "Darwin"),
+        ("i686", "Linux"), ("armv7l", "Linux"), ("riscv64", "Linux"))] == [
+        "x86_64-linux", "aarch64-linux", "x86_64-windows", "aarch64-darwin", "x86-linux",
+        "aarch32-linux", "riscv64-linux"]
+    lib = tmp_path / "fmu" / "binaries" / "aarch64-linux" / "M.so"
+    monkeypatch.setattr(host, "loaded_libraries", lambda: {str(lib): [str(lib)]})
+    resources = "/" + str(tmp_path / "fmu" / "resources")  # '//tmp/...', as hosts may spell it
+    assert host.binary_folder3(resources, "M") == "aarch64-linux"
+    registered = []
+    monkeypatch.setattr("atexit.register", lambda f, path: registered.append(path))
+    host.finalize_at_exit(resources, "M", host.binary_folder3(resources, "M"))
+    assert [os.path.normpath("/" + p.lstrip("/")) for p in registered] == [str(lib)]
+    monkeypatch.setattr(host, "loaded_libraries", dict)  # none loaded from this FMU
+    monkeypatch.setattr("platform.machine", lambda: "aarch64")
+    assert host.binary_folder3(str(tmp_path / "other" / "resources"), "M") == "aarch64-linux"
 
 
 # -- the built FMUs --------------------------------------------------------------------------

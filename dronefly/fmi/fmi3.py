@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 from pythonfmu.enums import Fmi2Status
 
 from .calls import do_step_status
-from .host import finalize_at_exit
+from .host import binary_folder3, finalize_at_exit
 from .table3 import Var3, fmi3_table
 from .values import set_rows
 
@@ -88,8 +88,9 @@ class Fmi3Side:
         # pythonfmu3's binary has pythonfmu's double release of its interpreter guard at exit
         # (:func:`.host.finalize_at_exit`; "corrupted double-linked list" in about 1 of 10
         # Ecos runs of build/fmi3/DroneFlyHover.ssp), but lives in the FMI 3.0 platform folder
-        # binaries/x86_64-linux: name it relative to the FMI 2.0 one that function expects
-        finalize_at_exit(self.resources, f"../x86_64-linux/{self.MODEL_NAME}")
+        # (binaries/x86_64-linux here): the folder of the library actually loaded
+        finalize_at_exit(self.resources, self.MODEL_NAME,
+                         binary_folder3(self.resources, self.MODEL_NAME))
 
     # -- logging --------------------------------------------------------------
     def log(self, msg: str, status: Any = Fmi2Status.ok, category: str | None = None,

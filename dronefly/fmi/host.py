@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["PYTHONFMU_BESIDE_SHIM", "finalize_at_exit", "guarded_libraries", "inside_fmpy_container",
-           "leave_sys_path", "loaded_libraries", "release_interpreter_guard"]
+__all__ = ["PYTHONFMU_BESIDE_SHIM", "binary_folder3", "finalize_at_exit", "guarded_libraries",
+           "inside_fmpy_container", "leave_sys_path", "loaded_libraries", "platform_tuple",
+           "release_interpreter_guard"]
 
 
 def leave_sys_path(resources: str | None) -> None:
@@ -27,7 +28,7 @@ def leave_sys_path(resources: str | None) -> None:
 _FINALIZE: set[str] = set()
 
 
-def finalize_at_exit(resources: str | None, model: str) -> None:
+def finalize_at_exit(resources: str | None, model: str, folder: str = "linux64") -> None:
     """Release pythonfmu's interpreter guard of this FMU's binary before the process exits.
 
     pythonfmu 0.7.0 keeps a static ``std::shared_ptr<PyState>`` and also resets it from an
@@ -39,12 +40,22 @@ def finalize_at_exit(resources: str | None, model: str) -> None:
     Only in a Python host on Linux (the exit handler runs on the process's main thread):
     where pythonfmu started the interpreter itself (a C host), Python exits inside that
     very destructor, and calling it again there would be the bug itself.
+
+    Parameters
+    ----------
+    resources : str or None
+        The FMU's resources folder, as the wrapper passes it.
+    model : str
+        The model identifier: the library is ``binaries/<folder>/<model>.so``.
+    folder : str
+        The platform folder under ``binaries``: ``linux64`` (FMI 2.0), or the FMI 3.0
+        platform tuple of the loaded library (:func:`binary_folder3`).
     """
     import os.path
 
     if not resources or not sys.platform.startswith("linux"):
         return
-    lib = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", "linux64",
+    lib = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", folder,
                        f"{model}.so")
     if lib in _FINALIZE:
         return
@@ -55,8 +66,61 @@ def finalize_at_exit(resources: str | None, model: str) -> None:
 
 
 def guarded_libraries() -> tuple[str, ...]:
-    """The FMU libraries (``binaries/linux64/<model>.so``) whose guard is released at exit."""
+    """The FMU libraries (``binaries/<folder>/<model>.so``) whose guard is released at exit."""
     return tuple(sorted(_FINALIZE))
+
+
+#: FMI 3.0 platform tuple architectures (the standard's "Platform Tuple Definitions") of
+#: ``platform.machine()``
+_ARCH3 = {"x86_64": "x86_64", "amd64": "x86_64", "x64": "x86_64", "aarch64": "aarch64",
+          "arm64": "aarch64", "armv8l": "aarch32", "armv7l": "aarch32", "armv7": "aarch32",
+          "arm": "aarch32", "i386": "x86", "i486": "x86", "i586": "x86", "i686": "x86",
+          "x86": "x86", "riscv64": "riscv64", "riscv32": "riscv32", "ppc64": "ppc64",
+          "ppc64le": "ppc64", "ppc": "ppc32", "powerpc": "ppc32"}
+
+
+def platform_tuple(machine: str, system: str) -> str:
+    """The FMI 3.0 platform tuple ``<arch>-<sys>`` (the folder under ``binaries``) of a machine.
+
+    Parameters
+    ----------
+    machine, system : str
+        As ``platform.machine()`` and ``platform.system()`` name them (``"x86_64"``,
+        ``"aarch64"``, ``"AMD64"``, ``"arm64"``; ``"Linux"``, ``"Windows"``, ``"Darwin"``).
+        An unknown machine is kept as it is named, in lower case.
+    """
+    arch = machine.lower()
+    return f"{_ARCH3.get(arch, arch)}-{system.lower()}"
+
+
+_FOLDER3: dict[tuple[str, str], str] = {}
+
+
+def binary_folder3(resources: str | None, model: str) -> str:
+    """The folder under ``binaries`` of this FMI 3.0 FMU's loaded library ``<model>.so``.
+
+    The library the host loaded from the FMU beside ``resources`` (the loader's names
+    normalised as in :func:`release_interpreter_guard`); if none is found, the platform tuple
+    of this machine (:func:`platform_tuple`), where an FMI 3.0 host looks for it. Looked up
+    once per FMU and model.
+    """
+    import os.path
+    import platform
+    import posixpath
+
+    key = (str(resources), model)
+    if key not in _FOLDER3:
+        folder = platform_tuple(platform.machine(), platform.system())
+        if resources:
+            root = _same_file_key(os.path.join(os.path.dirname(os.path.abspath(resources)),
+                                               "binaries"))
+            for path in loaded_libraries():
+                where, name = posixpath.split(path)
+                if name == f"{model}.so" and posixpath.dirname(where) == root:
+                    folder = posixpath.basename(where)
+                    break
+        _FOLDER3[key] = folder
+    return _FOLDER3[key]
 
 
 #: Nested in a container built by dronefly, ``<model>.so`` is a forwarding shim and pythonfmu's
@@ -81,7 +145,7 @@ def release_interpreter_guard(lib: str) -> str | None:
     Parameters
     ----------
     lib : str
-        Path of the FMU's ``binaries/linux64/<model>.so`` (pythonfmu's library, or dronefly's
+        Path of the FMU's ``binaries/<folder>/<model>.so`` (pythonfmu's library, or dronefly's
         shim with pythonfmu's library beside it as ``<model>.pythonfmu.so``), in any spelling
         of the path (the resources folder may come as ``//tmp/...``).
 

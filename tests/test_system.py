@@ -624,3 +624,30 @@ def test_a_large_fmi2_value_reference_is_read_as_fmi2():
     op[2](*op[3])
     assert op[1] == "fmi2GetReal" and reads == [[2 ** 30 + 5]]
     assert (c_double * len(every_out)).from_buffer(every_out)[where[0]] == 4.5
+
+
+def test_sweep_compare_refuses_a_set_value_the_two_systems_read_differently(built_fmus, gain,
+                                                                            tmp_path):
+    """--system A --compare B --set g.m=3: an Integer 3 in A, a Real 3.0 in B; one value per
+    case serves both systems, so it must mean the same in both (B's typed value silently
+    replaced A's)."""
+    from pythonfmu import FmuBuilder
+
+    from dronefly.harness.sweep.cases import SweepInputError
+    from dronefly.harness.sweep.run import run_sweep
+    from dronefly.harness.system.ssp import write_system_ssp
+
+    d = tmp_path / "real_m"
+    d.mkdir()
+    (d / "RealM.py").write_text(GAIN.replace('Integer("m"', 'Real("m"').replace(
+        "class Gain(", "class RealM("))  # another model identifier: no clash of libraries
+    real_m = Path(FmuBuilder.build_FMU(d / "RealM.py", dest=d))
+    pair = {"plant": built_fmus["DroneFlyLateral"], "controller": built_fmus["StateFeedback"]}
+    a, b = (write_system_ssp(System.by_name({**pair, "g": g}), tmp_path / f"{tag}.ssp")
+            for tag, g in (("a", gain), ("b", real_m)))
+    out = tmp_path / "o"
+    with pytest.raises(SweepInputError, match=re.escape(
+            f"--set g.m='3' is 3 in {a} but 3.0 in {b}")):
+        run_sweep(None, out, workers=1, progress_bar=False, plot=False, system=a, compare=b,
+                  set_values={"g.m": "3"}, cases=[])  # refused before "the sweep has no cases"
+    assert not out.exists()

@@ -12,9 +12,8 @@ instances per thread); every case reuses them through fmi2Reset. Cases run in
 chunks, in-process (``workers=1``), on a local process pool, or on an existing
 Dask cluster (``scheduler=ADDRESS``; see :mod:`harness.sweep.backends`); the rows are the
 same whichever backend.
-Results go to ``sweep.csv`` (one row per case, sorted by case number), rewritten
-atomically after chunks complete; a rerun with the same ``out_dir`` resumes:
-finished cases (matched by key) are not run again.
+Results go to ``sweep.csv`` (one row per case, sorted by case number), rewritten atomically
+after chunks complete; a rerun with the same ``out_dir`` resumes: finished cases are not rerun.
 """
 
 from __future__ import annotations
@@ -82,7 +81,7 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
                  compare: str | Path | None = None) -> tuple:
     """((SystemRef,) or (SystemRef, SystemRef), case values, LateralLoop) of ``--system``
     (and ``--compare``), checked here; ``--set`` values go to the systems that have the
-    instance."""
+    instance (the same typed value in both)."""
     from dronefly.harness.sweep.system import SystemRef, check_system
 
     if plant is not None or controller is not None:
@@ -92,13 +91,15 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
     for option, given in (("--system", system), ("--compare", compare)):
         if given is None:
             continue
-        path = Path(given)
-        if not path.is_file():
+        if not (path := Path(given)).is_file():
             raise SweepInputError(f"{option} {str(given)!r} " + (
                 "is a folder, not an SSP file" if path.is_dir() else "does not exist"))
         ref = SystemRef(**vars(FmuRef.of(path)))
         loop, values = check_system(ref, _values_for(ref, set_values), (spec or SweepSpec()).master)
-        typed.update(values)
+        for key, value in values.items():  # a case's --set value serves both systems
+            if (type(typed.setdefault(key, value)), typed[key]) != (type(value), value):
+                raise SweepInputError(f"--set {key}={set_values[key]!r} is {typed[key]!r} in "
+                                      f"{refs[0].path} but {value!r} in {ref.path}")
         lateral = lateral or loop
         refs.append(ref)
     unused = sorted(set(set_values or {}) - set(typed))

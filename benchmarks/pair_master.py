@@ -2,16 +2,19 @@
 baseline: ``benchmarks/run.py`` compares the system master, which now runs every pair
 (``harness.cosim.master.Loop`` is a thin adapter onto it), with this in the same run.
 
-Gauss-Seidel only, fresh instances per run, a failed call raises: the per-step work is the
-former ``Loop._run``'s, line for line (the Ctrl-C check, the bookkeeping of which instance and
-call run, plant outputs -> controller inputs -> controller outputs -> plant inputs, then both
-step, through the same preallocated ctypes buffers).
+Fresh instances per run, a failed call raises. Gauss-Seidel (the benchmark's baseline): the
+per-step work is the former ``Loop._run``'s, line for line (the Ctrl-C check, the bookkeeping
+of which instance and call run, plant outputs -> controller inputs -> controller outputs ->
+plant inputs, then both step, through the same preallocated ctypes buffers). Jacobi (an
+oracle of tests/test_system.py, not timed): the former ordering of ``master="jacobi"``, the
+controller's outputs read before its inputs are set (u_k = K x_(k-1)), its inputs at
+initialization the plant's initial outputs or ``u_source0``.
 """
 
 from __future__ import annotations
 
 from ctypes import c_double, c_uint
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -23,29 +26,40 @@ __all__ = ["PairMaster"]
 
 
 class PairMaster:
-    """The former pair master, Gauss-Seidel.
+    """The former pair master.
 
     Parameters
     ----------
     plant, controller : FMU
         Extracted FMUs (:class:`dronefly.harness.cosim.fmu.FMU`), connected by name.
+    ordering : str
+        ``"gauss-seidel"`` (default, the benchmark's) or ``"jacobi"``.
     """
 
-    def __init__(self, plant: Any, controller: Any) -> None:
+    def __init__(self, plant: Any, controller: Any, ordering: str = "gauss-seidel") -> None:
+        if ordering not in ("gauss-seidel", "jacobi"):
+            raise ValueError(f"ordering = {ordering!r}; choose gauss-seidel or jacobi")
+        self.ordering = ordering
         self.plant, self.controller = plant, controller
         self.states, self.controls = plant.names("output"), plant.names("input")
         self.sensed = controller.names("input")
         self.names = [*self.states, *self.controls]
 
     def run(self, step: float, n_steps: int,
-            plant_start: Mapping[str, float] | None = None) -> LoopRun:
-        """Co-simulate ``n_steps`` steps of ``step`` s from t = 0 on fresh instances."""
+            plant_start: Mapping[str, float] | None = None,
+            u_source0: Sequence[float] | None = None) -> LoopRun:
+        """Co-simulate ``n_steps`` steps of ``step`` s from t = 0 on fresh instances;
+        ``u_source0``: the controller's inputs at initialization (Jacobi only; default the
+        plant's initial outputs)."""
+        if u_source0 is not None and self.ordering != "jacobi":
+            raise ValueError("u_source0 is for the Jacobi ordering")
         with self.plant.instantiate() as p, self.controller.instantiate() as c, \
                 deferred_sigint() as interrupt:
-            return self._run(p, c, step, n_steps, plant_start or {}, interrupt)
+            return self._run(p, c, step, n_steps, plant_start or {}, interrupt, u_source0)
 
     def _run(self, p: Any, c: Any, step: float, n_steps: int,
-             plant_start: Mapping[str, float], interrupt: Any) -> LoopRun:
+             plant_start: Mapping[str, float], interrupt: Any,
+             u_source0: Sequence[float] | None = None) -> LoopRun:
         ns, nu = len(self.states), len(self.controls)
         rec = np.full((n_steps + 1, ns + nu), np.nan)
         run = LoopRun(self.names, np.arange(n_steps + 1) * step, rec)
@@ -61,33 +75,50 @@ class PairMaster:
                 inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
         p.slave.exitInitializationMode()
         p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
-        c.slave.fmi2SetReal(c.slave.component, s_vr, ns, y)
+        c.slave.fmi2SetReal(c.slave.component, s_vr, ns,
+                            y if u_source0 is None else (c_double * ns)(*u_source0))
         c.slave.exitInitializationMode()
         pg, ps, pd, pc = (p.slave.fmi2GetReal, p.slave.fmi2SetReal, p.slave.fmi2DoStep,
                           p.slave.component)
         cg, cs, cd, cc = (c.slave.fmi2GetReal, c.slave.fmi2SetReal, c.slave.fmi2DoStep,
                           c.slave.component)
-        for k in range(n_steps + 1):
-            t = k * step
-            if interrupt.count:
-                raise KeyboardInterrupt
-            who, call = p, "fmi2GetReal"
-            pg(pc, y_vr, ns, y)
-            who, call = c, "fmi2SetReal"
-            cs(cc, s_vr, ns, y)
-            who, call = c, "fmi2GetReal"
-            cg(cc, u_vr_c, nu, u)
-            rec[k, :ns] = y
-            rec[k, ns:] = u
-            if k == n_steps:
-                break
-            who, call = p, "fmi2SetReal"
-            ps(pc, u_vr_p, nu, u)
-            who, call = p, "fmi2DoStep"
-            pd(pc, t, step, 1)
-            who, call = c, "fmi2DoStep"
-            cd(cc, t, step, 1)
-        del who, call  # named a failure in the pair master; here only the cost is kept
+        if self.ordering == "jacobi":  # decided once per run: the Gauss-Seidel loop is as it was
+            for k in range(n_steps + 1):
+                t = k * step
+                if interrupt.count:
+                    raise KeyboardInterrupt
+                pg(pc, y_vr, ns, y)
+                cg(cc, u_vr_c, nu, u)  # answered from the previous point's inputs
+                cs(cc, s_vr, ns, y)
+                rec[k, :ns] = y
+                rec[k, ns:] = u
+                if k == n_steps:
+                    break
+                ps(pc, u_vr_p, nu, u)
+                pd(pc, t, step, 1)
+                cd(cc, t, step, 1)
+        else:
+            for k in range(n_steps + 1):
+                t = k * step
+                if interrupt.count:
+                    raise KeyboardInterrupt
+                who, call = p, "fmi2GetReal"
+                pg(pc, y_vr, ns, y)
+                who, call = c, "fmi2SetReal"
+                cs(cc, s_vr, ns, y)
+                who, call = c, "fmi2GetReal"
+                cg(cc, u_vr_c, nu, u)
+                rec[k, :ns] = y
+                rec[k, ns:] = u
+                if k == n_steps:
+                    break
+                who, call = p, "fmi2SetReal"
+                ps(pc, u_vr_p, nu, u)
+                who, call = p, "fmi2DoStep"
+                pd(pc, t, step, 1)
+                who, call = c, "fmi2DoStep"
+                cd(cc, t, step, 1)
+            del who, call  # named a failure in the pair master; here only the cost is kept
         for inst in (p, c):
             inst.slave.terminate()
         run.messages = [m.message for inst in (p, c) for m in inst.messages]

@@ -12,7 +12,6 @@ import math
 import re
 import textwrap
 import zipfile
-from ctypes import c_double, c_uint
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,6 @@ import pytest
 
 from dronefly.cli import main
 from dronefly.harness.cosim.master import Loop
-from dronefly.harness.cosim.records import LoopRun
 from dronefly.harness.system.description import Connection, System, SystemSpecError
 from dronefly.harness.system.master import SystemMaster
 from dronefly.controller.law import PAPER_GAINS_EQ27
@@ -83,7 +81,8 @@ def _x0(plant_fmu) -> dict[str, float]:
 
 
 def _former_pair_master():
-    """benchmarks/pair_master.py: the pair master as it was before issue 12 (Gauss-Seidel)."""
+    """benchmarks/pair_master.py: the pair master as it was before issue 12 (its
+    Gauss-Seidel and Jacobi orderings)."""
     import importlib.util
 
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "pair_master.py"
@@ -110,56 +109,6 @@ class _GainsFirst:
             yield c
 
 
-def _former_jacobi(base):
-    """The former pair master's Jacobi ordering (c53815e's Loop._run with master="jacobi",
-    without its failure bookkeeping): benchmarks/pair_master.py keeps only Gauss-Seidel."""
-
-    class FormerJacobi(base):
-        u_source0 = None
-
-        def _run(self, p, c, step, n_steps, plant_start, interrupt):
-            ns, nu = len(self.states), len(self.controls)
-            rec = np.full((n_steps + 1, ns + nu), np.nan)
-            run = LoopRun(self.names, np.arange(n_steps + 1) * step, rec)
-            y_vr = (c_uint * ns)(*p.vrs(self.states))
-            s_vr = (c_uint * len(self.sensed))(*c.vrs(self.sensed))
-            s_idx = [self.states.index(n) for n in self.sensed]
-            u_vr_c = (c_uint * nu)(*c.vrs(self.controls))
-            u_vr_p = (c_uint * nu)(*p.vrs(self.controls))
-            y, ys, u = (c_double * ns)(), (c_double * len(self.sensed))(), (c_double * nu)()
-            for inst, values in ((p, plant_start), (c, {})):
-                inst.slave.setupExperiment(startTime=0.0, stopTime=n_steps * step)
-                inst.slave.enterInitializationMode()
-                for name, value in values.items():
-                    inst.slave.setReal([inst.fmu.vr(name)], [float(value)])
-            p.slave.exitInitializationMode()
-            p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
-            if self.u_source0 is not None:
-                ys[:] = [float(v) for v in self.u_source0]
-            else:
-                ys[:] = [y[i] for i in s_idx]
-            c.slave.fmi2SetReal(c.slave.component, s_vr, len(ys), ys)
-            c.slave.exitInitializationMode()
-            for k in range(n_steps + 1):
-                t = k * step
-                p.slave.fmi2GetReal(p.slave.component, y_vr, ns, y)
-                c.slave.fmi2GetReal(c.slave.component, u_vr_c, nu, u)  # the previous inputs'
-                ys[:] = [y[i] for i in s_idx]
-                c.slave.fmi2SetReal(c.slave.component, s_vr, len(ys), ys)
-                rec[k, :ns] = y
-                rec[k, ns:] = u
-                if k == n_steps:
-                    break
-                p.slave.fmi2SetReal(p.slave.component, u_vr_p, nu, u)
-                p.slave.fmi2DoStep(p.slave.component, t, step, 1)
-                c.slave.fmi2DoStep(c.slave.component, t, step, 1)
-            for inst in (p, c):
-                inst.slave.terminate()
-            return run
-
-    return FormerJacobi
-
-
 def _gain_sets() -> dict[str, np.ndarray]:
     from dronefly.harness.cosim.params import gain_matrix
 
@@ -177,8 +126,6 @@ def test_pair_through_the_system_master_equals_the_former_pair_master(built_fmus
     from dronefly.controller.law import gain_name
 
     former = _former_pair_master()
-    if master == "jacobi":
-        former = _former_jacobi(former)
     system = System.by_name({"plant": built_fmus["DroneFlyLateral"],
                              "controller": built_fmus["StateFeedback"]})
     names = [f"plant.{s}" for s in STATE_NAMES] + [f"controller.{c}" for c in CONTROL_NAMES]
@@ -192,7 +139,8 @@ def test_pair_through_the_system_master_equals_the_former_pair_master(built_fmus
             gains = {gain_name(i, j): float(K[i, j]) for i in range(3) for j in range(4)}
             start = {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, np.array(x0) * scale)}
             h, n = step_wb / 164.0, 60
-            ref = former(plant, _GainsFirst(controller, gains)).run(h, n, plant_start=start)
+            ref = former(plant, _GainsFirst(controller, gains), master).run(
+                h, n, plant_start=start)
             got = sm.run(h, n, record=names, values={"plant": start, "controller": gains})
             via_loop = loop.run(h, n, master=master, plant_start=start,
                                 controller_params=gains, instances=(p, c))
@@ -202,8 +150,8 @@ def test_pair_through_the_system_master_equals_the_former_pair_master(built_fmus
             assert np.any(ref.signals[1:] != ref.signals[0]), "it moved"
         if master == "jacobi":  # the identification runs' start: another previous state
             u0 = [0.0, 0.1 * scale[1], 0.0, 0.0]
-            former.u_source0 = u0
-            ref = former(plant, _GainsFirst(controller, gains)).run(h, n, plant_start=start)
+            ref = former(plant, _GainsFirst(controller, gains), master).run(
+                h, n, plant_start=start, u_source0=u0)
             via_loop = loop.run(h, n, master=master, plant_start=start,
                                 controller_params=gains, u_source0=u0, instances=(p, c))
             assert np.array_equal(via_loop.signals, ref.signals)

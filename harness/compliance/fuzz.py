@@ -1,9 +1,9 @@
 """Fuzz an FMI 2.0 co-simulation FMU as a user of FMI tools would, crash-proof.
 
-Each group of cases (:mod:`.fuzzcases`) runs in its own Python process through fmpy's
-low-level API, so that a crash, an abort (also at process exit) or a hang of the FMU is
-counted, not fatal to the caller. After a crash the group continues with the next case in a
-new process. Works on any FMU, the project's and other people's (``dronefly check``).
+The groups of cases (:mod:`.fuzzcases`) run in a Python process of their own (one per
+logging setting) through fmpy's low-level API, so that a crash, an abort (also at process exit)
+or a hang of the FMU is counted, not fatal to the caller. After a crash the cases continue with
+the next one in a new process. Works on any FMU, the project's and other people's (``dronefly check``).
 
 Result per case: the FMI statuses seen, problems (a Fatal status, a refusal without a log
 message or, for the project's own FMUs, without naming the variable or call, a state changed
@@ -104,11 +104,10 @@ def fuzz_fmu(path: str | Path, *, groups: tuple[str, ...] = GROUP_NAMES, seed: i
     """
     path = Path(path).resolve()
     cases: list[FuzzCase] = []
-    for group, log in ((g, log) for log in logging for g in groups):
-        n = random_calls if group == "random" else instances
+    for log in logging:
         start = 0
         while True:
-            done, died = _run(path, group, seed, n, start, log, timeout_s)
+            done, died = _run(path, groups, seed, random_calls, instances, start, log, timeout_s)
             cases.extend(done)
             if died is None:
                 break
@@ -119,10 +118,11 @@ def fuzz_fmu(path: str | Path, *, groups: tuple[str, ...] = GROUP_NAMES, seed: i
     return FuzzReport(path, cases)
 
 
-def _run(path: Path, group: str, seed: int, n: int, start: int, logging: bool,
-         timeout_s: float) -> tuple[list[FuzzCase], FuzzCase | None]:
-    cmd = [sys.executable, "-m", "dronefly.harness.compliance.fuzzcases", str(path), group,
-           str(seed), str(n), str(start), "1" if logging else "0"]
+def _run(path: Path, groups: tuple[str, ...], seed: int, random_calls: int, instances: int,
+         start: int, logging: bool, timeout_s: float) -> tuple[list[FuzzCase], FuzzCase | None]:
+    cmd = [sys.executable, "-m", "dronefly.harness.compliance.fuzzcases", str(path),
+           ",".join(groups), str(seed), str(random_calls), str(instances), str(start),
+           "1" if logging else "0"]
     label = "" if logging else " (logging off)"
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
@@ -131,20 +131,22 @@ def _run(path: Path, group: str, seed: int, n: int, start: int, logging: bool,
         out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
         died = f"hung for more than {timeout_s:g} s"
     done: list[FuzzCase] = []
-    current: str | None = None
+    current: tuple[str, str] | None = None
     for line in out.splitlines():
         try:
             row = json.loads(line)
         except ValueError:
             continue
         if "begin" in row:
-            current = row["begin"]
+            current = (row["group"], row["begin"])
         else:
-            done.append(FuzzCase(group, row["case"] + label, row["statuses"], row["problems"]))
+            done.append(FuzzCase(row["group"], row["case"] + label, row["statuses"],
+                                 row["problems"]))
             current = None
     if died is None:
         return done, None
     if current is None and not done and start == 0 and died:
-        current = "loading the FMU"
+        current = (groups[0] if groups else "", "loading the FMU")
     # died inside `current`, or after the last case (at process exit)
-    return done, FuzzCase(group, (current or "process exit") + label, crash=died)
+    group, case = current or (done[-1].group if done else "", "process exit")
+    return done, FuzzCase(group, case + label, crash=died)

@@ -1,7 +1,8 @@
-"""The child side of :mod:`.fuzz`: one group of fuzz cases against one FMU, in this process.
+"""The child side of :mod:`.fuzz`: groups of fuzz cases against one FMU, in this process.
 
-Run as ``python -m dronefly.harness.compliance.fuzzcases FMU GROUP SEED N START LOGGING``; prints one
-JSON object per case (``case``, ``statuses`` seen, ``problems``) and exits 0. A crash, an
+Run as ``python -m dronefly.harness.compliance.fuzzcases FMU GROUP[,GROUP...] SEED
+RANDOM_CALLS INSTANCES START LOGGING``; prints one JSON object per case (``case``, ``group``,
+``statuses`` seen, ``problems``) and exits 0. A crash, an
 abort (also at process exit) or a hang is seen by the parent from outside.
 
 Statuses and crashes are checked on every FMU; that refusals are logged naming the variable
@@ -32,7 +33,7 @@ from dronefly.harness.compliance.fuzzkit import (BAD_VALUES, ERROR, LOGGING, OK,
 from dronefly.harness.compliance.fuzzrandom import group_churn, group_random
 from dronefly.harness.cosim.fmu import FMU
 
-__all__ = ["GROUPS", "run_group"]
+__all__ = ["GROUPS", "run_groups"]
 
 Cases = list[tuple[str, Callable[[], dict[str, Any]]]]
 
@@ -207,20 +208,24 @@ GROUPS: dict[str, Callable[[FMU, bool, int, int], Cases]] = {
     "format": group_format, "random": group_random, "churn": group_churn}
 
 
-def run_group(path: str, group: str, seed: int, n: int, start: int = 0,
-              logging: bool = True) -> None:
-    """Print ``{"begin": label}`` before and the result after each case from ``start`` on."""
+def run_groups(path: str, groups: list[str], seed: int, random_calls: int, instances: int,
+               start: int = 0, logging: bool = True) -> None:
+    """Print ``{"begin": label, "group": group}`` before and the result after each case of
+    ``groups`` (their cases in order, one list) from the ``start``-th on; ``random_calls``
+    for the ``random`` group's length, ``instances`` for the others'."""
     LOGGING[0] = logging
     rows = os.fdopen(os.dup(1), "w")  # the results; fd 1 itself now catches what FMUs print
     sys.stdout.flush()
     os.dup2(PRINTED.file.fileno(), 1)
     with FMU(path) as fmu:
         ours = (fmu.model_description.generationTool or "").startswith("dronefly-fmu")
-        for label, run in GROUPS[group](fmu, ours, seed, n)[start:]:
-            print(json.dumps({"begin": label}), file=rows, flush=True)
-            print(json.dumps(run()), file=rows, flush=True)
+        cases = [(group, label, run) for group in groups for label, run in GROUPS[group](
+            fmu, ours, seed, random_calls if group == "random" else instances)]
+        for group, label, run in cases[start:]:
+            print(json.dumps({"begin": label, "group": group}), file=rows, flush=True)
+            print(json.dumps({**run(), "group": group}), file=rows, flush=True)
 
 
 if __name__ == "__main__":
-    run_group(sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]),
-              sys.argv[6] == "1")
+    run_groups(sys.argv[1], sys.argv[2].split(","), int(sys.argv[3]), int(sys.argv[4]),
+               int(sys.argv[5]), int(sys.argv[6]), sys.argv[7] == "1")

@@ -10,6 +10,7 @@ every FMI 3.0 FMU, and broken ones (one defect per FMI 3.0 check, and a crash) f
 from __future__ import annotations
 
 import math
+import re
 import os
 import zipfile
 from pathlib import Path
@@ -376,8 +377,8 @@ def test_check_names_the_failed_fmi3_check(broken3, defect):
 
 def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     """An FMI 3.0 FMU whose doStep raises: pythonfmu3 answers fmi3Fatal and frees the Python
-    instance while keeping its pointer, so the next call (fmi3Terminate) crashes the host;
-    the check runs in a child process and reports it, and lists the checks left out."""
+    instance while keeping its pointer, so a later call may crash the host; the check runs in
+    a child process and reports a crash with the checks it left out, or every check failed."""
     from dronefly.cli import main
 
     fmu = _broken_build(tmp_path, "fmi/fmi3.py", "        return _RESULTS[do_step_status(self, "
@@ -387,7 +388,19 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "FAIL" in out and "0 of 1 FMUs passed" in out
     assert "[  ok] validate" in out
-    assert "[FAIL] call-sequence  the checking process died (killed by SIGSEGV)" in out
-    assert ("[FAIL] not run        reset, two-instances, state, bad-input, reference, "
-            "state-machine, discard, state-refusal (the checking process died in "
-            "call-sequence)") in out
+    # what the use after free does is up to the heap: it crashes the first call after the Fatal
+    # step (call-sequence), or one check later, or (seen in about 1 of 6 runs) nothing crashes
+    # and every later call fails; each way every check after validate is reported failed
+    assert [line for line in out.splitlines() if line.startswith("  [  ok]")] == [
+        "  [  ok] validate       no problems"], out
+    assert re.search(r"\[FAIL\] call-sequence  (the checking process died \(killed by SIG\w+\)"
+                     r"|FMICallException: fmi3DoStep failed with status 4 \(fatal\))", out), out
+    order = ["call-sequence", "reset", "two-instances", "state", "bad-input", "reference",
+             "state-machine", "discard", "state-refusal"]
+    died = re.search(r"\[FAIL\] (\S+) +the checking process died \(killed by (SIG\w+)\)", out)
+    if died:  # the checks after it are listed as not run, in order
+        rest = order[order.index(died.group(1)) + 1:]
+        assert (f"[FAIL] not run        {', '.join(rest)} (the checking process died in "
+                f"{died.group(1)})") in out
+    else:
+        assert all(f"[FAIL] {name:<14}" in out for name in order), out

@@ -279,6 +279,60 @@ def test_identification_from_cosimulation(plant, controller, loops, name, tau, s
                                atol=1e-12)
 
 
+def _verdict_rate(mu: np.ndarray, loop: FeedbackLoop) -> float:
+    """The rate (per wing beat, Ts = 1) that decides the verdict, from eigenvalues mu of a
+    transition matrix, as docs/latency.md states the rule: > 0 when the verdict is lost. A
+    stable loop: the largest log|mu|. A neutral loop: the eigenvalue nearest mu = 1 aside
+    (an exactly neutral loop keeps it at 1 for every delay; otherwise it counts by its rate
+    over the tolerance 1e-3 per wing beat), the largest log|mu| of the others."""
+    mu = np.asarray(mu, complex)
+    if not loop.neutral:
+        return float(np.max(np.log(np.abs(mu))))
+    i = int(np.argmin(np.abs(mu - 1.0)))
+    near, rest = mu[i], np.delete(mu, i)
+    others = float(np.max(np.log(np.abs(rest))))
+    if loop.exactly_neutral:
+        assert abs(near - 1.0) < 1e-9  # the neutral mode survives every delay
+        return others
+    return max(others, math.log(abs(near)) - NEUTRAL)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("name", ["stabilising", "pi", "eq27_exact", "eq27", "lqr"])
+def test_cosimulation_flips_the_verdict_at_the_sampled_margin(plant, controller, loops, name):
+    """Model (b)'s margin checked by co-simulation where it matters: the plant FMU with the
+    controller FMU sampling once per wing beat (communication step 1 wing beat), delayed by
+    d = floor(margin) whole samples (inside) and d + 1 (outside), d from sampled_margin. The
+    loop identified from the runs keeps its verdict at d and loses it at d + 1, and its
+    eigenvalues agree with model (b)'s to 1e-6 (found: below 2e-12), and so does the rate that
+    decides the verdict. Compared are the loop's modes, |mu| > 0.5; the others (|mu| < 0.07
+    here: the delay line's near-zero cluster, ill-conditioned as near-multiple roots are) the
+    fit moves by up to 4e-2, and the test asserts the gap (0.08, 0.5) that separates them.
+    LQR's margin is below one sample: inside is d = 0."""
+    from dronefly.harness.latency.identify import cosimulate_runs
+
+    loop = loops[name]
+    m = sampled_margin(loop)
+    assert m.whole <= m.tau < m.whole + 1
+    rates = []
+    for d in (float(m.whole), float(m.whole + 1)):
+        ident = identify_delayed(cosimulate_runs(plant, controller, loop, 1.0, d, 40),
+                                 loop, 1.0, d)
+        assert ident.fit_residual < 1e-12
+        ex = ident.exact_eigenvalues
+        assert not np.any((np.abs(ex) > 0.08) & (np.abs(ex) < 0.5)), (name, d)
+        loop_modes = np.abs(ex) > 0.5
+        assert np.sum(loop_modes) >= loop.n, (name, d)
+        np.testing.assert_allclose(ident.eigenvalues[loop_modes], ex[loop_modes], rtol=0,
+                                   atol=1e-6, err_msg=f"{name}, d = {d}")
+        exact_rate = _verdict_rate(np.linalg.eigvals(sampled_matrix(loop, 1.0, d)), loop)
+        fit_rate = _verdict_rate(np.linalg.eigvals(ident.transition), loop)
+        assert abs(fit_rate - exact_rate) < 1e-6, (name, d, fit_rate, exact_rate)
+        rates.append(fit_rate)
+    inside, outside = rates
+    assert inside < 0.0 < outside, (name, m.whole, rates)  # the verdict flips at the margin
+
+
 # --- docs/latency.md ------------------------------------------------------------------------
 def _doc_table(key: str) -> str:
     text = DOC.read_text(encoding="utf-8")

@@ -28,6 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import eig
 from scipy.optimize import brentq
 
 from dronefly.harness.cosim.stability import classify, rates_from_transition
@@ -241,12 +242,16 @@ def response(loop: FeedbackLoop, x0: ArrayLike, Ts: float = 1.0, tau: float = 0.
     dev = _deviation(xs) / _deviation(xs[0])
     final = 0.0
     if loop.neutral:
-        w, V = np.linalg.eig(M)
+        # The limit is the spectral projection on the neutral mode, v u^H x0 / (u^H v) with
+        # its right and left eigenvectors: well-conditioned for the simple, isolated mu ~ 1.
+        # (A whole inverse eigenvector basis is not: the delay line's mu = 0 is defective,
+        # and inv(V) then differs in its third digit between BLAS kernels.)
+        w, vl, vr = eig(M, left=True, right=True)
         i = int(np.argmin(np.abs(w - 1.0)))
-        Winv = np.linalg.inv(V)
+        v, u = vr[:, i], vl[:, i]
         X0 = np.zeros(len(M))
         X0[:loop.n] = np.asarray(x0, float)
-        limit = np.real(V[:, i] * (Winv[i] @ X0))
+        limit = np.real(v * (u.conj() @ X0) / (u.conj() @ v))
         final = float(_deviation(limit[:loop.n]) / _deviation(xs[0]))
     above = np.flatnonzero(dev > within)
     if final > within or (len(above) and above[-1] == steps):

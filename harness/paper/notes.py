@@ -8,7 +8,7 @@ from dronefly.harness.paper import values as pv
 from dronefly.harness.paper.analysis import (ModalConvention, ackermann_gains, characteristic_affine,
                                              coefficient_matching_gains, modal_decomposition,
                                              place_poles_gains)
-from dronefly.harness.paper.rows import format_vector
+from dronefly.harness.paper.rows import format_bound, format_vector
 
 __all__ = ["LAT_INPUTS", "Notes"]
 
@@ -119,14 +119,14 @@ class Notes:
             why = ("b = -trace(A1') has k4 coefficient -b(4) = 0" if qty[0] == "b" else
                    "e = det(A1') expanded along its last row (0, 1, 0, 0) is a minor without column 2, "
                    "so k2 drops out")
-            return f"The term is not printed, i.e. 0; it is exactly 0: {why} (computed {x:.1e}, round-off)."
+            return f"The term is not printed, i.e. 0; it is exactly 0: {why} (computed magnitude {format_bound(x)}, round-off)."
         if src == "Eq. (27)" and "paper" in qty:
             dev = max(np.abs(a["k_paper_pp"] - a["k_paper"]).max(), np.abs(a["k_paper_ack"] - a["k_paper"]).max())
             return ("The paper's method (coefficient matching, Eqs. 25-26) with the paper's own numbers: "
                     "lambda1 = 0 and lambda2,3, lambda4 'remain the same' read as Eq. (19)'s four-decimal "
                     "values, b from Eq. (24). All four Eqs. (26a)-(26d) are solved; the text's '(i.e. Eqs. "
                     "(26a) and (26b))' is a typo, since four gains need four equations. place_poles and "
-                    f"Ackermann agree to {dev:.1e}. Exact gains for the exact eigenvalues of Eq. (12): "
+                    f"Ackermann agree to {format_bound(dev)} (round-off). Exact gains for the exact eigenvalues of Eq. (12): "
                     f"{format_vector(a['k_exact'], 6)} with model.py's b, {format_vector(a['k_exact_b24'], 6)} with Eq. (24)'s b.")
         return ""
 

@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["NOISE", "Row", "format_number", "format_vector", "summary"]
+__all__ = ["NOISE", "Row", "format_bound", "format_number", "format_vector", "summary"]
 
 #: Computed values below this magnitude are floating-point noise of structurally zero entries
 #: (their last bits differ between BLAS builds): shown as 0.
@@ -21,6 +21,17 @@ NOISE = 1e-12
 def format_number(x: float, spec: str = ".6g") -> str:
     """``x`` formatted with ``spec``; noise (|x| < :data:`NOISE`) shown as 0, without a sign."""
     return format(0.0 if abs(x) < NOISE else float(x), spec)
+
+
+def format_bound(x: float, bound: float = NOISE) -> str:
+    """``x`` as the bound it is known to: ``"< 1e-12"`` for round-off (``|x| < bound``),
+    whose digits differ between machines, else ``x`` to two digits.
+
+    For quantities that are zero in exact arithmetic (a structural zero, the disagreement of
+    two exact methods): their computed value is round-off, a few ulps of the O(1) entries
+    it is computed from, and only its size below ``bound`` is the same on every machine.
+    """
+    return f"< {bound:.0e}" if abs(x) < bound else f"{x:.1e}"
 
 
 def format_vector(x: np.ndarray, d: int = 4) -> str:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from docnumbers import NumericText, assert_same_numbers
 
 from dronefly.harness.sweep.cases import SweepSpec
 from dronefly.harness.sweep.run import COLUMNS, read_rows, run_sweep
@@ -180,8 +181,9 @@ def test_delays_with_a_system_or_a_delayed_controller_exit_2(built_fmus, tmp_pat
     assert len(err.strip().splitlines()) == 1 and named in err and not out.exists()
 
 
-def _flat(path: Path) -> str:
-    return " ".join(path.read_text(encoding="utf-8").split())
+def _flat(path: Path) -> NumericText:
+    """The text, its numbers compared to a unit of their last digit (tests/docnumbers.py)."""
+    return NumericText(path.read_text(encoding="utf-8"))
 
 
 def test_doc_and_readme_numbers_are_the_code_s():
@@ -199,7 +201,8 @@ def test_doc_and_readme_numbers_are_the_code_s():
     raw = (ROOT / "docs" / "latency.md").read_text(encoding="utf-8")
     m, c = dt.margins(), dt.cells()
     found = re.search(r"<!-- table: delay-period -->\n(.*?)\n<!-- end table -->", raw, re.S)
-    assert found and found.group(1) == "\n".join(dt.table(m, c))
+    assert found
+    assert_same_numbers("\n".join(dt.table(m, c)), found.group(1))
     doc, readme = _flat(ROOT / "docs" / "latency.md"), _flat(ROOT / "README.md")
     assert dt.MAP_COMMAND in " ".join(raw.replace("\\\n", " ").split())
     assert (ROOT / "docs" / "latency_map.png").is_file()

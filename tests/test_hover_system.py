@@ -8,14 +8,12 @@ the coefficient-matching designs of Sect. 3.5 (harness.paper.longitudinal).
 from __future__ import annotations
 
 import json
-import os
-import signal
-import threading
 import zipfile
 
 import numpy as np
 import pytest
 from docnumbers import same_numbers
+from sigint_at import install_at_check
 
 from dronefly.cli import main
 from dronefly.controller.law import PAPER_GAINS_EQ27, LONGITUDINAL_GAINS_DESIGN_B, gain_name
@@ -309,17 +307,14 @@ def test_cli_system_not_an_ssp(tmp_path, capsys):
     assert code == 2 and "bad.ssp" in err and err.count("\n") == 1
 
 
-def test_ctrl_c_stops_the_system_master_between_steps(hover_ssp):
-    """SIGINT during a run: all instances terminated, KeyboardInterrupt, the master closes."""
+def test_ctrl_c_stops_the_system_master_between_steps(hover_ssp, monkeypatch):
+    """SIGINT during a run (sent at the master's 100th check between steps, tests/sigint_at.py):
+    all instances terminated, KeyboardInterrupt, the master closes."""
     system = System.from_ssp(hover_ssp)
-    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+    install_at_check(monkeypatch, 100)
     with SystemMaster(system) as m:
-        timer.start()
-        try:
-            with pytest.raises(KeyboardInterrupt):
-                m.run(1e-4 / 164, 1_000_000, record=["lateral.delta_v"])
-        finally:
-            timer.cancel()
+        with pytest.raises(KeyboardInterrupt):
+            m.run(1e-4 / 164, 1_000_000, record=["lateral.delta_v"])
         r = m.run(0.1 / 164, 10, record=["lateral.delta_v"])  # still usable afterwards
     assert r.complete
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -34,11 +35,10 @@ def test_third_sigint_raises():
      "--disturbances", "grid", "--slices", "dgamma:dv"],
 ])
 def test_ctrl_c_during_an_in_process_run_stops_cleanly(built_fmus, tmp_path, argv):
-    """SIGINT after a few seconds: exit 130 with one line, no crash; the sweep keeps its
-    finished rows."""
+    """SIGINT in the middle of a run (delivered at a known point, see tests/sigint_at.py):
+    exit 130 with one line, no crash; the sweep keeps the cases it finished."""
     import subprocess
     import sys
-    import time
 
     out = tmp_path / "out"
     build = tmp_path / "fmus"
@@ -47,17 +47,12 @@ def test_ctrl_c_during_an_in_process_run_stops_cleanly(built_fmus, tmp_path, arg
         (build / f"{name}.fmu").write_bytes(built_fmus[name].read_bytes())
     extra = ["--plant", str(build / "DroneFlyLateral.fmu"), "--controller",
              str(build / "StateFeedback.fmu"), "--out", str(out)]
-    for _ in range(2):  # twice: the first and a later run in the same folder (suite time)
-        proc = subprocess.Popen([sys.executable, "-m", "dronefly", *argv, *extra],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        if argv[0] == "sweep":  # its output folder appears once the cases start running
-            deadline = time.monotonic() + 60
-            while not out.is_dir() and time.monotonic() < deadline and proc.poll() is None:
-                time.sleep(0.1)
-        time.sleep(1.5)  # some steps (and for the sweep, some cases) done by then
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-        assert proc.returncode == 130, (proc.returncode, err[-400:])
-        assert err.strip().splitlines()[-1].endswith("interrupted"), err
+    for _ in range(2):  # twice: the first and a later run in the same folder
+        proc = subprocess.run([sys.executable, str(Path(__file__).with_name("sigint_at.py")),
+                               *argv, *extra],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 130, (proc.returncode, proc.stderr[-400:])
+        assert proc.stderr.strip().splitlines()[-1].endswith("interrupted"), proc.stderr
     if argv[0] == "sweep":  # the finished cases were written before the exit
         assert len((out / "sweep.csv").read_text().splitlines()) > 1
+

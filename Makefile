@@ -1,12 +1,14 @@
 # Two entry points, each creating its own virtual environment:
 #   make demo   build the FMUs and run the main job
 #   make test   run the whole test suite
+#   make test-numeric   the tests whose numbers depend on the BLAS kernel (CI runs them again
+#                       with OPENBLAS_CORETYPE=Prescott)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test build bench clean
+.PHONY: demo test test-numeric build bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +23,9 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 -q
+
+test-numeric: $(STAMP)
+	$(BIN)/python -m pytest -n 2 -q -m numeric
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py

@@ -1,10 +1,48 @@
-"""Shared fixtures: the project's FMUs, built once per test session into a temporary folder."""
+"""Shared fixtures: the project's FMUs, built once per test session into a temporary folder.
+
+The header names the BLAS kernels numpy and scipy run; with ``OPENBLAS_CORETYPE`` set, the
+session stops unless every OpenBLAS took that kernel (a second-kernel run that silently ran
+the first would prove nothing).
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+
+
+def _blas_kernels() -> list[str]:
+    import numpy  # noqa: F401  (loads the BLAS libraries threadpoolctl reports)
+    import scipy.linalg  # noqa: F401
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:  # not in the test extra's environment: nothing to report
+        return []
+
+    return [f"{i['internal_api']} {i['version']} {i.get('architecture')} ({Path(i['filepath']).name})"
+            for i in threadpool_info() if i["user_api"] == "blas"]
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    return "BLAS: " + "; ".join(_blas_kernels())
+
+
+#: the kernel OpenBLAS reports for a forced core type whose kernels are another's (scipy-openblas
+#: 0.3.30/0.3.31: Prescott runs the Katmai kernels, Zen the Haswell ones)
+_KERNEL_OF = {"prescott": "katmai", "core2": "katmai", "zen": "haswell", "cooperlake": "skylakex"}
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    want = os.environ.get("OPENBLAS_CORETYPE", "").strip().lower()
+    if not want:
+        return
+    kernel = _KERNEL_OF.get(want, want)
+    got = _blas_kernels()
+    if not got or any(f" {kernel} (" not in k.lower() for k in got if k.startswith("openblas")):
+        raise pytest.UsageError(f"OPENBLAS_CORETYPE={os.environ['OPENBLAS_CORETYPE']} did not take "
+                                f"effect: {'; '.join(got)}")
 
 
 @pytest.fixture(scope="session")

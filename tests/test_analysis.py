@@ -23,6 +23,8 @@ from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze, reproduction_table
 from dronefly.plant import model
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 ROWS = {(r.source, r.quantity): r for r in reproduction_table()}
 
 

@@ -13,6 +13,8 @@ from dronefly.controller import law as L
 
 from controller_common import ROOT, dimensional, random_gains
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 
 def test_paper_gains_and_defaults():
     """Eq. (27) in row 1 (its digits are checked against the paper's own inputs in

@@ -5,6 +5,8 @@ import pytest
 
 from docnumbers import NumericText, numbers_differ, same_numbers
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 
 @pytest.mark.parametrize("a, b, differ", [
     ("0.0477435", "0.0477434", False),  # a rounding edge: one unit of the last digit

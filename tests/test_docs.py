@@ -99,6 +99,7 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
 
 
 # --- numbers ---------------------------------------------------------------------------------
+@pytest.mark.numeric
 def test_readme_verdict_table_is_what_demo_prints(tmp_path):
     from dronefly.harness.cosim.demo import verdict_table
 
@@ -111,6 +112,7 @@ def test_readme_verdict_table_is_what_demo_prints(tmp_path):
         assert diff is None, (diff, got, want)
 
 
+@pytest.mark.numeric
 def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
     from dronefly.harness.cosim.run import cosimulate
     from dronefly.harness.paper.reproduction import reproduction_table
@@ -132,6 +134,7 @@ def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
             and f"{by['rounding']} differ" in readme and f"{by['error in print']} are errors" in readme)
 
 
+@pytest.mark.numeric
 def test_simulate_deviation_quoted_in_readme(tmp_path):
     from dronefly.simulate import simulate_plant
 
@@ -140,6 +143,7 @@ def test_simulate_deviation_quoted_in_readme(tmp_path):
     assert "(about 1e-14)" in (ROOT / "README.md").read_text(encoding="utf-8")
 
 
+@pytest.mark.numeric
 def test_sweep_case_counts_quoted_in_docs():
     from dronefly.harness.sweep.cases import SweepSpec
 

@@ -37,6 +37,8 @@ A2, B2 = lon.system_matrices(NP)
 #: the eight linear states: lateral (Eq. 12) then longitudinal (Sect. 3.5)
 EIGHT = ("delta_v", "delta_p", "delta_r", "delta_gamma", "delta_u", "delta_w", "delta_q",
          "delta_theta")
+
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 #: held controls of the accuracy tests, rad: lateral (3) and longitudinal (4)
 C_LAT, C_LON = np.array([0.02, -0.01, 0.005]), np.array([0.01, -0.02, 0.03, 0.005])
 _INERTIA_AND_GRAVITY = ("m_plus", "Ix_plus", "Iy_plus", "Iz_plus", "Ixz_plus", "g_plus")

@@ -25,7 +25,7 @@ from dronefly.lateral import sort_eigenvalues
 from dronefly.plant import model as lateral_model
 from dronefly.plant_longitudinal import model as longitudinal_model
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.numeric]
 
 PHIBAR_ROW = 2  # delta_phibar is row 3 of the longitudinal controller (B column order)
 

@@ -31,6 +31,8 @@ from dronefly.harness.latency.spectral import collocation_margin, collocation_ro
 from dronefly.harness.latency.report import ms_to_wb
 from dronefly.linear import discretize_zoh
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 DOC = Path(__file__).resolve().parents[1] / "docs" / "latency.md"
 
 

@@ -13,6 +13,8 @@ from dronefly.build import fmu_sources
 from dronefly.controller.slave import StateFeedback
 from dronefly.plant.slave import DroneFlyLateral
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 
 def test_reference_scales_from_flight_data():
     # U = 2 Phi n r2 (Sect. 2.4), computed here from the printed flight data

@@ -26,6 +26,8 @@ from dronefly.plant_longitudinal import model as M
 
 from fmu_helpers import model_description, set_values, start
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT.parent / "shared" / "paper" / "zhang-sun-lateral-stabilization-control.md"
 DOC = ROOT / "docs" / "longitudinal.md"

@@ -19,6 +19,8 @@ _T2 = {k: float(t) for k, t in pv.TABLE2.items()}
 EIG_TABLE2 = (_T2["lambda1"], complex(_T2["lambda23_re"], _T2["lambda23_im"]),
               complex(_T2["lambda23_re"], -_T2["lambda23_im"]), _T2["lambda4"])
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 
 def test_a1_from_parameters_equals_eq12():
     """Eq. (10) applied to the derived derivatives gives back Eq. (12) (round trip)."""

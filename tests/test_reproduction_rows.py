@@ -16,6 +16,8 @@ from dronefly.harness.paper import values as pv
 from dronefly.harness.paper.reproduction import reproduction_table
 from dronefly.plant import model
 
+pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
+
 ROWS = {(r.source, r.quantity): r for r in reproduction_table()}
 
 REASONS = {"convention", "rounding", "error in print"}

@@ -23,7 +23,7 @@ from docnumbers import NumericText, assert_same_numbers
 from dronefly.harness.sweep.cases import SweepSpec
 from dronefly.harness.sweep.run import COLUMNS, read_rows, run_sweep
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.numeric]
 
 ROOT = Path(__file__).resolve().parents[1]
 TODAY = SweepSpec(disturbances=("grid", "directions"), slices=(("dgamma", "dp"),), grid_points=3,

@@ -21,7 +21,7 @@ from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36, SweepInputError, S
 from dronefly.harness.sweep.compare import LONGITUDINAL_AXES, compare_summary
 from dronefly.harness.sweep.run import run_sweep
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.numeric]
 
 DOC = (Path(__file__).resolve().parents[1] / "docs" / "validity.md").read_text(encoding="utf-8")
 #: the document with its line breaks as spaces (the fragments below do not depend on them),

@@ -139,7 +139,7 @@ def test_iy_plus_is_iy_in_the_paper_s_nondimensionalisation(paper):
     ix_plus = re.search(r"I_\{x\}\^\{\+\}=([0-9.]+)", s21).group(1)
     iz_plus = re.search(r"I_\{z\}\^\{\+\}=([0-9.]+)", s21).group(1)
     assert IY_PLUS == pytest.approx(mg_mm2["y"] / mg_mm2["x"] * float(ix_plus), rel=1e-15)
-    assert f"{IY_PLUS:.3f}" == "19.895"
+    assert abs(IY_PLUS - 19.895) <= 5e-4  # the value docs/longitudinal.md prints, to its digits
     raw = {k: v * 1e-12 / _inertia_scale() for k, v in mg_mm2.items()}
     fx = float(ix_plus) / raw["x"]
     fz = float(iz_plus) / raw["z"]

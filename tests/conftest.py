@@ -8,6 +8,7 @@ the first would prove nothing).
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -43,6 +44,16 @@ def pytest_configure(config: pytest.Config) -> None:
     if not got or any(f" {kernel} (" not in k.lower() for k in got if k.startswith("openblas")):
         raise pytest.UsageError(f"OPENBLAS_CORETYPE={os.environ['OPENBLAS_CORETYPE']} did not take "
                                 f"effect: {'; '.join(got)}")
+
+
+@pytest.fixture
+def sigint_as_in_a_terminal():
+    """SIGINT handled as in a process started from a terminal (KeyboardInterrupt), for the tests
+    of Ctrl-C: a test run started in the background of a non-interactive shell inherits SIGINT
+    ignored, and an ignored SIGINT rightly stays ignored by the code under test."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture(scope="session")

@@ -64,6 +64,8 @@ def sigint_after_chunk(run_sweep: Any) -> Any:
 
 
 if __name__ == "__main__":
+    # as from a terminal: a background test run may have started this process with SIGINT ignored
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     from dronefly.cli import main
     from dronefly.harness.sweep import run as sweep_run
 

@@ -307,7 +307,7 @@ def test_cli_system_not_an_ssp(tmp_path, capsys):
     assert code == 2 and "bad.ssp" in err and err.count("\n") == 1
 
 
-def test_ctrl_c_stops_the_system_master_between_steps(hover_ssp, monkeypatch):
+def test_ctrl_c_stops_the_system_master_between_steps(hover_ssp, monkeypatch, sigint_as_in_a_terminal):
     """SIGINT during a run (sent at the master's 100th check between steps, tests/sigint_at.py):
     all instances terminated, KeyboardInterrupt, the master closes."""
     system = System.from_ssp(hover_ssp)

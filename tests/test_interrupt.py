@@ -11,7 +11,7 @@ import pytest
 from dronefly.interrupt import deferred_sigint
 
 
-def test_sigint_sets_a_flag_instead_of_raising():
+def test_sigint_sets_a_flag_instead_of_raising(sigint_as_in_a_terminal):
     with deferred_sigint() as stop:
         assert not stop.requested
         os.kill(os.getpid(), signal.SIGINT)
@@ -20,7 +20,7 @@ def test_sigint_sets_a_flag_instead_of_raising():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_third_sigint_raises():
+def test_third_sigint_raises(sigint_as_in_a_terminal):
     with pytest.raises(KeyboardInterrupt):
         with deferred_sigint():
             for _ in range(3):

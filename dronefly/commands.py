@@ -61,14 +61,19 @@ def cosim(args: argparse.Namespace) -> int:
 
 
 def _cosim_report(result: Any, as_json: bool) -> int:
-    """Print the summary (or the JSON) of a co-simulation; exit 1 if it stopped early."""
+    """Print the summary (or the JSON) of a co-simulation; exit 1 if it stopped early or one
+    of its cross-checks failed (the outputs are kept)."""
     import json
 
     print(json.dumps(result.to_json(), indent=2) if as_json else result.summary())
+    code = EXIT_OK
     if not result.run.complete:
         print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
+        code = EXIT_FAILED
+    for failure in result.check_failures:
+        print(f"dronefly cosim: error: cross-check failed: {failure}", file=sys.stderr)
+        code = EXIT_FAILED
+    return code
 
 
 def _cosim_system(args: argparse.Namespace) -> int:
@@ -86,10 +91,7 @@ def _cosim_system(args: argparse.Namespace) -> int:
                                master=args.master, set_values=dict(args.set_values),
                                record=args.record, out_dir=args.out, plot=not args.no_plot,
                                open_loop=args.open_loop)
-    code = _cosim_report(result, args.json)
-    for failure in result.check_failures:
-        print(f"dronefly cosim: error: cross-check failed: {failure}", file=sys.stderr)
-    return EXIT_FAILED if result.check_failures else code
+    return _cosim_report(result, args.json)
 
 
 def check(args: argparse.Namespace) -> int:

@@ -119,11 +119,17 @@ def check(args: argparse.Namespace) -> int:
 
 
 def demo(args: argparse.Namespace) -> int:
-    from dronefly.harness.cosim.demo import verdict_table
+    from dronefly.harness.cosim.demo import demo_runs, format_table
 
-    require("matplotlib")
-    print(verdict_table(out_dir=args.out))
-    return EXIT_OK
+    if not args.no_plot:
+        require("matplotlib", "pass --no-plot")
+    results = demo_runs(out_dir=args.out, plot=not args.no_plot,
+                        set_values=dict(args.set_values), build_dir=args.build)
+    print(format_table(results))
+    failed = [(g, f) for g, r in zip(("open", "paper"), results) for f in r.check_failures]
+    for gains, failure in failed:
+        print(f"dronefly demo: error: cross-check failed ({gains}): {failure}", file=sys.stderr)
+    return EXIT_FAILED if failed else EXIT_OK
 
 
 def analyze(args: argparse.Namespace) -> int:

@@ -21,7 +21,7 @@ from dronefly.harness.cosim.calculated import plant_matrices
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
-from dronefly.harness.cosim.stability import (TOL_PER_WINGBEAT, Identification, classify,
+from dronefly.harness.cosim.stability import (FIT_RESIDUAL_TOL, TOL_PER_WINGBEAT, Identification, classify,
                                               identify, rates_from_transition,
                                               sort_eigenvalues)
 
@@ -30,12 +30,6 @@ __all__ = ["FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TRAJECTORY_TOL", "Cosim
 
 _ID_STEPS = 20  # steps per identification run
 
-#: Largest fit residual max |z_(k+1) - F z_k| / |z_k| of a loop that is the linear map
-#: identified. The records are doubles of an exactly linear loop, so the residual is rounding
-#: (1e-15 measured for the project's FMUs); an unmodelled state or a nonlinearity leaves far
-#: more (3e-5 for the paper's gains saturating at u_max = 1e-3 rad, O(1) for a delay the map
-#: has no state for). 1e-9 keeps four orders of margin on either side.
-FIT_RESIDUAL_TOL = 1e-9
 #: Largest |identified - exact| dominant rate per wing beat (the rate that decides the
 #: verdict). A simple, separated eigenvalue moves by about its condition number (< 1e3 here)
 #: times the residual, so a loop that passes the residual check agrees to 1e-12 or better; 1e-6

@@ -1,0 +1,158 @@
+"""No silent wrong answers (issue 25): every verdict is that of the loop the FMUs run, and a
+verdict that the run's own cross-check contradicts is an error.
+
+Oracles: model (b) of docs/latency.md (the exact delayed sampled-data loop, itself checked
+against an event-by-event simulation in test_latency.py) from the paper's A and B
+(harness.paper.analysis.lateral_system, not the FMU's); the sweep's verdict for the same
+delays; the deliberately mismatched cases are loops that are not linear (a control clipped at
+u_max = 1e-3 rad, far inside what the unit initial states ask for) or that hold a state the
+identified map has not (a delayed controller where the importer's identification assumes
+none), so any verdict from them contradicts the run's own check.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from dronefly.cli import main
+from dronefly.controller.law import integral_gain_name
+from dronefly.harness.cosim.run import RATE_TOL_PER_WINGBEAT, cosimulate
+from dronefly.harness.cosim.stability import classify
+from dronefly.harness.latency.designs import DESIGNS, design
+from dronefly.harness.latency.sampled import sampled_margin, sampled_rates
+from dronefly.lateral import N_HZ
+
+pytestmark = pytest.mark.integration
+
+#: a control clipped far inside what the identification runs ask for: not a linear loop
+CLIPPED = {"controller.limit_enabled": "1", "controller.u_max": "0.001"}
+
+
+@pytest.fixture(scope="module")
+def fmus(built_fmus):
+    return built_fmus["DroneFlyLateral"], built_fmus["StateFeedback"]
+
+
+def _timing(d: int, loop) -> dict[str, float]:
+    """The controller's settings for d whole samples of delay, sampled once per wing beat,
+    and the design's integral gains (SI: seconds)."""
+    out = {"controller.sensing_delay": d / N_HZ, "controller.sample_period": 1.0 / N_HZ}
+    for i, j in zip(*np.nonzero(loop.KI)):
+        out[f"controller.{integral_gain_name(int(i), int(j))}"] = float(loop.KI[i, j])
+    return out
+
+
+@pytest.mark.parametrize("name", DESIGNS)
+def test_cosim_flips_the_verdict_at_the_sampled_margin(fmus, name):
+    """cosimulate with the controller delayed d = floor(margin) and d + 1 whole samples
+    (sampled once per wing beat, step 1 wing beat): the verdict identified from the runs is
+    model (b)'s at both (kept at d, lost at d + 1), its dominant rate model (b)'s within
+    RATE_TOL_PER_WINGBEAT (a simple eigenvalue of a fit with residual ~1e-15), and the run's
+    cross-checks pass. Before issue 25 cosim fitted a 4-state map to the 4 (d + 1)-state
+    loop (stabilising at d = 6: 'unstable', +0.01085)."""
+    loop = design(name)
+    m = sampled_margin(loop)
+    verdicts = []
+    for d in (m.whole, m.whole + 1):
+        r = cosimulate(*fmus, gains=loop.K, step_wingbeats=1.0, stop_wingbeats=40.0,
+                       out_dir=None, plot=False, set_values=_timing(d, loop))
+        exact = sampled_rates(loop, 1.0, float(d))
+        assert r.check_failures == [], (name, d, r.check_failures)
+        assert r.model_b == (1.0, float(d))
+        assert r.loop_states == 4 * (d + 1) + len(loop.integrated)
+        assert r.verdict == classify(exact), (name, d, r.verdict)
+        assert abs(r.identification.dominant_growth_rate - float(np.max(exact.real))) \
+            <= RATE_TOL_PER_WINGBEAT, (name, d)
+        verdicts.append(r.verdict)
+    assert verdicts[0] in ("stable", "neutral") and verdicts[1] == "unstable", (name, verdicts)
+
+
+def test_cli_cosim_at_six_and_seven_samples_matches_the_sweep(fmus, tmp_path, capsys):
+    """The issue's case through the CLI: the stabilising gains, sampled once per wing beat,
+    6 and 7 wing beats of delay: stable (-0.00888 per wing beat) then unstable (+0.00872), as
+    `dronefly sweep --delays 6,7 --sample-periods 1` says (its stability and
+    stability_identified columns), exit 0."""
+    from dronefly.harness.sweep.cases import SweepSpec
+    from dronefly.harness.sweep.run import run_sweep
+
+    rates = {}
+    for d in (6, 7):
+        argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]),
+                "--gains", "stabilising", "--step", "1", "--stop", "40",
+                "--set", f"controller.sensing_delay={d / N_HZ!r}",
+                "--set", f"controller.sample_period={1 / N_HZ!r}",
+                "--json", "--no-plot", "--out", str(tmp_path / "cosim")]
+        assert main(argv) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["check_failures"] == []
+        rates[d] = (out["verdict"], out["dominant_growth_rate_per_wingbeat"])
+    spec = SweepSpec.from_text(disturbances="directions", slices="dgamma:dv", grid=2, lhs=1,
+                               directions="+dgamma", amplitudes=1, gains="stabilising",
+                               steps="1", scales="1", stop="20", master="gauss-seidel",
+                               seed=0, extent=1.0, delays="6,7", sample_periods="1")
+    res = run_sweep(spec, tmp_path / "sweep", plant=fmus[0], controller=fmus[1], workers=1,
+                    plot=False, progress_bar=False)
+    sweep = {round(g["delay_wb"]): g for g in res.summary["delay_groups"]}
+    for d, verdict in ((6, "stable"), (7, "unstable")):
+        assert rates[d][0] == verdict == sweep[d]["stability"] == sweep[d]["stability_identified"]
+        # both are model (b) of the same loop: the dominant rates agree to the fit's rounding
+        assert abs(rates[d][1] - sweep[d]["stability_rate"]) <= RATE_TOL_PER_WINGBEAT
+    # docs/latency.md's numbers, to the 5 digits it prints
+    assert math.isclose(rates[6][1], -0.00888, abs_tol=5e-6)
+    assert math.isclose(rates[7][1], +0.00872, abs_tol=5e-6)
+
+
+def test_sample_instants_off_the_grid_are_refused(fmus, tmp_path, capsys):
+    """A sample period that is not a whole number of steps (0.0060976 s = 1.0000064 wing
+    beats at a step of 1 wing beat: the instants drift off the grid) is refused in one line
+    naming the value, exit 2, nothing written."""
+    argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--gains",
+            "stabilising", "--step", "1", "--set", "controller.sensing_delay=0.036585",
+            "--set", "controller.sample_period=0.0060976", "--no-plot", "--out",
+            str(tmp_path / "out")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "0.0060976" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+# --- every verdict-producing path with a deliberately mismatched case -----------------------
+def test_cosim_with_a_clipped_control_fails_its_cross_check(fmus, tmp_path, capsys):
+    """cosim: the clipped loop's identification leaves a fit residual far above rounding and
+    its trajectory leaves the linear one: 'cross-check failed', exit 1, outputs kept."""
+    argv = ["cosim", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--stop", "30",
+            *[a for k, v in CLIPPED.items() for a in ("--set", f"{k}={v}")],
+            "--no-plot", "--out", str(tmp_path)]
+    assert main(argv) == 1
+    cap = capsys.readouterr()
+    assert "cross-check failed" in cap.err
+    assert "CROSS-CHECK FAILED" in cap.out
+    assert list(tmp_path.glob("*.csv")) and list(tmp_path.glob("*.json"))
+
+
+def test_cosim_system_with_a_clipped_control_fails_its_cross_check(built_fmus, tmp_path,
+                                                                   capsys):
+    """cosim --system: the same clipped controller inside the hover system: exit 1."""
+    ssp = built_fmus["DroneFlyHover.ssp"]
+    argv = ["cosim", "--system", str(ssp), "--stop", "20", "--no-plot", "--out", str(tmp_path),
+            "--set", "lateral_controller.limit_enabled=1",
+            "--set", "lateral_controller.u_max=0.001"]
+    assert main(argv) == 1
+    assert "cross-check failed" in capsys.readouterr().err
+
+
+def test_demo_with_a_clipped_control_fails_its_cross_check(fmus, tmp_path, capsys):
+    """demo: the same clipped controller for both runs. The open loop (no control) passes,
+    the Eq. (27) loop is marked in the table and the command exits 1, outputs kept."""
+    argv = ["demo", "--no-plot", "--out", str(tmp_path / "cosim"), "--build",
+            str(fmus[0].parent), *[a for k, v in CLIPPED.items() for a in ("--set", f"{k}={v}")]]
+    assert main(argv) == 1
+    cap = capsys.readouterr()
+    assert "cross-check failed (paper)" in cap.err and "(open)" not in cap.err
+    assert "cross-check failed" in next(ln for ln in cap.out.splitlines()
+                                        if ln.startswith("paper "))
+    assert len(list((tmp_path / "cosim").glob("*.csv"))) == 2

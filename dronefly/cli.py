@@ -142,6 +142,9 @@ def _parser() -> argparse.ArgumentParser:
                         "--system, instance.NAME=VALUE of any parameter or input; SI units; the "
                         "value of its declared type (a number, a whole number, true/false/1/0, "
                         "text)")
+    c.add_argument("--allow-scale-mismatch", action="store_true",
+                   help="accept a plant and a controller whose n or U differ (refused otherwise: "
+                        "the controller reads the plant's state with its own n and U)")
     c.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")

@@ -56,7 +56,7 @@ def cosim(args: argparse.Namespace) -> int:
                         stop_wingbeats=300.0 if args.stop is None else args.stop,
                         master=args.master, out_dir=args.out, plot=not args.no_plot,
                         set_values=dict(args.set_values), record=args.record or (),
-                        build_dir=args.build)
+                        build_dir=args.build, allow_scale_mismatch=args.allow_scale_mismatch)
     return _cosim_report(result, args.json)
 
 

@@ -156,3 +156,48 @@ def test_demo_with_a_clipped_control_fails_its_cross_check(fmus, tmp_path, capsy
     assert "cross-check failed" in next(ln for ln in cap.out.splitlines()
                                         if ln.startswith("paper "))
     assert len(list((tmp_path / "cosim").glob("*.csv"))) == 2
+
+
+# --- point 2: a plant and a controller that disagree on their scales ------------------------
+def _sampled_rates_oracle(K: np.ndarray, h: float) -> np.ndarray:
+    """log(eig(Phi + Gamma K)) / h of the model's A, B (scipy's expm of the augmented
+    matrix, not the harness's discretisation), per wing beat, sorted by real part."""
+    from scipy.linalg import expm
+
+    from dronefly.plant import model
+
+    A, B = model.system_matrices(model.default_parameters())
+    E = expm(np.block([[A, B], [np.zeros((3, 7))]]) * h)
+    mu = np.linalg.eigvals(E[:4, :4] + E[:4, 4:] @ K)
+    return np.sort_complex(np.log(mu.astype(complex)) / h)
+
+
+def test_plant_and_controller_scales_must_agree_unless_intended(fmus, tmp_path, capsys):
+    """--set plant.n=200 with the controller at 164 Hz: refused in one line naming both
+    values (exit 2, nothing written), in cosim and in sweep. With --allow-scale-mismatch the
+    run goes ahead, and its model is the loop the FMUs run: the controller reads x+ scaled by
+    n_p / n_c on the rates, so the identified rates are those of Phi + Gamma K diag(1, r, r, 1),
+    r = 200 / 164, within 1e-9 (the fit's rounding times the eigenvalues' condition numbers,
+    < 1e3), and the cross-checks pass."""
+    base = ["--plant", str(fmus[0]), "--controller", str(fmus[1]), "--no-plot", "--stop", "30"]
+    assert main(["cosim", *base, "--set", "plant.n=200", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "plant.n = 200.0 Hz" in err and "controller.n = 164.0 Hz" in err
+    assert not (tmp_path / "a").exists()
+    assert main(["cosim", *base, "--set", "controller.U=2.0", "--out", str(tmp_path / "a")]) == 2
+    assert "controller.U = 2.0 m/s" in capsys.readouterr().err
+    assert main(["sweep", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--workers",
+                 "1", "--no-plot", "--no-progress", "--set", "plant.n=200",
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "controller.n = 164.0 Hz" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+    assert main(["cosim", *base, "--set", "plant.n=200", "--allow-scale-mismatch", "--json",
+                 "--out", str(tmp_path / "b")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["check_failures"] == []
+    r = 200.0 / N_HZ
+    K = np.array(out["gains"]) * np.array([1.0, r, r, 1.0])
+    got = np.sort_complex(np.array([complex(*e) for e in out["eigenvalues_per_wingbeat"]]))
+    np.testing.assert_allclose(got, _sampled_rates_oracle(K, 0.1), rtol=0, atol=1e-9)

@@ -19,7 +19,7 @@ from dronefly.controller.law import default_gains, gain_name
 from dronefly.plant.model import STATE_NAMES, discretize_zoh
 from dronefly.harness.cosim.calculated import plant_matrices
 from dronefly.harness.cosim.fmu import FMU
-from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments
+from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments, scale_ratios
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from dronefly.harness.cosim.stability import (FIT_RESIDUAL_TOL, TOL_PER_WINGBEAT, Identification, classify,
                                               identify, rates_from_transition,
@@ -179,7 +179,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
                master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
                plot: bool = True, name: str | None = None,
                set_values: Mapping[str, Any] | None = None,
-               record: Sequence[str] = (), build_dir: str | Path = "build") -> CosimResult:
+               record: Sequence[str] = (), build_dir: str | Path = "build",
+               allow_scale_mismatch: bool = False) -> CosimResult:
     """Co-simulate the loop, identify its eigenvalues and classify its stability.
 
     Parameters
@@ -213,6 +214,18 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         name).
     build_dir : path
         Where the project's FMUs are built when ``plant`` or ``controller`` is not given.
+    allow_scale_mismatch : bool
+        Accept a plant and a controller whose ``n`` or ``U`` differ (the controller then reads
+        the plant's x+ scaled by their ratios; the model and the cross-checks use the gains
+        as the plant sees them). Otherwise such a pair is refused.
+
+    Raises
+    ------
+    ParameterError
+        The plant's and the controller's ``n`` or ``U`` differ (without
+        ``allow_scale_mismatch``), a ``set_values`` name or value that cannot be used.
+    CoSimError
+        A bad step, stop, master or x0; sample instants off the communication grid.
     """
     K = as_gain_matrix(gains)
     x0v = parse_x0(x0)
@@ -229,7 +242,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
             "plant": pf.model_description, "controller": cf.model_description})
         result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
                              plot, name, values,
-                             (record,) if isinstance(record, str) else tuple(record))
+                             (record,) if isinstance(record, str) else tuple(record),
+                             allow_scale_mismatch)
     result.extra["requested_stop_wb"] = stop_wingbeats
     if built is not None:
         result.extra["built_into"] = str(built)
@@ -283,10 +297,13 @@ def _rel_error(xs: np.ndarray, ref: np.ndarray) -> float:
 def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None, values: Mapping[str, Mapping[str, Any]],
-                record: Sequence[str] = ()) -> CosimResult:
+                record: Sequence[str] = (), allow_scale_mismatch: bool = False) -> CosimResult:
     pf, cf = loop.plant, loop.controller
     plant_values, ctrl_values = dict(values.get("plant", {})), dict(values.get("controller", {}))
     scale = np.array(plant_scales({**pf.start_values(), **plant_values}))
+    ratio = scale_ratios({**pf.start_values(), **plant_values},
+                         {**cf.start_values(), **ctrl_values},
+                         allow_mismatch=allow_scale_mismatch)
     n = scale[1]
     h = step_wb / n
     n_steps = step_count(stop_wb, step_wb)
@@ -295,6 +312,11 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
              **{gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}}
     jacobi = master == "jacobi"
     tau_wb, period_wb, KI = _controller_timing(cf, ctrl_values, n)
+    Km = K  # the gains as the plant sees them: u = Km x+ in the plant's scales
+    if ratio is not None:
+        # the controller's x+ is ratio * the plant's, its integral runs over its own wing
+        # beats (n_c / n_p = 1 / ratio[1] of the plant's)
+        Km, KI = K * ratio, KI * ratio / ratio[1]
     timing = None
     if tau_wb or period_wb or KI.any():
         from dronefly.harness.sweep.timing import Timing
@@ -316,17 +338,17 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
                        controller_params=gains, instances=(p, c), record=record)
         if timing is None:
             ident, F, exact_rates = _identify_plain(loop, p, c, start, gains, h, step_wb,
-                                                    n_steps, scale, jacobi, A, B, K)
+                                                    n_steps, scale, jacobi, A, B, Km)
         else:
             ident, F, exact_rates, _ = _identify_model_b(loop, p, c, start, gains, h,
-                                                         timing, scale, A, B, K, KI)
+                                                         timing, scale, A, B, Km, KI)
         open_run = None
         if plot and out_dir is not None and K.any():  # the open loop, for comparison
             zero = {**gains, **{gain_name(i, j): 0.0 for i in range(K.shape[0])
                                 for j in range(K.shape[1])}}
             open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
                                 controller_params=zero, instances=(p, c))
-    cont = sort_eigenvalues(np.linalg.eigvals(A + B @ K))
+    cont = sort_eigenvalues(np.linalg.eigvals(A + B @ Km))
     xs = np.column_stack([run.column(s) for s in STATE_NAMES]) / scale
     z = np.zeros(len(F))
     z[:4] = x0

@@ -134,7 +134,8 @@ def _parser() -> argparse.ArgumentParser:
                         "file (default paper)")
     c.add_argument("--x0", type=converter(parse_x0), default=None,
                    metavar="dv+,dp+,dr+,dgamma",
-                   help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll)")
+                   help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll, or "
+                        "what --set plant.<state>_start gives; not both)")
     c.add_argument("--set", dest="set_values", action="append", default=[],
                    type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "

@@ -51,7 +51,7 @@ def cosim(args: argparse.Namespace) -> int:
     # the --set values as text: converted to the variables' types by cosimulate
     result = cosimulate(args.plant, args.controller,
                         gains="paper" if args.gains is None else args.gains,
-                        x0=(0.0, 0.0, 0.0, 0.1) if args.x0 is None else args.x0,
+                        x0=args.x0,
                         step_wingbeats=args.step,
                         stop_wingbeats=300.0 if args.stop is None else args.stop,
                         master=args.master, out_dir=args.out, plot=not args.no_plot,

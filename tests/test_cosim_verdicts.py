@@ -201,3 +201,33 @@ def test_plant_and_controller_scales_must_agree_unless_intended(fmus, tmp_path, 
     K = np.array(out["gains"]) * np.array([1.0, r, r, 1.0])
     got = np.sort_complex(np.array([complex(*e) for e in out["eigenvalues_per_wingbeat"]]))
     np.testing.assert_allclose(got, _sampled_rates_oracle(K, 0.1), rtol=0, atol=1e-9)
+
+
+# --- point 3: an initial state given with --set ---------------------------------------------
+def test_set_plant_start_takes_effect_or_the_conflict_is_refused(fmus, tmp_path, capsys):
+    """--set plant.delta_gamma_start=0.3 starts the run at 0.3 rad (the CSV's first row, read
+    as a number); with --x0 as well the two are refused in one line naming both (exit 2,
+    nothing written); the sweep, which sets every case's initial state, refuses it too."""
+    import csv
+
+    base = ["--plant", str(fmus[0]), "--controller", str(fmus[1]), "--no-plot", "--stop", "5"]
+    assert main(["cosim", *base, "--set", "plant.delta_gamma_start=0.3", "--json",
+                 "--out", str(tmp_path / "a")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    with open(out["csv"], newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert float(rows[0]["delta_gamma"]) == 0.3
+    assert [float(rows[0][s]) for s in ("delta_v", "delta_p", "delta_r")] == [0.0, 0.0, 0.0]
+    assert out["check_failures"] == []  # the exact solution is taken from the same x0
+
+    assert main(["cosim", *base, "--set", "plant.delta_gamma_start=0.3", "--x0=0,0,0,0.1",
+                 "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "plant.delta_gamma_start = 0.3" in err and "--x0" in err
+    assert not (tmp_path / "b").exists()
+    assert main(["sweep", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--workers",
+                 "1", "--no-plot", "--no-progress", "--set", "plant.delta_gamma_start=0.3",
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "delta_gamma_start" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

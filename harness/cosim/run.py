@@ -25,10 +25,12 @@ from dronefly.harness.cosim.stability import (FIT_RESIDUAL_TOL, TOL_PER_WINGBEAT
                                               identify, rates_from_transition,
                                               sort_eigenvalues)
 
-__all__ = ["FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TRAJECTORY_TOL", "CosimResult",
+__all__ = ["DEFAULT_X0", "FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TRAJECTORY_TOL", "CosimResult",
            "cosimulate", "parse_x0"]
 
 _ID_STEPS = 20  # steps per identification run
+#: The initial state x+ (dv+, dp+, dr+, dgamma) when none is given: a 0.1 rad roll.
+DEFAULT_X0 = (0.0, 0.0, 0.0, 0.1)
 
 #: Largest |identified - exact| dominant rate per wing beat (the rate that decides the
 #: verdict). A simple, separated eigenvalue moves by about its condition number (< 1e3 here)
@@ -174,7 +176,7 @@ def _sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: float,
 
 
 def cosimulate(plant: str | Path | None = None, controller: str | Path | None = None, *,
-               gains: str | np.ndarray = "paper", x0: str | Sequence[float] = (0, 0, 0, 0.1),
+               gains: str | np.ndarray = "paper", x0: str | Sequence[float] | None = None,
                step_wingbeats: float = 0.1, stop_wingbeats: float = 300.0,
                master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
                plot: bool = True, name: str | None = None,
@@ -193,8 +195,10 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         columns: dv+, dp+, dr+, dgamma): a named set ``paper`` (Eq. 27), ``stabilising`` or
         ``open``, an inline matrix, a ``.csv``/``.json`` file (see
         :func:`~dronefly.harness.cosim.params.parse_gains`) or an array.
-    x0 : str or sequence
-        Non-dimensional initial state (dv+, dp+, dr+, dgamma).
+    x0 : str or sequence, optional
+        Non-dimensional initial state (dv+, dp+, dr+, dgamma). Default :data:`DEFAULT_X0`
+        (a 0.1 rad roll), with the states whose ``plant.<state>_start`` [SI] ``set_values``
+        gives taken from there; giving both is refused.
     step_wingbeats, stop_wingbeats : float
         Communication step and stop time in wing beats.
     master : {'gauss-seidel', 'jacobi'}
@@ -225,10 +229,11 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         The plant's and the controller's ``n`` or ``U`` differ (without
         ``allow_scale_mismatch``), a ``set_values`` name or value that cannot be used.
     CoSimError
-        A bad step, stop, master or x0; sample instants off the communication grid.
+        A bad step, stop, master or x0, or x0 together with a ``plant.<state>_start``;
+        sample instants off the communication grid.
     """
     K = as_gain_matrix(gains)
-    x0v = parse_x0(x0)
+    x0v = None if x0 is None else parse_x0(x0)
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
@@ -294,7 +299,24 @@ def _rel_error(xs: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(np.abs(xs - ref) / peak))
 
 
-def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
+def _initial_state(x0: np.ndarray | None, plant_values: Mapping[str, Any],
+                   scale: np.ndarray) -> np.ndarray:
+    """x0, or :data:`DEFAULT_X0` with the states ``plant_values`` starts (``<state>_start``,
+    SI) taken from there; both given: refused."""
+    given = {i: f"{s}_start" for i, s in enumerate(STATE_NAMES) if f"{s}_start" in plant_values}
+    if given and x0 is not None:
+        name = next(iter(given.values()))
+        raise CoSimError(f"x0 = {','.join(f'{v:g}' for v in x0)} (--x0) and plant.{name} = "
+                         f"{plant_values[name]!r} both set the initial state: give one of them")
+    if x0 is not None:
+        return x0
+    out = np.array(DEFAULT_X0)
+    for i, name in given.items():
+        out[i] = float(plant_values[name]) / scale[i]
+    return out
+
+
+def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None, values: Mapping[str, Mapping[str, Any]],
                 record: Sequence[str] = (), allow_scale_mismatch: bool = False) -> CosimResult:
@@ -304,6 +326,7 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
     ratio = scale_ratios({**pf.start_values(), **plant_values},
                          {**cf.start_values(), **ctrl_values},
                          allow_mismatch=allow_scale_mismatch)
+    x0 = _initial_state(x0, plant_values, scale)
     n = scale[1]
     h = step_wb / n
     n_steps = step_count(stop_wb, step_wb)

@@ -73,6 +73,10 @@ def _resolve_values(refs: tuple[FmuRef, FmuRef],
     mds = {k: read_model_description(str(r.path)) for k, r in zip(("plant", "controller"), refs)}
     try:
         values = resolve_assignments(dict(set_values), mds) if set_values else {}
+        starts = sorted(k for k in values.get("plant", {}) if k.endswith("_start"))
+        if starts:
+            raise SweepInputError(f"--set plant.{starts[0]}: the sweep sets every case's "
+                                  "initial state from its disturbances (--disturbances)")
         # the cases' x0 and the verdicts read the plant's scales; the controller its own
         scale_ratios({**start_values(mds["plant"]), **values.get("plant", {})},
                      {**start_values(mds["controller"]), **values.get("controller", {})},

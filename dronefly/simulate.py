@@ -78,7 +78,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     """
     import fmpy
 
-    from .build import build_fmu
+    from .build import ensure_fmu
 
     from .harness.cosim.master import step_count
 
@@ -88,7 +88,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     requested = stop_wingbeats
     stop_wingbeats = n_steps * step_wingbeats
     out = Path(out_dir)
-    fmu = build_fmu("DroneFlyLateral", out)
+    fmu, _ = ensure_fmu("DroneFlyLateral", out)  # built only if missing or out of date
     res = fmpy.simulate_fmu(str(fmu), stop_time=stop_wingbeats / N_HZ,
                             output_interval=step_wingbeats / N_HZ,
                             start_values={"delta_gamma_start": gamma0},

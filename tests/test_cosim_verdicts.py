@@ -231,3 +231,45 @@ def test_set_plant_start_takes_effect_or_the_conflict_is_refused(fmus, tmp_path,
                  "--out", str(tmp_path / "s")]) == 2
     assert "delta_gamma_start" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+# --- point 4: files a user did not ask to change ---------------------------------------------
+def test_cosim_builds_only_what_is_missing_and_leaves_a_user_file_alone(tmp_path, capsys):
+    """cosim with the default FMUs: the first run builds both into --build and says so; a
+    second run finds them up to date (same bytes, same modification times, nothing said); an
+    FMU built from other sources (its package hash) is rebuilt; a file the build did not write
+    at an FMU's path is left alone with one line naming it (exit 2), as in `dronefly build`."""
+    import zipfile
+
+    build = tmp_path / "build"
+    argv = ["cosim", "--build", str(build), "--stop", "1", "--no-plot", "--out",
+            str(tmp_path / "out")]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    fmus = [build / "DroneFlyLateral.fmu", build / "StateFeedback.fmu"]
+    assert all(f"built {p}" in out for p in fmus)
+    before = [(p.read_bytes(), p.stat().st_mtime_ns) for p in fmus]
+    assert main(argv) == 0
+    assert "built" not in capsys.readouterr().out
+    assert [(p.read_bytes(), p.stat().st_mtime_ns) for p in fmus] == before
+
+    # the same FMU as from older sources: another package hash in slavemodule.txt
+    stale = fmus[1]
+    with zipfile.ZipFile(stale) as z:
+        members = {n: z.read(n) for n in z.namelist()}
+    members["resources/slavemodule.txt"] = b"dronefly_statefeedback_0000000000000000_slave"
+    with zipfile.ZipFile(stale, "w") as z:
+        for n, data in members.items():
+            z.writestr(n, data)
+    assert main(argv) == 0
+    assert f"built {stale}" in capsys.readouterr().out
+    assert stale.read_bytes() == before[1][0]
+
+    stale.write_text("my notes\n", encoding="utf-8")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and str(stale) in err and "left alone" in err
+    assert stale.read_text(encoding="utf-8") == "my notes\n"
+    assert main(["build", "--out", str(build)]) == 2
+    assert str(stale) in capsys.readouterr().err
+    assert stale.read_text(encoding="utf-8") == "my notes\n"

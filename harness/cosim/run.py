@@ -110,6 +110,7 @@ class CosimResult:
             "csv": None if self.csv is None else str(self.csv),
             "plot": None if self.plot is None else str(self.plot),
             "recorded": list(self.run.names),
+            "built": list(self.extra.get("built", ())),
         }
 
     def summary(self) -> str:
@@ -136,8 +137,8 @@ class CosimResult:
                                                       rel_tol=1e-9):
             lines.append(f"note: the requested stop {requested:g} wing beats is not a whole "
                          f"number of steps; the run stops at {self.stop_wingbeats:g}")
-        if self.extra.get("built_into"):
-            lines.append(f"FMUs built into {self.extra['built_into']}")
+        for path in self.extra.get("built", ()):
+            lines.append(f"built {path} (missing or out of date with the sources)")
         if not self.run.complete:
             lines.append(f"INCOMPLETE: {self.run.failure}")
         lines += [f"CROSS-CHECK FAILED: {f}" for f in self.check_failures]
@@ -239,8 +240,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
     from dronefly.build import project_fmus
 
-    built = None if plant is not None and controller is not None else Path(build_dir).resolve()
-    plant, controller = project_fmus(plant, controller, build_dir)
+    built: list[Path] = []
+    plant, controller = project_fmus(plant, controller, build_dir, built=built)
     with FMU(plant) as pf, FMU(controller) as cf:
         loop = Loop(pf, cf)
         values = resolve_assignments(dict(set_values or {}), {
@@ -248,10 +249,8 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
                              plot, name, values,
                              (record,) if isinstance(record, str) else tuple(record),
-                             allow_scale_mismatch)
+                             allow_scale_mismatch, [str(p) for p in built])
     result.extra["requested_stop_wb"] = stop_wingbeats
-    if built is not None:
-        result.extra["built_into"] = str(built)
     return result
 
 
@@ -319,7 +318,8 @@ def _initial_state(x0: np.ndarray | None, plant_values: Mapping[str, Any],
 def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None, values: Mapping[str, Mapping[str, Any]],
-                record: Sequence[str] = (), allow_scale_mismatch: bool = False) -> CosimResult:
+                record: Sequence[str] = (), allow_scale_mismatch: bool = False,
+                built: Sequence[str] = ()) -> CosimResult:
     pf, cf = loop.plant, loop.controller
     plant_values, ctrl_values = dict(values.get("plant", {})), dict(values.get("controller", {}))
     scale = np.array(plant_scales({**pf.start_values(), **plant_values}))
@@ -393,6 +393,7 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
                          check_failures=failures, loop_states=len(F),
                          model_b=None if timing is None else timing.model_b())
     result.extra["scale"] = scale.tolist()
+    result.extra["built"] = list(built)
     result.extra["controls"] = list(loop.controls)  # what the plot draws as controls
     if open_run is not None:
         result.extra["open_loop"] = open_run

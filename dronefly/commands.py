@@ -163,7 +163,11 @@ def sweep(args: argparse.Namespace) -> int:
     from dronefly.harness.sweep.cases import SweepSpec
     from dronefly.harness.sweep.results import format_summary
 
-    require("threadpoolctl")
+    if args.scheduler is not None or args.workers != 1:  # one BLAS thread per worker process
+        import os
+
+        if args.scheduler is not None or (args.workers or os.cpu_count() or 1) > 1:
+            require("threadpoolctl", "pass --workers 1")
     if not args.no_progress:
         require("tqdm", "pass --no-progress")
     if not args.no_plot:

@@ -273,3 +273,46 @@ def test_cosim_builds_only_what_is_missing_and_leaves_a_user_file_alone(tmp_path
     assert main(["build", "--out", str(build)]) == 2
     assert str(stale) in capsys.readouterr().err
     assert stale.read_text(encoding="utf-8") == "my notes\n"
+
+
+# --- point 10: the core install -------------------------------------------------------------
+#: every optional package of the extras (pyproject.toml), as if not installed
+OPTIONAL = ("matplotlib", "tqdm", "threadpoolctl", "distributed", "dask", "libcosimpy")
+
+
+@pytest.fixture
+def core_install(monkeypatch):
+    """The optional packages blocked (``import`` raises ImportError, as when not installed)."""
+    import sys
+
+    for m in OPTIONAL:
+        monkeypatch.setitem(sys.modules, m, None)
+
+
+def test_every_command_runs_on_the_core_install(core_install, fmus, tmp_path, capsys):
+    """With no extra installed, each command runs with its optional parts turned off
+    (demo and cosim --no-plot, sweep --workers 1 --no-plot --no-progress), and a part that
+    needs an extra names it in one line (exit 2)."""
+    plant, ctrl = (str(p) for p in fmus)
+    build = str(fmus[0].parent)
+    runs = [
+        ["build", "--out", str(tmp_path / "build")],
+        ["check", "--no-fuzz", plant],
+        ["simulate", "--stop", "2", "--out", str(tmp_path / "sim")],
+        ["cosim", "--plant", plant, "--controller", ctrl, "--stop", "2", "--no-plot",
+         "--out", str(tmp_path / "cosim")],
+        ["demo", "--no-plot", "--build", build, "--out", str(tmp_path / "demo")],
+        ["analyze", "--out", str(tmp_path / "analysis.txt")],
+        ["sweep", "--plant", plant, "--controller", ctrl, "--workers", "1", "--no-plot",
+         "--no-progress", "--disturbances", "directions", "--directions", "+dgamma",
+         "--amplitudes", "1", "--gains", "paper", "--steps", "1", "--stop", "5",
+         "--out", str(tmp_path / "sweep")],
+    ]
+    for argv in runs:
+        assert main(argv) == 0, (argv, capsys.readouterr().err)
+        capsys.readouterr()
+    for argv, extra in ((["demo", "--build", build, "--out", str(tmp_path / "d2")], "plot"),
+                        (runs[-1][:5] + ["--workers", "2", *runs[-1][7:]], "sweep")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and f"dronefly-fmu[{extra}]" in err, err

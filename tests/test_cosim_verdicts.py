@@ -316,3 +316,46 @@ def test_every_command_runs_on_the_core_install(core_install, fmus, tmp_path, ca
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and f"dronefly-fmu[{extra}]" in err, err
+
+
+# --- point 5: setuptools' build tree and a checkout named dronefly ---------------------------
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+
+
+def test_setuptools_builds_apart_from_the_fmus():
+    """`pip install .` builds with setuptools in the checkout: its build/lib and
+    build/bdist.* (as setuptools itself resolves them from setup.cfg, where the project sets
+    its build folder; pyproject.toml sets none) lie outside build/, where the FMUs are
+    built."""
+    import subprocess
+    import sys
+
+    code = ("from setuptools.dist import Distribution\n"
+            "d = Distribution({'name': 'x'}); d.parse_config_files(['setup.cfg'])\n"
+            "for c, a in (('build', 'build_lib'), ('build', 'build_temp'), ('bdist', 'bdist_base')):\n"
+            "    cmd = d.get_command_obj(c); cmd.ensure_finalized(); print(getattr(cmd, a))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr
+    dirs = [(ROOT / line).resolve() for line in r.stdout.split()]
+    assert len(dirs) == 3
+    for d in dirs:
+        assert not d.is_relative_to(ROOT / "build"), d
+
+
+def test_a_checkout_named_dronefly_is_diagnosed_in_one_line(tmp_path):
+    """Python started in the folder that holds a checkout named dronefly imports the checkout
+    as the package (its build/ as dronefly.build): the import fails with one line saying so,
+    not 'cannot import name ... (unknown location)'."""
+    import subprocess
+    import sys
+
+    (tmp_path / "dronefly").symlink_to(ROOT, target_is_directory=True)
+    r = subprocess.run([sys.executable, "-c", "from dronefly.build import project_fmus"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                       env={k: v for k, v in __import__("os").environ.items()
+                            if k != "PYTHONPATH"})
+    assert r.returncode == 1
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith("ImportError: ") and "is a dronefly-fmu checkout" in last, r.stderr
+    assert "unknown location" not in r.stderr

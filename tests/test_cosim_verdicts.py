@@ -359,3 +359,28 @@ def test_a_checkout_named_dronefly_is_diagnosed_in_one_line(tmp_path):
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith("ImportError: ") and "is a dronefly-fmu checkout" in last, r.stderr
     assert "unknown location" not in r.stderr
+
+
+# --- point 8: analyze --targets puts the design first ---------------------------------------
+def test_analyze_targets_prints_the_design_first(capsys):
+    """With --targets the designed gains are the first line of the text and the first key of
+    the JSON; they place the targets: eig(A1 + b k) with the model's A1, b (Table 1) equal
+    the targets to 1e-9 (distinct, well-separated targets: the eigenvalues of the closed
+    loop move by about cond(V) * 1e-15 * |k|, cond(V) < 1e3 here)."""
+    from dronefly.plant import model
+
+    targets = "--targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51"
+    assert main(["analyze", targets]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("Design for the given targets with delta_Phi_a: k = ")
+    assert main(["analyze", targets, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert next(iter(out)) == "custom_design"
+    k = np.array(out["custom_design"]["gains"])
+    # the printed line holds the same gains (6 decimals)
+    printed = [float(v) for v in first.split("k = (")[1].rstrip(")").split(",")]
+    np.testing.assert_allclose(printed, k, rtol=0, atol=5e-7)
+    A, B = model.system_matrices(model.default_parameters())
+    got = np.sort_complex(np.linalg.eigvals(A + np.outer(B[:, 0], k)))
+    want = np.sort_complex(np.array([-0.2, -0.089 + 0.057j, -0.089 - 0.057j, -0.51]))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)

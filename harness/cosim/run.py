@@ -64,9 +64,14 @@ class CosimResult:
     master: str
     step_wingbeats: float
     stop_wingbeats: float
+    #: identified from the co-simulated runs (their fitted transition matrix)
     identification: Identification
-    continuous_eigenvalues: np.ndarray  # eig(A1 + B1 K) per wing beat
-    sampled_eigenvalues: np.ndarray  # exact ZOH closed loop at the same step
+    #: computed from the plant FMU's A1, B1 and K: eig(A1 + B1 K) per wing beat, the continuous
+    #: loop (the runs hold the control over each step, so they identify sampled_eigenvalues)
+    continuous_eigenvalues: np.ndarray
+    #: computed from A1, B1 and K: the exact sampled-data loop at the run's step (zero-order
+    #: hold; with a delay line, model (b)), log(mu) / step per wing beat
+    sampled_eigenvalues: np.ndarray
     trajectory_error: float  # max relative deviation from the exact sampled-data solution
     csv: Path | None = None
     plot: Path | None = None
@@ -82,7 +87,13 @@ class CosimResult:
 
     @property
     def verdict(self) -> str:
+        """The verdict of the loop identified from the runs."""
         return self.identification.verdict
+
+    @property
+    def identified_eigenvalues(self) -> np.ndarray:
+        """Eigenvalues per wing beat identified from the co-simulated runs (sorted)."""
+        return self.identification.eigenvalues
 
     def to_json(self) -> dict[str, Any]:
         ev = self.identification.eigenvalues
@@ -93,6 +104,10 @@ class CosimResult:
             "master": self.master,
             "gains": self.gains.tolist(),
             "eigenvalues_per_wingbeat": [[float(e.real), float(e.imag)] for e in ev],
+            "eigenvalues_source": "identified from the co-simulated runs; "
+                                  "sampled_data_eigenvalues_per_wingbeat and "
+                                  "continuous_eigenvalues_per_wingbeat are computed from the "
+                                  "plant FMU's A1, B1 and the gains",
             "dominant_growth_rate_per_wingbeat": self.identification.dominant_growth_rate,
             "tolerance_per_wingbeat": TOL_PER_WINGBEAT,
             "continuous_eigenvalues_per_wingbeat":
@@ -122,12 +137,18 @@ class CosimResult:
         where = ("" if self.model_b is None else
                  f" (a loop of {self.loop_states} states: sampled every "
                  f"{self.model_b[0]:g} wing beats, delayed {self.model_b[1]:g})")
+        sampled = self.sampled_eigenvalues[:_SHOWN]
         lines = [
             f"verdict: {self.verdict} (dominant rate "
             f"{self.identification.dominant_growth_rate:+.5f} per wing beat, tolerance "
             f"{TOL_PER_WINGBEAT:g})",
-            f"identified eigenvalues per wing beat{where}: {ev}",
-            f"eig(A1 + B1 K): {', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
+            f"identified from the co-simulated runs, per wing beat{where}: {ev}",
+            "computed from the plant FMU's A1, B1 and K, per wing beat: the exact sampled-data "
+            f"loop at this step (the control held over each step, what the runs are checked "
+            f"against): {', '.join(_fmt_complex(e) for e in sampled)}"
+            + (", ..." if len(self.sampled_eigenvalues) > len(sampled) else "")
+            + f"; eig(A1 + B1 K) of the continuous loop (no hold): "
+            f"{', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
             f"{self.master} master, step {self.step_wingbeats:g} wing beats, "
             f"{len(self.run.time) - 1} steps to {self.stop_wingbeats:g} wing beats; max deviation "
             f"from the exact sampled-data solution {self.trajectory_error:.1e}",

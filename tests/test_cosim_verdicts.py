@@ -407,3 +407,28 @@ def test_cosim_says_which_eigenvalues_are_identified_and_which_computed(fmus, ca
     assert "identified from the co-simulated runs" in text
     assert "computed from the plant FMU's A1, B1 and K" in text
     assert "identified from the co-simulated runs" in r.to_json()["eigenvalues_source"]
+
+
+# --- point 7: the altitude lost, and with which controllers ---------------------------------
+def test_altitude_lost_says_with_which_controllers():
+    """README and docs/validity.md: the 0.22 rad roll's sink over 100 wing beats in the
+    nonlinear plant, with both controllers (4.753 mm) and with the lateral one alone
+    (9.762 mm), each quoted to its printed rounding (0.05 mm)."""
+    import re
+
+    from dronefly.harness.nonlinear.terms import term_errors
+
+    both = 1e3 * term_errors("+dgamma").altitude_lost_m["all"]
+    alone = 1e3 * term_errors("+dgamma", longitudinal_control=False).altitude_lost_m["all"]
+    assert alone > 1.5 * both  # the longitudinal controller recovers part of the sink
+    for doc, pattern in (
+            ("README.md", r"costs ([0-9.]+) mm of altitude in 100 wing beats with both "
+                          r"controllers flying .*?, ([0-9.]+) mm with the lateral controller "
+                          r"alone"),
+            ("docs/validity.md", r"it loses ([0-9.]+) mm in 100 wing beats \(0\.61 s\) with "
+                                 r"both controllers flying .*?, ([0-9.]+) mm with the lateral "
+                                 r"controller alone")):
+        text = " ".join((ROOT / doc).read_text(encoding="utf-8").split())
+        m = re.search(pattern, text)
+        assert m, doc
+        assert abs(float(m.group(1)) - both) <= 0.05 and abs(float(m.group(2)) - alone) <= 0.05

@@ -432,3 +432,22 @@ def test_altitude_lost_says_with_which_controllers():
         m = re.search(pattern, text)
         assert m, doc
         assert abs(float(m.group(1)) - both) <= 0.05 and abs(float(m.group(2)) - alone) <= 0.05
+
+
+# --- point 9: docs/latency.md names every design --------------------------------------------
+def test_latency_doc_names_every_design():
+    """docs/latency.md's section on the designs names each of DESIGNS as design("name"), with
+    its label (the design's own, as tables print it) and nothing that is not a design."""
+    import re
+
+    from dronefly.harness.latency.designs import designs
+
+    text = (ROOT / "docs" / "latency.md").read_text(encoding="utf-8")
+    section = text.split("## The designs", 1)[1].split("\n## ", 1)[0]
+    named = re.findall(r'`design\("([a-z0-9_]+)"\)`', section)
+    assert sorted(named) == sorted(DESIGNS) and len(named) == len(set(named))
+    for name, loop in designs().items():
+        bullet = next(b for b in section.split("\n- ") if b.startswith(f'`design("{name}")`'))
+        words = {"eq27": "as printed", "eq27_exact": "exactly", "stabilising": "-0.1",
+                 "lqr": "Bryson", "pi": "PI"}[name]
+        assert words in bullet and words in loop.name, (name, loop.name)

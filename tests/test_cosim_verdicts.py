@@ -451,3 +451,22 @@ def test_latency_doc_names_every_design():
         words = {"eq27": "as printed", "eq27_exact": "exactly", "stabilising": "-0.1",
                  "lqr": "Bryson", "pi": "PI"}[name]
         assert words in bullet and words in loop.name, (name, loop.name)
+
+
+def test_jacobi_with_a_delay_line_is_model_b_and_its_lag_with_integral_action_is_refused(fmus):
+    """Jacobi with 6 samples of sensing delay, sampled once per wing beat: the verdict and
+    rate of model (b) (the master's lag is inside the delay), cross-checks passed. Jacobi
+    without sensing delay but with integral gains is not model (b) (its lag delays the sensed
+    state, not its integral: the trajectory check would fail by 6e-4): refused before any run."""
+    from dronefly.harness.cosim.master import CoSimError
+
+    loop = design("stabilising")
+    r = cosimulate(*fmus, gains=loop.K, master="jacobi", step_wingbeats=1.0,
+                   stop_wingbeats=40.0, out_dir=None, plot=False, set_values=_timing(6, loop))
+    exact = sampled_rates(loop, 1.0, 6.0)
+    assert r.check_failures == [] and r.verdict == classify(exact) == "stable"
+    assert abs(r.identification.dominant_growth_rate - float(np.max(exact.real))) \
+        <= RATE_TOL_PER_WINGBEAT
+    with pytest.raises(CoSimError, match="Jacobi master and no sensing delay"):
+        cosimulate(*fmus, gains=loop.K, master="jacobi", stop_wingbeats=5.0, out_dir=None,
+                   plot=False, set_values={"controller.KI[1,4]": -0.001})

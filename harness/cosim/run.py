@@ -366,6 +366,14 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
         from dronefly.harness.sweep.timing import Timing
 
         timing = Timing(step_wb, tau_wb, period_wb, jacobi)
+        if jacobi and timing.tau_eff == 0.0 and (KI.any() or timing.model_b() is None):
+            # the master's one-step lag delays the sensed state but not the integral of it:
+            # not model (b), whose delay delays both
+            raise CoSimError(
+                "with the Jacobi master and no sensing delay the controller sees every sample "
+                "one step late; cosim identifies that loop only without integral gains (KI) "
+                "and sampling at every step: give controller.sensing_delay of at least one "
+                f"step ({step_wb / float(n)!r} s) or use --master gauss-seidel")
         if timing.model_b() is None:
             raise CoSimError(
                 f"controller.sample_period = {float(period_wb / n)!r} s is {period_wb:.9g} wing "
@@ -378,8 +386,12 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
 
     A, B = _read_plant_matrices(loop, plant_values)
     with pf.instantiate() as p, cf.instantiate() as c:
+        # with a delay line (model (b)) the controller starts at the equilibrium: under the
+        # Jacobi master it is fed x = 0 before the first step, as model (b) has it
+        feed0 = [0.0] * 4 if jacobi and timing is not None else None
         run = loop.run(h, n_steps, master=master, plant_start=start(x0),
-                       controller_params=gains, instances=(p, c), record=record)
+                       controller_params=gains, instances=(p, c), record=record,
+                       u_source0=feed0)
         if timing is None:
             ident, F, exact_rates = _identify_plain(loop, p, c, start, gains, h, step_wb,
                                                     n_steps, scale, jacobi, A, B, Km)
@@ -391,12 +403,12 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
             zero = {**gains, **{gain_name(i, j): 0.0 for i in range(K.shape[0])
                                 for j in range(K.shape[1])}}
             open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
-                                controller_params=zero, instances=(p, c))
+                                controller_params=zero, instances=(p, c), u_source0=feed0)
     cont = sort_eigenvalues(np.linalg.eigvals(A + B @ Km))
     xs = np.column_stack([run.column(s) for s in STATE_NAMES]) / scale
     z = np.zeros(len(F))
     z[:4] = x0
-    if jacobi and (timing is None or timing.tau_eff == 0.0):
+    if jacobi and timing is None:
         z[4:8] = x0  # the Jacobi master feeds the controller x0 before the first step
     every = 1 if timing is None else int(round(timing.Ts / step_wb))
     xs = xs[::every]

@@ -41,9 +41,13 @@ _EPILOG = {
              "  dronefly cosim --system build/DroneFlyHover.ssp --open-loop\n"
              "  dronefly cosim --system my.ssp --set lateral.delta_p_start=1 "
              "--record lateral.delta_p,lateral.delta_gamma\n"
-             "exit codes: 0 ok, 1 the run stopped early (partial result kept) or, with "
-             "--system, an identified loop failed its cross-check against eig(A + B K) (open "
-             "loop: eig(A); outputs kept), 2 bad input, 130 interrupted" + _UNITS,
+             "  dronefly cosim --step 1 --set controller.sensing_delay=0.036585365853658534 "
+             "--set controller.sample_period=0.006097560975609756\n"
+             "exit codes: 0 ok, 1 the run stopped early (partial result kept) or its "
+             "cross-check failed: the identified loop against the exact sampled-data loop "
+             "(with --system: against eig(A + B K), open loop eig(A); outputs kept), 2 bad "
+             "input (also plant and controller with different n or U, without "
+             "--allow-scale-mismatch), 130 interrupted" + _UNITS,
     "demo": "examples:\n  dronefly demo\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
             "exit codes: 0 ok, 1 a run's cross-check failed (outputs kept), 2 bad input",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +28,8 @@ from dronefly.harness.latency.sampled import sampled_margin, sampled_rates
 from dronefly.lateral import N_HZ
 
 pytestmark = pytest.mark.integration
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: a control clipped far inside what the identification runs ask for: not a linear loop
 CLIPPED = {"controller.limit_enabled": "1", "controller.u_max": "0.001"}
@@ -101,9 +104,15 @@ def test_cli_cosim_at_six_and_seven_samples_matches_the_sweep(fmus, tmp_path, ca
         assert rates[d][0] == verdict == sweep[d]["stability"] == sweep[d]["stability_identified"]
         # both are model (b) of the same loop: the dominant rates agree to the fit's rounding
         assert abs(rates[d][1] - sweep[d]["stability_rate"]) <= RATE_TOL_PER_WINGBEAT
-    # docs/latency.md's numbers, to the 5 digits it prints
-    assert math.isclose(rates[6][1], -0.00888, abs_tol=5e-6)
-    assert math.isclose(rates[7][1], +0.00872, abs_tol=5e-6)
+    # docs/latency.md's numbers (its `dronefly cosim` example), to the 5 decimals it prints
+    import re
+
+    text = " ".join((ROOT / "docs" / "latency.md").read_text(encoding="utf-8").split())
+    m = re.search(r"says `stable` \(([-+0-9.]+) per wing beat\) then `unstable` \(([-+0-9.]+)\)",
+                  text)
+    assert m
+    assert math.isclose(rates[6][1], float(m.group(1)), abs_tol=5e-6)
+    assert math.isclose(rates[7][1], float(m.group(2)), abs_tol=5e-6)
 
 
 def test_sample_instants_off_the_grid_are_refused(fmus, tmp_path, capsys):
@@ -319,9 +328,6 @@ def test_every_command_runs_on_the_core_install(core_install, fmus, tmp_path, ca
 
 
 # --- point 5: setuptools' build tree and a checkout named dronefly ---------------------------
-ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
-
-
 def test_setuptools_builds_apart_from_the_fmus():
     """`pip install .` builds with setuptools in the checkout: its build/lib and
     build/bdist.* (as setuptools itself resolves them from setup.cfg, where the project sets

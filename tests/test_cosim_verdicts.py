@@ -476,3 +476,15 @@ def test_jacobi_with_a_delay_line_is_model_b_and_its_lag_with_integral_action_is
     with pytest.raises(CoSimError, match="Jacobi master and no sensing delay"):
         cosimulate(*fmus, gains=loop.K, master="jacobi", stop_wingbeats=5.0, out_dir=None,
                    plot=False, set_values={"controller.KI[1,4]": -0.001})
+
+
+def test_system_instances_must_agree_on_their_scales(built_fmus, tmp_path, capsys):
+    """cosim --system: an instance's U set apart from the others' (each reads the states with
+    its own) is refused in one line naming every value, exit 2, nothing written."""
+    argv = ["cosim", "--system", str(built_fmus["DroneFlyHover.ssp"]), "--stop", "5",
+            "--no-plot", "--out", str(tmp_path / "out"), "--set", "lateral.U=2.0"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "lateral.U = 2.0" in err and "lateral_controller.U = 3.77" in err
+    assert not (tmp_path / "out").exists()

@@ -283,6 +283,12 @@ def test_cosim_builds_only_what_is_missing_and_leaves_a_user_file_alone(tmp_path
     assert str(stale) in capsys.readouterr().err
     assert stale.read_text(encoding="utf-8") == "my notes\n"
 
+    # simulate: the same rule for its plant FMU
+    sim = tmp_path / "sim"
+    for expect in (True, False):
+        assert main(["simulate", "--stop", "1", "--out", str(sim)]) == 0
+        assert (f"built {sim / 'DroneFlyLateral.fmu'}" in capsys.readouterr().out) is expect
+
 
 # --- point 10: the core install -------------------------------------------------------------
 #: every optional package of the extras (pyproject.toml), as if not installed

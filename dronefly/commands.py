@@ -195,8 +195,15 @@ def sweep(args: argparse.Namespace) -> int:
                        progress_bar=False if args.no_progress else None,
                        set_values=dict(args.set_values), system=system, compare=compare)
     print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
+    code = EXIT_OK
     if result.summary["errors"]:
         print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "
               f"'error' column of {result.csv})", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
+        code = EXIT_FAILED
+    if result.summary.get("stability_disagreements"):
+        print(f"dronefly sweep: error: cross-check failed: the verdict identified from the runs "
+              f"disagrees with the loop's model in {result.summary['stability_disagreements']} "
+              f"configuration(s) (columns stability, stability_identified of {result.csv})",
+              file=sys.stderr)
+        code = EXIT_FAILED
+    return code

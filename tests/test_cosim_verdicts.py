@@ -494,3 +494,16 @@ def test_system_instances_must_agree_on_their_scales(built_fmus, tmp_path, capsy
     assert len(err.strip().splitlines()) == 1
     assert "lateral.U = 2.0" in err and "lateral_controller.U = 3.77" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_sweep_with_a_clipped_control_fails_its_cross_check(fmus, tmp_path, capsys):
+    """sweep with delay axes: the clipped controller's identified verdict disagrees with the
+    loop's model (linear); the sweep says 'cross-check failed' and exits 1, rows kept."""
+    argv = ["sweep", "--plant", str(fmus[0]), "--controller", str(fmus[1]), "--workers", "1",
+            "--no-plot", "--no-progress", "--disturbances", "directions", "--directions",
+            "+dgamma", "--amplitudes", "1", "--gains", "stabilising", "--steps", "1", "--stop",
+            "20", "--delays", "1", "--sample-periods", "1", "--out", str(tmp_path),
+            *[a for k, v in CLIPPED.items() for a in ("--set", f"{k}={v}")]]
+    assert main(argv) == 1
+    assert "cross-check failed" in capsys.readouterr().err
+    assert len((tmp_path / "sweep.csv").read_text().splitlines()) == 2

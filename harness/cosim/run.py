@@ -21,7 +21,10 @@ from dronefly.harness.cosim.calculated import plant_matrices
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments, scale_ratios
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
-from dronefly.harness.cosim.stability import (FIT_RESIDUAL_TOL, TOL_PER_WINGBEAT, Identification, classify,
+from dronefly.harness.cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT,
+                                              TOL_PER_WINGBEAT, TRAJECTORY_TOL,
+                                              Identification, classify,
+                                              cross_check_failures, relative_deviation,
                                               identify, rates_from_transition,
                                               sort_eigenvalues)
 
@@ -32,16 +35,6 @@ _ID_STEPS = 20  # steps per identification run
 #: The initial state x+ (dv+, dp+, dr+, dgamma) when none is given: a 0.1 rad roll.
 DEFAULT_X0 = (0.0, 0.0, 0.0, 0.1)
 
-#: Largest |identified - exact| dominant rate per wing beat (the rate that decides the
-#: verdict). A simple, separated eigenvalue moves by about its condition number (< 1e3 here)
-#: times the residual, so a loop that passes the residual check agrees to 1e-12 or better; 1e-6
-#: is the tolerance of the ``--system`` cross-check against eig(A + B K).
-RATE_TOL_PER_WINGBEAT = 1e-6
-#: Largest deviation of the co-simulated states from the exact sampled-data solution, relative
-#: to each state's peak. Both sides accumulate one rounding per step in a loop whose transition
-#: has norm near 1 (1e-13 measured over 300 steps); a loop other than the one modelled
-#: deviates by O(1).
-TRAJECTORY_TOL = 1e-8
 
 
 def parse_x0(text: str | Sequence[float]) -> np.ndarray:
@@ -292,33 +285,6 @@ def _controller_timing(cf: FMU, ctrl_values: Mapping[str, Any], n_hz: float
     return value("sensing_delay") * n_hz, value("sample_period") * n_hz, KI
 
 
-def _check(ident_rate: float, exact_rate: float, resid: float, err: float,
-           ident_verdict: str, exact_verdict: str, exact: str) -> list[str]:
-    """The failed cross-checks of one run, one sentence each."""
-    out = []
-    if not resid <= FIT_RESIDUAL_TOL:
-        out.append(f"the identification's fit residual {resid:.1e} > {FIT_RESIDUAL_TOL:g}: "
-                   "the runs are not the linear loop identified")
-    if not abs(ident_rate - exact_rate) <= RATE_TOL_PER_WINGBEAT:
-        out.append(f"the identified dominant rate {ident_rate:+.6g} per wing beat deviates from "
-                   f"{exact_rate:+.6g} of {exact} by {abs(ident_rate - exact_rate):.1e} > "
-                   f"{RATE_TOL_PER_WINGBEAT:g}")
-    if ident_verdict != exact_verdict:
-        out.append(f"the identified verdict {ident_verdict!r} is not {exact_verdict!r} of {exact}")
-    if not err <= TRAJECTORY_TOL:
-        out.append(f"the co-simulated states deviate from the exact sampled-data solution by "
-                   f"{err:.1e} of their peak > {TRAJECTORY_TOL:g}")
-    return out
-
-
-def _rel_error(xs: np.ndarray, ref: np.ndarray) -> float:
-    """max |xs - ref| relative to each state's peak |ref| (nan: nothing to compare)."""
-    if not len(xs):
-        return math.nan
-    peak = np.maximum(np.abs(ref).max(axis=0), 1e-300)
-    return float(np.max(np.abs(xs - ref) / peak))
-
-
 def _initial_state(x0: np.ndarray | None, plant_values: Mapping[str, Any],
                    scale: np.ndarray) -> np.ndarray:
     """x0, or :data:`DEFAULT_X0` with the states ``plant_values`` starts (``<state>_start``,
@@ -416,11 +382,11 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
     for k in range(len(xs)):
         ref[k] = z[:4]
         z = F @ z
-    err = _rel_error(xs, ref)
+    err = relative_deviation(xs, ref)
     exact_dominant = float(np.max(exact_rates.real))
     what = ("the exact sampled-data loop" if timing is None else
             "model (b), the exact sampled-data loop with the delay line")
-    failures = _check(ident.dominant_growth_rate, exact_dominant, ident.fit_residual, err,
+    failures = cross_check_failures(ident.dominant_growth_rate, exact_dominant, ident.fit_residual, err,
                       ident.verdict, classify(exact_rates), what)
     result = CosimResult(run, K, master, step_wb, stop_wb, ident, cont, exact_rates, err,
                          check_failures=failures, loop_states=len(F),

@@ -7,12 +7,18 @@ would let one FMU (or the host) shadow another's code; a content-addressed
 name cannot collide with a different version. The GUID is derived from the
 same hash, and the zip has fixed timestamps, so two builds from the same
 sources are byte-identical.
+
+The package name also tells whether an FMU file is the project's and from which sources: a
+build never overwrites a file at its target that it did not write (:class:`BuildError` naming
+it), and :func:`ensure_fmu` (what the commands that build on demand use) rebuilds an FMU only
+when it is missing or its sources changed.
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib
+import re
 import sys
 import tempfile
 import uuid
@@ -26,7 +32,7 @@ from .files import write_zip
 if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
     from .harness.interop.closedloop import ClosedLoopSpec
 
-__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu",
+__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
            "fmu_sources", "project_fmus", "project_systems"]
 
 _PKG_ROOT = Path(__file__).resolve().parent
@@ -188,19 +194,57 @@ def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str,
                 del sys.modules[mod]
 
 
+def _built_package(path: Path, name: str, fmi: int) -> str | None:
+    """The source package of the project's FMU ``name`` at ``path``; None if the file there
+    is not one (not a zip, another FMU, a user's file)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            entry = z.read("resources/slavemodule.txt").decode("ascii")
+    except (OSError, KeyError, zipfile.BadZipFile, UnicodeDecodeError):
+        return None
+    prefix = f"dronefly{'' if fmi == 2 else '3'}_{name.lower()}_"
+    if re.fullmatch(re.escape(prefix) + "[0-9a-f]{16}_slave", entry) is None:
+        return None
+    return entry[:-len("_slave")]
+
+
+def _has_member(path: Path, member: str) -> bool:
+    """Whether ``path`` is a zip archive holding ``member`` (an artefact the build wrote)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            return member in z.namelist()
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
+def _refuse_foreign(path: Path, what: str, ours: bool) -> None:
+    """Raise :class:`BuildError` if a file the build did not write is at ``path``."""
+    if path.is_dir() or (path.exists() and not ours):
+        raise BuildError(f"{str(path)!r} exists and is not {what} that dronefly build wrote: "
+                         "it is left alone (move it away, or build into another folder)")
+
+
 def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
     """Build one FMU into ``out_dir`` and return its path (``fmi``: 2 or 3, the FMI version).
 
     Raises
     ------
     BuildError
-        Unknown FMU name, or the sources cannot be read or imported.
+        Unknown FMU name, the sources cannot be read or imported, or a file at the target
+        that the build did not write (left alone).
     """
     if name not in FMUS:
         raise BuildError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
     if fmi not in (2, 3):
         raise BuildError(f"FMI version {fmi!r}: 2 or 3")
     out = Path(out_dir)
+    target = out / f"{name}.fmu"
+    _refuse_foreign(target, f"the {name} FMU", target.is_file()
+                    and _built_package(target, name, fmi) is not None)
     try:
         pkg, files = fmu_sources(name, fmi)
         digest = pkg.rsplit("_", 1)[-1]
@@ -208,24 +252,65 @@ def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
         files["modelDescription.xml"] = _model_description(name, pkg, files, guid, fmi)
     except (OSError, ImportError) as e:
         raise BuildError(f"cannot build {name}: {e}") from e
-    return write_zip(out / f"{name}.fmu", files)
+    return write_zip(target, files)
 
 
-def project_fmus(plant: str | Path | None = None, controller: str | Path | None = None,
-                 out_dir: str | Path = "build") -> tuple[Path, Path]:
-    """The given plant and controller FMUs, or the project's, built into ``out_dir`` on demand.
+def ensure_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> tuple[Path, bool]:
+    """The project's FMU ``name`` in ``out_dir``, built only if it is missing or out of date
+    with the sources (its package hash differs); returns (path, whether it was built).
 
     Raises
     ------
     BuildError
-        (a ValueError) if a given path is not a file; nothing is built then.
+        As :func:`build_fmu`; a file there that the build did not write is left alone.
+    """
+    if name not in FMUS:
+        raise BuildError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
+    target = Path(out_dir) / f"{name}.fmu"
+    if target.is_file() and _built_package(target, name, fmi) is not None:
+        try:
+            current = fmu_sources(name, fmi)[0]
+        except OSError as e:
+            raise BuildError(f"cannot read the sources of {name}: {e}") from e
+        if _built_package(target, name, fmi) == current:
+            return target, False
+    return build_fmu(name, out_dir, fmi), True
+
+
+def project_fmus(plant: str | Path | None = None, controller: str | Path | None = None,
+                 out_dir: str | Path = "build", *,
+                 built: list[Path] | None = None) -> tuple[Path, Path]:
+    """The given plant and controller FMUs, or the project's in ``out_dir``, built there only
+    if missing or out of date with the sources (:func:`ensure_fmu`).
+
+    ``built``, if given, is extended with the paths that were built.
+
+    Raises
+    ------
+    BuildError
+        (a ValueError) if a given path is not a file, or a file the build did not write is
+        where it would build; nothing is built then.
     """
     for label, path in (("plant", plant), ("controller", controller)):
         if path is not None and not Path(path).is_file():
             raise BuildError(f"{label} FMU {str(path)!r} " + (
                 "is a folder, not an FMU file" if Path(path).is_dir() else "does not exist"))
-    return (Path(plant) if plant is not None else build_fmu("DroneFlyLateral", out_dir),
-            Path(controller) if controller is not None else build_fmu("StateFeedback", out_dir))
+    pairs = ((plant, "DroneFlyLateral"), (controller, "StateFeedback"))
+    for given, name in pairs:  # every target checked before anything is built
+        target = Path(out_dir) / f"{name}.fmu"
+        if given is None:
+            _refuse_foreign(target, f"the {name} FMU", target.is_file()
+                            and _built_package(target, name, 2) is not None)
+    out = []
+    for given, name in pairs:
+        if given is not None:
+            out.append(Path(given))
+            continue
+        path, fresh = ensure_fmu(name, out_dir)
+        out.append(path)
+        if fresh and built is not None:
+            built.append(path)
+    return out[0], out[1]
 
 
 def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
@@ -242,8 +327,17 @@ def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
 def build_all(out_dir: str | Path = "build") -> list[Path]:
     """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts and the
     hover system ``DroneFlyHover.ssp`` (both axes with their controllers, four FMUs)."""
+    from .harness.interop.closedloop import CLOSED_LOOP
     from .harness.system.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 
+    out = Path(out_dir)
+    for name in FMUS:  # every target checked before anything is written
+        target = out / f"{name}.fmu"
+        _refuse_foreign(target, f"the {name} FMU", _built_package(target, name, 2) is not None)
+    for target, member in ((out / f"{CLOSED_LOOP}.fmu", "resources/container.json"),
+                           *((out / f"{n}.ssp", "SystemStructure.ssd")
+                             for n in (CLOSED_LOOP, HOVER, HOVER_6DOF))):
+        _refuse_foreign(target, f"the {target.name}", _has_member(target, member))
     fmus = {name: build_fmu(name, out_dir) for name in FMUS}
     loop = build_closed_loop(out_dir, fmus["DroneFlyLateral"], fmus["StateFeedback"])
     systems = []

@@ -22,7 +22,7 @@ from dronefly import __version__, commands
 from dronefly.commands import EXIT_FAILED, EXIT_USAGE
 from dronefly.cliargs import (converter, finite, floats_arg, int_arg,
                               parse_gains, parse_names, parse_setting, parse_x0, positive)
-from dronefly.errors import DroneflyError
+from dronefly.errors import CrossCheckError, DroneflyError
 from dronefly.interrupt import EXIT_INTERRUPTED, deferred_sigint
 
 __all__ = ["main"]
@@ -41,10 +41,15 @@ _EPILOG = {
              "  dronefly cosim --system build/DroneFlyHover.ssp --open-loop\n"
              "  dronefly cosim --system my.ssp --set lateral.delta_p_start=1 "
              "--record lateral.delta_p,lateral.delta_gamma\n"
-             "exit codes: 0 ok, 1 the run stopped early (partial result kept) or, with "
-             "--system, an identified loop failed its cross-check against eig(A + B K) (open "
-             "loop: eig(A); outputs kept), 2 bad input, 130 interrupted" + _UNITS,
-    "demo": "examples:\n  dronefly demo",
+             "  dronefly cosim --step 1 --set controller.sensing_delay=0.036585365853658534 "
+             "--set controller.sample_period=0.006097560975609756\n"
+             "exit codes: 0 ok, 1 the run stopped early (partial result kept) or its "
+             "cross-check failed: the identified loop against the exact sampled-data loop "
+             "(with --system: against eig(A + B K), open loop eig(A); outputs kept), 2 bad "
+             "input (also plant and controller with different n or U, without "
+             "--allow-scale-mismatch), 130 interrupted" + _UNITS,
+    "demo": "examples:\n  dronefly demo\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
+            "exit codes: 0 ok, 1 a run's cross-check failed (outputs kept), 2 bad input",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
              "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
     "analyze": "examples:\n  dronefly analyze\n  dronefly analyze --json\n"
@@ -133,7 +138,8 @@ def _parser() -> argparse.ArgumentParser:
                         "file (default paper)")
     c.add_argument("--x0", type=converter(parse_x0), default=None,
                    metavar="dv+,dp+,dr+,dgamma",
-                   help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll)")
+                   help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll, or "
+                        "what --set plant.<state>_start gives; not both)")
     c.add_argument("--set", dest="set_values", action="append", default=[],
                    type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "
@@ -141,6 +147,9 @@ def _parser() -> argparse.ArgumentParser:
                         "--system, instance.NAME=VALUE of any parameter or input; SI units; the "
                         "value of its declared type (a number, a whole number, true/false/1/0, "
                         "text)")
+    c.add_argument("--allow-scale-mismatch", action="store_true",
+                   help="accept a plant and a controller whose n or U differ (refused otherwise: "
+                        "the controller reads the plant's state with its own n and U)")
     c.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")
@@ -165,6 +174,13 @@ def _parser() -> argparse.ArgumentParser:
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
             commands.demo)
     d.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSVs and plots")
+    d.add_argument("--no-plot", action="store_true", help="do not write the PNGs")
+    d.add_argument("--set", dest="set_values", action="append", default=[],
+                   type=parse_setting, metavar="NAME=VALUE",
+                   help="set a parameter of the plant or controller for both runs (repeatable; "
+                        "SI units), as cosim --set")
+    d.add_argument("--build", default="build", metavar="DIR",
+                   help="where the project's FMUs are built if missing or out of date")
 
     a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model",
             commands.analyze)
@@ -263,6 +279,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if interrupt.requested:
             raise KeyboardInterrupt
         return code
+    except CrossCheckError as e:  # a result its own check contradicts: a failed check
+        print(f"dronefly {args.command}: error: cross-check failed: {e}", file=sys.stderr)
+        return EXIT_FAILED
     except (DroneflyError, OSError) as e:
         if args.debug:
             traceback.print_exc()

@@ -51,24 +51,29 @@ def cosim(args: argparse.Namespace) -> int:
     # the --set values as text: converted to the variables' types by cosimulate
     result = cosimulate(args.plant, args.controller,
                         gains="paper" if args.gains is None else args.gains,
-                        x0=(0.0, 0.0, 0.0, 0.1) if args.x0 is None else args.x0,
+                        x0=args.x0,
                         step_wingbeats=args.step,
                         stop_wingbeats=300.0 if args.stop is None else args.stop,
                         master=args.master, out_dir=args.out, plot=not args.no_plot,
                         set_values=dict(args.set_values), record=args.record or (),
-                        build_dir=args.build)
+                        build_dir=args.build, allow_scale_mismatch=args.allow_scale_mismatch)
     return _cosim_report(result, args.json)
 
 
 def _cosim_report(result: Any, as_json: bool) -> int:
-    """Print the summary (or the JSON) of a co-simulation; exit 1 if it stopped early."""
+    """Print the summary (or the JSON) of a co-simulation; exit 1 if it stopped early or one
+    of its cross-checks failed (the outputs are kept)."""
     import json
 
     print(json.dumps(result.to_json(), indent=2) if as_json else result.summary())
+    code = EXIT_OK
     if not result.run.complete:
         print(f"dronefly cosim: error: run incomplete: {result.run.failure}", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
+        code = EXIT_FAILED
+    for failure in result.check_failures:
+        print(f"dronefly cosim: error: cross-check failed: {failure}", file=sys.stderr)
+        code = EXIT_FAILED
+    return code
 
 
 def _cosim_system(args: argparse.Namespace) -> int:
@@ -86,10 +91,7 @@ def _cosim_system(args: argparse.Namespace) -> int:
                                master=args.master, set_values=dict(args.set_values),
                                record=args.record, out_dir=args.out, plot=not args.no_plot,
                                open_loop=args.open_loop)
-    code = _cosim_report(result, args.json)
-    for failure in result.check_failures:
-        print(f"dronefly cosim: error: cross-check failed: {failure}", file=sys.stderr)
-    return EXIT_FAILED if result.check_failures else code
+    return _cosim_report(result, args.json)
 
 
 def check(args: argparse.Namespace) -> int:
@@ -117,11 +119,17 @@ def check(args: argparse.Namespace) -> int:
 
 
 def demo(args: argparse.Namespace) -> int:
-    from dronefly.harness.cosim.demo import verdict_table
+    from dronefly.harness.cosim.demo import demo_runs, format_table
 
-    require("matplotlib")
-    print(verdict_table(out_dir=args.out))
-    return EXIT_OK
+    if not args.no_plot:
+        require("matplotlib", "pass --no-plot")
+    results = demo_runs(out_dir=args.out, plot=not args.no_plot,
+                        set_values=dict(args.set_values), build_dir=args.build)
+    print(format_table(results))
+    failed = [(g, f) for g, r in zip(("open", "paper"), results) for f in r.check_failures]
+    for gains, failure in failed:
+        print(f"dronefly demo: error: cross-check failed ({gains}): {failure}", file=sys.stderr)
+    return EXIT_FAILED if failed else EXIT_OK
 
 
 def analyze(args: argparse.Namespace) -> int:
@@ -155,7 +163,11 @@ def sweep(args: argparse.Namespace) -> int:
     from dronefly.harness.sweep.cases import SweepSpec
     from dronefly.harness.sweep.results import format_summary
 
-    require("threadpoolctl")
+    if args.scheduler is not None or args.workers != 1:  # one BLAS thread per worker process
+        import os
+
+        if args.scheduler is not None or (args.workers or os.cpu_count() or 1) > 1:
+            require("threadpoolctl", "pass --workers 1")
     if not args.no_progress:
         require("tqdm", "pass --no-progress")
     if not args.no_plot:
@@ -183,8 +195,15 @@ def sweep(args: argparse.Namespace) -> int:
                        progress_bar=False if args.no_progress else None,
                        set_values=dict(args.set_values), system=system, compare=compare)
     print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
+    code = EXIT_OK
     if result.summary["errors"]:
         print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "
               f"'error' column of {result.csv})", file=sys.stderr)
-        return EXIT_FAILED
-    return EXIT_OK
+        code = EXIT_FAILED
+    if result.summary.get("stability_disagreements"):
+        print(f"dronefly sweep: error: cross-check failed: the verdict identified from the runs "
+              f"disagrees with the loop's model in {result.summary['stability_disagreements']} "
+              f"configuration(s) (columns stability, stability_identified of {result.csv})",
+              file=sys.stderr)
+        code = EXIT_FAILED
+    return code

@@ -12,8 +12,13 @@ so it imports nothing.
 
 from __future__ import annotations
 
-__all__ = ["DroneflyError"]
+__all__ = ["CrossCheckError", "DroneflyError"]
 
 
 class DroneflyError(ValueError):
     """Bad input: the message names the variable and its value."""
+
+
+class CrossCheckError(DroneflyError):
+    """A run's own cross-check contradicts the answer it would give (a verdict, a number):
+    the message says which check and by how much. The command line exits 1 on it."""

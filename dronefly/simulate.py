@@ -26,6 +26,7 @@ class PlantRun:
     csv: Path
     complete: bool = True  # False: the FMU refused a step before the stop time
     requested_stop_wb: float | None = None  # when the stop is not a whole number of steps
+    built: Path | None = None  # the FMU, if this run built it (missing or out of date)
 
     def summary(self) -> str:
         wb = self.time[-1] * N_HZ
@@ -37,6 +38,8 @@ class PlantRun:
         if self.requested_stop_wb is not None:
             text += (f"\nnote: stop {wb:.6g} wing beats = {len(self.time) - 1} whole steps; the "
                      f"requested {self.requested_stop_wb:g} is not a whole number of steps")
+        if self.built is not None:
+            text += f"\nbuilt {self.built} (missing or out of date with the sources)"
         if not self.complete:
             text += (f"\nINCOMPLETE: the FMU refused the step after {wb:.6g} wing beats (run "
                      "with fmpy's debug logging for its message); the CSV holds what was computed")
@@ -78,7 +81,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     """
     import fmpy
 
-    from .build import build_fmu
+    from .build import ensure_fmu
 
     from .harness.cosim.master import step_count
 
@@ -88,7 +91,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     requested = stop_wingbeats
     stop_wingbeats = n_steps * step_wingbeats
     out = Path(out_dir)
-    fmu = build_fmu("DroneFlyLateral", out)
+    fmu, fresh = ensure_fmu("DroneFlyLateral", out)  # built only if missing or out of date
     res = fmpy.simulate_fmu(str(fmu), stop_time=stop_wingbeats / N_HZ,
                             output_interval=step_wingbeats / N_HZ,
                             start_values={"delta_gamma_start": gamma0},
@@ -103,4 +106,5 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     csv = out / "DroneFlyLateral_open_loop.csv"
     write_csv_atomic(csv, ["time", *STATE_NAMES], np.column_stack([t, x]).tolist())
     return PlantRun(t, x, err, csv, complete,
-                    None if math.isclose(stop_wingbeats, requested, rel_tol=1e-9) else requested)
+                    None if math.isclose(stop_wingbeats, requested, rel_tol=1e-9) else requested,
+                    fmu if fresh else None)

@@ -344,3 +344,38 @@ def test_container_declares_only_platforms_all_its_fmus_have(container, fmus):
 
     nested = set.intersection(*(platforms(f) for f in fmus))
     assert platforms(container) == nested == {"linux64", "win64"}
+
+
+# -----------------------------------------------------------------------------
+# a verdict the identification's own fit contradicts is an error (issue 25)
+@pytest.fixture(scope="module")
+def delayed_pair(built_fmus, tmp_path_factory):
+    """The plant with StateFeedbackDelayed (one wing beat of sensing delay, ten steps of 0.1):
+    a loop with a delay line that the importers' 4- and 8-state maps have no state for."""
+    out = tmp_path_factory.mktemp("delayed_loop")
+    from dronefly.harness.interop.container import write_container
+    from dronefly.harness.interop.ssp import write_ssp
+
+    plant, ctrl = built_fmus["DroneFlyLateral"], built_fmus["StateFeedbackDelayed"]
+    return plant, ctrl, write_ssp(plant, ctrl, out), write_container(plant, ctrl, out)
+
+
+def test_importer_verdicts_of_a_loop_they_do_not_model_are_refused(delayed_pair):
+    """fmpy's SSP run and the container FMU of the delayed loop: the fit of the map without
+    delay states leaves a residual far above rounding (O(1e-2) and more, against 1e-15 for the
+    loop it models): CrossCheckError naming the importer, never a verdict."""
+    from dronefly.errors import CrossCheckError
+
+    _, _, ssp_path, container_path = delayed_pair
+    with pytest.raises(CrossCheckError, match="fmpy SSP .*fit residual"):
+        ssp_verdict(ssp_path)
+    with pytest.raises(CrossCheckError, match="container .*fit residual"):
+        container_verdict(container_path)
+
+
+def test_libcosim_verdict_of_a_loop_it_does_not_model_is_refused(libcosim, delayed_pair):
+    from dronefly.errors import CrossCheckError
+
+    plant, ctrl, _, _ = delayed_pair
+    with pytest.raises(CrossCheckError, match="libcosim .*fit residual"):
+        libcosim_verdict(plant, ctrl)

@@ -327,3 +327,16 @@ def test_ecos_takes_an_fmi3_array_for_a_scalar(ecos, built_fmus3, bound, loop, t
     assert out["Real"] is True
     assert "fmi3SetFloat64: K = -0.3192 rejected: 12 values needed, 1 given" in log
     assert "step refused at t = 0.0 s: fmi3SetFloat64: K = -0.3192 rejected" in log
+
+
+def test_ecos_verdict_of_a_loop_it_does_not_model_is_refused(ecos, built_fmus, tmp_path):
+    """The closed-loop SSP with StateFeedbackDelayed (one wing beat of sensing delay): the
+    8-state Jacobi map has no state for the delay line; its fit's residual is far above
+    rounding, so ecos_verdict raises CrossCheckError instead of giving a verdict (issue 25)."""
+    from dronefly.errors import CrossCheckError
+    from dronefly.harness.interop.ssp import write_ssp
+
+    delayed = write_ssp(built_fmus["DroneFlyLateral"], built_fmus["StateFeedbackDelayed"],
+                        tmp_path)
+    with pytest.raises(CrossCheckError, match="Ecos .*fit residual"):
+        ecos_verdict(delayed)

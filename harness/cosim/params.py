@@ -20,8 +20,8 @@ from dronefly.controller.law import default_gains
 from dronefly.errors import DroneflyError
 from dronefly.lateral import CONTROL_NAMES, STATE_NAMES
 
-__all__ = ["GAIN_SETS", "STABILISING_LAMBDA1", "ParameterError", "as_gain_matrix", "gain_matrix",
-           "parse_gains", "resolve_assignments"]
+__all__ = ["GAIN_SETS", "SHARED_SCALES", "STABILISING_LAMBDA1", "ParameterError", "as_gain_matrix",
+           "gain_matrix", "parse_gains", "resolve_assignments", "scale_ratios"]
 
 #: Named gain sets (rows: controls, columns: x+; rad per unit of x+).
 GAIN_SETS: tuple[str, ...] = ("paper", "stabilising", "open")
@@ -164,3 +164,49 @@ def resolve_assignments(values: Mapping[str, Any],
         except SystemSpecError as e:
             raise ParameterError(str(e)) from e
     return out
+
+
+#: The reference scales a plant/controller pair must share: the controller reads the plant's
+#: state as x+ = x / (U, n, n, 1) with its own ``U`` [m/s] and ``n`` [Hz], and the harness
+#: reads x+, times and gains with the plant's.
+SHARED_SCALES: tuple[str, ...] = ("n", "U")
+
+
+def scale_ratios(plant_start: Mapping[str, Any], controller_start: Mapping[str, Any], *,
+                 allow_mismatch: bool = False,
+                 override: str | None = "--allow-scale-mismatch") -> np.ndarray | None:
+    """Per state, the plant's scale over the controller's, (U_p/U_c, n_p/n_c, n_p/n_c, 1).
+
+    Parameters
+    ----------
+    plant_start, controller_start : mapping
+        Each FMU's start values with the values set on it (``U`` in m/s, ``n`` in Hz).
+    allow_mismatch : bool
+        Accept scales that differ (the user intends it); otherwise they must be equal.
+    override : str or None
+        The option that says so, named in the message (None: the caller has none).
+
+    Returns
+    -------
+    ndarray or None
+        The ratios (all 1 when the scales agree); None when either FMU has no ``n`` or ``U``
+        (nothing to compare).
+
+    Raises
+    ------
+    ParameterError
+        A scale differs and ``allow_mismatch`` is false (names both values).
+    """
+    if any(start.get(k) is None for start in (plant_start, controller_start)
+           for k in SHARED_SCALES):
+        return None
+    p = {k: float(plant_start[k]) for k in SHARED_SCALES}
+    c = {k: float(controller_start[k]) for k in SHARED_SCALES}
+    for k, unit in zip(SHARED_SCALES, ("Hz", "m/s")):
+        if not allow_mismatch and p[k] != c[k]:
+            raise ParameterError(
+                f"plant.{k} = {p[k]!r} {unit} and controller.{k} = {c[k]!r} {unit} disagree: "
+                f"the controller reads the plant's state with its own {k}; set both (e.g. "
+                f"--set plant.{k}={p[k]!r} --set controller.{k}={p[k]!r})"
+                + (f", or pass {override} if the mismatch is intended" if override else ""))
+    return np.array([p["U"] / c["U"], p["n"] / c["n"], p["n"] / c["n"], 1.0])

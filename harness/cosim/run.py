@@ -19,14 +19,22 @@ from dronefly.controller.law import default_gains, gain_name
 from dronefly.plant.model import STATE_NAMES, discretize_zoh
 from dronefly.harness.cosim.calculated import plant_matrices
 from dronefly.harness.cosim.fmu import FMU
-from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments
+from dronefly.harness.cosim.params import as_gain_matrix, resolve_assignments, scale_ratios
 from dronefly.harness.cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
-from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT, Identification, identify, rates_from_transition, \
-    sort_eigenvalues
+from dronefly.harness.cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT,
+                                              TOL_PER_WINGBEAT, TRAJECTORY_TOL,
+                                              Identification, classify,
+                                              cross_check_failures, relative_deviation,
+                                              identify, rates_from_transition,
+                                              sort_eigenvalues)
 
-__all__ = ["CosimResult", "cosimulate", "parse_x0"]
+__all__ = ["DEFAULT_X0", "FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TRAJECTORY_TOL", "CosimResult",
+           "cosimulate", "parse_x0"]
 
 _ID_STEPS = 20  # steps per identification run
+#: The initial state x+ (dv+, dp+, dr+, dgamma) when none is given: a 0.1 rad roll.
+DEFAULT_X0 = (0.0, 0.0, 0.0, 0.1)
+
 
 
 def parse_x0(text: str | Sequence[float]) -> np.ndarray:
@@ -49,17 +57,36 @@ class CosimResult:
     master: str
     step_wingbeats: float
     stop_wingbeats: float
+    #: identified from the co-simulated runs (their fitted transition matrix)
     identification: Identification
-    continuous_eigenvalues: np.ndarray  # eig(A1 + B1 K) per wing beat
-    sampled_eigenvalues: np.ndarray  # exact ZOH closed loop at the same step
+    #: computed from the plant FMU's A1, B1 and K: eig(A1 + B1 K) per wing beat, the continuous
+    #: loop (the runs hold the control over each step, so they identify sampled_eigenvalues)
+    continuous_eigenvalues: np.ndarray
+    #: computed from A1, B1 and K: the exact sampled-data loop at the run's step (zero-order
+    #: hold; with a delay line, model (b)), log(mu) / step per wing beat
+    sampled_eigenvalues: np.ndarray
     trajectory_error: float  # max relative deviation from the exact sampled-data solution
     csv: Path | None = None
     plot: Path | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    #: the failed cross-checks, one sentence each (empty: all passed)
+    check_failures: list[str] = field(default_factory=list)
+    #: the states of the loop identified: 4, 8 (Jacobi), or 4 (D + 1) + q with D delayed
+    #: samples and q integrals (model (b))
+    loop_states: int = 4
+    #: sample period and delay of model (b), wing beats (None: no delay, sampling or
+    #: integral action in the controller)
+    model_b: tuple[float, float] | None = None
 
     @property
     def verdict(self) -> str:
+        """The verdict of the loop identified from the runs."""
         return self.identification.verdict
+
+    @property
+    def identified_eigenvalues(self) -> np.ndarray:
+        """Eigenvalues per wing beat identified from the co-simulated runs (sorted)."""
+        return self.identification.eigenvalues
 
     def to_json(self) -> dict[str, Any]:
         ev = self.identification.eigenvalues
@@ -70,6 +97,10 @@ class CosimResult:
             "master": self.master,
             "gains": self.gains.tolist(),
             "eigenvalues_per_wingbeat": [[float(e.real), float(e.imag)] for e in ev],
+            "eigenvalues_source": "identified from the co-simulated runs; "
+                                  "sampled_data_eigenvalues_per_wingbeat and "
+                                  "continuous_eigenvalues_per_wingbeat are computed from the "
+                                  "plant FMU's A1, B1 and the gains",
             "dominant_growth_rate_per_wingbeat": self.identification.dominant_growth_rate,
             "tolerance_per_wingbeat": TOL_PER_WINGBEAT,
             "continuous_eigenvalues_per_wingbeat":
@@ -78,21 +109,39 @@ class CosimResult:
                 [[float(e.real), float(e.imag)] for e in self.sampled_eigenvalues],
             "identification_fit_residual": self.identification.fit_residual,
             "trajectory_max_rel_error": self.trajectory_error,
+            "loop_states": self.loop_states,
+            "model_b_sample_period_wb": None if self.model_b is None else self.model_b[0],
+            "model_b_delay_wb": None if self.model_b is None else self.model_b[1],
+            "check_failures": list(self.check_failures),
             "step_wingbeats": self.step_wingbeats,
             "stop_wingbeats": self.stop_wingbeats,
             "csv": None if self.csv is None else str(self.csv),
             "plot": None if self.plot is None else str(self.plot),
             "recorded": list(self.run.names),
+            "built": list(self.extra.get("built", ())),
         }
 
     def summary(self) -> str:
-        ev = ", ".join(_fmt_complex(e) for e in self.identification.eigenvalues)
+        shown = self.identification.eigenvalues[:_SHOWN]
+        ev = ", ".join(_fmt_complex(e) for e in shown)
+        rest = len(self.identification.eigenvalues) - len(shown)
+        if rest > 0:
+            ev += f", ... ({rest} more)"
+        where = ("" if self.model_b is None else
+                 f" (a loop of {self.loop_states} states: sampled every "
+                 f"{self.model_b[0]:g} wing beats, delayed {self.model_b[1]:g})")
+        sampled = self.sampled_eigenvalues[:_SHOWN]
         lines = [
             f"verdict: {self.verdict} (dominant rate "
             f"{self.identification.dominant_growth_rate:+.5f} per wing beat, tolerance "
             f"{TOL_PER_WINGBEAT:g})",
-            f"identified eigenvalues per wing beat: {ev}",
-            f"eig(A1 + B1 K): {', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
+            f"identified from the co-simulated runs, per wing beat{where}: {ev}",
+            "computed from the plant FMU's A1, B1 and K, per wing beat: the exact sampled-data "
+            f"loop at this step (the control held over each step, what the runs are checked "
+            f"against): {', '.join(_fmt_complex(e) for e in sampled)}"
+            + (", ..." if len(self.sampled_eigenvalues) > len(sampled) else "")
+            + f"; eig(A1 + B1 K) of the continuous loop (no hold): "
+            f"{', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
             f"{self.master} master, step {self.step_wingbeats:g} wing beats, "
             f"{len(self.run.time) - 1} steps to {self.stop_wingbeats:g} wing beats; max deviation "
             f"from the exact sampled-data solution {self.trajectory_error:.1e}",
@@ -102,15 +151,19 @@ class CosimResult:
                                                       rel_tol=1e-9):
             lines.append(f"note: the requested stop {requested:g} wing beats is not a whole "
                          f"number of steps; the run stops at {self.stop_wingbeats:g}")
-        if self.extra.get("built_into"):
-            lines.append(f"FMUs built into {self.extra['built_into']}")
+        for path in self.extra.get("built", ()):
+            lines.append(f"built {path} (missing or out of date with the sources)")
         if not self.run.complete:
             lines.append(f"INCOMPLETE: {self.run.failure}")
+        lines += [f"CROSS-CHECK FAILED: {f}" for f in self.check_failures]
         if self.csv:
             lines.append(f"csv: {self.csv}")
         if self.plot:
             lines.append(f"plot: {self.plot}")
         return "\n".join(lines)
+
+
+_SHOWN = 8  # identified eigenvalues the summary lists (the JSON has all)
 
 
 def _fmt_complex(z: complex) -> str:
@@ -138,12 +191,13 @@ def _sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: float,
 
 
 def cosimulate(plant: str | Path | None = None, controller: str | Path | None = None, *,
-               gains: str | np.ndarray = "paper", x0: str | Sequence[float] = (0, 0, 0, 0.1),
+               gains: str | np.ndarray = "paper", x0: str | Sequence[float] | None = None,
                step_wingbeats: float = 0.1, stop_wingbeats: float = 300.0,
                master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
                plot: bool = True, name: str | None = None,
                set_values: Mapping[str, Any] | None = None,
-               record: Sequence[str] = (), build_dir: str | Path = "build") -> CosimResult:
+               record: Sequence[str] = (), build_dir: str | Path = "build",
+               allow_scale_mismatch: bool = False) -> CosimResult:
     """Co-simulate the loop, identify its eigenvalues and classify its stability.
 
     Parameters
@@ -156,8 +210,10 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         columns: dv+, dp+, dr+, dgamma): a named set ``paper`` (Eq. 27), ``stabilising`` or
         ``open``, an inline matrix, a ``.csv``/``.json`` file (see
         :func:`~dronefly.harness.cosim.params.parse_gains`) or an array.
-    x0 : str or sequence
-        Non-dimensional initial state (dv+, dp+, dr+, dgamma).
+    x0 : str or sequence, optional
+        Non-dimensional initial state (dv+, dp+, dr+, dgamma). Default :data:`DEFAULT_X0`
+        (a 0.1 rad roll), with the states whose ``plant.<state>_start`` [SI] ``set_values``
+        gives taken from there; giving both is refused.
     step_wingbeats, stop_wingbeats : float
         Communication step and stop time in wing beats.
     master : {'gauss-seidel', 'jacobi'}
@@ -177,36 +233,87 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         name).
     build_dir : path
         Where the project's FMUs are built when ``plant`` or ``controller`` is not given.
+    allow_scale_mismatch : bool
+        Accept a plant and a controller whose ``n`` or ``U`` differ (the controller then reads
+        the plant's x+ scaled by their ratios; the model and the cross-checks use the gains
+        as the plant sees them). Otherwise such a pair is refused.
+
+    Raises
+    ------
+    ParameterError
+        The plant's and the controller's ``n`` or ``U`` differ (without
+        ``allow_scale_mismatch``), a ``set_values`` name or value that cannot be used.
+    CoSimError
+        A bad step, stop, master or x0, or x0 together with a ``plant.<state>_start``;
+        sample instants off the communication grid.
     """
     K = as_gain_matrix(gains)
-    x0v = parse_x0(x0)
+    x0v = None if x0 is None else parse_x0(x0)
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
     from dronefly.build import project_fmus
 
-    built = None if plant is not None and controller is not None else Path(build_dir).resolve()
-    plant, controller = project_fmus(plant, controller, build_dir)
+    built: list[Path] = []
+    plant, controller = project_fmus(plant, controller, build_dir, built=built)
     with FMU(plant) as pf, FMU(controller) as cf:
         loop = Loop(pf, cf)
         values = resolve_assignments(dict(set_values or {}), {
             "plant": pf.model_description, "controller": cf.model_description})
         result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
                              plot, name, values,
-                             (record,) if isinstance(record, str) else tuple(record))
+                             (record,) if isinstance(record, str) else tuple(record),
+                             allow_scale_mismatch, [str(p) for p in built])
     result.extra["requested_stop_wb"] = stop_wingbeats
-    if built is not None:
-        result.extra["built_into"] = str(built)
     return result
 
 
-def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_wb: float,
+def _controller_timing(cf: FMU, ctrl_values: Mapping[str, Any], n_hz: float
+                       ) -> tuple[float, float, np.ndarray]:
+    """(sensing delay, sample period) in wing beats and the integral gains KI (3x4) the
+    controller runs with: its start values with ``ctrl_values`` set (0 where it has none)."""
+    from dronefly.controller.law import integral_gain_name
+
+    start = {**cf.start_values(), **ctrl_values}
+
+    def value(name: str) -> float:
+        v = start.get(name)
+        return 0.0 if v is None else float(v)
+
+    KI = np.array([[value(integral_gain_name(i, j)) for j in range(len(STATE_NAMES))]
+                   for i in range(3)])
+    return value("sensing_delay") * n_hz, value("sample_period") * n_hz, KI
+
+
+def _initial_state(x0: np.ndarray | None, plant_values: Mapping[str, Any],
+                   scale: np.ndarray) -> np.ndarray:
+    """x0, or :data:`DEFAULT_X0` with the states ``plant_values`` starts (``<state>_start``,
+    SI) taken from there; both given: refused."""
+    given = {i: f"{s}_start" for i, s in enumerate(STATE_NAMES) if f"{s}_start" in plant_values}
+    if given and x0 is not None:
+        name = next(iter(given.values()))
+        raise CoSimError(f"x0 = {','.join(f'{v:g}' for v in x0)} (--x0) and plant.{name} = "
+                         f"{plant_values[name]!r} both set the initial state: give one of them")
+    if x0 is not None:
+        return x0
+    out = np.array(DEFAULT_X0)
+    for i, name in given.items():
+        out[i] = float(plant_values[name]) / scale[i]
+    return out
+
+
+def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None, values: Mapping[str, Mapping[str, Any]],
-                record: Sequence[str] = ()) -> CosimResult:
+                record: Sequence[str] = (), allow_scale_mismatch: bool = False,
+                built: Sequence[str] = ()) -> CosimResult:
     pf, cf = loop.plant, loop.controller
     plant_values, ctrl_values = dict(values.get("plant", {})), dict(values.get("controller", {}))
     scale = np.array(plant_scales({**pf.start_values(), **plant_values}))
+    ratio = scale_ratios({**pf.start_values(), **plant_values},
+                         {**cf.start_values(), **ctrl_values},
+                         allow_mismatch=allow_scale_mismatch)
+    x0 = _initial_state(x0, plant_values, scale)
     n = scale[1]
     h = step_wb / n
     n_steps = step_count(stop_wb, step_wb)
@@ -214,47 +321,78 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
     gains = {**ctrl_values,
              **{gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}}
     jacobi = master == "jacobi"
+    tau_wb, period_wb, KI = _controller_timing(cf, ctrl_values, n)
+    Km = K  # the gains as the plant sees them: u = Km x+ in the plant's scales
+    if ratio is not None:
+        # the controller's x+ is ratio * the plant's, its integral runs over its own wing
+        # beats (n_c / n_p = 1 / ratio[1] of the plant's)
+        Km, KI = K * ratio, KI * ratio / ratio[1]
+    timing = None
+    if tau_wb or period_wb or KI.any():
+        from dronefly.harness.sweep.timing import Timing
+
+        timing = Timing(step_wb, tau_wb, period_wb, jacobi)
+        if jacobi and timing.tau_eff == 0.0 and (KI.any() or timing.model_b() is None):
+            # the master's one-step lag delays the sensed state but not the integral of it:
+            # not model (b), whose delay delays both
+            raise CoSimError(
+                "with the Jacobi master and no sensing delay the controller sees every sample "
+                "one step late; cosim identifies that loop only without integral gains (KI) "
+                "and sampling at every step: give controller.sensing_delay of at least one "
+                f"step ({step_wb / float(n)!r} s) or use --master gauss-seidel")
+        if timing.model_b() is None:
+            raise CoSimError(
+                f"controller.sample_period = {float(period_wb / n)!r} s is {period_wb:.9g} wing "
+                f"beats, not a whole number of steps of {step_wb:g} wing beats: its sample "
+                "instants drift off the communication grid and cosim identifies only loops "
+                f"whose instants are on it (one wing beat is {1.0 / float(n)!r} s)")
 
     def start(x: np.ndarray) -> dict[str, float]:
         return {**plant_values, **{f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x * scale)}}
 
+    A, B = _read_plant_matrices(loop, plant_values)
     with pf.instantiate() as p, cf.instantiate() as c:
+        # with a delay line (model (b)) the controller starts at the equilibrium: under the
+        # Jacobi master it is fed x = 0 before the first step, as model (b) has it
+        feed0 = [0.0] * 4 if jacobi and timing is not None else None
         run = loop.run(h, n_steps, master=master, plant_start=start(x0),
-                       controller_params=gains, instances=(p, c), record=record)
-        id_runs = []
-        units = [(e, e) for e in np.eye(4)]
-        if jacobi:
-            units = [(e, e) for e in np.eye(4)] + [(np.zeros(4), e) for e in np.eye(4)]
-        for x_now, x_prev in units:
-            r = loop.run(h, min(_ID_STEPS, n_steps), master=master, plant_start=start(x_now),
-                         controller_params=gains, u_source0=list(x_prev * scale),
-                         instances=(p, c))
-            if not r.complete:
-                raise CoSimError(f"identification run failed: {r.failure}")
-            xs = np.column_stack([r.column(s) for s in STATE_NAMES]) / scale
-            id_runs.append(np.vstack([x_prev, xs]) if jacobi else xs)
+                       controller_params=gains, instances=(p, c), record=record,
+                       u_source0=feed0)
+        if timing is None:
+            ident, F, exact_rates = _identify_plain(loop, p, c, start, gains, h, step_wb,
+                                                    n_steps, scale, jacobi, A, B, Km)
+        else:
+            ident, F, exact_rates, _ = _identify_model_b(loop, p, c, start, gains, h,
+                                                         timing, scale, A, B, Km, KI)
         open_run = None
         if plot and out_dir is not None and K.any():  # the open loop, for comparison
             zero = {**gains, **{gain_name(i, j): 0.0 for i in range(K.shape[0])
                                 for j in range(K.shape[1])}}
             open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
-                                controller_params=zero, instances=(p, c))
-    ident = identify(id_runs, step_wb, delay=jacobi)
-    A, B = _read_plant_matrices(loop, plant_values)
-    cont = sort_eigenvalues(np.linalg.eigvals(A + B @ K))
-    F = _sampled_closed_loop(A, B, K, step_wb, jacobi)
-    sampled = rates_from_transition(F, step_wb)
-    # exact sampled-data trajectory from x0
+                                controller_params=zero, instances=(p, c), u_source0=feed0)
+    cont = sort_eigenvalues(np.linalg.eigvals(A + B @ Km))
     xs = np.column_stack([run.column(s) for s in STATE_NAMES]) / scale
-    z = np.concatenate([x0, x0]) if jacobi else x0.copy()
+    z = np.zeros(len(F))
+    z[:4] = x0
+    if jacobi and timing is None:
+        z[4:8] = x0  # the Jacobi master feeds the controller x0 before the first step
+    every = 1 if timing is None else int(round(timing.Ts / step_wb))
+    xs = xs[::every]
     ref = np.empty_like(xs)
     for k in range(len(xs)):
         ref[k] = z[:4]
         z = F @ z
-    peak = np.maximum(np.abs(ref).max(axis=0), 1e-300)
-    err = float(np.max(np.abs(xs - ref) / peak)) if len(xs) else math.nan
-    result = CosimResult(run, K, master, step_wb, stop_wb, ident, cont, sampled, err)
+    err = relative_deviation(xs, ref)
+    exact_dominant = float(np.max(exact_rates.real))
+    what = ("the exact sampled-data loop" if timing is None else
+            "model (b), the exact sampled-data loop with the delay line")
+    failures = cross_check_failures(ident.dominant_growth_rate, exact_dominant, ident.fit_residual, err,
+                      ident.verdict, classify(exact_rates), what)
+    result = CosimResult(run, K, master, step_wb, stop_wb, ident, cont, exact_rates, err,
+                         check_failures=failures, loop_states=len(F),
+                         model_b=None if timing is None else timing.model_b())
     result.extra["scale"] = scale.tolist()
+    result.extra["built"] = list(built)
     result.extra["controls"] = list(loop.controls)  # what the plot draws as controls
     if open_run is not None:
         result.extra["open_loop"] = open_run
@@ -265,6 +403,62 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray, step_wb: float, stop_
         write_run_files(result, out_dir, name or _default_name(K, master),
                         plot_loop if plot else None)
     return result
+
+
+def _identify_plain(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str, float],
+                    h: float, step_wb: float, n_steps: int, scale: np.ndarray, jacobi: bool,
+                    A: np.ndarray, B: np.ndarray, K: np.ndarray
+                    ) -> tuple[Identification, np.ndarray, np.ndarray]:
+    """The loop without delay line: F fitted from runs from the unit states, the exact F
+    (zero-order hold at the step) and its rates per wing beat."""
+    id_runs = []
+    units = [(e, e) for e in np.eye(4)]
+    if jacobi:
+        units = [(e, e) for e in np.eye(4)] + [(np.zeros(4), e) for e in np.eye(4)]
+    for x_now, x_prev in units:
+        r = loop.run(h, min(_ID_STEPS, n_steps), master="jacobi" if jacobi else "gauss-seidel",
+                     plant_start=start(x_now), controller_params=gains,
+                     u_source0=list(x_prev * scale), instances=(p, c))
+        if not r.complete:
+            raise CoSimError(f"identification run failed: {r.failure}")
+        xs = np.column_stack([r.column(s) for s in STATE_NAMES]) / scale
+        id_runs.append(np.vstack([x_prev, xs]) if jacobi else xs)
+    ident = identify(id_runs, step_wb, delay=jacobi)
+    F = _sampled_closed_loop(A, B, K, step_wb, jacobi)
+    return ident, F, rates_from_transition(F, step_wb)
+
+
+def _identify_model_b(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str, float],
+                      h: float, timing: Any, scale: np.ndarray, A: np.ndarray, B: np.ndarray,
+                      K: np.ndarray, KI: np.ndarray
+                      ) -> tuple[Identification, np.ndarray, np.ndarray, Any]:
+    """The loop with its delay line and integral (model (b)): M fitted from runs from the unit
+    states (the controller's line at the equilibrium), the exact M and its rates per wing beat."""
+    from dronefly.harness.latency.identify import identify_delayed
+    from dronefly.harness.latency.loop import FeedbackLoop, LatencyInputError
+    from dronefly.harness.latency.sampled import delay_split
+
+    Ts, tau = timing.model_b()
+    d, _ = delay_split(tau, Ts)
+    m = int(round(Ts / timing.h))
+    samples = 2 * (d + 2) + 10  # pairs enough to span the 4 (d + 2) + q augmented states
+    fl = FeedbackLoop(A, B, K, KI)
+    runs = []
+    for e in np.eye(4):
+        r = loop.run(h, samples * m, master="jacobi" if timing.jacobi else "gauss-seidel",
+                     plant_start=start(e), controller_params=gains, instances=(p, c),
+                     u_source0=[0.0] * 4 if timing.jacobi else None)
+        if not r.complete:
+            raise CoSimError(f"identification run failed: {r.failure}")
+        runs.append(np.column_stack([r.column(s) for s in STATE_NAMES])[::m] / scale)
+    try:
+        fit = identify_delayed(runs, fl, Ts, tau)
+    except LatencyInputError as e:
+        raise CoSimError(f"cannot identify the delayed loop: {e}") from e
+    rates = rates_from_transition(fit.transition, Ts)
+    ident = Identification(fit.transition, rates, float(np.max(rates.real)), classify(rates),
+                           fit.fit_residual)
+    return ident, fit.exact, rates_from_transition(fit.exact, Ts), fit
 
 
 def _default_name(K: np.ndarray, master: str) -> str:

@@ -40,7 +40,7 @@ from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CO
                         parameter_values, reference_scales)
 from dronefly.harness.interop.nestedshim import install_shims
 from dronefly.harness.cosim.master import connect_by_name
-from dronefly.harness.cosim.stability import Identification, identify
+from dronefly.harness.cosim.stability import Identification, checked, identify
 from dronefly.lateral import STATE_NAMES
 
 __all__ = ["Verdict", "container_configuration", "container_verdict", "fix_connection_types", "run_container",
@@ -228,6 +228,12 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
     initialization, where the plant's outputs already hold x_0, so u_0 = K x_0, and after every
     step (plant -> controller -> plant; the controller is direct feedthrough): u_k = K x_k. The
     rows are the Gauss-Seidel loop from x_0, and the identification uses them without delay.
+
+    Raises
+    ------
+    CrossCheckError
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
+        (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     md = read_model_description(fmu)
     n, scale = reference_scales(md)
@@ -238,4 +244,4 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
                                                for x, v in zip(STATE_NAMES, e * scale)},
                             stop_s=(n_steps + 1) * step)
         runs.append(np.column_stack([res[x] for x in STATE_NAMES]) / scale)
-    return Verdict(identify(runs, step * n, delay=False), runs)
+    return Verdict(checked(identify(runs, step * n, delay=False), f"container {fmu}"), runs)

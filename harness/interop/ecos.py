@@ -47,7 +47,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from dronefly.harness.cosim.master import CoSimError
-from dronefly.harness.cosim.stability import identify
+from dronefly.harness.cosim.stability import checked, identify
 from dronefly.harness.interop.closedloop import reference_scales
 from dronefly.harness.interop.container import Verdict
 from dronefly.harness.interop.libcosim import InteropRun
@@ -279,6 +279,11 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
     -------
     Verdict
         The identification and the non-dimensional runs it used.
+
+    Raises
+    ------
+    CrossCheckError
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`.
     """
     ssp = Path(ssp).resolve()
     n_hz, scale = _plant_scales(ssp, "plant")
@@ -296,4 +301,4 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
                              "the controller did not see x_0 before the first step")
         xs = r.states() / scale
         runs.append(np.vstack([xs[:1], xs]))
-    return Verdict(identify(runs, step * n_hz, delay=True), runs)
+    return Verdict(checked(identify(runs, step * n_hz, delay=True), f"Ecos {ssp}"), runs)

@@ -43,7 +43,7 @@ import numpy as np
 from dronefly.harness.interop.closedloop import reference_scales
 from dronefly.lateral import STATE_NAMES
 from dronefly.harness.cosim.master import CoSimError
-from dronefly.harness.cosim.stability import Identification, identify
+from dronefly.harness.cosim.stability import Identification, checked, identify
 
 __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
            "run_libcosim", "step_ns"]
@@ -210,6 +210,12 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
     Four such runs of 20 steps fix the 8 x 8 Jacobi transition matrix (the trajectories span
     the stacked state space after one step). Returns the identification and the step in wing
     beats actually used (whole nanoseconds).
+
+    Raises
+    ------
+    CrossCheckError
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
+        (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     import fmpy
 
@@ -227,7 +233,7 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
             raise CoSimError(f"libcosim identification run failed: {r.error}")
         x_prev = np.array([r.controller_inputs0[s] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([x_prev, r.states() / scale]))
-    ident = identify(runs, h_wb, delay=True)
+    ident = checked(identify(runs, h_wb, delay=True), f"libcosim {plant} + {controller}")
     if not math.isfinite(ident.dominant_growth_rate):
         raise CoSimError("libcosim identification gave no finite growth rate")
     return ident, h_wb

@@ -34,7 +34,7 @@ from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT,
 from dronefly.harness.cosim.master import CoSimError
 from dronefly.harness.cosim.fmi3 import read_view
 from dronefly.harness.cosim.master import connect_by_name
-from dronefly.harness.cosim.stability import identify
+from dronefly.harness.cosim.stability import checked, identify
 from dronefly.harness.interop.container import Verdict
 from dronefly.lateral import STATE_NAMES
 
@@ -204,6 +204,12 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
     One run per unit initial state x+_0 = e_i (the SSP's gains). By the master described in
     :func:`run_ssp` the rows hold x_1, x_2, ... and the controller's first input is 0, so each
     run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.cosim.stability.identify``.
+
+    Raises
+    ------
+    CrossCheckError
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
+        (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     d_step, _ = _ssp_step_stop(ssp)
     with zipfile.ZipFile(ssp) as z:
@@ -215,4 +221,4 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
                                  for s, v in zip(STATE_NAMES, e * scale)})
         xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([np.zeros(len(STATE_NAMES)), xs]))
-    return Verdict(identify(runs, d_step * n, delay=True), runs)
+    return Verdict(checked(identify(runs, d_step * n, delay=True), f"fmpy SSP {ssp}"), runs)

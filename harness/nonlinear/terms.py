@@ -16,7 +16,7 @@ through the FMUs (a test checks they agree).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -85,12 +85,16 @@ def line_profile(direction: Sequence[float], amplitudes: Sequence[float], *,
 
 
 def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: float = 1.0,
-            stop_wb: float = 100.0) -> tuple[np.ndarray, float, float]:
+            stop_wb: float = 100.0,
+            longitudinal_control: bool = True) -> tuple[np.ndarray, float, float]:
     """(the errors of :func:`linearisation_error`, the largest sink z_earth [m], the linear
-    loop's peak of :func:`line_profile`)."""
+    loop's peak of :func:`line_profile`); ``longitudinal_control`` False: the longitudinal
+    controller's gains zero (the lateral controller alone)."""
     lp, np_ = lateral.default_parameters(), longitudinal.default_parameters()
     model = Hover6DOF(lp, np_, terms)
     Kl, Kn = _gains()
+    if not longitudinal_control:
+        Kn = np.zeros_like(Kn)
     A1, B1 = lateral.system_matrices(lp)
     A2, B2 = longitudinal.system_matrices(np_)
     P1, G1 = discretize_zoh(A1, B1, step_wb)
@@ -145,9 +149,11 @@ class TermErrors:
         return max(c, key=lambda k: c[k])
 
 
-def term_errors(direction: str, amplitude: float = 1.0, **kw: float) -> TermErrors:
+def term_errors(direction: str, amplitude: float = 1.0, **kw: Any) -> TermErrors:
     """:func:`linearisation_error` of every variant of :data:`VARIANTS` for one initial state:
-    ``amplitude`` (box units) along ``direction`` (``+dr``, ``-mode1``, ...)."""
+    ``amplitude`` (box units) along ``direction`` (``+dr``, ``-mode1``, ...); ``kw``:
+    ``step_wb``, ``stop_wb`` (wing beats) and ``longitudinal_control`` (False: the lateral
+    controller alone)."""
     x0 = amplitude * direction_vector(direction) * np.array(STATE_BOUNDS_SECT36)
     lat, lon, alt = {}, {}, {}
     for name, terms in VARIANTS.items():

@@ -30,9 +30,23 @@ def _findings(rows: Sequence[Row]) -> list[str]:
     return out
 
 
+def _custom_design(report: dict) -> list[str]:
+    """The design for the given targets (``--targets``), first in the output: what was asked."""
+    if "custom_design" not in report:
+        return []
+    c = report["custom_design"]
+    lines = [f"Design for the given targets with {c['input']}: "
+             f"k = {format_vector(np.array(c['gains']), 6)}"]
+    if c.get("note"):
+        lines += textwrap.wrap(c["note"], 100, initial_indent="  ", subsequent_indent="  ")
+    return lines + [""]
+
+
 def render_text(rows: Sequence[Row], report: dict, gains: dict) -> str:
-    """The table for a terminal: one line per row, each new note wrapped beneath it."""
-    lines = ["Reproduction of Zhang & Sun (lateral stabilization), printed vs computed", ""]
+    """The table for a terminal: a design for given targets first, then one line per row,
+    each new note wrapped beneath it."""
+    lines = _custom_design(report)
+    lines += ["Reproduction of Zhang & Sun (lateral stabilization), printed vs computed", ""]
     lines += _findings(rows) + ["", f"{'source':10} {'quantity':46} {'printed':>11} {'computed':>12}  match"]
     last = ""
     for r in rows:
@@ -48,12 +62,6 @@ def render_text(rows: Sequence[Row], report: dict, gains: dict) -> str:
         r = d["response"]
         lines.append(f"  {d['input']:15} {d['method']:22} k = {format_vector(np.array(d['gains']))}  peak "
                      f"{r['roll']['peak_control_deg']:.2f} / {r['mode1']['peak_control_deg']:.2f} deg")
-    if "custom_design" in report:
-        c = report["custom_design"]
-        lines += ["", f"Design for the given targets with {c['input']}: "
-                  f"k = {format_vector(np.array(c['gains']), 6)}"]
-        if c.get("note"):
-            lines += textwrap.wrap(c["note"], 100, initial_indent="  ", subsequent_indent="  ")
     return "\n".join(lines) + "\n"
 
 
@@ -71,6 +79,8 @@ def render_markdown(rows: Sequence[Row], report: dict, gains: dict) -> str:
              "`rounding` only if the interval obtained by moving every printed input by half a unit of its "
              "last digit (first order, worst case) overlaps the printed value's own rounding interval.", "",
              "## Findings", ""]
+    if "custom_design" in report:  # what --targets asked for, first
+        lines[-2:-2] = ["## Design for the given targets", "", *_custom_design(report)]
     lines += [f"- {f}" for f in _findings(rows)]
     lines += ["", "## Table", "", "| source | quantity | printed | computed | match | note |",
               "|---|---|---|---|---|---|"]

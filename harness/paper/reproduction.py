@@ -212,8 +212,12 @@ class Analysis:
     gains: dict
 
     def to_json(self) -> dict:
-        return {"reproduction": [r.as_dict() for r in self.rows], "summary": summary(self.rows),
-                "gains": self.gains, **self.report}
+        """The JSON of ``dronefly analyze --json``; a design for given targets comes first
+        (``custom_design``), as the user asked for it."""
+        first = {k: v for k, v in self.report.items() if k == "custom_design"}
+        return {**first, "reproduction": [r.as_dict() for r in self.rows],
+                "summary": summary(self.rows), "gains": self.gains,
+                **{k: v for k, v in self.report.items() if k != "custom_design"}}
 
 
 def analyze(targets: str | None = None, design_input: str = "delta_Phi_a") -> Analysis:

@@ -49,8 +49,21 @@ def connect_scheduler(address: str, timeout_s: float) -> Any:
         raise SweepInputError(f"scheduler {address!r} unreachable: {one_line(str(e))}") from None
 
 
+class _NoBar:
+    """The progress bar when it is disabled: no tqdm needed (the ``sweep`` extra)."""
+
+    def update(self, n: int = 1) -> None:
+        """Nothing to show."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
 def make_progress_bar(**kw: Any) -> Any:
-    """A tqdm bar without tqdm's monitor thread (the pool forks after it exists)."""
+    """A tqdm bar without tqdm's monitor thread (the pool forks after it exists); with
+    ``disable=True`` a bar that shows nothing and needs no tqdm."""
+    if kw.get("disable"):
+        return _NoBar()
     from tqdm import tqdm
 
     class Bar(tqdm):

@@ -67,13 +67,23 @@ def _resolve_values(refs: tuple[FmuRef, FmuRef],
 
     from dronefly.harness.cosim.params import resolve_assignments
 
-    if not set_values:
-        return {}
+    from dronefly.harness.cosim.fmu import start_values
+    from dronefly.harness.cosim.params import scale_ratios
+
     mds = {k: read_model_description(str(r.path)) for k, r in zip(("plant", "controller"), refs)}
     try:
-        return resolve_assignments(dict(set_values), mds)
+        values = resolve_assignments(dict(set_values), mds) if set_values else {}
+        starts = sorted(k for k in values.get("plant", {}) if k.endswith("_start"))
+        if starts:
+            raise SweepInputError(f"--set plant.{starts[0]}: the sweep sets every case's "
+                                  "initial state from its disturbances (--disturbances)")
+        # the cases' x0 and the verdicts read the plant's scales; the controller its own
+        scale_ratios({**start_values(mds["plant"]), **values.get("plant", {})},
+                     {**start_values(mds["controller"]), **values.get("controller", {})},
+                     override=None)
     except ValueError as e:
         raise SweepInputError(str(e)) from e
+    return values
 
 
 def _system_refs(system: str | Path, plant: Any, controller: Any,

@@ -117,15 +117,35 @@ def close_all() -> None:
     _TMP.clear()
 
 
-def blas_single_thread() -> Any:
+def blas_single_thread(required: bool = False) -> Any:
     """Limit BLAS to one thread (threadpoolctl); returns the limiter (``.restore_original_limits()``).
 
     The plant steps call BLAS on 4x4 matrices; an idle OpenBLAS thread spins on the other
-    core after each call, so two worker processes would fight over 2 cores.
-    """
-    from threadpoolctl import threadpool_limits
+    core after each call, so two worker processes would fight over 2 cores. Without
+    threadpoolctl (the ``sweep`` extra) and not ``required`` (one process: nothing to fight
+    over), a limiter that does nothing; the results do not depend on it (4x4 products).
 
+    Raises
+    ------
+    MissingExtra
+        threadpoolctl is not installed and ``required``.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        if required:
+            from dronefly.extras import require
+
+            require("threadpoolctl", "pass --workers 1")
+        return _NoLimit()
     return threadpool_limits(limits=1, user_api="blas")
+
+
+class _NoLimit:
+    """What :func:`blas_single_thread` returns without threadpoolctl."""
+
+    def restore_original_limits(self) -> None:
+        """Nothing to restore."""
 
 
 def init_worker(refs: tuple[FmuRef, FmuRef]) -> None:

@@ -147,16 +147,24 @@ def _fmt(z: complex) -> str:
     return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
-def _wingbeat_frequency(master: SystemMaster) -> float:
+def _shared_scale(master: SystemMaster, name: str, unit: str) -> set[float]:
+    """The values of the reference scale ``name`` [``unit``] over the instances that have it
+    (each reads the others' states with its own: they must agree)."""
     found = {}
     for inst, fmu in master.fmus.items():
-        v = fmu.variables.get("n")
-        if v is not None and v.causality == "parameter" and v.unit == "Hz":
-            found[inst] = float(master.system.parameters.get(inst, {}).get("n", v.start))
+        v = fmu.variables.get(name)
+        if v is not None and v.causality == "parameter" and v.unit == unit:
+            found[inst] = float(master.system.parameters.get(inst, {}).get(name, v.start))
     values = set(found.values())
     if len(values) > 1:
-        raise SystemSpecError("the instances disagree on the wing-beat frequency n: " + ", ".join(
-            f"{i}.n = {v!r}" for i, v in found.items()))
+        raise SystemSpecError(f"the instances disagree on {name} [{unit}]: " + ", ".join(
+            f"{i}.{name} = {v!r}" for i, v in found.items()))
+    return values
+
+
+def _wingbeat_frequency(master: SystemMaster) -> float:
+    _shared_scale(master, "U", "m/s")
+    values = _shared_scale(master, "n", "Hz")
     n = values.pop() if values else 1.0
     if not (math.isfinite(n) and n > 0):
         raise SystemSpecError(f"n = {n!r} Hz must be finite and > 0")

@@ -438,7 +438,7 @@ def _check_start_values(ctx: _Context) -> str:
         if not (x == declared or abs(x - declared) <= tol * abs(declared)):
             wrong.append(f"{v.name}: declared start {declared!r}, holds {x!r}")
     _require(not wrong, "; ".join(wrong[:5]) + (" ..." if len(wrong) > 5 else ""))
-    return f"{len(exact)} variables with initial=\"exact\" hold their start values"
+    return f"{len(exact)} variable(s) with initial=\"exact\" hold their start values"
 
 
 def _declared(ctx: _Context) -> dict[str, set[str] | None]:
@@ -478,6 +478,7 @@ def _check_dependencies(ctx: _Context) -> str:
     if not declared:
         raise CheckSkipped("no ModelStructure outputs declared")
     seen: dict[str, set[str]] = {o.name: set() for o in ctx.outputs}
+    tried: set[str] = set()
     with ctx.instantiate("check") as inst:
         _init(ctx, inst)
         _do_step(ctx, inst, ctx.start, ctx.step)
@@ -487,6 +488,7 @@ def _check_dependencies(ctx: _Context) -> str:
             p = _perturbed(u, x)
             if p is None:
                 continue
+            tried.add(u.name)
             _write(inst, u, p)
             after = _read(inst, ctx.outputs)
             _write(inst, u, x)
@@ -501,14 +503,15 @@ def _check_dependencies(ctx: _Context) -> str:
             what = "dependencies=\"\"" if not deps else f"dependencies on {', '.join(sorted(deps))}"
             lies.append(f"{o} (declared with {what}) changed when only {u} was set, "
                         "without a step")
-        unseen += [f"{o} on {u}" for u in sorted(deps - seen.get(o, set()))]
+        unseen += [f"{o} on {u}" for u in sorted((deps & tried) - seen.get(o, set()))]
     _require(not lies, "; ".join(lies[:4]) + (" ..." if len(lies) > 4 else ""))
     if unseen:
         ctx.warnings.append("declared dependencies not seen (a dependency may be conditional, "
                             "or show only after a step): " + ", ".join(unseen[:6])
                             + (" ..." if len(unseen) > 6 else ""))
     n = sum(deps is not None for deps in declared.values())
-    return f"{n} outputs with declared dependencies, {len(ctx.inputs)} inputs set one at a time"
+    return (f"{n} output(s) with declared dependencies, {len(tried)} input(s) set one at a "
+            "time: no undeclared dependency")
 
 
 def _check_reset(ctx: _Context) -> str:
@@ -518,6 +521,12 @@ def _check_reset(ctx: _Context) -> str:
         inst.slave.reset()
         second = _whole_run(ctx, inst)
     reset = f"{ctx.fmi}Reset"
+    if first.ended_at != second.ended_at:
+        def end(r: _Run) -> str:
+            return f"t = {r.ended_at:.6g} s" if r.ended_at is not None else "the stop time"
+
+        raise _CheckFailed(f"the run after {reset} differs from the first: the FMU ended it at "
+                           f"{end(second)}, the first at {end(first)}")
     _require(_same(first.rows, second.rows), f"the run after {reset} differs from the first")
     return f"identical after {reset}"
 

@@ -82,7 +82,8 @@ RULES: dict[str, tuple[str, str, str]] = {
         "inputs listed", ""),
     "reset": (
         "FMI 2.0 2.1.6 (fmi2Reset): the FMU goes into the same state as after fmi2Instantiate",
-        "FMI 3.0 2.3 (fmi3Reset): the FMU goes into the same state as after instantiation", ""),
+        "FMI 3.0 2.3 (FMU states, fmi3Reset): the FMU goes into the same state as after "
+        "instantiation", ""),
     "two-instances": (
         "FMI 2.0 2.1.5 (fmi2Instantiate): instances are independent unless "
         "canBeInstantiatedOnlyOncePerProcess",

@@ -195,7 +195,7 @@ FMI3_PROFILES: dict[str, tuple[str, ...]] = {
 #: the rule of each: (FMI 2.0 rule (none), FMI 3.0 rule, the dronefly profile's promise)
 FMI3_RULES: dict[str, tuple[str, str, str]] = {
     "state-machine": (
-        "", "FMI 3.0 2.2.4 (status codes) and 4.2 (Co-Simulation state machine): a call not "
+        "", "FMI 3.0 2.2.4 (status returned by functions) and 2.3 (FMU states): a call not "
             "allowed in the current state returns fmi3Error; after it fmi3Reset recovers",
         "our log wording names the state; refused sets and unknown value references"),
     "discard": ("", "dronefly profile only: a NaN input answered fmi3Discard (the standard "

@@ -212,3 +212,13 @@ def test_seeded_defect_fails_only_its_check(ref, tmp_path, defect):
     assert set(failed) == {check}, report.checks
     assert failed[check].detail.startswith(detail)
     assert f"[FAIL] {check:<14} {detail}" in format_reports([report])
+
+
+def test_docs_table_names_every_check():
+    """docs/compliance.md has a row per check (the code's names)."""
+    from dronefly.harness.compliance.checker import CHECK_NAMES
+    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS
+
+    text = (ROOT / "docs" / "compliance.md").read_text(encoding="utf-8")
+    for name in [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS), "fuzz"]:
+        assert f"| `{name}` |" in text, name

@@ -125,3 +125,34 @@ def test_a_crashing_fmu_is_a_failed_check_not_a_crash(tmp_path):
     report = check_fmu(build_crashing_fmu(tmp_path), fuzz=False)
     died = [c for c in report.checks if "the checking process died (killed by SIGSEGV)" in c.detail]
     assert died and died[0].name == "call-sequence" and not report.passed
+
+
+def test_the_fmus_own_log_message_is_shown(tmp_path, monkeypatch, capsys):
+    """An FMU whose do_step raises: pythonfmu answers fmi2Fatal and logs the exception; the
+    failed check's detail in --json carries that message, whether the later use after free
+    crashes the checking process (the crash line: the call and what the FMU logged before)
+    or not (the failure line: what the FMU logged)."""
+    import json
+
+    import dronefly.build as build
+
+    original = build._source_path
+
+    def patched(rel):
+        path = original(rel)
+        if rel == "fmi/base.py":
+            text = path.read_text()
+            old = "        return do_step_status(self, current_time, step_size) == 0"
+            assert old in text
+            path = tmp_path / "base.py"
+            path.write_text(text.replace(old, "        raise RuntimeError('broken doStep')"))
+        return path
+
+    monkeypatch.setattr(build, "_source_path", patched)
+    fmu = build.build_fmu("DroneFlyLateral", tmp_path / "bad")
+    assert main(["check", "--no-fuzz", "--check", "call-sequence", "--json", str(fmu)]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    check = doc["fmus"][0]["checks"][0]
+    assert check["name"] == "call-sequence" and check["status"] == "failed"
+    assert "broken doStep" in check["detail"], check
+    assert "fmi2DoStep" in check["detail"]

@@ -222,3 +222,51 @@ def test_docs_table_names_every_check():
     text = (ROOT / "docs" / "compliance.md").read_text(encoding="utf-8")
     for name in [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS), "fuzz"]:
         assert f"| `{name}` |" in text, name
+
+
+# -- the master on the Reference-FMUs: against fmpy.simulate_fmu and the reference results -------
+#: the models whose reference result (results/<model>_out.csv) is of their default experiment
+#: and of outputs the master records (Roberts_out.csv holds BouncingBall's columns: not used)
+MASTER_MODELS = ["BouncingBall", "Dahlquist", "Stair", "VanDerPol", "Resource"]
+
+
+def _reference_csv(model: str):
+    import numpy as np
+
+    lines = (REF / "results" / f"{model}_out.csv").read_text().splitlines()
+    names = lines[0].split(",")[1:]
+    rows = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]])
+    return names, rows[:, 0], rows[:, 1:]
+
+
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+@pytest.mark.parametrize("model", MASTER_MODELS)
+def test_master_equals_fmpy_and_the_reference_results(ref, model, version):
+    """The system master on one Reference-FMU at the reference result's communication step:
+    its Real and Integer outputs equal FMPy's simulate_fmu (the same FMU and the same steps:
+    up to the rounding of the time grid, 1e-12) and the reference result written by fmusim
+    (printed with 8 significant digits: 1e-7 relative). Stair's run ends at 9 s, the last row
+    recorded there, as FMPy's."""
+    import fmpy
+    import numpy as np
+
+    from dronefly.harness.system.description import System
+    from dronefly.harness.system.master import SystemMaster
+
+    path = ref / version / f"{model}.fmu"
+    names, t_ref, y_ref = _reference_csv(model)
+    h = float(t_ref[1] - t_ref[0])
+    stop = float(fmpy.read_model_description(str(path)).defaultExperiment.stopTime)
+    n = int(round(stop / h))
+    with SystemMaster(System({"m": path})) as master:
+        run = master.run(h, n)
+    assert run.failure is None
+    ours = {name.split(".", 1)[1]: run.signals[:, j] for j, name in enumerate(run.names)}
+    fm = fmpy.simulate_fmu(str(path), fmi_type="CoSimulation", output_interval=h,
+                           stop_time=stop, output=names)
+    assert len(run.time) == len(fm["time"]) == len(t_ref)
+    np.testing.assert_allclose(run.time, fm["time"], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(run.time, t_ref, rtol=1e-7, atol=1e-12)
+    for j, name in enumerate(names):
+        np.testing.assert_allclose(ours[name], fm[name].astype(float), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(ours[name], y_ref[:, j], rtol=1e-7, atol=1e-9)

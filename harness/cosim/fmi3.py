@@ -169,6 +169,11 @@ class FMU3Adapter:
         return self._s.doStep(currentCommunicationPoint, communicationStepSize,
                               noSetFMUStatePriorToCurrentPoint)
 
+    def step_ended(self) -> bool:
+        """Whether the last raw step (:meth:`fmi2DoStep`) asked to end the run
+        (terminateSimulation) or returned early (earlyReturn)."""
+        return bool(self._flags[1].value or self._flags[2].value)
+
     def fmi2FreeInstance(self, component: Any) -> None:
         self._s.fmi3FreeInstance(component)
 

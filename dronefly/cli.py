@@ -120,7 +120,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--record", type=converter(parse_names), default=None,
                    metavar="INST.NAME,...", help="the variables to record, any Real, Integer "
                    "or Boolean variable of any instance, e.g. lateral.delta_p,"
-                   "lateral_controller.K[1,1] with --system (default: every Real output); with "
+                   "lateral_controller.K[1,1] with --system (default: every Real, Integer and "
+                   "Boolean output); with "
                    "--plant/--controller, plant.NAME or controller.NAME, recorded after the "
                    "states and controls")
     c.add_argument("--plant", default=None, metavar="FMU",

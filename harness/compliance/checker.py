@@ -336,7 +336,11 @@ def _do_step(ctx: _Context, inst: Instance, t: float, h: float) -> bool:
     try:
         s.doStep(currentCommunicationPoint=t, communicationStepSize=h)
     except FMICallException as e:
-        if e.status == 2 and s.getBooleanStatus(_FMI2_TERMINATED):
+        # fmi2Discard with fmi2Terminated after some progress: the FMU ended the run (FMI
+        # 2.0 4.2.3); without progress it is a refused step (pythonfmu 0.7.0 says
+        # "terminated" after every Discard)
+        if e.status == 2 and s.getBooleanStatus(_FMI2_TERMINATED) and \
+                s.getRealStatus(_FMI2_LAST_SUCCESSFUL_TIME) > t:
             return True
         raise
     return False

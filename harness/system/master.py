@@ -277,7 +277,7 @@ class SystemMaster:
                     for who, call, f, c in steps:
                         f(c, t, h, 1)
                 except FMICallException as e:
-                    ended = _terminated(who, e)
+                    ended = _terminated(who, e, t)
                     if ended is None:
                         raise
                 if fmi3 and ended is None and any(n.inst.slave.step_ended() for n in fmi3):
@@ -310,9 +310,13 @@ class SystemMaster:
         return run
 
 
-def _terminated(node: Node, e: Any) -> float | None:
-    """The last successful time if ``e`` (from an FMI 2.0 fmi2DoStep) is fmi2Discard with
-    fmi2Terminated (FMI 2.0 4.2.3), else None."""
+def _terminated(node: Node, e: Any, t: float) -> float | None:
+    """The last successful time if ``e`` (from an FMI 2.0 fmi2DoStep from ``t``) is
+    fmi2Discard with fmi2Terminated (FMI 2.0 4.2.3) after some progress, else None.
+
+    A Discard without progress (the last successful time not after ``t``) is a refused step,
+    a failure, also when the FMU says it terminated (pythonfmu 0.7.0 says so after every
+    Discard)."""
     from fmpy.fmi1 import FMICallException
 
     if node.fmu.fmi_version != 2 or e.status != 2:
@@ -321,9 +325,10 @@ def _terminated(node: Node, e: Any) -> float | None:
     try:
         if not s.getBooleanStatus(3):  # fmi2Terminated
             return None
-        return float(s.getRealStatus(2))  # fmi2LastSuccessfulTime
+        last = float(s.getRealStatus(2))  # fmi2LastSuccessfulTime
     except FMICallException:
         return None
+    return last if last > t else None
 
 
 #: FMI 2.0 calls of the master and their FMI 3.0 counterparts (fmi2SetupExperiment's start

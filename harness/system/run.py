@@ -181,7 +181,7 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         declared type when the system is opened (:mod:`.values`).
     record : sequence of str, optional
         Variables ``instance.name`` to record: any Real, Integer or Boolean variable of any
-        instance (default: every Real output).
+        instance (default: every Real, Integer and Boolean output).
     verdicts : bool
         Identify each plant's loop (extra short runs).
     out_dir : path or None

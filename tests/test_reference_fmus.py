@@ -270,3 +270,47 @@ def test_master_equals_fmpy_and_the_reference_results(ref, model, version):
     for j, name in enumerate(names):
         np.testing.assert_allclose(ours[name], fm[name].astype(float), rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(ours[name], y_ref[:, j], rtol=1e-7, atol=1e-9)
+
+
+def test_cosim_system_on_reference_fmus(ref, tmp_path, capsys):
+    """`dronefly cosim --system` on one-FMU systems of Reference-FMUs: time in seconds (no
+    wing-beat frequency), Stair (FMI 3.0, terminateSimulation at 9 s) ends there with its
+    last row recorded, equal to the reference result; --open-loop says there is no plant;
+    the SSP's DefaultExperiment startTime is the run's start (Dahlquist, dx/dt = -k x, does
+    not depend on time: its run from 1 s is the reference run from 0 s, shifted by 1 s)."""
+    import csv
+
+    import numpy as np
+
+    from dronefly.harness.system.description import System
+    from dronefly.harness.system.ssp import write_system_ssp
+
+    ssp = write_system_ssp(System({"stair": ref / "fmi3" / "Stair.fmu"}), tmp_path / "s.ssp",
+                           stop_s=10.0)
+    assert main(["cosim", "--system", str(ssp), "--step", "0.2", "--no-plot", "--open-loop",
+                 "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "step 0.2 s, 45 steps to 10 s, 1 outputs recorded" in out
+    assert "an FMU ended the run at t = 9 s" in out
+    assert "open loop: nothing to identify: the system has no plant" in out
+    (path,) = (tmp_path / "o").glob("*.csv")
+    rows = list(csv.reader(path.open()))
+    data = np.array([[float(x) for x in r] for r in rows[1:]])
+    _, t_ref, y_ref = _reference_csv("Stair")
+    np.testing.assert_allclose(data[:, 0], t_ref, rtol=1e-7, atol=1e-12)
+    np.testing.assert_array_equal(data[:, 1], y_ref[:, 0])  # whole numbers, exactly
+
+    # startTime: Dahlquist (dx/dt = -k x, from x = 1) from 1 s is the run from 0 s, shifted
+    shifted = System({"d": ref / "fmi2" / "Dahlquist.fmu"})
+    shifted.start_s = 1.0
+    ssp = write_system_ssp(shifted, tmp_path / "d.ssp", stop_s=3.0)
+    assert System.from_ssp(ssp).start_s == 1.0
+    assert main(["cosim", "--system", str(ssp), "--step", "0.1", "--no-plot", "--out",
+                 str(tmp_path / "d")]) == 0
+    capsys.readouterr()
+    (path,) = (tmp_path / "d").glob("*.csv")
+    data = np.array([[float(x) for x in r] for r in list(csv.reader(path.open()))[1:]])
+    _, t_ref, y_ref = _reference_csv("Dahlquist")
+    assert len(data) == 21  # 2 s in steps of 0.1 s
+    np.testing.assert_allclose(data[:, 0], 1.0 + t_ref[:21], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(data[:, 1], y_ref[:21, 0], rtol=1e-7, atol=1e-9)

@@ -105,6 +105,11 @@ RULES: dict[str, tuple[str, str, str]] = {
     "reference": (
         "FMI cross-check rules (the project's FMUs: reference results)",
         "FMI cross-check rules (the project's FMUs: reference results)", ""),
+    "logger-format": (
+        "FMI 2.0 2.1.5 (fmi2CallbackLogger): message is a printf format string, so text the "
+        "FMU does not mean as a directive (an instance name with %) must reach it escaped (%%)",
+        "FMI 3.0 (fmi3LogMessageCallback): message is plain text, no format: not applicable",
+        ""),
 }
 CHECK_NAMES = tuple(RULES)  # in order; FMI 3.0 adds fmi3checks' too
 
@@ -679,6 +684,32 @@ def _check_bad_input(ctx: _Context) -> str:
     return _bad_input_ours(ctx) if ctx.ours else _bad_input_standard(ctx)
 
 
+_PRINTF = "%s%s%s%s%n"
+
+
+def _check_logger_format(ctx: _Context) -> str:
+    if ctx.fmu.fmi_version != 2:
+        raise CheckSkipped("FMI 3.0's log message is plain text, not a format")
+    with ctx.instantiate(_PRINTF) as inst:
+        s = inst.slave
+        # calls that make an FMU log (an unknown value reference, a bad step size) with
+        # printf directives in the instance name: a crash here is the finding; after each
+        # refusal fmi2Reset (after fmi2Error nothing else is allowed)
+        for what, call in ((f"fmi2GetReal(vr=[{2 ** 31 - 1}])", lambda: s.getReal([2 ** 31 - 1])),
+                           ("fmi2DoStep(communicationStepSize=0.0)",
+                            lambda: s.doStep(currentCommunicationPoint=ctx.start,
+                                             communicationStepSize=0.0))):
+            _init(ctx, inst)
+            ctx.event(call=f"{what} of instance {_PRINTF!r}")
+            if _status_of(call) != 0:
+                s.reset()
+            else:
+                s.terminate()
+                s.reset()
+    return (f"instance {_PRINTF!r}, {len(inst.messages)} messages logged through a printf-style "
+            "logger, no crash")
+
+
 def _check_reference(ctx: _Context) -> str:
     from dronefly.harness.compliance.reference import REFERENCES, check_reference
 
@@ -700,6 +731,7 @@ _CHECKS: list[tuple[str, Callable[[_Context], str]]] = [
     ("state", _check_state),
     ("bad-input", _check_bad_input),
     ("reference", _check_reference),
+    ("logger-format", _check_logger_format),  # last: a crash leaves no other check out
 ]
 
 

@@ -183,6 +183,9 @@ def _parser() -> argparse.ArgumentParser:
                         "stepSize, or a hundredth of the run)")
     k.add_argument("-j", "--jobs", type=int_arg("-j", 1), default=1, metavar="N",
                    help="check N FMUs at once (default 1)")
+    k.add_argument("--timeout", type=positive, default=600.0, metavar="S",
+                   help="how long the checks of one FMU may take before it is reported as hung "
+                        "(default 600 s)")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
             commands.demo)

@@ -127,7 +127,8 @@ def check(args: argparse.Namespace) -> int:
         if not p.is_file():
             raise DroneflyError(f"FMU {str(p)!r} " + ("is a folder, not an FMU file" if p.is_dir()
                                                   else "does not exist"))
-    reports = check_fmus(paths, jobs=args.jobs, fuzz=not args.no_fuzz, options=options)
+    reports = check_fmus(paths, jobs=args.jobs, fuzz=not args.no_fuzz, options=options,
+                         timeout_s=args.timeout)
     if args.junit:
         from dronefly.files import write_text_atomic
 

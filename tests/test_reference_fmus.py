@@ -153,7 +153,8 @@ def test_cli_on_reference_fmus_json_junit_jobs(ref, tmp_path, capsys):
     assert fmus["Clocks.fmu"]["status"] == "skipped"
     roberts = {c["name"]: c for c in fmus["Roberts.fmu"]["checks"]}
     assert roberts["reference"]["status"] == "skipped" and roberts["reference"]["skipped"]
-    assert roberts["call-sequence"]["status"] == "passed" and roberts["call-sequence"]["duration_s"] > 0
+    assert roberts["call-sequence"]["status"] == "passed"
+    assert roberts["call-sequence"]["duration_s"] > 0
     suites = ET.parse(junit).getroot().findall("testsuite")
     assert len(suites) == 3
     for s in suites:
@@ -190,7 +191,8 @@ def _edited(src: Path, dst: Path, old: bytes, new: bytes) -> Path:
 #: (FMU, original text, edited text, the check that must fail, the start of its detail)
 SEEDED = {
     # a parameter declared -2.0 that holds -9.81
-    "start-value-lie": ("fmi2/BouncingBall.fmu", b'<Real start="-9.81" declaredType="Acceleration"/>',
+    "start-value-lie": ("fmi2/BouncingBall.fmu",
+                        b'<Real start="-9.81" declaredType="Acceleration"/>',
                         b'<Real start="-2.0" declaredType="Acceleration"/>', "start-values",
                         "g: declared start -2.0, holds -9.81"),
     # an output declared without direct feedthrough that follows its input
@@ -314,3 +316,16 @@ def test_cosim_system_on_reference_fmus(ref, tmp_path, capsys):
     assert len(data) == 21  # 2 s in steps of 0.1 s
     np.testing.assert_allclose(data[:, 0], 1.0 + t_ref[:21], rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(data[:, 1], y_ref[:21, 0], rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("call, version, name", [
+    ("fmi2DoStep", 3, "fmi3DoStep"), ("fmi2DoStep", 2, "fmi2DoStep"),
+    ("fmi2SetReal of k", 3, "fmi3SetFloat64 of k"), ("fmi2GetInteger", 3, "fmi3GetInteger"),
+    ("fmi2SetupExperiment", 3, "fmi3EnterInitializationMode"), ("initialization", 3,
+                                                                "initialization"),
+])
+def test_failures_name_the_fmi_versions_call(call, version, name):
+    """The master says its calls in FMI 2.0 terms; a failure names the FMU's own call."""
+    from dronefly.harness.system.master import call_name
+
+    assert call_name(call, version) == name

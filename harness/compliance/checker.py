@@ -285,27 +285,45 @@ def _init(ctx: _Context, inst: Instance) -> None:
     s.exitInitializationMode()
 
 
+def _named(vars_: list[_Var]) -> str:
+    shown = ", ".join(f"{v.name} (value reference {v.vr})" for v in vars_[:4])
+    return shown + (f" and {len(vars_) - 4} more" if len(vars_) > 4 else "")
+
+
 def _read(inst: Instance, vars_: list[_Var]) -> list[float]:
-    """The values of ``vars_`` (each kind with its own get call), as floats."""
+    """The values of ``vars_`` (each kind with its own get call), as floats; a refused get
+    fails naming the variables."""
+    from fmpy.fmi1 import FMICallException
+
     s = inst.slave
     out = [0.0] * len(vars_)
     for kind, get in (("Real", s.getReal), ("Integer", s.getInteger),
                       ("Boolean", s.getBoolean)):
         idx = [k for k, v in enumerate(vars_) if v.kind == kind]
         if idx:
-            for k, x in zip(idx, get([vars_[k].vr for k in idx])):
+            try:
+                got = get([vars_[k].vr for k in idx])
+            except FMICallException as e:
+                raise _CheckFailed(f"{str(e).rstrip('.')} reading "
+                                   f"{_named([vars_[k] for k in idx])}") from None
+            for k, x in zip(idx, got):
                 out[k] = float(x)
     return out
 
 
 def _write(inst: Instance, var: _Var, value: float) -> None:
+    from fmpy.fmi1 import FMICallException
+
     s = inst.slave
-    if var.kind == "Real":
-        s.setReal([var.vr], [float(value)])
-    elif var.kind == "Integer":
-        s.setInteger([var.vr], [int(value)])
-    else:
-        s.setBoolean([var.vr], [bool(value)])
+    try:
+        if var.kind == "Real":
+            s.setReal([var.vr], [float(value)])
+        elif var.kind == "Integer":
+            s.setInteger([var.vr], [int(value)])
+        else:
+            s.setBoolean([var.vr], [bool(value)])
+    except FMICallException as e:
+        raise _CheckFailed(f"{str(e).rstrip('.')} setting {_named([var])} = {value!r}") from None
 
 
 def _bounded(var: _Var, x: float) -> float:

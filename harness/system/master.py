@@ -333,8 +333,8 @@ def _terminated(node: Node, e: Any, t: float) -> float | None:
 
 #: FMI 2.0 calls of the master and their FMI 3.0 counterparts (fmi2SetupExperiment's start
 #: and stop time go to fmi3EnterInitializationMode)
-_FMI3_CALLS = {"fmi2SetupExperiment": "fmi3EnterInitializationMode", "fmi2GetReal": "fmi3GetFloat64",
-               "fmi2SetReal": "fmi3SetFloat64"}
+_FMI3_CALLS = {"fmi2SetupExperiment": "fmi3EnterInitializationMode",
+               "fmi2GetReal": "fmi3GetFloat64", "fmi2SetReal": "fmi3SetFloat64"}
 
 
 def call_name(call: str, fmi_version: int) -> str:

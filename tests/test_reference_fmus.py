@@ -320,7 +320,7 @@ def test_cosim_system_on_reference_fmus(ref, tmp_path, capsys):
 
 @pytest.mark.parametrize("call, version, name", [
     ("fmi2DoStep", 3, "fmi3DoStep"), ("fmi2DoStep", 2, "fmi2DoStep"),
-    ("fmi2SetReal of k", 3, "fmi3SetFloat64 of k"), ("fmi2GetInteger", 3, "fmi3GetInteger"),
+    ("fmi2SetReal of k", 3, "fmi3SetFloat64 of k"), ("fmi2GetInteger", 3, "fmi3GetInt*"),
     ("fmi2SetupExperiment", 3, "fmi3EnterInitializationMode"), ("initialization", 3,
                                                                 "initialization"),
 ])

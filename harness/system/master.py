@@ -332,9 +332,11 @@ def _terminated(node: Node, e: Any, t: float) -> float | None:
 
 
 #: FMI 2.0 calls of the master and their FMI 3.0 counterparts (fmi2SetupExperiment's start
-#: and stop time go to fmi3EnterInitializationMode)
+#: and stop time go to fmi3EnterInitializationMode; an Integer is one of fmi3GetInt8 ...
+#: fmi3GetUInt64, by the variable's type)
 _FMI3_CALLS = {"fmi2SetupExperiment": "fmi3EnterInitializationMode",
-               "fmi2GetReal": "fmi3GetFloat64", "fmi2SetReal": "fmi3SetFloat64"}
+               "fmi2GetReal": "fmi3GetFloat64", "fmi2SetReal": "fmi3SetFloat64",
+               "fmi2GetInteger": "fmi3GetInt*", "fmi2SetInteger": "fmi3SetInt*"}
 
 
 def call_name(call: str, fmi_version: int) -> str:

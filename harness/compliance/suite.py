@@ -184,12 +184,13 @@ def _not_run(path: Path, report: FMUReport, crashed: str | None,
 
 
 def _child(path: str, rows: str, opts: str) -> None:
+    import os
     import traceback
 
-    with open(rows, "w", encoding="utf-8") as fh:
-        def progress(row: dict) -> None:
-            fh.write(json.dumps(row) + "\n")
-            fh.flush()
+    fd = os.open(rows, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    try:
+        def progress(row: dict) -> None:  # one unbuffered write per row: a crash loses none
+            os.write(fd, (json.dumps(row) + "\n").encode("utf-8"))
 
         try:
             run_checks(Path(path), progress, CheckOptions(**{
@@ -197,6 +198,8 @@ def _child(path: str, rows: str, opts: str) -> None:
         except Exception as e:  # dronefly check's own bug: said as such, never as the FMU's
             progress({"internal": f"{type(e).__name__}: {e} | "
                                   + traceback.format_exc().strip().splitlines()[-2].strip()})
+    finally:
+        os.close(fd)
 
 
 def _ref(rule: str) -> str:

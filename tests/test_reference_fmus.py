@@ -329,3 +329,14 @@ def test_failures_name_the_fmi_versions_call(call, version, name):
     from dronefly.harness.system.master import call_name
 
     assert call_name(call, version) == name
+
+
+def test_a_step_longer_than_the_run_is_a_failed_experiment(ref, capsys):
+    """--step 100 on Dahlquist (0 s to 10 s): one failed line naming the step, no FMI call
+    past the stop time; a step that does not divide the run ends at the last whole step."""
+    assert main(["check", "--step", "100", str(ref / "fmi2" / "Dahlquist.fmu")]) == 1
+    out = capsys.readouterr().out
+    assert "[FAIL] experiment     step 100.0 s is longer than the run from 0.0 s to 10.0 s" in out
+    report = _check(ref, "fmi2/Dahlquist.fmu", step=6.0, only=("call-sequence",))
+    assert report.passed
+    assert report.checks[0].detail.startswith("1 steps of 6 s to 6 s (the stop time 10 s")

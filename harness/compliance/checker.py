@@ -234,7 +234,11 @@ class _Context:
                 else float(de.stepSize) if de is not None and de.stepSize is not None
                 else (stop - start) / 100)
         self.start, self.stop, self.step = start, stop, step
-        self.n = max(1, int(round((stop - start) / step)))
+        # whole steps that end at or before the stop time (never past it: FMI 2.0 4.2.2)
+        self.n = int(math.floor((stop - start) / step * (1 + 1e-12)))
+        if self.n < 1:
+            raise FMUError(f"step {step!r} s is longer than the run from {start!r} s to "
+                           f"{stop!r} s")
         vs = [v for v in fmu.model_description.modelVariables if v.type in _KINDS]
         self.inputs = [_Var(v.name, _KINDS[v.type], v.valueReference, v) for v in vs
                        if v.causality == "input"]
@@ -451,7 +455,10 @@ def _check_call_sequence(ctx: _Context) -> str:
     if run.ended_at is not None:
         return (f"{steps} steps of {ctx.step:.6g} s; the FMU ended the run at "
                 f"t = {run.ended_at:.6g} s (before the stop time {ctx.stop:.6g} s)")
-    return f"{steps} steps of {ctx.step:.6g} s to {ctx.stop:.6g} s"
+    end = ctx.start + steps * ctx.step
+    short = ("" if end >= ctx.stop * (1 - 1e-12) - 1e-300 else
+             f" (the stop time {ctx.stop:.6g} s is not a whole number of steps)")
+    return f"{steps} steps of {ctx.step:.6g} s to {end:.6g} s{short}"
 
 
 def _exact(ctx: _Context) -> list[tuple[_Var, float, bool]]:
@@ -820,7 +827,15 @@ def run_checks(path: Path, progress: Callable[[dict], None] | None = None,
             progress(asdict(report.checks[-1]))
         return report
     with fmu:
-        ctx = _Context(fmu, options, progress)
+        try:
+            ctx = _Context(fmu, options, progress)
+        except FMUError as e:  # the stop time and step asked for do not fit this FMU
+            report.checks.append(CheckResult("experiment", False, str(e),
+                                             rule="FMI 2.0 4.2.2 / FMI 3.0 4.2: steps within "
+                                                  "the experiment"))
+            if progress:
+                progress(asdict(report.checks[-1]))
+            return report
         report.profile = ctx.profile
         if progress:
             progress({"profile": ctx.profile})

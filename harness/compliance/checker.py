@@ -727,10 +727,22 @@ def _bad_input_standard(ctx: _Context) -> str:
                            (f"currentCommunicationPoint = {ctx.start + 10 * ctx.step!r} (the "
                             f"last was {ctx.start!r})", ctx.start + 10 * ctx.step, ctx.step)):
             _init(ctx, inst)
+            before = len(inst.messages)
             status = _status_of(lambda: _do_step(ctx, inst, t, h))
             _require(status != 4, f"{what}: {ctx.fmi}DoStep returned Fatal")
             if status == 0:
                 ctx.warnings.append(f"{what}: {ctx.fmi}DoStep returned OK")
+            if ctx.fmu.fmi_version == 3 and status == 2:
+                # FMI 3.0 2.2.4: "When detecting illegal arguments ... the FMU must return
+                # fmi3Error"; our own FMUs answer Discard (the dronefly profile's promise)
+                _require(ctx.ours, f"{what}: fmi3DoStep detected an illegal argument and "
+                                   "returned fmi3Discard; FMI 3.0 2.2.4 requires fmi3Error")
+                ctx.warnings.append(f"{what}: fmi3Discard where FMI 3.0 2.2.4 asks for "
+                                    "fmi3Error")
+            if ctx.fmu.fmi_version == 3 and status == 3:
+                _require(len(inst.messages) > before,
+                         f"{what}: fmi3Error without a logged message (FMI 3.0 2.2.4: the FMU "
+                         "must call logMessage before returning fmi3Error, logging on)")
             cases.append(f"{what}: {_STATUS_NAMES[status]}")
             # after Error the standard allows only reset, free or setting a state
             ctx.event(call=f"{ctx.fmi}Reset()")

@@ -406,3 +406,20 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
                 f"{died.group(1)})") in out
     else:
         assert all(f"[FAIL] {name:<14}" in out for name in order), out
+
+
+def test_our_fmi3_fmus_under_the_standard_profile(built_fmus3):
+    """A finding of the standard profile on our own FMI 3.0 FMUs: a step size of 0 is refused
+    with fmi3Discard (our promise: a bad value is Discard), where FMI 3.0 2.2.4 says an FMU
+    that detects an illegal argument must return fmi3Error. The dronefly profile, which our
+    tests and `dronefly check` use on them, asks for Discard and passes."""
+    from dronefly.harness.compliance.checker import CheckOptions
+    from dronefly.harness.compliance.suite import check_fmu
+
+    fmu = built_fmus3["StateFeedback"]
+    std = check_fmu(fmu, fuzz=False, isolate=False,
+                    options=CheckOptions(profile="standard", only=("bad-input",)))
+    (c,) = std.checks
+    assert not c.passed and "returned fmi3Discard; FMI 3.0 2.2.4 requires fmi3Error" in c.detail
+    ours = check_fmu(fmu, fuzz=False, isolate=False, options=CheckOptions(only=("bad-input",)))
+    assert ours.profile == "dronefly" and ours.passed

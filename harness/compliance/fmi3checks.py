@@ -126,16 +126,21 @@ def _state_machine_standard(fmu: Any) -> str:
                               ("after fmi3Terminate", lambda: (_init(inst, start),
                                                                s.terminate()))):
             prepare()
+            before = len(inst.messages)
             got = _status_of(_step(inst, start, h))
             _require(got != _FATAL, f"fmi3DoStep {when}: fmi3Fatal")
             _require(got == _ERROR, f"fmi3DoStep {when}: status {got}, expected {_ERROR} "
                                     "(fmi3Error)")
+            # 2.2.4: "Function logMessage must be called by the FMU with further information
+            # before returning this status" (logging is on)
+            _require(len(inst.messages) > before, f"fmi3DoStep {when}: fmi3Error without a "
+                                                  "logged message")
             s.reset()  # after fmi3Error: fmi3Reset, fmi3FreeInstance or fmi3SetFMUState only
         _init(inst, start)
         for k in range(3):
             _require(_status_of(_step(inst, start + k * h, h)) == 0, "no run after fmi3Reset")
-    return "fmi3DoStep before initialization and after fmi3Terminate: fmi3Error, none Fatal; " \
-           "recovered by fmi3Reset"
+    return "fmi3DoStep before initialization and after fmi3Terminate: fmi3Error with a logged " \
+           "message, none Fatal; recovered by fmi3Reset"
 
 
 def check_discard(fmu: Any, ctx: Any = None) -> str:

@@ -6,11 +6,13 @@ its section of FMI 2.0 and of FMI 3.0). A check is run under a *profile*:
 * ``standard``: the FMI standard alone; the default for any FMU that dronefly did not
   write. Where the standard leaves the FMU free (what it does with a NaN input, the wording
   of its log, whether it detects corrupt serialized state), nothing is demanded.
-* ``dronefly``: the standard plus the stricter promises of the project's own FMUs (a NaN
-  input refused with Discard and a logged message naming the value; every refusal logged in
-  our wording; the instance continues after a refused step; corrupt states refused; outputs
-  that respond to the inputs; the fuzz). Chosen automatically for FMUs whose
-  ``generationTool`` is dronefly's.
+* ``dronefly``: the stricter promises of the project's own FMUs (a NaN input refused with
+  Discard and a logged message naming the value; every refusal logged in our wording; the
+  instance continues after a refused step; corrupt states refused; outputs that respond to
+  the inputs; the fuzz), with the standard's other checks. Chosen automatically for FMUs
+  whose ``generationTool`` is dronefly's. Where our promise differs from FMI 3.0 (a
+  non-positive step size answered fmi3Discard, not fmi3Error), ``bad-input`` holds our FMUs
+  to the promise; ``--profile standard`` shows the difference.
 
 Checks (FMI 3.0 FMUs run the same ones through fmpy's FMU3Slave, plus those of
 :mod:`.fmi3checks`):
@@ -29,10 +31,14 @@ Checks (FMI 3.0 FMUs run the same ones through fmpy's FMU3Slave, plus those of
 * ``state``: where declared, get/set and serialize/deserialize of the FMU state reproduce the
   continuation bit for bit.
 * ``bad-input``: a non-positive step size and a communication point that does not continue
-  are not answered OK (standard: Error or Discard, then fmi2Reset recovers the instance;
-  dronefly: Discard with a message naming the value, a NaN input too, and the instance
-  continues).
-* ``reference``: for the project's FMUs, the FMI cross-check reference result.
+  (standard: not Fatal, OK is a warning, FMI 3.0 asks fmi3Error with a logged message for an
+  illegal argument it detects; then fmi2Reset / fmi3Reset recovers the instance, the only
+  call allowed after Error; dronefly: Discard with a message naming the value, a NaN input
+  too, and the instance continues).
+* ``reference``: for the project's FMUs (dronefly profile), the FMI cross-check reference
+  result.
+* ``logger-format``: FMI 2.0: printf directives in the instance name do not crash a
+  printf-style logger.
 
 A check returns its detail line, raises :class:`CheckSkipped` (not applicable) or fails
 (``AssertionError`` or an FMI call that raised). The checks run in this process;

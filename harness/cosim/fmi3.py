@@ -12,8 +12,9 @@ description as the harness reads it:
 - each element of a 2-D array ``K`` appears as a scalar ``K[i,j]`` with a *virtual* value
   reference (from :data:`VIRTUAL`); ``getReal``/``setReal`` read the whole array and write it
   back with the element changed (FMI 3.0 sets an array as a whole). The raw calls
-  (``fmi2GetReal``/``fmi2SetReal``, the masters' hot path) take real value references of
-  scalars only, which is what the masters pass (inputs and outputs are scalars);
+  (``fmi2GetReal``/``fmi2SetReal``, the masters' hot path) pass an array of Float64 scalars'
+  value references straight through, and take the element-wise path for one that names an
+  array element or a Float32 (an array output such as the Reference-FMU StateSpace's ``y``);
 - ``setupExperiment`` keeps the start and stop time for ``fmi3EnterInitializationMode``.
 
 Statuses are FMI 3.0's (same numbers as FMI 2.0); fmpy raises ``FMICallException`` above
@@ -131,6 +132,7 @@ class FMU3Adapter:
         self._types = {v.valueReference: v.type for v in md.modelVariables}
         #: Float32 variables are read and written with fmi3Get/SetFloat32 (section 2.2.6.2)
         self._f32 = {vr for vr, kind in self._types.items() if kind == "Float32"}
+        self._known: dict[int, tuple[Any, bool]] = {}  # raw vr arrays seen: (array, plain)
         self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
         flags = (c_bool(), c_bool(), c_bool(), c_double())
         self._flags = flags
@@ -181,14 +183,29 @@ class FMU3Adapter:
         self._s.freeLibrary()
 
     # -- raw calls of the masters' hot path (scalar value references) ----------
+    def _plain(self, vr: Any, n: int) -> bool:
+        """Whether the raw value-reference array ``vr`` names Float64 scalars only (no
+        Float32, no array element): then the raw call passes it through. An array found
+        plain is remembered (and kept alive, so that its id is not reused)."""
+        if not self._f32 and not self._elements:
+            return True
+        known = self._known.get(id(vr))
+        if known is not None and known[0] is vr:
+            return known[1]
+        plain = not any(v in self._f32 or v >= VIRTUAL for v in vr[:n])
+        if len(self._known) > 256:
+            self._known.clear()
+        self._known[id(vr)] = (vr, plain)
+        return plain
+
     def fmi2GetReal(self, c: Any, vr: Any, n: int, values: Any) -> int:
-        if self._f32:
+        if not self._plain(vr, n):
             values[:n] = self.getReal(list(vr[:n]))
             return 0  # a failed get raised FMICallException
         return self._get64(c, vr, n, values, n)
 
     def fmi2SetReal(self, c: Any, vr: Any, n: int, values: Any) -> int:
-        if self._f32:
+        if not self._plain(vr, n):
             self.setReal(list(vr[:n]), list(values[:n]))
             return 0
         return self._set64(c, vr, n, values, n)

@@ -125,7 +125,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--record", type=converter(parse_names), default=None,
                    metavar="INST.NAME,...", help="the variables to record, any Real, Integer "
                    "or Boolean variable of any instance, e.g. lateral.delta_p,"
-                   "lateral_controller.K[1,1] with --system (default: every Real output); with "
+                   "lateral_controller.K[1,1] with --system (default: every Real, Integer and "
+                   "Boolean output); with "
                    "--plant/--controller, plant.NAME or controller.NAME, recorded after the "
                    "states and controls")
     c.add_argument("--plant", default=None, metavar="FMU",
@@ -161,15 +162,39 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true", help="print a machine-readable summary")
     c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
 
-    k = add("check", "FMI 2.0 co-simulation compliance suite (fmpy validate, call sequence, reset, "
-            "state, bad input, reference results)", commands.check)
+    k = add("check", "FMI 2.0 and 3.0 co-simulation compliance checks, each naming its rule of "
+            "the standard (validate, call sequence, start values, dependencies, reset, state, "
+            "bad input; for the project's FMUs also the dronefly profile and the fuzz)",
+            commands.check)
     k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
-                   "into --build and check every FMU there)")
-    k.add_argument("--build", default="build", metavar="DIR", help="where to build (default build/)")
-    k.add_argument("--json", action="store_true", help="machine-readable report")
+                   "into --build, FMI 2.0 and FMI 3.0, and check every FMU there)")
+    k.add_argument("--build", default="build", metavar="DIR",
+                   help="where to build (default build/; the FMI 3.0 FMUs in DIR/fmi3)")
+    k.add_argument("--json", action="store_true", help="machine-readable report (with a schema "
+                   "version, each check passed/failed/skipped, durations)")
+    k.add_argument("--junit", default=None, metavar="FILE",
+                   help="also write JUnit XML: a test case per check and FMU")
     k.add_argument("--verbose", action="store_true",
-                   help="also show what the FMU's binaries printed while checked")
+                   help="also show each rule and what the FMU's binaries printed while checked")
     k.add_argument("--no-fuzz", action="store_true", help="skip the short fuzz (faster)")
+    k.add_argument("--profile", choices=("auto", "standard", "dronefly"), default="auto",
+                   help="standard: the FMI standard alone; dronefly: also the project's stricter "
+                        "promises (NaN refused, log wording, corrupt states, fuzz); auto "
+                        "(default): dronefly for the project's FMUs, standard for any other")
+    k.add_argument("--check", action="append", default=[], metavar="NAME",
+                   help="run only this check (repeat, or NAME,NAME)")
+    k.add_argument("--skip", action="append", default=[], metavar="NAME",
+                   help="do not run this check (repeat, or NAME,NAME)")
+    k.add_argument("--stop-time", type=positive, default=None, metavar="S",
+                   help="stop time in seconds (default: the FMU's default experiment)")
+    k.add_argument("--step", type=positive, default=None, metavar="S",
+                   help="communication step in seconds (default: the default experiment's "
+                        "stepSize, or a hundredth of the run)")
+    k.add_argument("-j", "--jobs", type=int_arg("-j", 1), default=1, metavar="N",
+                   help="check N FMUs at once (default 1)")
+    k.add_argument("--timeout", type=positive, default=600.0, metavar="S",
+                   help="how long the checks of one FMU may take before it is reported as hung "
+                        "(default 600 s)")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
             commands.demo)

@@ -342,7 +342,7 @@ BROKEN3 = {
     # a step refused for a bad value (NaN input) answered OK
     "bad-value-ok": ("fmi/fmi3.py", "_RESULTS = {s: _StepResult(s) for s in (0, 1, 2, 3)}",
                      "_RESULTS = {s: _StepResult(0 if s == 2 else s) for s in (0, 1, 2, 3)}",
-                     {"bad-input": "delta_v = nan: doStep returned OK",
+                     {"bad-input": "delta_v = nan: fmi3DoStep returned OK",
                       "discard": "a NaN input: status 0, expected 2"}),
     # corrupt state bytes taken without a refusal: fmi3SetFMUState says OK, logs nothing
     "state-taken": ("fmi/state.py", """            self._report(f"{self.FMI}Set{self.STATE_API} refused, the instance is unchanged: "
@@ -372,7 +372,8 @@ def test_check_names_the_failed_fmi3_check(broken3, defect):
     for name, detail in expected.items():
         assert failed[name].startswith(detail)
         assert f"[FAIL] {name:<14} {detail}" in text
-    assert text.splitlines()[0].endswith(": FAIL") and "0 of 1 FMUs passed" in text
+    assert text.splitlines()[0].endswith(": FAIL (profile dronefly)")
+    assert "0 of 1 FMUs passed" in text
 
 
 def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
@@ -392,11 +393,12 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     # step (call-sequence), or one check later, or (seen in about 1 of 6 runs) nothing crashes
     # and every later call fails; each way every check after validate is reported failed
     assert [line for line in out.splitlines() if line.startswith("  [  ok]")] == [
-        "  [  ok] validate       no problems"], out
+        "  [  ok] validate       no problems [FMI 3.0 2.4]"], out
     assert re.search(r"\[FAIL\] call-sequence  (the checking process died \(killed by SIG\w+\)"
                      r"|FMICallException: fmi3DoStep failed with status 4 \(fatal\))", out), out
-    order = ["call-sequence", "reset", "two-instances", "state", "bad-input", "reference",
-             "state-machine", "discard", "state-refusal"]
+    order = ["call-sequence", "start-values", "dependencies", "reset", "two-instances", "state",
+             "bad-input", "reference", "logger-format", "state-machine", "discard",
+             "state-refusal"]
     died = re.search(r"\[FAIL\] (\S+) +the checking process died \(killed by (SIG\w+)\)", out)
     if died:  # the checks after it are listed as not run, in order
         rest = order[order.index(died.group(1)) + 1:]
@@ -404,3 +406,20 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
                 f"{died.group(1)})") in out
     else:
         assert all(f"[FAIL] {name:<14}" in out for name in order), out
+
+
+def test_our_fmi3_fmus_under_the_standard_profile(built_fmus3):
+    """A finding of the standard profile on our own FMI 3.0 FMUs: a step size of 0 is refused
+    with fmi3Discard (our promise: a bad value is Discard), where FMI 3.0 2.2.4 says an FMU
+    that detects an illegal argument must return fmi3Error. The dronefly profile, which our
+    tests and `dronefly check` use on them, asks for Discard and passes."""
+    from dronefly.harness.compliance.checker import CheckOptions
+    from dronefly.harness.compliance.suite import check_fmu
+
+    fmu = built_fmus3["StateFeedback"]
+    std = check_fmu(fmu, fuzz=False, isolate=False,
+                    options=CheckOptions(profile="standard", only=("bad-input",)))
+    (c,) = std.checks
+    assert not c.passed and "returned fmi3Discard; FMI 3.0 2.2.4 requires fmi3Error" in c.detail
+    ours = check_fmu(fmu, fuzz=False, isolate=False, options=CheckOptions(only=("bad-input",)))
+    assert ours.profile == "dronefly" and ours.passed

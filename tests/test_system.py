@@ -416,13 +416,18 @@ def test_record_any_variable_of_any_instance(built_fmus, gain):
 
 
 def test_default_recording_reads_nothing_more(built_fmus, gain):
-    """Without extra names no call is added to a step (the plan's record ops are empty)."""
+    """Recording the Real outputs adds no call to a step (the plan's record ops are empty);
+    the default also records the Integer and Boolean outputs, each read with its own call."""
     from dronefly.harness.system.plan import build_nodes, record_ops
 
     with SystemMaster(_three(built_fmus, gain)) as sm:
-        nodes, every_out, where = build_nodes(sm.fmus, sm.system.connections, sm.names)
+        kind = {n: sm.fmus[n.split(".")[0]].variables[n.split(".", 1)[1]].type for n in sm.names}
+        reals = [n for n in sm.names if kind[n] == "Real"]
+        nodes, every_out, where = build_nodes(sm.fmus, sm.system.connections, reals)
         assert record_ops(nodes, every_out) == []
-        assert len(every_out) == len({*sm.names, "controller.delta_alpha_1a"})
+        assert len(every_out) == len({*reals, "controller.delta_alpha_1a"})
+        others = [n for n in sm.names if kind[n] != "Real"]
+        assert all(kind[n] in ("Integer", "Boolean") for n in others)
 
 
 @pytest.mark.parametrize("name, fragment", [

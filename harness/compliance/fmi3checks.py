@@ -4,16 +4,19 @@ The FMI 2.0 checks of :mod:`.checker` run on an FMI 3.0 FMU through fmpy's FMU3S
 :mod:`dronefly.harness.cosim.fmi3`); these add what FMI 3.0 says differently:
 
 * ``state-machine``: fmi3DoStep before initialization and after fmi3Terminate returns
-  fmi3Error (FMI 3.0 section 2.2.3: "a function call not allowed in the current state ...
-  must return fmi3Error"), and so does the step after a value that may not be set (an
-  output, the independent variable); a read of an unknown value reference is logged as an
-  error; never fmi3Fatal; fmi3Reset recovers, and a whole run follows.
-* ``discard``: a NaN on an input makes the next step fmi3Discard (FMI 3.0: "handling of
-  min/max violation"), not fmi3Error; the instance continues.
-* ``state-refusal``: corrupt serialized state bytes are refused (logged) when set, and the
-  instance is unchanged: its next step equals the one without the refused state.
+  fmi3Error (FMI 3.0 2.2.4: a function called where the state machine does not allow it),
+  never fmi3Fatal, and fmi3Reset recovers (after fmi3Error only reset, free or setting a
+  state are allowed). In the dronefly profile also: the log names the state in our wording,
+  a step after a value that may not be set (an output, the independent variable) is refused,
+  an unknown value reference is answered NaN with a logged error.
+* ``discard`` (dronefly profile): a NaN on an input makes the next step fmi3Discard, not
+  fmi3Error; the instance continues. The standard does not require an FMU to refuse NaN.
+* ``state-refusal`` (dronefly profile): corrupt serialized state bytes are refused (logged)
+  when set, and the instance is unchanged. The standard does not require an FMU to detect
+  corrupt bytes.
 
-Each check returns its detail line or raises :class:`Fmi3CheckFailed`.
+Each check takes the FMU and the checker's context (its ``profile``) and returns its detail
+line or raises :class:`Fmi3CheckFailed`.
 """
 
 from __future__ import annotations
@@ -22,8 +25,8 @@ import math
 from ctypes import c_double as _f64, c_uint32 as _u32
 from typing import Any, Callable
 
-__all__ = ["FMI3_CHECKS", "Fmi3CheckFailed", "check_discard", "check_state_machine",
-           "check_state_refusal"]
+__all__ = ["FMI3_CHECKS", "FMI3_PROFILES", "FMI3_RULES", "Fmi3CheckFailed", "check_discard",
+           "check_state_machine", "check_state_refusal"]
 
 _ERROR, _DISCARD, _FATAL = 3, 2, 4
 
@@ -78,7 +81,9 @@ def _step(inst: Any, t: float, h: float) -> Callable[[], Any]:
     return lambda: inst.slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
 
 
-def check_state_machine(fmu: Any) -> str:
+def check_state_machine(fmu: Any, ctx: Any = None) -> str:
+    if ctx is not None and getattr(ctx, "profile", "dronefly") != "dronefly":
+        return _state_machine_standard(fmu)
     start, h = _experiment(fmu)
     outputs = _names(fmu, "output")
     time_vr = [v.valueReference for v in fmu.model_description3.modelVariables
@@ -113,7 +118,32 @@ def check_state_machine(fmu: Any) -> str:
            "recovered by fmi3Reset"
 
 
-def check_discard(fmu: Any) -> str:
+def _state_machine_standard(fmu: Any) -> str:
+    start, h = _experiment(fmu)
+    with fmu.instantiate("check") as inst:
+        s = inst.slave
+        for when, prepare in (("before initialization", lambda: None),
+                              ("after fmi3Terminate", lambda: (_init(inst, start),
+                                                               s.terminate()))):
+            prepare()
+            before = len(inst.messages)
+            got = _status_of(_step(inst, start, h))
+            _require(got != _FATAL, f"fmi3DoStep {when}: fmi3Fatal")
+            _require(got == _ERROR, f"fmi3DoStep {when}: status {got}, expected {_ERROR} "
+                                    "(fmi3Error)")
+            # 2.2.4: "Function logMessage must be called by the FMU with further information
+            # before returning this status" (logging is on)
+            _require(len(inst.messages) > before, f"fmi3DoStep {when}: fmi3Error without a "
+                                                  "logged message")
+            s.reset()  # after fmi3Error: fmi3Reset, fmi3FreeInstance or fmi3SetFMUState only
+        _init(inst, start)
+        for k in range(3):
+            _require(_status_of(_step(inst, start + k * h, h)) == 0, "no run after fmi3Reset")
+    return "fmi3DoStep before initialization and after fmi3Terminate: fmi3Error with a logged " \
+           "message, none Fatal; recovered by fmi3Reset"
+
+
+def check_discard(fmu: Any, ctx: Any = None) -> str:
     start, h = _experiment(fmu)
     inputs = _names(fmu, "input")
     if not inputs:
@@ -129,7 +159,7 @@ def check_discard(fmu: Any) -> str:
     return f"{inputs[0]} = nan: fmi3Discard, then the step works"
 
 
-def check_state_refusal(fmu: Any) -> str:
+def check_state_refusal(fmu: Any, ctx: Any = None) -> str:
     start, h = _experiment(fmu)
     outputs = _names(fmu, "output")
     runs = []
@@ -154,8 +184,28 @@ def check_state_refusal(fmu: Any) -> str:
 
 
 #: (name, check) added to the FMI 2.0 checks for FMI 3.0 FMUs
-FMI3_CHECKS: list[tuple[str, Callable[[Any], str]]] = [
+FMI3_CHECKS: list[tuple[str, Callable[..., str]]] = [
     ("state-machine", check_state_machine),
     ("discard", check_discard),
     ("state-refusal", check_state_refusal),
 ]
+
+#: the profiles each FMI 3.0 check runs under
+FMI3_PROFILES: dict[str, tuple[str, ...]] = {
+    "state-machine": ("standard", "dronefly"),
+    "discard": ("dronefly",),
+    "state-refusal": ("dronefly",),
+}
+
+#: the rule of each: (FMI 2.0 rule (none), FMI 3.0 rule, the dronefly profile's promise)
+FMI3_RULES: dict[str, tuple[str, str, str]] = {
+    "state-machine": (
+        "", "FMI 3.0 2.2.4 (status returned by functions) and 2.3 (FMU states): a call not "
+            "allowed in the current state returns fmi3Error; after it fmi3Reset recovers",
+        "our log wording names the state; refused sets and unknown value references"),
+    "discard": ("", "dronefly profile only: a NaN input answered fmi3Discard (the standard "
+                    "leaves it to the FMU)", "a NaN input answered fmi3Discard"),
+    "state-refusal": ("", "dronefly profile only: corrupt serialized state refused (the "
+                          "standard does not require detecting it)",
+                      "corrupt serialized state refused, the instance unchanged"),
+}

@@ -1,125 +1,277 @@
 """``dronefly check``: run the compliance checks (:mod:`.checker`) and the fuzz on FMUs, safely.
 
 The checks of one FMU run in a child process (and the fuzz in its own), so an FMU that
-crashes its host is reported, not fatal to ``dronefly check``; what the FMU's binaries print
-(FMPy's container writes ``container::logError(...)`` lines) is kept in
-``FMUReport.output``, shown with ``--verbose`` or when a check fails.
+crashes its host or hangs is reported, not fatal to ``dronefly check``: the report names
+the check, the FMI call it was in (with its arguments and time) and what the FMU logged
+before. What the FMU's binaries print (FMPy's container writes ``container::logError(...)``
+lines) is kept in ``FMUReport.output``, shown with ``--verbose`` or when a check fails.
+
+Reports go to a terminal (:func:`format_reports`), to JSON (:func:`reports_json`, with
+:data:`JSON_SCHEMA`) and to JUnit XML (:func:`reports_junit`).
 """
 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import tempfile
+import time
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict
 from pathlib import Path
 
-from dronefly.harness.compliance.checker import CHECK_NAMES, CheckResult, FMUReport, run_checks
+from dronefly.harness.compliance.checker import (CHECK_NAMES, CheckOptions, CheckResult,
+                                                 FMUReport, rule_of, run_checks)
 
-__all__ = ["check_fmu", "format_reports"]
+__all__ = ["JSON_SCHEMA", "check_fmu", "check_fmus", "format_reports", "not_checked",
+           "reports_json", "reports_junit"]
+
+#: the version of the ``--json`` document (``{"schema": JSON_SCHEMA, "fmus": [...]}``)
+JSON_SCHEMA = "dronefly-check/2"
 
 
-def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True) -> FMUReport:
-    """Run every check on one FMU; never raises (nor crashes) for a non-compliant FMU.
+def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
+              options: CheckOptions | None = None, timeout_s: float = 600.0) -> FMUReport:
+    """Run every selected check on one FMU; never raises (nor crashes) for a bad FMU.
 
     Parameters
     ----------
     path : str or Path
         The FMU file.
     fuzz : bool
-        Add the short fuzz (``fuzz`` check).
+        Add the short fuzz (``fuzz`` check; the dronefly profile's, FMI 2.0 FMUs).
     isolate : bool
-        Run the checks in a child process (default): a crash is a failed check.
+        Run the checks in a child process (default): a crash or a hang is a failed check.
+    options : CheckOptions, optional
+        Profile, stop time, step, selected checks.
+    timeout_s : float
+        How long the checks of one FMU may take in the child process.
     """
-    report = _check_isolated(Path(path)) if isolate else run_checks(Path(path))
-    if fuzz and _fmi_version(Path(path)) == "3.0":
-        report.checks.append(CheckResult("fuzz", True, "not run: the fuzz calls the FMI 2.0 API; "
-                                         "FMI 3.0 has the state-machine check"))
-    elif fuzz and report.checks and report.checks[0].name != "load":
-        from dronefly.harness.compliance.fuzz import fuzz_fmu
+    path = Path(path)
+    options = options or CheckOptions()
+    t0 = time.perf_counter()
+    reason = not_checked(path)
+    if reason is not None:
+        return FMUReport(path, skipped=reason)
+    report = (_check_isolated(path, options, timeout_s) if isolate
+              else run_checks(path, options=options))
+    if fuzz and options.wants("fuzz") and report.profile == "dronefly":
+        if _fmi_version(path) == "3.0":
+            report.checks.append(CheckResult(
+                "fuzz", True, "not applicable: the fuzz calls the FMI 2.0 API; FMI 3.0 has "
+                "the state-machine check", rule="dronefly profile: the fuzz", skipped=True))
+        elif report.checks and report.checks[0].name != "load":
+            from dronefly.harness.compliance.fuzz import fuzz_fmu
 
-        f = fuzz_fmu(path, random_calls=100, instances=5)
-        report.checks.append(CheckResult("fuzz", f.passed, f.summary().replace("\n", ";")))
+            t1 = time.perf_counter()
+            f = fuzz_fmu(path, random_calls=100, instances=5)
+            report.checks.append(CheckResult("fuzz", f.passed, f.summary().replace("\n", ";"),
+                                             rule="dronefly profile: the fuzz (no crash, no "
+                                                  "Fatal, every refusal logged and harmless)",
+                                             duration_s=round(time.perf_counter() - t1, 6)))
+    report.duration_s = round(time.perf_counter() - t0, 6)
     return report
 
 
-def _fmi_version(path: Path) -> str | None:
-    import re
-    import zipfile
+def check_fmus(paths: list[Path], *, jobs: int = 1, **kwargs) -> list[FMUReport]:
+    """:func:`check_fmu` on each FMU, ``jobs`` at a time (each in its child process); the
+    reports in the order of ``paths``."""
+    if jobs <= 1 or len(paths) <= 1:
+        return [check_fmu(p, **kwargs) for p in paths]
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        return list(pool.map(lambda p: check_fmu(p, **kwargs), paths))
 
+
+def _model_description_head(path: Path) -> str | None:
     try:
         with zipfile.ZipFile(path) as z:
-            head = z.read("modelDescription.xml")[:4096].decode("utf-8", "replace")
+            return z.read("modelDescription.xml")[:65536].decode("utf-8", "replace")
     except (OSError, KeyError, zipfile.BadZipFile):
         return None
-    m = re.search(r'fmiVersion\s*=\s*"([^"]*)"', head)
+
+
+def _fmi_version(path: Path) -> str | None:
+    head = _model_description_head(path)
+    m = re.search(r'fmiVersion\s*=\s*"([^"]*)"', head) if head else None
     return m.group(1) if m else None
 
 
-def _check_isolated(path: Path, timeout_s: float = 600.0) -> FMUReport:
+def not_checked(path: Path) -> str | None:
+    """Why an FMU is out of scope (no Co-Simulation interface), or None.
+
+    A file that is no readable FMU is not out of scope: its ``load`` check fails.
+    """
+    head = _model_description_head(path)
+    if head is None or "<fmiModelDescription" not in head or "<CoSimulation" in head:
+        return None
+    others = [name for tag, name in (("<ScheduledExecution", "Scheduled Execution"),
+                                     ("<ModelExchange", "Model Exchange")) if tag in head]
+    if not others:
+        return None
+    return (f"not checked: {' and '.join(others)} only, no Co-Simulation interface "
+            "(dronefly check tests Co-Simulation FMUs)")
+
+
+def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUReport:
     from dronefly.harness.compliance.fuzz import describe_exit
 
     with tempfile.TemporaryDirectory(prefix="dronefly_check_") as tmp:
         rows = Path(tmp, "checks.jsonl")
+        opts = json.dumps(asdict(options))
         try:
             proc = subprocess.run([sys.executable, "-m", "dronefly.harness.compliance.suite",
-                                   str(path), str(rows)], capture_output=True, text=True,
+                                   str(path), str(rows), opts], capture_output=True, text=True,
                                   timeout=timeout_s)
             died = None if proc.returncode == 0 else describe_exit(proc.returncode)
             output = (proc.stdout + proc.stderr).strip()
-        except subprocess.TimeoutExpired:
-            died, output = f"hung for more than {timeout_s:g} s", ""
-        report = FMUReport(path, output=output)
-        current = None
-        for line in rows.read_text(encoding="utf-8").splitlines() if rows.exists() else []:
-            row = json.loads(line)
+        except subprocess.TimeoutExpired as e:
+            died = f"hung for more than {timeout_s:g} s"
+            output = ((e.stdout or b"").decode("utf-8", "replace") if isinstance(e.stdout, bytes)
+                      else (e.stdout or "")).strip()
+        report = FMUReport(path)
+        current, call, logged, internal = None, None, [], None
+        text = rows.read_text(encoding="utf-8", errors="replace") if rows.exists() else ""
+        for line in text.splitlines():
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:  # the last line, cut by the crash
+                continue
             if "begin" in row:
-                current = row["begin"]
+                current, call, logged = row["begin"], None, []
+            elif "call" in row:
+                call = row["call"]
+            elif "log" in row:
+                logged.append(row["log"])
+            elif "profile" in row:
+                report.profile = row["profile"]
+            elif "internal" in row:
+                internal = row["internal"]
             else:
                 report.checks.append(CheckResult(**row))
                 current = None
+    if internal is not None:  # dronefly check's own error, not the FMU's
+        report.checks.append(CheckResult(current or "internal", False,
+                                         f"internal error of dronefly check: {internal}"))
+        died = None
     if died is not None:
+        where = f" in {call}" if call else ""
+        before = f"; the FMU logged before: {' | '.join(logged[-3:])}" if logged else ""
+        fmi = 3 if _fmi_version(path) == "3.0" else 2
         report.checks.append(CheckResult(current or "process exit", False,
-                                         f"the checking process died ({died})"))
-        report.checks += _not_run(path, report, current)
+                                         f"the checking process died ({died}){where}{before}",
+                                         rule=rule_of(current or "", fmi, report.profile)))
+        report.checks += _not_run(path, report, current, options)
+    report.output = output
     return report
 
 
-def _not_run(path: Path, report: FMUReport, crashed: str | None) -> list[CheckResult]:
+def _not_run(path: Path, report: FMUReport, crashed: str | None,
+             options: CheckOptions) -> list[CheckResult]:
     """One failed row listing the checks a crash left out (none if it left none out)."""
-    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS
+    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS, FMI3_PROFILES
 
-    names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS if _fmi_version(path) == "3.0")]
+    profile = report.profile or "standard"
+    names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS
+                             if _fmi_version(path) == "3.0" and profile in FMI3_PROFILES[n])]
     done = {c.name for c in report.checks}
-    rest = [n for n in names if n not in done]
+    rest = [n for n in names if n not in done and options.wants(n)]
     where = f"in {crashed}" if crashed else "between checks"
     return [CheckResult("not run", False, f"{', '.join(rest)} (the checking process died "
                                           f"{where})")] if rest else []
 
 
-def _child(path: str, rows: str) -> None:
-    with open(rows, "w", encoding="utf-8") as fh:
-        def progress(row: dict) -> None:
-            fh.write(json.dumps(row) + "\n")
-            fh.flush()
+def _child(path: str, rows: str, opts: str) -> None:
+    import os
+    import traceback
 
-        run_checks(Path(path), progress)
+    fd = os.open(rows, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    try:
+        def progress(row: dict) -> None:  # one unbuffered write per row: a crash loses none
+            os.write(fd, (json.dumps(row) + "\n").encode("utf-8"))
+
+        try:
+            run_checks(Path(path), progress, CheckOptions(**{
+                k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(opts).items()}))
+        except Exception as e:  # dronefly check's own bug: said as such, never as the FMU's
+            progress({"internal": f"{type(e).__name__}: {e} | "
+                                  + traceback.format_exc().strip().splitlines()[-2].strip()})
+    finally:
+        os.close(fd)
+
+
+def _ref(rule: str) -> str:
+    """The short reference of a rule line: ``FMI 2.0 4.2.4`` or ``dronefly profile``."""
+    m = re.match(r"(FMI [23]\.0 [\d.]+|FMI [23]\.0|dronefly profile|FMI cross-check)", rule)
+    return m.group(1) if m else ""
 
 
 def format_reports(reports: list[FMUReport], verbose: bool = False) -> str:
     """The report for a terminal; what the binaries printed only if ``verbose`` or failed."""
     lines = []
     for r in reports:
-        lines.append(f"{r.path}: {'PASS' if r.passed else 'FAIL'}")
+        if r.skipped:
+            lines.append(f"{r.path}: SKIP ({r.skipped})")
+            continue
+        profile = f" (profile {r.profile})" if r.profile else ""
+        lines.append(f"{r.path}: {'PASS' if r.passed else 'FAIL'}{profile}")
         for c in r.checks:
-            lines.append(f"  [{'ok' if c.passed else 'FAIL':>4}] {c.name:<14} {c.detail}")
+            tag = "skip" if c.skipped else "warn" if c.warning else "ok" if c.passed else "FAIL"
+            ref = f" [{_ref(c.rule)}]" if _ref(c.rule) else ""
+            lines.append(f"  [{tag:>4}] {c.name:<14} {c.detail}{ref}")
+            if c.warning:
+                lines.append(f"         warning: {c.warning}")
+            if c.rule and (verbose or not c.passed):
+                lines.append(f"         rule: {c.rule}")
         if r.output and (verbose or not r.passed):
             lines.append("  printed by the FMU's binaries while checked:")
             lines += [f"    {ln}" for ln in r.output.splitlines()]
-    ok = sum(r.passed for r in reports)
-    lines.append(f"{ok} of {len(reports)} FMUs passed")
+    ok = sum(r.passed and not r.skipped for r in reports)
+    skipped = sum(bool(r.skipped) for r in reports)
+    checked = len(reports) - skipped
+    lines.append(f"{ok} of {checked} FMUs passed" + (f", {skipped} not checked" if skipped else ""))
     return "\n".join(lines)
 
 
+def reports_json(reports: list[FMUReport]) -> dict:
+    """The ``--json`` document: schema version, one entry per FMU with each check's status
+    (``passed``, ``failed``, ``skipped``), rule, detail, warning and duration in seconds."""
+    return {"schema": JSON_SCHEMA, "fmus": [{
+        "fmu": str(r.path), "status": "skipped" if r.skipped else
+        "passed" if r.passed else "failed", "passed": r.passed, "skipped": r.skipped or None,
+        "profile": r.profile or None, "duration_s": r.duration_s, "output": r.output,
+        "checks": [{"name": c.name, "status": c.status, "passed": c.passed,
+                    "skipped": c.skipped, "rule": c.rule, "detail": c.detail,
+                    "warning": c.warning or None, "duration_s": c.duration_s}
+                   for c in r.checks]} for r in reports]}
+
+
+def reports_junit(reports: list[FMUReport]) -> str:
+    """JUnit XML: a test suite per FMU, a test case per check (skipped as ``<skipped>``,
+    failed as ``<failure>`` with the message), each with its duration."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.Element("testsuites", name="dronefly check")
+    for r in reports:
+        cases = r.checks or [CheckResult("fmu", True, r.skipped, skipped=True)]
+        suite = ET.SubElement(root, "testsuite", name=str(r.path), tests=str(len(cases)),
+                              failures=str(sum(not c.passed for c in cases)),
+                              skipped=str(sum(c.skipped for c in cases)),
+                              time=f"{r.duration_s:.6f}")
+        for c in cases:
+            case = ET.SubElement(suite, "testcase", name=c.name, classname=Path(r.path).stem,
+                                 time=f"{c.duration_s:.6f}")
+            if c.skipped:
+                ET.SubElement(case, "skipped", message=c.detail)
+            elif not c.passed:
+                failure = ET.SubElement(case, "failure", message=c.detail[:1000])
+                failure.text = "\n".join(x for x in (c.detail, c.rule, r.output) if x)
+            if c.warning:
+                ET.SubElement(case, "system-out").text = f"warning: {c.warning}"
+    return ET.tostring(root, encoding="unicode")
+
+
 if __name__ == "__main__":  # the child process of check_fmu
-    _child(sys.argv[1], sys.argv[2])
+    _child(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else "{}")

@@ -6,13 +6,15 @@ The harness speaks fmpy's FMU2Slave API (``setupExperiment``, ``getReal``, raw
 answers the same calls through fmpy's FMU3Slave, and :func:`fmi2_view` gives the model
 description as the harness reads it:
 
-- Float64 variables read as ``type == "Real"``; the independent variable ``time`` is left
+- Float64 and Float32 variables read as ``type == "Real"`` (each read and written with its own
+  call, fmi3GetFloat64 or fmi3GetFloat32); the independent variable ``time`` is left
   out (the masters keep time themselves);
 - each element of a 2-D array ``K`` appears as a scalar ``K[i,j]`` with a *virtual* value
   reference (from :data:`VIRTUAL`); ``getReal``/``setReal`` read the whole array and write it
   back with the element changed (FMI 3.0 sets an array as a whole). The raw calls
-  (``fmi2GetReal``/``fmi2SetReal``, the masters' hot path) take real value references of
-  scalars only, which is what the masters pass (inputs and outputs are scalars);
+  (``fmi2GetReal``/``fmi2SetReal``, the masters' hot path) pass an array of Float64 scalars'
+  value references straight through, and take the element-wise path for one that names an
+  array element or a Float32 (an array output such as the Reference-FMU StateSpace's ``y``);
 - ``setupExperiment`` keeps the start and stop time for ``fmi3EnterInitializationMode``.
 
 Statuses are FMI 3.0's (same numbers as FMI 2.0); fmpy raises ``FMICallException`` above
@@ -65,7 +67,7 @@ def fmi2_view(md: Any) -> tuple[Any, dict[int, Element]]:
         if v.causality == "independent":
             continue
         kind = "Real" if v.type in ("Float64", "Float32") else v.type
-        shape = tuple(int(d.start) for d in (v.dimensions or ()))
+        shape = tuple(_extent(md, d) for d in (v.dimensions or ()))
         if not shape:
             w = copy.copy(v)
             w.type = kind
@@ -91,6 +93,23 @@ def fmi2_view(md: Any) -> tuple[Any, dict[int, Element]]:
     return _View(md, out), elements
 
 
+def _extent(md: Any, dim: Any) -> int:
+    """The extent of an array dimension: its ``start``, or the start value of the structural
+    parameter its ``valueReference`` names (FMI 3.0 section 2.4.7.2, ``<Dimension>``)."""
+    if dim.start is not None:
+        return int(dim.start)
+    param = getattr(dim, "variable", None)
+    if param is None:
+        param = next((v for v in md.modelVariables if v.valueReference == dim.valueReference),
+                     None)
+    if param is None or param.start is None:
+        from dronefly.errors import DroneflyError
+
+        raise DroneflyError(f"an array dimension names value reference {dim.valueReference}, "
+                            "which is no variable with a start value")
+    return int(param.start)
+
+
 def read_view(path: str | Path) -> Any:
     """fmpy's model description of an FMU file; of an FMI 3.0 FMU, the harness's view."""
     from fmpy import read_model_description
@@ -111,6 +130,9 @@ class FMU3Adapter:
                             instanceName=instance_name)
         self._elements = elements
         self._types = {v.valueReference: v.type for v in md.modelVariables}
+        #: Float32 variables are read and written with fmi3Get/SetFloat32 (section 2.2.6.2)
+        self._f32 = {vr for vr, kind in self._types.items() if kind == "Float32"}
+        self._known: dict[int, tuple[Any, bool]] = {}  # raw vr arrays seen: (array, plain)
         self._experiment: tuple[float | None, float, float | None] = (None, 0.0, None)
         flags = (c_bool(), c_bool(), c_bool(), c_double())
         self._flags = flags
@@ -149,6 +171,11 @@ class FMU3Adapter:
         return self._s.doStep(currentCommunicationPoint, communicationStepSize,
                               noSetFMUStatePriorToCurrentPoint)
 
+    def step_ended(self) -> bool:
+        """Whether the last raw step (:meth:`fmi2DoStep`) asked to end the run
+        (terminateSimulation) or returned early (earlyReturn)."""
+        return bool(self._flags[1].value or self._flags[2].value)
+
     def fmi2FreeInstance(self, component: Any) -> None:
         self._s.fmi3FreeInstance(component)
 
@@ -156,10 +183,31 @@ class FMU3Adapter:
         self._s.freeLibrary()
 
     # -- raw calls of the masters' hot path (scalar value references) ----------
+    def _plain(self, vr: Any, n: int) -> bool:
+        """Whether the raw value-reference array ``vr`` names Float64 scalars only (no
+        Float32, no array element): then the raw call passes it through. An array found
+        plain is remembered (and kept alive, so that its id is not reused)."""
+        if not self._f32 and not self._elements:
+            return True
+        known = self._known.get(id(vr))
+        if known is not None and known[0] is vr:
+            return known[1]
+        plain = not any(v in self._f32 or v >= VIRTUAL for v in vr[:n])
+        if len(self._known) > 256:
+            self._known.clear()
+        self._known[id(vr)] = (vr, plain)
+        return plain
+
     def fmi2GetReal(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        if not self._plain(vr, n):
+            values[:n] = self.getReal(list(vr[:n]))
+            return 0  # a failed get raised FMICallException
         return self._get64(c, vr, n, values, n)
 
     def fmi2SetReal(self, c: Any, vr: Any, n: int, values: Any) -> int:
+        if not self._plain(vr, n):
+            self.setReal(list(vr[:n]), list(values[:n]))
+            return 0
         return self._set64(c, vr, n, values, n)
 
     def fmi2DoStep(self, c: Any, t: float, h: float, no_set_prior: int) -> int:
@@ -210,28 +258,34 @@ class FMU3Adapter:
     def _split(self, vrs: Sequence[int]) -> bool:
         return any(v >= VIRTUAL for v in vrs)
 
+    def _floats(self, vr: int) -> tuple[Callable[..., list[float]], Callable[..., None]]:
+        if vr in self._f32:
+            return self._s.getFloat32, self._s.setFloat32
+        return self._s.getFloat64, self._s.setFloat64
+
     def getReal(self, vr: Sequence[int]) -> list[float]:
-        if not self._split(vr):
+        if not self._f32 and not self._split(vr):
             return self._s.getFloat64(list(vr))
         out = []
         for v in vr:
             e = self._elements.get(v)
-            out.append(self._s.getFloat64([e.array_vr], e.size)[e.index] if e
-                       else self._s.getFloat64([v])[0])
+            get = self._floats(e.array_vr if e else v)[0]
+            out.append(float(get([e.array_vr], e.size)[e.index] if e else get([v])[0]))
         return out
 
     def setReal(self, vr: Sequence[int], values: Sequence[float]) -> None:
-        if not self._split(vr):
+        if not self._f32 and not self._split(vr):
             self._s.setFloat64(list(vr), [float(x) for x in values])
             return
         for v, x in zip(vr, values):
             e = self._elements.get(v)
+            get, put = self._floats(e.array_vr if e else v)
             if e is None:
-                self._s.setFloat64([v], [float(x)])
+                put([v], [float(x)])
                 continue
-            whole = self._s.getFloat64([e.array_vr], e.size)
+            whole = get([e.array_vr], e.size)
             whole[e.index] = float(x)
-            self._s.setFloat64([e.array_vr], whole)
+            put([e.array_vr], whole)
 
     def getBoolean(self, vr: Sequence[int]) -> list[bool]:
         return [bool(b) for b in self._s.getBoolean(list(vr))]

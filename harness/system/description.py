@@ -51,6 +51,7 @@ class System:
     step_s: float | None = None  # from the SSP's annotations or the caller
     stop_s: float | None = None
     _tmp: Any = field(default=None, repr=False, compare=False)
+    start_s: float = 0.0  # the SSP's DefaultExperiment startTime, s
 
     def __post_init__(self) -> None:
         self.fmus = {k: Path(v) for k, v in self.fmus.items()}
@@ -86,7 +87,7 @@ class System:
         (the same FMU files, extracted ones included)."""
         return System(self.fmus, list(self.connections),
                       {i: dict(v) for i, v in parameters.items()}, self.name, self.step_s,
-                      self.stop_s, self._tmp)
+                      self.stop_s, self._tmp, self.start_s)
 
     @classmethod
     def by_name(cls, fmus: Mapping[str, Any], **kw: Any) -> "System":
@@ -156,7 +157,25 @@ class System:
         sys_ = cls(fmus, cons, params, name=system.name or path.stem)
         sys_._tmp = tmp  # the extracted FMUs live as long as the system
         sys_.stop_s = _stop_time(Path(tmp.name, "SystemStructure.ssd"))
+        sys_.start_s = _start_time(Path(tmp.name, "SystemStructure.ssd"))
         return sys_
+
+
+def _start_time(ssd: Path) -> float:
+    """The DefaultExperiment's startTime of an SSD, s (0 if it gives none)."""
+    import xml.etree.ElementTree as ET
+
+    for el in ET.parse(ssd).getroot():
+        if el.tag.rsplit("}", 1)[-1] == "DefaultExperiment" and el.get("startTime") is not None:
+            try:
+                start = float(el.get("startTime"))
+            except ValueError as e:
+                raise SystemSpecError(f"DefaultExperiment startTime = {el.get('startTime')!r} "
+                                      "is not a number") from e
+            if not math.isfinite(start):
+                raise SystemSpecError(f"DefaultExperiment startTime = {start!r} s must be finite")
+            return start
+    return 0.0
 
 
 def _stop_time(ssd: Path) -> float | None:

@@ -40,11 +40,11 @@ from dronefly.harness.cosim.records import MASTERS, MAX_STEPS, LoopRun, StepFail
 from dronefly.harness.system.description import System, SystemSpecError
 from dronefly.harness.system.graph import (Order, check_connections, evaluation_order,
                                            feedthrough)
-from dronefly.harness.system.plan import (Node, build_nodes, get_ops, put_ops, record_ops,
-                                          split_sources, start_ops)
+from dronefly.harness.system.plan import (RECORDABLE, Node, build_nodes, get_ops, put_ops,
+                                          record_ops, split_sources, start_ops)
 from dronefly.harness.system.values import SETTER, settable, typed_values
 
-__all__ = ["SystemMaster"]
+__all__ = ["SystemMaster", "call_name"]
 
 
 class SystemMaster:
@@ -107,7 +107,7 @@ class SystemMaster:
             self.close()
             raise
         self.names = [f"{i}.{v.name}" for i, md in mds.items() for v in md.modelVariables
-                      if v.causality == "output" and v.type == "Real"]
+                      if v.causality == "output" and v.type in RECORDABLE]
 
     def _typed(self, values: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
         """``{instance: {name: value}}`` converted to the variables' declared types."""
@@ -130,8 +130,14 @@ class SystemMaster:
     def run(self, step_s: float, n_steps: int, *, record: Sequence[str] | None = None,
             values: Mapping[str, Mapping[str, Any]] | None = None,
             instances: Mapping[str, Instance] | None = None,
-            inputs0: Mapping[str, Mapping[str, float]] | None = None) -> LoopRun:
-        """Co-simulate ``n_steps`` steps of ``step_s`` seconds from t = 0.
+            inputs0: Mapping[str, Mapping[str, float]] | None = None,
+            start_s: float | None = None) -> LoopRun:
+        """Co-simulate ``n_steps`` steps of ``step_s`` seconds from ``start_s``.
+
+        An FMU that ends the run (FMI 2.0: fmi2Discard with fmi2Terminated, 4.2.3; FMI 3.0:
+        terminateSimulation or earlyReturn of fmi3DoStep) ends it there, as FMPy does: the
+        last row is recorded at its last successful time, every instance is terminated and
+        the run is complete.
 
         Parameters
         ----------
@@ -142,7 +148,7 @@ class SystemMaster:
         record : sequence of str, optional
             Variables ``instance.name`` to record, of any causality (outputs, inputs,
             parameters, calculated parameters, locals) and of type Real, Integer or Boolean
-            (default: every Real output), read with the outputs of each point. Inputs are
+            (default: every output of these types), read with the outputs of each point. Inputs are
             recorded as set for the step from each point (their sources' outputs).
         values : mapping, optional
             ``{instance: {name: value}}`` for this run only, on top of the system's
@@ -155,6 +161,8 @@ class SystemMaster:
             ``{instance: {input: value}}``: Real inputs set to these values at
             initialization instead of their sources' initial outputs (under Jacobi, what
             the FMU answers at the first point).
+        start_s : float, optional
+            Start time [s]; default: the system's (its SSP's DefaultExperiment startTime).
 
         A SIGINT (Ctrl-C) stops the run between two steps (never inside an FMU call): the
         instances are terminated (freed if made here) and ``KeyboardInterrupt`` is raised.
@@ -191,13 +199,16 @@ class SystemMaster:
                 else:
                     node.inst = instances[node.name]
                     node.inst.slave.reset()
+            start = self.system.start_s if start_s is None else float(start_s)
+            if not math.isfinite(start):
+                raise SystemSpecError(f"start = {start!r} s must be finite")
             return self._run(nodes, every_out, names, where, step_s, n_steps, params,
-                             interrupt, inputs0 or {})
+                             interrupt, inputs0 or {}, start)
 
     def _run(self, nodes: dict[str, Node], every_out: Any, names: Sequence[str],
              where: list[int], h: float, n_steps: int,
              parameters: Mapping[str, Mapping[str, Any]], interrupt: Any,
-             inputs0: Mapping[str, Mapping[str, float]]) -> LoopRun:
+             inputs0: Mapping[str, Mapping[str, float]], start: float = 0.0) -> LoopRun:
         from fmpy.fmi1 import FMICallException
 
         free = [nodes[i] for i in self.order.free]
@@ -209,7 +220,9 @@ class SystemMaster:
             range(where[0], where[0] + len(where))) else None
         where_ix = np.array(where, dtype=np.intp)
         rec = np.full((n_steps + 1, len(names)), np.nan)
-        time = np.arange(n_steps + 1) * h
+        time = start + np.arange(n_steps + 1) * h
+        fmi3 = [n for n in every if n.fmu.fmi_version == 3]  # their raw steps keep the flags
+        keep = n_steps + 1
         run = LoopRun(list(names), time, rec)
         who, call, t = every[0], "initialization", 0.0
         get, put = get_ops, put_ops  # the calls of a step, planned once per run
@@ -229,7 +242,7 @@ class SystemMaster:
         try:
             for n in every:
                 who, s, call = n, n.inst.slave, "fmi2SetupExperiment"
-                s.setupExperiment(startTime=0.0, stopTime=n_steps * h)
+                s.setupExperiment(startTime=start, stopTime=start + n_steps * h)
                 call = "fmi2EnterInitializationMode"
                 s.enterInitializationMode()
                 for name, value in parameters.get(n.name, {}).items():
@@ -246,7 +259,7 @@ class SystemMaster:
                     f(*args)
                 ready.add(n.name)
             for k in range(n_steps + 1):
-                t = k * h
+                t = start + k * h
                 if interrupt.count:  # Ctrl-C: stop between steps, never inside an FMU
                     for n in every:
                         with contextlib.suppress(FMICallException):
@@ -259,15 +272,32 @@ class SystemMaster:
                     break
                 for who, call, f, args in write:
                     f(*args)
-                for who, call, f, c in steps:
-                    f(c, t, h, 1)
+                ended = None
+                try:
+                    for who, call, f, c in steps:
+                        f(c, t, h, 1)
+                except FMICallException as e:
+                    ended = _terminated(who, e, t)
+                    if ended is None:
+                        raise
+                if fmi3 and ended is None and any(n.inst.slave.step_ended() for n in fmi3):
+                    ended = t + h
+                if ended is not None:  # an FMU ended the run: its last row, then stop
+                    for who, call, f, args in read:
+                        f(*args)
+                    rec[k + 1] = outs[where_ix] if row is None else row
+                    time[k + 1] = ended
+                    keep = k + 2
+                    break
             for n in every:
                 who, call = n, "fmi2Terminate"
                 n.inst.slave.terminate()
+            if keep < len(time):
+                run.time, run.signals = time[:keep], rec[:keep]
         except FMICallException as e:
             msgs = who.inst.messages
-            run.failure = StepFailure(who.name, call, t, e.status,
-                                      msgs[-1].message if msgs else "")
+            run.failure = StepFailure(who.name, call_name(call, who.fmu.fmi_version), t,
+                                      e.status, msgs[-1].message if msgs else "")
             for n in every:
                 with contextlib.suppress(FMICallException):
                     n.inst.slave.terminate()
@@ -279,3 +309,41 @@ class SystemMaster:
         run.messages = [m.message for n in every for m in n.inst.messages]
         return run
 
+
+def _terminated(node: Node, e: Any, t: float) -> float | None:
+    """The last successful time if ``e`` (from an FMI 2.0 fmi2DoStep from ``t``) is
+    fmi2Discard with fmi2Terminated (FMI 2.0 4.2.3) after some progress, else None.
+
+    A Discard without progress (the last successful time not after ``t``) is a refused step,
+    a failure, also when the FMU says it terminated (pythonfmu 0.7.0 says so after every
+    Discard)."""
+    from fmpy.fmi1 import FMICallException
+
+    if node.fmu.fmi_version != 2 or e.status != 2:
+        return None
+    s = node.inst.slave
+    try:
+        if not s.getBooleanStatus(3):  # fmi2Terminated
+            return None
+        last = float(s.getRealStatus(2))  # fmi2LastSuccessfulTime
+    except FMICallException:
+        return None
+    return last if last > t else None
+
+
+#: FMI 2.0 calls of the master and their FMI 3.0 counterparts (fmi2SetupExperiment's start
+#: and stop time go to fmi3EnterInitializationMode; an Integer is one of fmi3GetInt8 ...
+#: fmi3GetUInt64, by the variable's type)
+_FMI3_CALLS = {"fmi2SetupExperiment": "fmi3EnterInitializationMode",
+               "fmi2GetReal": "fmi3GetFloat64", "fmi2SetReal": "fmi3SetFloat64",
+               "fmi2GetInteger": "fmi3GetInt*", "fmi2SetInteger": "fmi3SetInt*"}
+
+
+def call_name(call: str, fmi_version: int) -> str:
+    """The name of the master's call ``call`` (said in FMI 2.0 terms) in the FMU's FMI
+    version: ``fmi3DoStep``, not ``fmi2DoStep``, for an FMI 3.0 FMU."""
+    if fmi_version != 3 or not call.startswith("fmi2"):
+        return call
+    head, _, rest = call.partition(" ")
+    head = _FMI3_CALLS.get(head, "fmi3" + head[4:])
+    return f"{head} {rest}" if rest else head

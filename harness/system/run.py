@@ -66,6 +66,9 @@ class SystemResult:
     #: the failed cross-checks, one sentence each (empty: all passed or none possible)
     check_failures: list[str] = field(default_factory=list)
     check_tol: float = CHECK_TOL_PER_WINGBEAT
+    #: the unit of the step and stop: "wing beats", or "s" when no instance has a wing-beat
+    #: frequency n [Hz] (then a "wing beat" is one second)
+    time_unit: str = "wing beats"
 
     def to_json(self) -> dict[str, Any]:
         axes = []
@@ -85,6 +88,7 @@ class SystemResult:
                 "failure": None if self.run.complete else str(self.run.failure),
                 "master": self.master, "step_wingbeats": self.step_wingbeats,
                 "stop_wingbeats": self.stop_wingbeats, "wingbeat_frequency_hz": self.n_hz,
+                "time_unit": self.time_unit, "ended_at_s": self._ended_at(),
                 "axes": axes, "check_failures": list(self.check_failures),
                 "recorded": list(self.run.names),
                 "csv": None if self.csv is None else str(self.csv),
@@ -96,10 +100,25 @@ class SystemResult:
                 "tolerance": self.check_tol,
                 "passed": None if dev is None else _passed(dev, self.check_tol)}
 
+    def _ended_at(self) -> float | None:
+        """The time [s] an FMU ended the run at before the stop time (None: it did not)."""
+        n_steps = round(self.stop_wingbeats / self.step_wingbeats)
+        if self.run.complete and len(self.run.time) - 1 < n_steps:
+            return float(self.run.time[-1])
+        return None
+
     def summary(self) -> str:
+        u = self.time_unit
         lines = [f"system {self.system}: {self.master} master, step {self.step_wingbeats:g} "
-                 f"wing beats, {len(self.run.time) - 1} steps to {self.stop_wingbeats:g} "
-                 f"wing beats, {len(self.run.names)} outputs recorded"]
+                 f"{u}, {len(self.run.time) - 1} steps to {self.stop_wingbeats:g} "
+                 f"{u}, {len(self.run.names)} outputs recorded"]
+        ended = self._ended_at()
+        if ended is not None:
+            lines.append(f"an FMU ended the run at t = {ended:g} s (terminateSimulation / "
+                         "fmi2Terminated), before the stop time")
+        if self.open_loop is not None and not self.open_loop:
+            lines.append("open loop: nothing to identify: the system has no plant (an instance "
+                         "with an x_start parameter per Real output x and the scales n and U)")
         for a in self.axes:
             ev = ", ".join(_fmt(z) for z in a.identification.eigenvalues)
             lines.append(f"{a.plant.instance} ({a.plant.model}): {a.verdict} (dominant rate "
@@ -147,6 +166,11 @@ def _fmt(z: complex) -> str:
     return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
+def _has_wingbeats(master: SystemMaster) -> bool:
+    return any((v := fmu.variables.get("n")) is not None and v.causality == "parameter"
+               and v.unit == "Hz" for fmu in master.fmus.values())
+
+
 def _shared_scale(master: SystemMaster, name: str, unit: str) -> set[float]:
     """The values of the reference scale ``name`` [``unit``] over the instances that have it
     (each reads the others' states with its own: they must agree)."""
@@ -184,9 +208,11 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
     system : System or path
         The system, or an SSP file to read it from.
     step_wingbeats : float
-        Communication step in wing beats.
+        Communication step in wing beats (in seconds for a system without a wing-beat
+        frequency: no instance with a parameter ``n`` in Hz).
     stop_wingbeats : float, optional
-        Stop time in wing beats (default: the SSP's DefaultExperiment, else 300).
+        Stop time in wing beats (seconds, as the step; default: the SSP's
+        DefaultExperiment, else 300).
     master : {'gauss-seidel', 'jacobi'}
     set_values : mapping, optional
         ``{"instance.NAME": value}``: parameter or input values, in the FMU's unit, as
@@ -194,7 +220,7 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         declared type when the system is opened (:mod:`.values`).
     record : sequence of str, optional
         Variables ``instance.name`` to record: any Real, Integer or Boolean variable of any
-        instance (default: every Real output).
+        instance (default: every Real, Integer and Boolean output).
     verdicts : bool
         Identify each plant's loop (extra short runs).
     out_dir : path or None
@@ -212,8 +238,9 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         system = system.with_values(set_values)
     with SystemMaster(system, master) as m:
         n = _wingbeat_frequency(m)
+        unit = "wing beats" if _has_wingbeats(m) else "s"
         stop = stop_wingbeats if stop_wingbeats is not None else (
-            system.stop_s * n if system.stop_s is not None else 300.0)
+            (system.stop_s - system.start_s) * n if system.stop_s is not None else 300.0)
         n_steps = step_count(stop, step_wingbeats)
         stop = round(n_steps * step_wingbeats, 12)
         run = m.run(step_wingbeats / n, n_steps, record=record)
@@ -231,7 +258,7 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         "eig(A) (open loop)", tol)
     result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation,
                           open_loop=opened, open_loop_deviation=open_dev,
-                          check_failures=failures, check_tol=tol)
+                          check_failures=failures, check_tol=tol, time_unit=unit)
     if out_dir is not None:
         write_run_files(result, out_dir, name or f"cosim_{system.name}_{master}",
                         _plot if plot else None)

@@ -39,6 +39,12 @@ HOVER_6DOF_FMUS = {"plant": "DroneFlyHover6DOF", "lateral_controller": "StateFee
                    "longitudinal_controller": "StateFeedbackLongitudinal"}
 
 
+#: the SSP 1.0 connector type of each variable type (FMI 3.0: Float64 and Float32 read as Real;
+#: the integer types that fit SSP's 32-bit Integer)
+_SSP_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
+              **{t: "Integer" for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32")}}
+
+
 def _xml(root: ET.Element) -> bytes:
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
@@ -82,12 +88,14 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
         files[entry] = data
         comp = ET.SubElement(elements, f"{{{_SSD}}}Component", {
             "name": inst, "source": entry, "type": "application/x-fmu-sharedlibrary"})
-        connectors = ET.SubElement(comp, f"{{{_SSD}}}Connectors")
-        for v in read_view(fmu).modelVariables:  # FMI 3.0: Float64 as Real
-            if v.causality in ("input", "output") and v.type in ("Real", "Integer", "Boolean"):
+        ports = [(v.name, v.causality, _SSP_TYPES[v.type]) for v in read_view(fmu).modelVariables
+                 if v.causality in ("input", "output") and v.type in _SSP_TYPES]
+        if ports:  # the schema wants a Connector in Connectors: none without
+            connectors = ET.SubElement(comp, f"{{{_SSD}}}Connectors")
+            for name, kind, ssp_type in ports:
                 con = ET.SubElement(connectors, f"{{{_SSD}}}Connector",
-                                    {"name": v.name, "kind": v.causality})
-                ET.SubElement(con, f"{{{_SSC}}}{v.type}")
+                                    {"name": name, "kind": kind})
+                ET.SubElement(con, f"{{{_SSC}}}{ssp_type}")
         values = system.parameters.get(inst)
         if values:
             bindings = ET.SubElement(comp, f"{{{_SSD}}}ParameterBindings")
@@ -103,7 +111,7 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
     stop = system.stop_s if stop_s is None else stop_s
     if stop is not None:
         ET.SubElement(root, f"{{{_SSD}}}DefaultExperiment",
-                      {"startTime": "0.0", "stopTime": repr(float(stop))})
+                      {"startTime": repr(float(system.start_s)), "stopTime": repr(float(stop))})
     files["SystemStructure.ssd"] = _xml(root)
     return write_zip(Path(path), files)
 

@@ -1,0 +1,322 @@
+"""The quasi-steady model beside the paper: derivatives, eigenvalues, controller, linearity.
+
+Derivatives are central differences of the cycle-averaged forces about the trimmed hover
+(:meth:`QuasiSteadyModel.trim`), named as the plant FMUs name them (``Yv_plus``,
+``L_Phi_a_plus``, ``Mq_plus``, ...), each beside the value the project recovers from the
+paper (Eq. 12 and Table 1 through :mod:`dronefly.plant.model`, Sect. 3.5's A and B through
+:mod:`dronefly.plant_longitudinal.model`). Eigenvalues are per wing beat, with the paper's
+inertias (Sect. 2.1 and ``IY_PLUS``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..controller.law import PAPER_GAINS_EQ27
+from ..lateral import STATE_BOUNDS_SECT36, sort_eigenvalues
+from ..plant import model as lateral_model
+from ..plant_longitudinal import model as longitudinal_model
+from .quasisteady import CONTROLS, FORCES, STATES, QuasiSteadyModel
+
+__all__ = [
+    "CONTROL_BOX_RAD",
+    "DerivativeRow",
+    "LATERAL_PARAMETERS",
+    "LONGITUDINAL_PARAMETERS",
+    "ParityReport",
+    "ackermann",
+    "closed_loop",
+    "derivative_table",
+    "derivatives",
+    "eigenvalues",
+    "linearity_scan",
+    "parity_report",
+]
+
+Array = NDArray[np.float64]
+
+#: Sect. 3.6: the controls stay within +/-0.4 rad; the states within STATE_BOUNDS_SECT36.
+CONTROL_BOX_RAD: float = 0.4
+STATE_BOX: float = STATE_BOUNDS_SECT36[0]
+
+#: (parameter, force, input) of the lateral derivatives, Eq. (9)'s names.
+LATERAL_PARAMETERS: tuple[tuple[str, str, str], ...] = (
+    *((f"{F}{s}_plus", F, f"delta_{s}") for s in "vpr" for F in "YLN"),
+    *((f"{F}_{c}_plus", F, f"delta_{c}") for c in ("Phi_a", "alpha_1a", "alpha_2a") for F in "YLN"),
+)
+#: (parameter, force, input) of the longitudinal derivatives, Sect. 3.5's names.
+LONGITUDINAL_PARAMETERS: tuple[tuple[str, str, str], ...] = (
+    *((f"{F}{s}_plus", F, f"delta_{s}") for s in "uwq" for F in "XZM"),
+    *((f"{F}_{c}_plus", F, f"delta_{c}") for c in ("Phi", "alpha_1", "phibar", "alpha_2")
+      for F in "XZM"),
+)
+
+
+def _paper_values() -> dict[str, float]:
+    out = dict(lateral_model.default_parameters().__dict__)
+    out.update(longitudinal_model.default_parameters().__dict__)
+    return out
+
+
+def _perturbed(model: QuasiSteadyModel, name: str, value: float) -> Array:
+    if name in STATES:
+        x = np.zeros(6)
+        x[STATES.index(name)] = value
+        return model.forces_vector(x)
+    return model.forces_vector(np.zeros(6), {name: value})
+
+
+def derivatives(model: QuasiSteadyModel, step: float = 1e-3,
+                inputs: Sequence[str] = STATES + CONTROLS) -> dict[str, Array]:
+    """Central differences d(X, Y, Z, L, M, N)/d(input) at the trimmed hover.
+
+    Parameters
+    ----------
+    model : QuasiSteadyModel
+    step : float
+        The step, in the input's unit (x+ for states, rad for controls).
+    inputs : sequence of str
+        Names from :data:`STATES` and :data:`CONTROLS`.
+
+    Returns
+    -------
+    dict
+        input name -> array of the six derivatives (order :data:`FORCES`).
+    """
+    return {name: (_perturbed(model, name, step) - _perturbed(model, name, -step)) / (2 * step)
+            for name in inputs}
+
+
+@dataclass(frozen=True)
+class DerivativeRow:
+    """One derivative: quasi-steady, paper, their ratio and whether the signs agree."""
+
+    parameter: str
+    quasi_steady: float
+    paper: float
+
+    @property
+    def ratio(self) -> float:
+        return self.quasi_steady / self.paper if self.paper != 0.0 else math.nan
+
+    @property
+    def same_sign(self) -> bool:
+        return (self.quasi_steady > 0) == (self.paper > 0)
+
+
+def derivative_table(model: QuasiSteadyModel, step: float = 1e-3) -> list[DerivativeRow]:
+    """Every lateral and longitudinal derivative of the paper, quasi-steady beside paper."""
+    d = derivatives(model, step)
+    paper = _paper_values()
+    return [DerivativeRow(p, float(d[inp][FORCES.index(F)]), float(paper[p]))
+            for p, F, inp in (*LATERAL_PARAMETERS, *LONGITUDINAL_PARAMETERS)]
+
+
+def _matrices(values: dict[str, float]) -> tuple[tuple[Array, Array], tuple[Array, Array]]:
+    """Lateral (A1, B1) and longitudinal (A, B) with the derivatives of ``values`` and the
+    paper's mass, inertias and gravity."""
+    lat = dict(lateral_model.default_parameters().__dict__)
+    lat.update({p: values[p] for p, _, _ in LATERAL_PARAMETERS if p in values})
+    lon = dict(longitudinal_model.default_parameters().__dict__)
+    lon.update({p: values[p] for p, _, _ in LONGITUDINAL_PARAMETERS if p in values})
+    return (lateral_model.system_matrices(lateral_model.LateralParameters(**lat)),
+            longitudinal_model.system_matrices(longitudinal_model.LongitudinalParameters(**lon)))
+
+
+def eigenvalues(values: dict[str, float]) -> dict[str, list[complex]]:
+    """Lateral and longitudinal eigenvalues per wing beat of the derivatives ``values``
+    (with the paper's m+, g+, Ix+, Iz+, Ixz+, Iy+), in the project's order."""
+    (A1, _), (A, _) = _matrices(values)
+    return {"lateral": sort_eigenvalues(np.linalg.eigvals(A1)),
+            "longitudinal": sort_eigenvalues(np.linalg.eigvals(A))}
+
+
+def ackermann(A: Array, b: Array, targets: Sequence[complex]) -> Array:
+    """Single-input gains k (u = k x) placing eig(A + b k) at ``targets`` (Ackermann)."""
+    n = A.shape[0]
+    coeffs = np.real(np.poly(np.asarray(targets, dtype=complex)))
+    phi = np.zeros_like(A)
+    for c in coeffs:
+        phi = phi @ A + c * np.eye(n)
+    ctrb = np.column_stack([np.linalg.matrix_power(A, i) @ b for i in range(n)])
+    e_n = np.zeros(n)
+    e_n[-1] = 1.0
+    return -(e_n @ np.linalg.solve(ctrb, phi))
+
+
+def closed_loop(values: dict[str, float]) -> dict[str, object]:
+    """Eq. (27) on the quasi-steady plant, and the paper's method re-applied to it.
+
+    Returns
+    -------
+    dict
+        ``qs_A_qs_B`` and ``paper_A_qs_B``: closed-loop eigenvalues with the Eq. (27) gains on
+        dPhi_a; ``matched_gains``: coefficient matching (Ackermann, as Eqs. 25-26) moving every
+        quasi-steady eigenvalue with a positive real part onto the imaginary axis and keeping
+        the others; ``matched_eigenvalues`` its closed loop.
+    """
+    (A1q, B1q), _ = _matrices(values)
+    A1p, _ = lateral_model.system_matrices(lateral_model.default_parameters())
+    k = np.asarray(PAPER_GAINS_EQ27)
+    b = B1q[:, 0]
+    open_q = sort_eigenvalues(np.linalg.eigvals(A1q))
+    targets = [complex(0.0, z.imag) if z.real > 0 else z for z in open_q]
+    gains = ackermann(A1q, b, targets)
+    return {
+        "qs_A_qs_B": sort_eigenvalues(np.linalg.eigvals(A1q + np.outer(b, k))),
+        "paper_A_qs_B": sort_eigenvalues(np.linalg.eigvals(A1p + np.outer(b, k))),
+        "targets": targets,
+        "matched_gains": [float(g) for g in gains],
+        "matched_eigenvalues": sort_eigenvalues(np.linalg.eigvals(A1q + np.outer(b, gains))),
+    }
+
+
+@dataclass(frozen=True)
+class ParityReport:
+    """Everything ``dronefly aero`` prints: trim, derivative rows, eigenvalues, controller."""
+
+    coefficients: str
+    terms: dict[str, object]
+    trim: dict[str, float]
+    rows: list[DerivativeRow]
+    eigenvalues: dict[str, dict[str, list[complex]]]
+    controller: dict[str, object]
+
+    def to_json(self) -> dict[str, object]:
+        def cx(values: Sequence[complex]) -> list[list[float]]:
+            return [[float(complex(z).real), float(complex(z).imag)] for z in values]
+
+        ctrl = {k: (cx(v) if k != "matched_gains" else v) for k, v in self.controller.items()}
+        return {
+            "coefficients": self.coefficients,
+            "terms": self.terms,
+            "trim": self.trim,
+            "derivatives": {r.parameter: {"quasi_steady": r.quasi_steady, "paper": r.paper}
+                            for r in self.rows},
+            "eigenvalues": {axis: {k: cx(v) for k, v in d.items()}
+                            for axis, d in self.eigenvalues.items()},
+            "controller": ctrl,
+        }
+
+    def table(self) -> str:
+        lines = [f"quasi-steady model ({self.coefficients}; terms: "
+                 + ", ".join(k for k, v in self.terms.items() if v is True) + ")",
+                 f"trim: alpha_d {self.trim['alpha_d_deg']:.3f} deg, alpha_u "
+                 f"{self.trim['alpha_u_deg']:.3f} deg, phibar {self.trim['phibar_deg']:.3f} deg, "
+                 f"residual {self.trim['residual_over_weight']:.1e} of the weight", "",
+                 f"{'parameter':<18} {'quasi-steady':>13} {'paper':>10} {'ratio':>8}  sign"]
+        for r in self.rows:
+            ratio = "-" if math.isnan(r.ratio) else f"{r.ratio:.3g}"
+            sign = "same" if r.same_sign else "OPPOSITE"
+            if r.paper == 0.0:
+                sign = "-"
+            lines.append(f"{r.parameter:<18} {r.quasi_steady:>13.4f} {r.paper:>10.4f} "
+                         f"{ratio:>8}  {sign}")
+        lines.append("")
+        for axis, d in self.eigenvalues.items():
+            for who, values in d.items():
+                lines.append(f"{axis} eigenvalues per wing beat, {who}: "
+                             + ", ".join(_fmt(z) for z in values))
+        c = self.controller
+        lines.append("Eq. (27) on the quasi-steady A and B: " + ", ".join(_fmt(z) for z in c["qs_A_qs_B"]))
+        lines.append("Eq. (27) on the paper's A, quasi-steady B: "
+                     + ", ".join(_fmt(z) for z in c["paper_A_qs_B"]))
+        lines.append("coefficient matching on the quasi-steady model: k = "
+                     + ", ".join(f"{g:.4f}" for g in c["matched_gains"]))
+        return "\n".join(lines)
+
+
+def _fmt(z: complex) -> str:
+    z = complex(z)
+    if abs(z.imag) < 1e-12:
+        return f"{z.real:+.4f}"
+    return f"{z.real:+.4f}{z.imag:+.4f}i"
+
+
+def parity_report(model: QuasiSteadyModel, step: float = 1e-3) -> ParityReport:
+    """Trim, derivative table, eigenvalues and the paper's controller on ``model``."""
+    trim = model.trim()
+    rows = derivative_table(model, step)
+    qs = {r.parameter: r.quasi_steady for r in rows}
+    paper = _paper_values()
+    t = model.terms
+    return ParityReport(
+        coefficients=model.coefficients.name,
+        terms={"translational": t.translational, "rotational": t.rotational,
+               "added_mass": t.added_mass, "added_mass_form": t.added_mass_form},
+        trim=trim.to_json(), rows=rows,
+        eigenvalues={axis: {"quasi_steady": eigenvalues(qs)[axis],
+                            "paper": eigenvalues(paper)[axis]}
+                     for axis in ("lateral", "longitudinal")},
+        controller=closed_loop(qs))
+
+
+def linearity_scan(model: QuasiSteadyModel, inputs: Sequence[str], outputs: Sequence[str],
+                   extent: float = 2.0, points: int = 13) -> dict[str, object]:
+    """The error of the tangent at hover, per input, out to ``extent`` times the box.
+
+    Each input (a state, box +/-0.15; a control, box +/-0.4 rad) is swept alone over
+    ``points`` values in +/- extent * box; the error of the linear model F0 + D s is given in
+    per cent of the output's scale, the largest range that any of ``inputs`` gives it inside
+    the box. The 10 % extent is where the error first reaches 10 %, linearly interpolated on
+    the samples (None if not within the sweep).
+
+    Returns
+    -------
+    dict
+        ``scale`` (output -> range in the box), ``inputs`` (input -> ``values`` and, per
+        output, ``forces``, ``error_pct``, ``max_error_box_pct``, ``max_error_pct`` and
+        ``ten_pct_extent`` [input's unit, the smaller of the two sides]).
+    """
+    f0 = model.forces_vector()
+    d = derivatives(model, 1e-3, inputs)
+    sweeps: dict[str, dict[str, object]] = {}
+    box_ranges: dict[str, dict[str, float]] = {}
+    for name in inputs:
+        box = STATE_BOX if name in STATES else CONTROL_BOX_RAD
+        s = np.linspace(-extent * box, extent * box, points)
+        F = np.array([_perturbed(model, name, v) for v in s])
+        lin = f0 + np.outer(s, d[name])
+        inside = np.abs(s) <= box + 1e-12
+        sweeps[name] = {"values": s, "F": F, "err": np.abs(F - lin), "inside": inside}
+        box_ranges[name] = {o: float(np.ptp(F[inside, FORCES.index(o)])) for o in outputs}
+    scale = {o: max(box_ranges[n][o] for n in inputs) for o in outputs}
+    out: dict[str, object] = {"scale": scale, "inputs": {}}
+    for name, sw in sweeps.items():
+        s, err, inside = sw["values"], sw["err"], sw["inside"]
+        per: dict[str, object] = {"values": [float(v) for v in s]}
+        for o in outputs:
+            i = FORCES.index(o)
+            pct = 100.0 * err[:, i] / scale[o] if scale[o] > 0 else np.zeros(len(s))
+            per[o] = {"forces": [float(v) for v in sw["F"][:, i]],
+                      "error_pct": [float(v) for v in pct],
+                      "max_error_box_pct": float(pct[inside].max()),
+                      "max_error_pct": float(pct.max()),
+                      "ten_pct_extent": _first_crossing(s, pct, 10.0)}
+        out["inputs"][name] = per  # type: ignore[index]
+    return out
+
+
+def _first_crossing(s: Array, pct: Array, level: float) -> float | None:
+    """The smallest |s| at which ``pct`` reaches ``level``, interpolated (None if never)."""
+    mid = len(s) // 2
+    best: float | None = None
+    for direction in (1, -1):
+        idx = range(mid, len(s)) if direction == 1 else range(mid, -1, -1)
+        prev = None
+        for i in idx:
+            if pct[i] >= level:
+                if prev is None:
+                    x = abs(float(s[i]))
+                else:
+                    a, b = pct[prev], pct[i]
+                    x = abs(float(s[prev] + (s[i] - s[prev]) * (level - a) / (b - a)))
+                best = x if best is None else min(best, x)
+                break
+            prev = i
+    return best

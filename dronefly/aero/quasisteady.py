@@ -1,0 +1,503 @@
+"""A quasi-steady blade-element model of the two flapping wings of the model drone fly.
+
+Everything is non-dimensional as in Zhang & Sun, Sect. 2.1: lengths in the mean chord c,
+velocities in U = 2 Phi n r2, time in the wing-beat period t_w (t+ in [0, 1) is one cycle),
+forces over 0.5 rho U^2 S_t and moments over 0.5 rho U^2 S_t c, S_t the area of both wings.
+
+Axes (Sect. 2.1, Fig. 1): body axes at the centre of mass, x forward, y to the right, z down;
+at hover x and y are horizontal. The stroke plane is horizontal (Sect. 2.4), so it is the
+x-y plane. Moments L, M, N are about x, y, z (right-handed): more lift on the left wing rolls
+right (L > 0, as L_Phi_a > 0 in Table 1), more drag backwards on the left wing yaws left
+(N < 0, as N_alpha_2a < 0). Gravity enters through the weight W+ = m+ g+ only (trim).
+
+Kinematics (the Sun group's model insects, Sect. 2.4 data), per wing, t+ in [0, 1):
+
+- stroke (positional) angle, forward positive: phi = phibar - (Phi/2) cos(2 pi t+): the
+  downstroke (t+ in [0, 0.5], the wing moving forward) then the upstroke;
+- the geometrical angle of attack is alpha_d in mid-downstroke and alpha_u in mid-upstroke;
+  "Delta t_r is 30 % of the wing-beat cycle" is read as a rotation of duration 0.3 t_w
+  centred on each stroke reversal (t+ = 0 and 0.5), so the mid-stroke phases are
+  [0.15, 0.35] and [0.65, 0.85]; the pitch angle psi of the chord from the forward stroke
+  direction goes alpha_d -> pi - alpha_u -> alpha_d, in each rotation by
+  psi = psi0 + dpsi (tau - sin(2 pi tau)/(2 pi)), tau in [0, 1] (angular velocity
+  0.5 w0 (1 - cos 2 pi tau), Sun & Tang 2002), about the pitch axis at x0 = c/4 from the
+  leading edge.
+
+Planform (Ellington 1984): chord c(r) proportional to a beta distribution
+r^(p-1) (1-r)^(q-1) on r = r/R in [0, 1], with r2 = 0.55 R (Sect. 2.4) and r1 from
+Ellington's relation r2 = 0.929 r1^0.732 (so r1 = 0.489 R).
+
+Wing roots: 0.33 l_b apart (y = +/-0.165 l_b), the wing-base axis l1 = 0.13 l_b from the
+centre of mass; the free body angle chi0 = 52 deg is the body angle at which the centre of
+mass hangs straight below the wing-base axis (Ellington 1984), so at the body angle
+chi = 42 deg the roots are l1 cos(10 deg) above and l1 sin(10 deg) ahead of it.
+
+Blade elements (Gauss-Jacobi nodes of the planform): the element velocity relative to the
+air is the flapping velocity plus the body's translation and rotation (u, v, w) +
+Omega x r, the spanwise component removed. Terms (each can be switched off, :class:`Terms`):
+
+- translational: 0.5 rho |V|^2 c dr (CL(alpha) e_L + CD(alpha) e_D), e_D against V,
+  e_L normal to V away from the side the flow meets, alpha in [0, pi/2] the angle
+  between V and the chord line, CL/CD from a :class:`CoefficientSet`;
+- rotational (Sane & Dickinson 2002): rho C_rot c^2 dr omega_p |V| sgn(V.e_c) n, normal to the
+  wing, C_rot = pi (0.75 - x0/c), omega_p the pitch rate (rotation plus the body's rate about
+  the wing's span axis); positive when it raises the angle of attack (force to the suction side);
+- added mass (Sane & Dickinson 2001 form, per element): -rho (pi/4) c^2 dr d(V_n)/dt n with V_n
+  the normal velocity of the mid-chord.
+
+All forces act on the pitch axis of their element; the body's own aerodynamic force is not
+modelled (Sun's CFD finds it negligible in hover). Cycle averages are the mean over
+``n_time`` equally spaced samples (the periodic trapezoidal rule; the rotation's start and
+end fall on samples); time derivatives inside the added mass are periodic central differences.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import DroneflyError
+from ..lateral import FLIGHT_DATA, reference_scales
+
+__all__ = [
+    "BODY_DATA",
+    "COEFFICIENT_SETS",
+    "CONTROLS",
+    "FORCES",
+    "STATES",
+    "CoefficientSet",
+    "QuasiSteadyModel",
+    "Terms",
+    "Trim",
+    "WingGeometry",
+    "weight_plus",
+]
+
+Array = NDArray[np.float64]
+
+#: The body state, as the plant FMUs name it (non-dimensional x+: velocities over U, rates
+#: times t_w).
+STATES: tuple[str, ...] = ("delta_u", "delta_v", "delta_w", "delta_p", "delta_q", "delta_r")
+#: The controls [rad]: lateral (Sect. 2.1) then longitudinal (Sect. 3.5, Eq. 30 order).
+CONTROLS: tuple[str, ...] = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a", "delta_Phi",
+                             "delta_alpha_1", "delta_phibar", "delta_alpha_2")
+#: The cycle-averaged forces and moments, in this order.
+FORCES: tuple[str, ...] = ("X", "Y", "Z", "L", "M", "N")
+
+#: Sect. 2.4 data that :data:`dronefly.lateral.FLIGHT_DATA` does not hold (lengths in m,
+#: angles in deg, the rotation as a fraction of the cycle).
+BODY_DATA: dict[str, float] = {
+    "l_b": 14.11e-3,  # m, body length
+    "root_spacing_over_lb": 0.33,  # distance between the two wing roots
+    "l1_over_lb": 0.13,  # wing-base axis to centre of mass
+    "chi0_deg": 52.0,  # free body angle
+    "chi_deg": 42.0,  # body angle at hover
+    "rotation_fraction": 0.30,  # Delta t_r / t_w
+    "Re": 781.6,
+}
+
+
+@dataclass(frozen=True)
+class CoefficientSet:
+    """Translational lift and drag coefficients CL(alpha), CD(alpha) of a wing, with source.
+
+    Parameters
+    ----------
+    name : str
+        Key in :data:`COEFFICIENT_SETS`.
+    lift, drag : callable
+        alpha [rad] (array) -> coefficient.
+    source : str
+        Paper, equation, Reynolds number.
+    """
+
+    name: str
+    lift: Callable[[Array], Array]
+    drag: Callable[[Array], Array]
+    source: str
+
+
+_DEG = math.pi / 180.0
+
+#: The coefficient sets, each from its source; none is tuned to the paper's CFD values.
+COEFFICIENT_SETS: dict[str, CoefficientSet] = {
+    "dickinson1999": CoefficientSet(
+        "dickinson1999",
+        lambda a: 0.225 + 1.58 * np.sin(2.13 * a - 7.20 * _DEG),
+        lambda a: 1.92 - 1.55 * np.cos(2.04 * a - 9.82 * _DEG),
+        "Dickinson, Lehmann & Sane 1999, Science 284:1954, fits to the steady-state forces of "
+        "a revolving Drosophila model wing (Robofly), Re of order 100-200 (alpha in deg in the "
+        "paper's form: 0.225 + 1.58 sin(2.13 alpha - 7.20), 1.92 - 1.55 cos(2.04 alpha - 9.82))"),
+    "wang2004": CoefficientSet(
+        "wang2004",
+        lambda a: 1.2 * np.sin(2.0 * a),
+        lambda a: 1.4 - np.cos(2.0 * a),
+        "Wang, Birch & Dickinson 2004, J Exp Biol 207:449, Eqs. (14)-(15): two-dimensional "
+        "quasi-steady fits, 1.2 sin 2 alpha and 1.4 - cos 2 alpha, Re 75-115"),
+}
+
+
+@dataclass(frozen=True)
+class Terms:
+    """Which force terms the model adds (each True by default), and the added-mass form.
+
+    ``added_mass_form`` is ``"sane2001"`` (Sane & Dickinson 2001: the normal acceleration
+    of the element, -m_a dV_n/dt n) or ``"impulse"`` (the rate of change of the fluid
+    impulse, -d/dt(m_a V_n n), which includes V_n dn/dt and so averages to zero over a
+    periodic cycle).
+    """
+
+    translational: bool = True
+    rotational: bool = True
+    added_mass: bool = True
+    added_mass_form: str = "sane2001"
+
+
+@dataclass(frozen=True)
+class WingGeometry:
+    """Non-dimensional geometry and kinematic constants of the model drone fly (Sect. 2.4).
+
+    Lengths are in mean chords c; ``Phi_rad`` the stroke amplitude [rad]; ``k`` =
+    c / (U t_w), the factor that turns a rate per wing beat times a length in chords into a
+    velocity in U.
+    """
+
+    R: float
+    r2_hat: float
+    r1_hat: float
+    p: float
+    q: float
+    S_wing: float
+    Phi_rad: float
+    k: float
+    hinge: tuple[float, float, float]  # right wing's root (x, y, z), the left mirrored in y
+    x0_hat: float = 0.25
+    rotation_fraction: float = 0.30
+    weight: float = 0.0  # W+ = m+ g+
+
+    @classmethod
+    def from_flight_data(cls, data: Mapping[str, float] = FLIGHT_DATA,
+                         body: Mapping[str, float] = BODY_DATA) -> "WingGeometry":
+        """The geometry from the Sect. 2.4 data (SI units in ``data``, :data:`BODY_DATA`)."""
+        c = data["c"]
+        r2_hat = data["r2_over_R"]
+        r1_hat = (r2_hat / 0.929) ** (1.0 / 0.732)
+        common = r1_hat * (1.0 - r1_hat) / (r2_hat**2 - r1_hat**2) - 1.0
+        Phi = math.radians(data["Phi_deg"])
+        scales = reference_scales(data)
+        k = c / (scales["U"] * scales["t_w"])
+        lb = body["l_b"]
+        l1 = body["l1_over_lb"] * lb
+        tilt = math.radians(body["chi0_deg"] - body["chi_deg"])
+        hinge = (l1 * math.sin(tilt) / c, 0.5 * body["root_spacing_over_lb"] * lb / c,
+                 -l1 * math.cos(tilt) / c)
+        return cls(R=data["R"] / c, r2_hat=r2_hat, r1_hat=r1_hat, p=r1_hat * common,
+                   q=(1.0 - r1_hat) * common, S_wing=data["S_wing"] / c**2, Phi_rad=Phi, k=k,
+                   hinge=hinge, rotation_fraction=body["rotation_fraction"],
+                   weight=scales["m_plus"] * scales["g_plus"])
+
+
+def weight_plus(data: Mapping[str, float] = FLIGHT_DATA) -> float:
+    """W+ = m g / (0.5 rho U^2 S_t) = m+ g+ from the flight data (non-dimensional)."""
+    s = reference_scales(data)
+    return s["m_plus"] * s["g_plus"]
+
+
+@dataclass(frozen=True)
+class Trim:
+    """The trimmed hover: angles [rad], the residual of (X, Z + W, M) and the force balance."""
+
+    alpha_d: float
+    alpha_u: float
+    phibar: float
+    residual: float
+    forces: dict[str, float] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, float]:
+        return {"alpha_d_deg": math.degrees(self.alpha_d), "alpha_u_deg": math.degrees(self.alpha_u),
+                "phibar_deg": math.degrees(self.phibar), "residual_over_weight": self.residual,
+                **{f"{k}_plus": v for k, v in self.forces.items()}}
+
+
+def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
+    """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
+    tau = np.mod(t - start, 1.0) / duration
+    inside = tau < 1.0
+    tau_c = np.where(inside, tau, 1.0)
+    f = tau_c - np.sin(2 * np.pi * tau_c) / (2 * np.pi)
+    df = np.where(inside, (1.0 - np.cos(2 * np.pi * tau_c)) / duration, 0.0)
+    ddf = np.where(inside, 2 * np.pi * np.sin(2 * np.pi * tau_c) / duration**2, 0.0)
+    return f, df, ddf
+
+
+class QuasiSteadyModel:
+    """Cycle-averaged forces and moments of both wings, in the paper's non-dimensional form.
+
+    Parameters
+    ----------
+    coefficients : str or CoefficientSet
+        Translational coefficients (a key of :data:`COEFFICIENT_SETS`, default
+        ``"dickinson1999"``).
+    terms : Terms
+        The force terms to add.
+    n_span : int
+        Blade elements per wing (Gauss-Jacobi nodes of the planform).
+    n_time : int
+        Samples per cycle, a multiple of 20 (so the rotations start and end on samples).
+    geometry : WingGeometry, optional
+        Default: :meth:`WingGeometry.from_flight_data`.
+    """
+
+    def __init__(self, coefficients: str | CoefficientSet = "dickinson1999",
+                 terms: Terms = Terms(), n_span: int = 20, n_time: int = 200,
+                 geometry: WingGeometry | None = None) -> None:
+        if isinstance(coefficients, str):
+            if coefficients not in COEFFICIENT_SETS:
+                raise DroneflyError(f"coefficients {coefficients!r}: expected one of "
+                                    f"{', '.join(COEFFICIENT_SETS)}")
+            coefficients = COEFFICIENT_SETS[coefficients]
+        if n_time < 20 or n_time % 20:
+            raise DroneflyError(f"n_time = {n_time!r} must be a positive multiple of 20")
+        if terms.added_mass_form not in ("sane2001", "impulse"):
+            raise DroneflyError(f"added_mass_form {terms.added_mass_form!r}: expected sane2001 "
+                                "or impulse")
+        if n_span < 2:
+            raise DroneflyError(f"n_span = {n_span!r} must be >= 2")
+        self.coefficients = coefficients
+        self.terms = terms
+        self.geometry = geometry or WingGeometry.from_flight_data()
+        self.n_span, self.n_time = n_span, n_time
+        from scipy.special import roots_jacobi
+
+        g = self.geometry
+        # nodes x in [-1, 1] with weight (1-x)^(q-1) (1+x)^(p-1); r_hat = (1+x)/2
+        x, w = roots_jacobi(n_span, g.q - 1.0, g.p - 1.0)
+        r_hat = 0.5 * (1.0 + x)
+        # chord c(r) = C r^(p-1) (1-r)^(q-1) with the integral of c over the span = S_wing
+        beta = math.gamma(g.p) * math.gamma(g.q) / math.gamma(g.p + g.q)
+        C = g.S_wing / (g.R * beta)
+        # integral of f(r) c(r) dr over [0, R] = sum f(r_i) * cw_i
+        self._r = g.R * r_hat
+        self._cw = C * g.R * w * 0.5 ** (g.p + g.q - 1.0)
+        self._chord = C * r_hat ** (g.p - 1.0) * (1.0 - r_hat) ** (g.q - 1.0)
+        self._t = np.arange(n_time) / n_time
+        self._trim: Trim | None = None
+
+    # -- kinematics ---------------------------------------------------------------------
+    def _pitch(self, alpha_d: Array, alpha_u: Array) -> tuple[Array, Array, Array]:
+        """psi, dpsi/dt+, d2psi/dt+2 for each wing (rows) over the cycle (columns)."""
+        t, dr = self._t, self.geometry.rotation_fraction
+        ad, au = alpha_d[:, None], alpha_u[:, None]
+        up_psi = np.pi - au
+        if dr == 0.0:  # an instantaneous flip at the reversals (t+ = 0 and 0.5, on samples)
+            psi = np.where(t < 0.5, ad, up_psi)
+            return psi, np.zeros_like(psi), np.zeros_like(psi)
+        f1, d1, dd1 = _rotation_profile(t, 0.5 - dr / 2, dr)  # end of downstroke
+        f2, d2, dd2 = _rotation_profile(t, 1.0 - dr / 2, dr)  # end of upstroke
+        in1 = (np.mod(t - (0.5 - dr / 2), 1.0) < dr)
+        in2 = (np.mod(t - (1.0 - dr / 2), 1.0) < dr)
+        mid_down = (t >= dr / 2) & (t < 0.5 - dr / 2)
+        d_a = up_psi - ad
+        psi = np.where(mid_down, ad, up_psi)
+        psi = np.where(in1, ad + d_a * f1, psi)
+        psi = np.where(in2, up_psi - d_a * f2, psi)
+        dpsi = np.where(in1, d_a * d1, 0.0) - np.where(in2, d_a * d2, 0.0)
+        ddpsi = np.where(in1, d_a * dd1, 0.0) - np.where(in2, d_a * dd2, 0.0)
+        return psi, dpsi, ddpsi
+
+    def wing_kinematics(self, control: Mapping[str, float] | None = None,
+                        trim: Trim | None = None) -> dict[str, Array]:
+        """Per-wing (left, right) stroke amplitude, mean stroke angle and angles of attack [rad].
+
+        Parameters
+        ----------
+        control : mapping, optional
+            Control increments [rad] by name (:data:`CONTROLS`); unnamed ones are 0.
+        trim : Trim, optional
+            The reference angles (default: :meth:`trim`).
+        """
+        u = _controls(control)
+        tr = trim or self.trim()
+        side = np.array([-1.0, 1.0])  # left, right; lateral controls add +d/2 on the left
+        Phi = self.geometry.Phi_rad + u["delta_Phi"] - side * u["delta_Phi_a"] / 2
+        phibar = tr.phibar + u["delta_phibar"] + 0.0 * side
+        ad = (tr.alpha_d + u["delta_alpha_1"] + u["delta_alpha_2"] / 2
+              - side * (u["delta_alpha_1a"] + u["delta_alpha_2a"]) / 2)
+        au = (tr.alpha_u + u["delta_alpha_1"] - u["delta_alpha_2"] / 2
+              - side * (u["delta_alpha_1a"] - u["delta_alpha_2a"]) / 2)
+        return {"Phi": Phi, "phibar": phibar, "alpha_d": ad, "alpha_u": au}
+
+    # -- forces -------------------------------------------------------------------------
+    def _mean(self, Phi: Array, phibar: Array, alpha_d: Array, alpha_u: Array,
+              state: Array) -> Array:
+        """Cycle-averaged (X, Y, Z, L, M, N) for per-wing kinematics (left, right)."""
+        g, terms = self.geometry, self.terms
+        k = g.k
+        t = self._t
+        side = np.array([-1.0, 1.0])[:, None]
+        phi = phibar[:, None] - 0.5 * Phi[:, None] * np.cos(2 * np.pi * t)  # (2, T)
+        dphi = np.pi * Phi[:, None] * np.sin(2 * np.pi * t)
+        psi, dpsi, _ = self._pitch(alpha_d, alpha_u)
+        sphi, cphi = np.sin(phi), np.cos(phi)
+        zero = np.zeros_like(phi)
+        e_r = np.stack([sphi, side * cphi, zero])  # (3, 2, T)
+        e_t = np.stack([cphi, -side * sphi, zero])
+        up = np.array([0.0, 0.0, -1.0])[:, None, None]
+        cpsi, spsi = np.cos(psi), np.sin(psi)
+        e_c = cpsi * e_t + spsi * up
+        n_w = -spsi * e_t + cpsi * up
+        vel, omega = state[:3], state[3:]
+        r = self._r[None, None, :]  # (1, 1, S)
+        hinge = np.array([g.hinge[0], 0.0, g.hinge[2]])[:, None, None] \
+            + np.array([0.0, g.hinge[1], 0.0])[:, None, None] * side[None]
+        P = hinge[..., None] + e_r[..., None] * r  # (3, 2, T, S)
+        V = (k * dphi)[None, :, :, None] * r * e_t[..., None]
+        V = V + vel[:, None, None, None] + k * np.cross(omega, P, axisa=0, axisb=0, axisc=0)
+        V = V - np.sum(V * e_r[..., None], axis=0) * e_r[..., None]
+        a_p = side * e_r  # the pitch axis: psi rotates e_t towards up about a_p
+        omega_p = dpsi[..., None] + np.einsum("i,iwt->wt", omega, a_p)[..., None]
+        speed2 = np.sum(V * V, axis=0)
+        speed = np.sqrt(speed2)
+        Vc = np.sum(V * e_c[..., None], axis=0)
+        Vn = np.sum(V * n_w[..., None], axis=0)
+        chord = self._chord
+        F = np.zeros_like(V)
+        S_t = 2.0 * g.S_wing
+        if terms.translational:
+            alpha = np.arctan2(np.abs(Vn), np.abs(Vc))
+            safe = np.where(speed > 0.0, speed, 1.0)
+            e_v = V / safe
+            n_opp = -np.sign(Vn) * n_w[..., None]
+            lift_dir = n_opp + np.sin(alpha) * e_v
+            norm = np.sqrt(np.sum(lift_dir * lift_dir, axis=0))
+            lift_dir = lift_dir / np.where(norm > 0.0, norm, 1.0)
+            cl, cd = self.coefficients.lift(alpha), self.coefficients.drag(alpha)
+            F = F + speed2 * (cl * lift_dir - cd * e_v)  # per unit (c dr), times 0.5 rho
+        weights = self._cw[None, None, :]  # c dr
+        F = F * weights
+        if terms.rotational:
+            c_rot = np.pi * (0.75 - g.x0_hat)
+            F = F + (2.0 * c_rot * k * omega_p * speed * np.sign(Vc) * chord * weights) \
+                * n_w[..., None]
+        if terms.added_mass:
+            v_mid = Vn - k * (0.5 - g.x0_hat) * chord * omega_p
+            m_a = 0.5 * np.pi * k * chord * weights
+            if terms.added_mass_form == "impulse":
+                imp = m_a * v_mid * n_w[..., None]
+                d_imp = (np.roll(imp, -1, axis=2) - np.roll(imp, 1, axis=2)) * (self.n_time / 2.0)
+                F = F - d_imp - np.cross(omega, imp, axisa=0, axisb=0, axisc=0)
+            else:
+                dv = (np.roll(v_mid, -1, axis=1) - np.roll(v_mid, 1, axis=1)) * (self.n_time / 2.0)
+                F = F - (m_a * dv) * n_w[..., None]
+        F = F / S_t
+        moment = np.cross(P, F, axisa=0, axisb=0, axisc=0)
+        force_mean = F.sum(axis=(1, 3)).mean(axis=1)
+        moment_mean = moment.sum(axis=(1, 3)).mean(axis=1)
+        return np.array([force_mean[0], force_mean[1], force_mean[2],
+                         moment_mean[0], moment_mean[1], moment_mean[2]])
+
+    def forces_vector(self, state: Sequence[float] | Array = (0.0,) * 6,
+                      control: Mapping[str, float] | None = None,
+                      trim: Trim | None = None) -> Array:
+        """Cycle-averaged (X+, Y+, Z+, L+, M+, N+) as an array (order :data:`FORCES`).
+
+        Parameters
+        ----------
+        state : sequence of 6 floats
+            (du+, dv+, dw+, dp+, dq+, dr+), non-dimensional, about hover.
+        control : mapping, optional
+            Control increments [rad] by name.
+        trim : Trim, optional
+            The reference (default: the trimmed hover).
+        """
+        x = np.asarray(state, dtype=float)
+        if x.shape != (6,) or not np.all(np.isfinite(x)):
+            raise DroneflyError(f"state = {state!r}: expected 6 finite numbers "
+                                f"({', '.join(STATES)})")
+        kin = self.wing_kinematics(control, trim)
+        return self._mean(kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"], x)
+
+    def forces(self, state: Mapping[str, float] | None = None,
+               control: Mapping[str, float] | None = None,
+               trim: Trim | None = None) -> dict[str, float]:
+        """Cycle-averaged forces and moments by name ``X`` ... ``N`` (non-dimensional).
+
+        Parameters
+        ----------
+        state : mapping, optional
+            Non-dimensional state by FMU name (:data:`STATES`), 0 if not named.
+        control : mapping, optional
+            Control increments [rad] by name (:data:`CONTROLS`), 0 if not named.
+        """
+        x = [float(v) for v in _named(state, STATES, "state").values()]
+        return dict(zip(FORCES, (float(v) for v in self.forces_vector(x, control, trim))))
+
+    # -- trim ---------------------------------------------------------------------------
+    def trim(self, tol: float = 1e-12, max_iter: int = 30) -> Trim:
+        """alpha_d, alpha_u and phibar such that X = 0, Z = -W+ and M = 0 (cached).
+
+        Newton's method with a central-difference Jacobian, from 30 deg, 30 deg, 0.
+        Raises :class:`DroneflyError` if the residual does not fall below ``tol`` W+.
+        """
+        if self._trim is not None:
+            return self._trim
+        W = self.geometry.weight
+        z = np.array([math.radians(30.0), math.radians(30.0), 0.0])
+
+        def residual(zz: Array) -> Array:
+            f = self._mean(np.full(2, self.geometry.Phi_rad), np.full(2, zz[2]),
+                           np.full(2, zz[0]), np.full(2, zz[1]), np.zeros(6))
+            return np.array([f[0], f[2] + W, f[4]]) / W
+
+        res = residual(z)
+        for _ in range(max_iter):
+            if np.max(np.abs(res)) < tol:
+                break
+            J = np.empty((3, 3))
+            h = 1e-6
+            for j in range(3):
+                dz = np.zeros(3)
+                dz[j] = h
+                J[:, j] = (residual(z + dz) - residual(z - dz)) / (2 * h)
+            z = z - np.linalg.solve(J, res)
+            res = residual(z)
+        err = float(np.max(np.abs(res)))
+        if not err < max(tol, 1e-9):
+            raise DroneflyError(f"trim did not converge: residual {err:.3g} of the weight "
+                                f"({self.coefficients.name}, terms {self.terms})")
+        f = self._mean(np.full(2, self.geometry.Phi_rad), np.full(2, z[2]), np.full(2, z[0]),
+                       np.full(2, z[1]), np.zeros(6))
+        self._trim = Trim(float(z[0]), float(z[1]), float(z[2]), err,
+                          dict(zip(FORCES, (float(v) for v in f))))
+        return self._trim
+
+    def with_options(self, **changes: object) -> "QuasiSteadyModel":
+        """A new model with other ``coefficients``, ``terms``, ``n_span``, ``n_time``."""
+        opts = {"coefficients": self.coefficients, "terms": self.terms, "n_span": self.n_span,
+                "n_time": self.n_time, "geometry": self.geometry, **changes}
+        return QuasiSteadyModel(**opts)  # type: ignore[arg-type]
+
+
+def _named(values: Mapping[str, float] | None, names: Sequence[str], what: str) -> dict[str, float]:
+    out = {n: 0.0 for n in names}
+    for key, value in (values or {}).items():
+        if key not in out:
+            raise DroneflyError(f"{what} {key!r}: expected one of {', '.join(names)}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise DroneflyError(f"{what} {key} = {value!r} is not finite")
+        out[key] = v
+    return out
+
+
+def _controls(control: Mapping[str, float] | None) -> dict[str, float]:
+    return _named(control, CONTROLS, "control")
+
+
+def terms_without(*names: str) -> Terms:
+    """:class:`Terms` with the named terms switched off."""
+    return replace(Terms(), **{n: False for n in names})

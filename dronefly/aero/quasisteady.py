@@ -39,16 +39,21 @@ Omega x r, the spanwise component removed. Terms (each can be switched off, :cla
 - translational: 0.5 rho |V|^2 c dr (CL(alpha) e_L + CD(alpha) e_D), e_D against V,
   e_L normal to V away from the side the flow meets, alpha in [0, pi/2] the angle
   between V and the chord line, CL/CD from a :class:`CoefficientSet`;
-- rotational (Sane & Dickinson 2002): rho C_rot c^2 dr omega_p |V| sgn(V.e_c) n, normal to the
-  wing, C_rot = pi (0.75 - x0/c), omega_p the pitch rate (rotation plus the body's rate about
-  the wing's span axis); positive when it raises the angle of attack (force to the suction side);
+- rotational (Sane & Dickinson 2002): the circulation Gamma_rot = C_rot omega_p c^2,
+  C_rot = pi (0.75 - x0/c), omega_p the pitch rate (rotation plus the body's rate about the
+  wing's span axis), as a Kutta-Joukowski force rho Gamma_rot dr (a_p x V) of magnitude
+  rho C_rot omega_p |V| c^2 dr, perpendicular to V, towards the suction side when the rotation
+  raises the angle of attack. Sane & Dickinson put this force normal to the wing, which needs
+  the sign of V.e_c and so jumps where V crosses the wing normal mid-rotation; the
+  Kutta-Joukowski direction is smooth in the state (the derivatives exist) and differs from
+  the normal by the angle of attack;
 - added mass (Sane & Dickinson 2001 form, per element): -rho (pi/4) c^2 dr d(V_n)/dt n with V_n
   the normal velocity of the mid-chord.
 
 All forces act on the pitch axis of their element; the body's own aerodynamic force is not
 modelled (Sun's CFD finds it negligible in hover). Cycle averages are the mean over
-``n_time`` equally spaced samples (the periodic trapezoidal rule; the rotation's start and
-end fall on samples); time derivatives inside the added mass are periodic central differences.
+``n_time`` equally spaced samples midway between the reversals' instants (the periodic
+midpoint rule); time derivatives inside the added mass are periodic central differences.
 """
 
 from __future__ import annotations
@@ -247,7 +252,8 @@ class QuasiSteadyModel:
     n_span : int
         Blade elements per wing (Gauss-Jacobi nodes of the planform).
     n_time : int
-        Samples per cycle, a multiple of 20 (so the rotations start and end on samples).
+        Samples per cycle, even, at t+ = (j + 1/2)/n_time: no sample falls on a stroke
+        reversal, where the element velocity vanishes and the force directions are undefined.
     geometry : WingGeometry, optional
         Default: :meth:`WingGeometry.from_flight_data`.
     """
@@ -260,8 +266,8 @@ class QuasiSteadyModel:
                 raise DroneflyError(f"coefficients {coefficients!r}: expected one of "
                                     f"{', '.join(COEFFICIENT_SETS)}")
             coefficients = COEFFICIENT_SETS[coefficients]
-        if n_time < 20 or n_time % 20:
-            raise DroneflyError(f"n_time = {n_time!r} must be a positive multiple of 20")
+        if n_time < 20 or n_time % 2:
+            raise DroneflyError(f"n_time = {n_time!r} must be an even number >= 20")
         if terms.added_mass_form not in ("sane2001", "impulse"):
             raise DroneflyError(f"added_mass_form {terms.added_mass_form!r}: expected sane2001 "
                                 "or impulse")
@@ -284,7 +290,7 @@ class QuasiSteadyModel:
         self._r = g.R * r_hat
         self._cw = C * g.R * w * 0.5 ** (g.p + g.q - 1.0)
         self._chord = C * r_hat ** (g.p - 1.0) * (1.0 - r_hat) ** (g.q - 1.0)
-        self._t = np.arange(n_time) / n_time
+        self._t = (np.arange(n_time) + 0.5) / n_time
         self._trim: Trim | None = None
 
     # -- kinematics ---------------------------------------------------------------------
@@ -293,7 +299,7 @@ class QuasiSteadyModel:
         t, dr = self._t, self.geometry.rotation_fraction
         ad, au = alpha_d[:, None], alpha_u[:, None]
         up_psi = np.pi - au
-        if dr == 0.0:  # an instantaneous flip at the reversals (t+ = 0 and 0.5, on samples)
+        if dr == 0.0:  # an instantaneous flip at the reversals (t+ = 0 and 0.5, between samples)
             psi = np.where(t < 0.5, ad, up_psi)
             return psi, np.zeros_like(psi), np.zeros_like(psi)
         f1, d1, dd1 = _rotation_profile(t, 0.5 - dr / 2, dr)  # end of downstroke
@@ -381,8 +387,9 @@ class QuasiSteadyModel:
         F = F * weights
         if terms.rotational:
             c_rot = np.pi * (0.75 - g.x0_hat)
-            F = F + (2.0 * c_rot * k * omega_p * speed * np.sign(Vc) * chord * weights) \
-                * n_w[..., None]
+            # rho Gamma_rot (a_p x V), Gamma_rot = C_rot omega_p c^2: smooth in V
+            a_px_v = np.cross(a_p[..., None], V, axisa=0, axisb=0, axisc=0)
+            F = F + (2.0 * c_rot * k * omega_p * chord * weights) * a_px_v
         if terms.added_mass:
             v_mid = Vn - k * (0.5 - g.x0_hat) * chord * omega_p
             m_a = 0.5 * np.pi * k * chord * weights

@@ -11,7 +11,7 @@ inertias (Sect. 2.1 and ``IY_PLUS``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -21,12 +21,14 @@ from ..controller.law import PAPER_GAINS_EQ27
 from ..lateral import STATE_BOUNDS_SECT36, sort_eigenvalues
 from ..plant import model as lateral_model
 from ..plant_longitudinal import model as longitudinal_model
-from .quasisteady import CONTROLS, FORCES, STATES, QuasiSteadyModel
+from .quasisteady import CONTROLS, FORCES, STATES, QuasiSteadyModel, Trim
 
 __all__ = [
     "CONTROL_BOX_RAD",
     "DerivativeRow",
+    "LATERAL_PAIRS",
     "LATERAL_PARAMETERS",
+    "LINEARITY_BLOCKS",
     "LONGITUDINAL_PARAMETERS",
     "ParityReport",
     "ackermann",
@@ -35,7 +37,10 @@ __all__ = [
     "derivatives",
     "eigenvalues",
     "linearity_scan",
+    "linearity_summary",
+    "pair_scan",
     "parity_report",
+    "term_contributions",
 ]
 
 Array = NDArray[np.float64]
@@ -63,16 +68,18 @@ def _paper_values() -> dict[str, float]:
     return out
 
 
-def _perturbed(model: QuasiSteadyModel, name: str, value: float) -> Array:
+def _perturbed(model: QuasiSteadyModel, name: str, value: float,
+               trim: Trim | None = None) -> Array:
     if name in STATES:
         x = np.zeros(6)
         x[STATES.index(name)] = value
-        return model.forces_vector(x)
-    return model.forces_vector(np.zeros(6), {name: value})
+        return model.forces_vector(x, trim=trim)
+    return model.forces_vector(np.zeros(6), {name: value}, trim=trim)
 
 
 def derivatives(model: QuasiSteadyModel, step: float = 1e-3,
-                inputs: Sequence[str] = STATES + CONTROLS) -> dict[str, Array]:
+                inputs: Sequence[str] = STATES + CONTROLS,
+                trim: Trim | None = None) -> dict[str, Array]:
     """Central differences d(X, Y, Z, L, M, N)/d(input) at the trimmed hover.
 
     Parameters
@@ -82,14 +89,44 @@ def derivatives(model: QuasiSteadyModel, step: float = 1e-3,
         The step, in the input's unit (x+ for states, rad for controls).
     inputs : sequence of str
         Names from :data:`STATES` and :data:`CONTROLS`.
+    trim : Trim, optional
+        The reference (default: the model's own trimmed hover).
 
     Returns
     -------
     dict
         input name -> array of the six derivatives (order :data:`FORCES`).
     """
-    return {name: (_perturbed(model, name, step) - _perturbed(model, name, -step)) / (2 * step)
-            for name in inputs}
+    return {name: (_perturbed(model, name, step, trim) - _perturbed(model, name, -step, trim))
+            / (2 * step) for name in inputs}
+
+
+#: The model's terms one at a time, for :func:`term_contributions`.
+_SINGLE_TERMS = {"translational": dict(rotational=False, added_mass=False),
+                 "rotational": dict(translational=False, added_mass=False),
+                 "added_mass": dict(translational=False, rotational=False)}
+
+
+def term_contributions(model: QuasiSteadyModel, step: float = 1e-3) -> dict[str, dict[str, float]]:
+    """Each derivative split into the parts of the translational, rotational and added-mass
+    terms, at the model's trimmed hover (the forces are sums of the terms, so the parts add
+    up to the derivative exactly, up to round-off).
+
+    Returns
+    -------
+    dict
+        parameter name (``Lp_plus``, ...) -> {term: part}; a switched-off term gives 0.
+    """
+    trim = model.trim()
+    out: dict[str, dict[str, float]] = {p: {} for p, _, _ in (*LATERAL_PARAMETERS,
+                                                               *LONGITUDINAL_PARAMETERS)}
+    for term, off in _SINGLE_TERMS.items():
+        on = getattr(model.terms, term)
+        single = model.with_options(terms=replace(model.terms, **off))
+        d = derivatives(single, step, trim=trim) if on else None
+        for p, F, inp in (*LATERAL_PARAMETERS, *LONGITUDINAL_PARAMETERS):
+            out[p][term] = float(d[inp][FORCES.index(F)]) if d is not None else 0.0
+    return out
 
 
 @dataclass(frozen=True)
@@ -320,3 +357,71 @@ def _first_crossing(s: Array, pct: Array, level: float) -> float | None:
                 break
             prev = i
     return best
+
+
+#: The sweeps of :func:`linearity_summary`: (inputs, outputs) per block.
+LINEARITY_BLOCKS: tuple[tuple[tuple[str, ...], str], ...] = (
+    (("delta_v", "delta_p", "delta_r"), "YLN"),
+    (("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a"), "YLN"),
+    (("delta_u", "delta_w", "delta_q"), "XZM"),
+    (("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2"), "XZM"),
+)
+
+
+def linearity_summary(model: QuasiSteadyModel) -> str:
+    """The largest error of the tangent at hover, in per cent of each output's scale, inside
+    the box and out to twice it, and where it reaches 10 % (:func:`linearity_scan`)."""
+    lines = [f"{'input':<15} {'output':<6} {'in box %':>9} {'at 2x %':>8} {'10 % at':>8}"]
+    for inputs, outputs in LINEARITY_BLOCKS:
+        r = linearity_scan(model, inputs, tuple(outputs))
+        for name in inputs:
+            for o in outputs:
+                e = r["inputs"][name][o]  # type: ignore[index]
+                at = "-" if e["ten_pct_extent"] is None else f"{e['ten_pct_extent']:.2f}"
+                lines.append(f"{name:<15} {o:<6} {e['max_error_box_pct']:>9.2f} "
+                             f"{e['max_error_pct']:>8.2f} {at:>8}")
+    return "\n".join(lines)
+
+
+#: The pairs of the lateral box swept by :func:`pair_scan`.
+LATERAL_PAIRS: tuple[tuple[str, str], ...] = (("delta_v", "delta_p"), ("delta_v", "delta_r"),
+                                               ("delta_p", "delta_r"))
+
+
+def pair_scan(model: QuasiSteadyModel, pair: tuple[str, str], outputs: str = "YLN",
+              extent: float = 2.0, points: int = 13) -> dict[str, object]:
+    """The error of the tangent at hover over a pair of states, out to ``extent`` times the
+    box, in per cent of each output's scale (as :func:`linearity_scan`, over the three lateral
+    states).
+
+    Returns
+    -------
+    dict
+        ``values`` (the grid of each axis), per output ``error_pct`` (points x points, first
+        index the first state), ``max_error_box_pct``, ``max_error_pct`` and
+        ``ten_pct_radius``: the smallest max-norm radius, in units of the box (0.15), of a
+        grid point whose error reaches 10 % (None if none does).
+    """
+    a, b = pair
+    states = ("delta_v", "delta_p", "delta_r")
+    scale = linearity_scan(model, states, tuple(outputs), extent=1.0, points=7)["scale"]
+    f0 = model.forces_vector()
+    d = derivatives(model, 1e-3, pair)
+    s = np.linspace(-extent * STATE_BOX, extent * STATE_BOX, points)
+    err = np.zeros((points, points, 6))
+    for i, va in enumerate(s):
+        for j, vb in enumerate(s):
+            x = np.zeros(6)
+            x[STATES.index(a)], x[STATES.index(b)] = va, vb
+            err[i, j] = np.abs(model.forces_vector(x) - f0 - va * d[a] - vb * d[b])
+    radius = np.maximum(np.abs(s)[:, None], np.abs(s)[None, :]) / STATE_BOX
+    out: dict[str, object] = {"values": [float(v) for v in s]}
+    for o in outputs:
+        k = FORCES.index(o)
+        pct = 100.0 * err[:, :, k] / scale[o]  # type: ignore[index]
+        hit = radius[pct >= 10.0]
+        out[o] = {"error_pct": pct.tolist(),
+                  "max_error_box_pct": float(pct[radius <= 1.0 + 1e-12].max()),
+                  "max_error_pct": float(pct.max()),
+                  "ten_pct_radius": float(hit.min()) if hit.size else None}
+    return out

@@ -31,7 +31,9 @@ __all__ = [
     "LINEARITY_BLOCKS",
     "LONGITUDINAL_PARAMETERS",
     "ParityReport",
+    "TRIM_VARIANTS",
     "ackermann",
+    "answer",
     "closed_loop",
     "derivative_table",
     "derivatives",
@@ -41,6 +43,7 @@ __all__ = [
     "pair_scan",
     "parity_report",
     "term_contributions",
+    "trim_table",
 ]
 
 Array = NDArray[np.float64]
@@ -223,6 +226,7 @@ class ParityReport:
     rows: list[DerivativeRow]
     eigenvalues: dict[str, dict[str, list[complex]]]
     controller: dict[str, object]
+    split: dict[str, dict[str, float]]
 
     def to_json(self) -> dict[str, object]:
         def cx(values: Sequence[complex]) -> list[list[float]]:
@@ -233,7 +237,8 @@ class ParityReport:
             "coefficients": self.coefficients,
             "terms": self.terms,
             "trim": self.trim,
-            "derivatives": {r.parameter: {"quasi_steady": r.quasi_steady, "paper": r.paper}
+            "derivatives": {r.parameter: {"quasi_steady": r.quasi_steady, "paper": r.paper,
+                                          "terms": self.split[r.parameter]}
                             for r in self.rows},
             "eigenvalues": {axis: {k: cx(v) for k, v in d.items()}
                             for axis, d in self.eigenvalues.items()},
@@ -246,14 +251,17 @@ class ParityReport:
                  f"trim: alpha_d {self.trim['alpha_d_deg']:.3f} deg, alpha_u "
                  f"{self.trim['alpha_u_deg']:.3f} deg, phibar {self.trim['phibar_deg']:.3f} deg, "
                  f"residual {self.trim['residual_over_weight']:.1e} of the weight", "",
-                 f"{'parameter':<18} {'quasi-steady':>13} {'paper':>10} {'ratio':>8}  sign"]
+                 f"{'parameter':<16} {'quasi-steady':>12} {'paper':>8} {'ratio':>6} "
+                 f"{'sign':<8} {'transl.':>8} {'rotat.':>8} {'added m.':>8}"]
         for r in self.rows:
-            ratio = "-" if math.isnan(r.ratio) else f"{r.ratio:.3g}"
-            sign = "same" if r.same_sign else "OPPOSITE"
+            ratio = "-" if math.isnan(r.ratio) else f"{r.ratio:.2f}"
+            sign = "same" if r.same_sign else "opposite"
             if r.paper == 0.0:
                 sign = "-"
-            lines.append(f"{r.parameter:<18} {r.quasi_steady:>13.4f} {r.paper:>10.4f} "
-                         f"{ratio:>8}  {sign}")
+            part = self.split[r.parameter]
+            lines.append(f"{r.parameter:<16} {r.quasi_steady:>12.4f} {r.paper:>8.4f} "
+                         f"{ratio:>6} {sign:<8} {part['translational']:>8.4f} "
+                         f"{part['rotational']:>8.4f} {part['added_mass']:>8.4f}")
         lines.append("")
         for axis, d in self.eigenvalues.items():
             for who, values in d.items():
@@ -290,7 +298,7 @@ def parity_report(model: QuasiSteadyModel, step: float = 1e-3) -> ParityReport:
         eigenvalues={axis: {"quasi_steady": eigenvalues(qs)[axis],
                             "paper": eigenvalues(paper)[axis]}
                      for axis in ("lateral", "longitudinal")},
-        controller=closed_loop(qs))
+        controller=closed_loop(qs), split=term_contributions(model, step))
 
 
 def linearity_scan(model: QuasiSteadyModel, inputs: Sequence[str], outputs: Sequence[str],
@@ -425,3 +433,87 @@ def pair_scan(model: QuasiSteadyModel, pair: tuple[str, str], outputs: str = "YL
                   "max_error_pct": float(pct.max()),
                   "ten_pct_radius": float(hit.min()) if hit.size else None}
     return out
+
+
+#: The model variants of :func:`trim_table`: (coefficients, terms label, Terms keywords).
+TRIM_VARIANTS: tuple[tuple[str, str, dict[str, object]], ...] = (
+    ("dickinson1999", "all, added mass sane2001", {}),
+    ("dickinson1999", "all, added mass impulse", {"added_mass_form": "impulse"}),
+    ("dickinson1999", "translational only", {"rotational": False, "added_mass": False}),
+    ("wang2004", "all, added mass sane2001", {}),
+    ("wang2004", "all, added mass impulse", {"added_mass_form": "impulse"}),
+    ("wang2004", "translational only", {"rotational": False, "added_mass": False}),
+)
+
+
+def trim_table() -> str:
+    """The trimmed angles of every variant of :data:`TRIM_VARIANTS` [deg], and the share of
+    the weight that each term carries at that trim [%]."""
+    from .quasisteady import Terms
+
+    lines = [f"{'coefficients':<14} {'terms':<26} {'alpha_d':>8} {'alpha_u':>8} {'phibar':>7} "
+             f"{'transl. %':>9} {'rotat. %':>8} {'added m. %':>10}"]
+    for name, label, kw in TRIM_VARIANTS:
+        m = QuasiSteadyModel(name, Terms(**kw))  # type: ignore[arg-type]
+        tr = m.trim()
+        W = m.geometry.weight
+        share = []
+        for term, off in _SINGLE_TERMS.items():
+            if not getattr(m.terms, term):
+                share.append(0.0)
+                continue
+            single = m.with_options(terms=replace(m.terms, **off))
+            share.append(-100.0 * single.forces_vector(trim=tr)[2] / W)
+        lines.append(f"{name:<14} {label:<26} {math.degrees(tr.alpha_d):>8.2f} "
+                     f"{math.degrees(tr.alpha_u):>8.2f} {math.degrees(tr.phibar):>7.2f} "
+                     f"{share[0]:>9.1f} {share[1]:>8.1f} {share[2]:>10.1f}")
+    return "\n".join(lines)
+
+
+def answer(report: ParityReport, model: QuasiSteadyModel) -> str:
+    """The answer to Sect. 3.6's aerodynamic half in three lines (README, docs)."""
+    lat = {r.parameter: r for r in report.rows[:18]}
+    stab = [lat[p] for p, _, _ in LATERAL_PARAMETERS[:9] if lat[p].paper != 0.0]
+    ctrl = [lat[p] for p, _, _ in LATERAL_PARAMETERS[9:]]
+    main = [lat[p] for p in ("L_Phi_a_plus", "L_alpha_1a_plus", "N_alpha_2a_plus")]
+    ev_q = report.eigenvalues["lateral"]["quasi_steady"][0].real
+    ev_p = report.eigenvalues["lateral"]["paper"][0].real
+    worst_state = _worst(model, ("delta_v", "delta_p", "delta_r"), 6.0, 49)
+    worst_ctrl = _worst(model, ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a"), 3.0, 37)
+    box = linearity_scan(model, ("delta_v", "delta_p", "delta_r", ), tuple("YLN"), 1.0, 7)
+    box_c = linearity_scan(model, ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a"),
+                           tuple("YLN"), 1.0, 7)
+    in_box = max(e[o]["max_error_box_pct"] for r in (box, box_c)  # type: ignore[index]
+                 for e in r["inputs"].values() for o in "YLN")  # type: ignore[union-attr]
+    closed = report.controller["qs_A_qs_B"][0].real  # type: ignore[index]
+    return "\n".join([
+        f"A quasi-steady blade-element model ({report.coefficients}) trims at alpha_d = "
+        f"{report.trim['alpha_d_deg']:.1f} deg, alpha_u = {report.trim['alpha_u_deg']:.1f} deg and "
+        f"gets the sign of {sum(r.same_sign for r in stab)} of the {len(stab)} nonzero lateral "
+        f"stability derivatives and {sum(r.same_sign for r in ctrl)} of the 9 control "
+        f"derivatives of the paper's CFD, the three main control derivatives at "
+        f"{min(r.ratio for r in main):.2f}-{max(r.ratio for r in main):.2f} times the CFD values; "
+        f"the lateral instability is {ev_q:.4f} per wing beat against {ev_p:.4f}.",
+        f"Within the Sect. 3.6 box the cycle-averaged Y, L, N are linear to {in_box:.1f} % of "
+        f"their range; the first to leave 10 % are {worst_ctrl[0]} (at {worst_ctrl[1]:.2f} rad, "
+        f"{worst_ctrl[1] / CONTROL_BOX_RAD:.1f} times the box) and {worst_state[0]} (at "
+        f"{worst_state[1]:.2f}, {worst_state[1] / STATE_BOX:.1f} times the box): the box holds "
+        f"for the aerodynamics.",
+        f"The Eq. (27) gains leave the quasi-steady loop unstable ({closed:+.4f} per wing beat): "
+        f"its neutrality rests on the CFD derivatives; coefficient matching on the quasi-steady "
+        f"A and B gives k = " + ", ".join(f"{g:.3f}" for g in report.controller["matched_gains"])
+        + ".",  # type: ignore[union-attr]
+    ])
+
+
+def _worst(model: QuasiSteadyModel, inputs: tuple[str, ...], extent: float,
+           points: int) -> tuple[str, float]:
+    """The input whose error first reaches 10 % for any of Y, L, N, and where."""
+    r = linearity_scan(model, inputs, tuple("YLN"), extent, points)
+    best = ("none", math.inf)
+    for name, per in r["inputs"].items():  # type: ignore[union-attr]
+        for o in "YLN":
+            at = per[o]["ten_pct_extent"]
+            if at is not None and at < best[1]:
+                best = (name, at)
+    return best

@@ -184,3 +184,133 @@ def test_cli_forces_json_and_bad_input(capsys):
     assert "nope" in capsys.readouterr().err
     with pytest.raises(DroneflyError):
         QuasiSteadyModel(n_time=7)
+
+
+# -- docs/aerodynamics.md and README.md quote what the code renders ---------------------------
+
+from pathlib import Path  # noqa: E402
+
+from docnumbers import NumericText, assert_same_numbers  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "aerodynamics.md"
+
+
+def _block(text: str, name: str) -> str:
+    import re
+
+    m = re.search(rf"<!-- aero:{name} -->\n```text\n(.*?)\n```", text, re.S)
+    assert m, f"no aero:{name} block in {DOC.name}"
+    return m.group(1)
+
+
+@pytest.fixture(scope="module")
+def reports(model):
+    impulse = QuasiSteadyModel(terms=Terms(added_mass_form="impulse"))
+    return parity_report(model), parity_report(impulse)
+
+
+def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
+    from dronefly.aero.compare import answer, linearity_summary, trim_table
+
+    text = DOC.read_text(encoding="utf-8")
+    default, impulse = reports
+    assert_same_numbers(_block(text, "table"), default.table(), "aero:table")
+    assert_same_numbers(_block(text, "impulse"), impulse.table(), "aero:impulse")
+    assert_same_numbers(_block(text, "trim"), trim_table(), "aero:trim")
+    assert_same_numbers(_block(text, "linearity"), linearity_summary(model), "aero:linearity")
+    ans = answer(default, model)
+    assert_same_numbers(_block(text, "answer"), ans, "aero:answer")
+    readme = NumericText((ROOT / "README.md").read_text(encoding="utf-8"))
+    for line in ans.splitlines():
+        assert line in readme, f"README does not quote: {line[:60]}"
+
+
+def test_aerodynamics_doc_prose_numbers(model, reports):
+    """The numbers the prose quotes beside the generated blocks, recomputed."""
+    from dronefly.aero.compare import linearity_scan, pair_scan, LATERAL_PAIRS
+
+    text = NumericText(DOC.read_text(encoding="utf-8"))
+    default, impulse = reports
+    g = model.geometry
+    wang = QuasiSteadyModel("wang2004")
+    rows = {r.parameter: r for r in default.rows}
+    wrows = {r.parameter: r for r in derivative_rows(wang)}
+    irows = {r.parameter: r for r in impulse.rows}
+
+    def slope(name, a, fn):
+        h = 1e-6
+        f = getattr(COEFFICIENT_SETS[name], fn)
+        return float((f(np.array(a + h)) - f(np.array(a - h))) / (2 * h))
+
+    ad = 0.5 * (model.trim().alpha_d + model.trim().alpha_u)
+    aw = 0.5 * (wang.trim().alpha_d + wang.trim().alpha_u)
+    cd = lambda n, a: float(COEFFICIENT_SETS[n].drag(np.array(a)))  # noqa: E731
+    lin = linearity_scan(model, ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a"), tuple("YLN"))
+    lon = linearity_scan(model, ("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2"),
+                         tuple("XZM"))
+    pairs = [pair_scan(model, p, points=17) for p in LATERAL_PAIRS]
+    quotes = [
+        f"r1 = {g.r1_hat:.3f} R, p = {g.p:.2f}, q = {g.q:.2f}",
+        f"has CD({math.degrees(ad):.1f} deg) = {cd('dickinson1999', ad):.2f}, Wang's "
+        f"CD({math.degrees(aw):.1f} deg) = {cd('wang2004', aw):.2f}, and `wang2004` gives "
+        f"{wrows['Nr_plus'].ratio:.2f} of the CFD value",
+        f"**Lp, Zw, Mq** ({rows['Lp_plus'].ratio:.2f}, {rows['Zw_plus'].ratio:.2f}, "
+        f"{rows['Mq_plus'].ratio:.2f}, translational)",
+        f"the slope dCL/dalpha at trim, {slope('dickinson1999', ad, 'lift'):.1f} per rad for "
+        f"Dickinson's fit at {math.degrees(ad):.1f} deg",
+        f"slope {slope('wang2004', aw, 'lift'):.1f} per rad at {math.degrees(aw):.1f} deg: "
+        f"{wrows['Lp_plus'].ratio:.2f}, {wrows['Zw_plus'].ratio:.2f}, {wrows['Mq_plus'].ratio:.2f}",
+        f"**Yv, Xu** ({rows['Yv_plus'].ratio:.2f}, {rows['Xu_plus'].ratio:.2f}, translational)",
+        f"closer with `wang2004` ({wrows['Yv_plus'].ratio:.2f}, {wrows['Xu_plus'].ratio:.2f})",
+        f"**Lv, Mu** ({rows['Lv_plus'].ratio:.1f}, {rows['Mu_plus'].ratio:.1f}; rotational",
+        f"Phi/2 = {math.degrees(g.Phi_rad) / 2:.1f} deg ahead of",
+        f"Lr, {rows['Lr_plus'].paper:.3f} in the CFD, is {rows['Lr_plus'].ratio:.0f} times",
+        f"**L_Phi_a, Z_Phi** ({rows['L_Phi_a_plus'].ratio:.2f}, {rows['Z_Phi_plus'].ratio:.2f}, "
+        "translational)",
+        f"L_Phi_a is {irows['L_Phi_a_plus'].ratio:.2f} and Z_Phi {irows['Z_Phi_plus'].ratio:.2f} of",
+        f"**L_alpha_1a, Z_alpha_1** ({rows['L_alpha_1a_plus'].ratio:.2f}, "
+        f"{rows['Z_alpha_1_plus'].ratio:.2f}, translational)",
+        f"**N_alpha_2a, X_alpha_2** ({rows['N_alpha_2a_plus'].ratio:.2f}, "
+        f"{rows['X_alpha_2_plus'].ratio:.2f}, translational)",
+        f"({slope('dickinson1999', ad, 'drag'):.1f} per rad for Dickinson's fit, "
+        f"{slope('wang2004', aw, 'drag'):.1f} for Wang's: `wang2004` gives "
+        f"{wrows['N_alpha_2a_plus'].ratio:.2f} and {wrows['X_alpha_2_plus'].ratio:.2f})",
+        f"**M_phibar** ({rows['M_phibar_plus'].ratio:.2f}, opposite, translational)",
+        f"The magnitude agrees ({-rows['M_phibar_plus'].ratio:.2f})",
+        f"The lateral divergence is faster ({default.eigenvalues['lateral']['quasi_steady'][0].real:+.4f} "
+        f"against {default.eigenvalues['lateral']['paper'][0].real:+.4f} per wing beat): the "
+        f"quasi-steady Lv is {rows['Lv_plus'].ratio:.1f} times",
+        f"leave the loop unstable ({default.controller['qs_A_qs_B'][0].real:+.4f} per wing beat)",
+        f"quasi-steady B, {default.controller['paper_A_qs_B'][0].real:+.4f}: the gains assume the "
+        f"CFD's L_Phi_a, and the model's is {rows['L_Phi_a_plus'].ratio:.2f} of it",
+        f"the loop is neutral again ({impulse.controller['paper_A_qs_B'][0].real:+.4f})",
+        "k = " + ", ".join(f"{k:.3f}" for k in default.controller["matched_gains"]) + ": a dv+ "
+        f"gain {default.controller['matched_gains'][0] / -0.3192:.0f} times the paper's",
+        f"carries {100 * (1 - 1.0 * translational_share(model)):.0f} % of the weight in the default trim",
+        f"swings from {math.degrees(model.trim().alpha_d):.1f} deg to "
+        f"{math.degrees(model.trim().alpha_d + 0.4):.0f} deg",
+        f"(its maximum is at {(90 + 7.2) / 2.13:.1f} deg), and the other's to "
+        f"{math.degrees(model.trim().alpha_d - 0.4):.0f} deg",
+        f"dalpha_2a ({lin['inputs']['delta_alpha_2a']['N']['max_error_pct']:.1f} % on N at 0.8 rad)",
+        f"17 % on Z at 0.4 rad, 10 % at {lon['inputs']['delta_alpha_1']['Z']['ten_pct_extent']:.2f} rad",
+    ]
+    for q in quotes:
+        assert q in text, f"docs/aerodynamics.md does not quote: {q}"
+    # integers the prose quotes, with their bounds
+    assert round(lon["inputs"]["delta_alpha_1"]["Z"]["max_error_box_pct"]) == 17
+    assert max(p[o]["max_error_box_pct"] for p in pairs for o in "YLN") < 1.0
+    assert max(p[o]["max_error_pct"] for p in pairs for o in "YLN") < 6.0
+    assert all(p[o]["ten_pct_radius"] is None for p in pairs for o in "YLN")
+    assert lin["inputs"]["delta_Phi_a"]["L"]["max_error_pct"] < 1.0
+
+
+def derivative_rows(m):
+    from dronefly.aero.compare import derivative_table
+
+    return derivative_table(m)
+
+
+def translational_share(m):
+    single = m.with_options(terms=Terms(rotational=False, added_mass=False))
+    return -single.forces_vector(trim=m.trim())[2] / m.geometry.weight

@@ -259,9 +259,9 @@ class ParityReport:
             if r.paper == 0.0:
                 sign = "-"
             part = self.split[r.parameter]
-            lines.append(f"{r.parameter:<16} {r.quasi_steady:>12.4f} {r.paper:>8.4f} "
-                         f"{ratio:>6} {sign:<8} {part['translational']:>8.4f} "
-                         f"{part['rotational']:>8.4f} {part['added_mass']:>8.4f}")
+            lines.append(f"{r.parameter:<16} {_f4(r.quasi_steady):>12} {_f4(r.paper):>8} "
+                         f"{ratio:>6} {sign:<8} {_f4(part['translational']):>8} "
+                         f"{_f4(part['rotational']):>8} {_f4(part['added_mass']):>8}")
         lines.append("")
         for axis, d in self.eigenvalues.items():
             for who, values in d.items():
@@ -274,6 +274,11 @@ class ParityReport:
         lines.append("coefficient matching on the quasi-steady model: k = "
                      + ", ".join(f"{g:.4f}" for g in c["matched_gains"]))
         return "\n".join(lines)
+
+
+def _f4(value: float) -> str:
+    """Four decimals; a value that rounds to zero prints 0.0000 whatever its sign (round-off)."""
+    return f"{value:.4f}" if abs(value) >= 5e-5 else "0.0000"
 
 
 def _fmt(z: complex) -> str:

@@ -292,6 +292,8 @@ class QuasiSteadyModel:
         self._chord = C * r_hat ** (g.p - 1.0) * (1.0 - r_hat) ** (g.q - 1.0)
         self._t = (np.arange(n_time) + 0.5) / n_time
         self._trim: Trim | None = None
+        self._kin_key: tuple[bytes, ...] | None = None
+        self._kin: dict[str, Array] = {}
 
     # -- kinematics ---------------------------------------------------------------------
     def _pitch(self, alpha_d: Array, alpha_u: Array) -> tuple[Array, Array, Array]:
@@ -338,74 +340,116 @@ class QuasiSteadyModel:
         return {"Phi": Phi, "phibar": phibar, "alpha_d": ad, "alpha_u": au}
 
     # -- forces -------------------------------------------------------------------------
-    def _mean(self, Phi: Array, phibar: Array, alpha_d: Array, alpha_u: Array,
-              state: Array) -> Array:
-        """Cycle-averaged (X, Y, Z, L, M, N) for per-wing kinematics (left, right)."""
-        g, terms = self.geometry, self.terms
-        k = g.k
-        t = self._t
+    def _kinematics(self, Phi: Array, phibar: Array, alpha_d: Array,
+                    alpha_u: Array) -> dict[str, Array]:
+        """The body-motion-free part of the wing motion, cached for the last kinematics."""
+        key = (Phi.tobytes(), phibar.tobytes(), alpha_d.tobytes(), alpha_u.tobytes())
+        if self._kin_key == key:
+            return self._kin
+        g, t = self.geometry, self._t
         side = np.array([-1.0, 1.0])[:, None]
         phi = phibar[:, None] - 0.5 * Phi[:, None] * np.cos(2 * np.pi * t)  # (2, T)
         dphi = np.pi * Phi[:, None] * np.sin(2 * np.pi * t)
         psi, dpsi, _ = self._pitch(alpha_d, alpha_u)
         sphi, cphi = np.sin(phi), np.cos(phi)
-        zero = np.zeros_like(phi)
-        e_r = np.stack([sphi, side * cphi, zero])  # (3, 2, T)
-        e_t = np.stack([cphi, -side * sphi, zero])
-        up = np.array([0.0, 0.0, -1.0])[:, None, None]
         cpsi, spsi = np.cos(psi), np.sin(psi)
-        e_c = cpsi * e_t + spsi * up
-        n_w = -spsi * e_t + cpsi * up
-        vel, omega = state[:3], state[3:]
-        r = self._r[None, None, :]  # (1, 1, S)
-        hinge = np.array([g.hinge[0], 0.0, g.hinge[2]])[:, None, None] \
-            + np.array([0.0, g.hinge[1], 0.0])[:, None, None] * side[None]
-        P = hinge[..., None] + e_r[..., None] * r  # (3, 2, T, S)
-        V = (k * dphi)[None, :, :, None] * r * e_t[..., None]
-        V = V + vel[:, None, None, None] + k * np.cross(omega, P, axisa=0, axisb=0, axisc=0)
-        V = V - np.sum(V * e_r[..., None], axis=0) * e_r[..., None]
-        a_p = side * e_r  # the pitch axis: psi rotates e_t towards up about a_p
-        omega_p = dpsi[..., None] + np.einsum("i,iwt->wt", omega, a_p)[..., None]
-        speed2 = np.sum(V * V, axis=0)
-        speed = np.sqrt(speed2)
-        Vc = np.sum(V * e_c[..., None], axis=0)
-        Vn = np.sum(V * n_w[..., None], axis=0)
+        r = self._r[None, None, :]
+        kin = {
+            # e_r = (sphi, side cphi, 0), e_t = (cphi, -side sphi, 0), up = (0, 0, -1)
+            "erx": sphi[..., None], "ery": (side * cphi)[..., None],
+            "etx": cphi[..., None], "ety": (-side * sphi)[..., None],
+            "cpsi": cpsi[..., None], "spsi": spsi[..., None],
+            "dpsi": dpsi[..., None], "side": side[..., None],
+            # element positions from the centre of mass, (2, T, S) each
+            "Px": g.hinge[0] + sphi[..., None] * r,
+            "Py": side[..., None] * g.hinge[1] + (side * cphi)[..., None] * r,
+            "Pz": np.full((2, 1, 1), g.hinge[2]),
+            "vflap": (g.k * dphi)[..., None] * r,
+        }
+        self._kin_key, self._kin = key, kin
+        return kin
+
+    def _mean(self, Phi: Array, phibar: Array, alpha_d: Array, alpha_u: Array,
+              state: Array) -> Array:
+        """Cycle-averaged (X, Y, Z, L, M, N) for per-wing kinematics (left, right).
+
+        Vectors are handled by components, each an array (wing, time, element).
+        """
+        g, terms = self.geometry, self.terms
+        k = g.k
+        q = self._kinematics(Phi, phibar, alpha_d, alpha_u)
+        erx, ery, etx, ety = q["erx"], q["ery"], q["etx"], q["ety"]
+        cpsi, spsi = q["cpsi"], q["spsi"]
+        Px, Py, Pz = q["Px"], q["Py"], q["Pz"]
+        u, v, w, p, qq, rr = (float(c) for c in state)
+        # chord e_c = cpsi e_t + spsi up, normal n = -spsi e_t + cpsi up (up = -z)
+        ecx, ecy, ecz = cpsi * etx, cpsi * ety, -spsi
+        nx, ny, nz = -spsi * etx, -spsi * ety, -cpsi
+        # velocity: flapping + translation + k Omega x P, then the spanwise part removed
+        vf = q["vflap"]
+        Vx = vf * etx + u + k * (qq * Pz - rr * Py)
+        Vy = vf * ety + v + k * (rr * Px - p * Pz)
+        Vz = w + k * (p * Py - qq * Px) + 0.0 * vf
+        span = Vx * erx + Vy * ery
+        Vx = Vx - span * erx
+        Vy = Vy - span * ery
+        side = q["side"]
+        # the pitch axis a_p = side e_r: psi rotates e_t towards up about it
+        omega_p = q["dpsi"] + side * (p * erx + qq * ery)
+        speed2 = Vx * Vx + Vy * Vy + Vz * Vz
+        Vc = Vx * ecx + Vy * ecy + Vz * ecz
+        Vn = Vx * nx + Vy * ny + Vz * nz
         chord = self._chord
-        F = np.zeros_like(V)
-        S_t = 2.0 * g.S_wing
+        cw = self._cw
+        Fx = np.zeros_like(Vx)
+        Fy = np.zeros_like(Vx)
+        Fz = np.zeros_like(Vx)
         if terms.translational:
             alpha = np.arctan2(np.abs(Vn), np.abs(Vc))
-            safe = np.where(speed > 0.0, speed, 1.0)
-            e_v = V / safe
-            n_opp = -np.sign(Vn) * n_w[..., None]
-            lift_dir = n_opp + np.sin(alpha) * e_v
-            norm = np.sqrt(np.sum(lift_dir * lift_dir, axis=0))
-            lift_dir = lift_dir / np.where(norm > 0.0, norm, 1.0)
-            cl, cd = self.coefficients.lift(alpha), self.coefficients.drag(alpha)
-            F = F + speed2 * (cl * lift_dir - cd * e_v)  # per unit (c dr), times 0.5 rho
-        weights = self._cw[None, None, :]  # c dr
-        F = F * weights
+            speed = np.sqrt(speed2)
+            inv = 1.0 / np.where(speed > 0.0, speed, 1.0)
+            sa = np.abs(Vn) * inv  # sin(alpha)
+            s_n = -np.sign(Vn)
+            # lift along n_opp + sin(alpha) e_v (length cos(alpha)), drag along -e_v
+            Lx, Ly, Lz = s_n * nx + sa * Vx * inv, s_n * ny + sa * Vy * inv, \
+                s_n * nz + sa * Vz * inv
+            norm = np.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
+            norm = np.where(norm > 0.0, norm, 1.0)
+            cl = self.coefficients.lift(alpha) * speed2 * cw / norm
+            cd = self.coefficients.drag(alpha) * speed2 * cw * inv
+            Fx = Fx + cl * Lx - cd * Vx
+            Fy = Fy + cl * Ly - cd * Vy
+            Fz = Fz + cl * Lz - cd * Vz
         if terms.rotational:
             c_rot = np.pi * (0.75 - g.x0_hat)
             # rho Gamma_rot (a_p x V), Gamma_rot = C_rot omega_p c^2: smooth in V
-            a_px_v = np.cross(a_p[..., None], V, axisa=0, axisb=0, axisc=0)
-            F = F + (2.0 * c_rot * k * omega_p * chord * weights) * a_px_v
+            f = 2.0 * c_rot * k * omega_p * chord * cw * side
+            Fx = Fx + f * (ery * Vz)
+            Fy = Fy - f * (erx * Vz)
+            Fz = Fz + f * (erx * Vy - ery * Vx)
         if terms.added_mass:
             v_mid = Vn - k * (0.5 - g.x0_hat) * chord * omega_p
-            m_a = 0.5 * np.pi * k * chord * weights
+            m_a = 0.5 * np.pi * k * chord * cw
+            half = self.n_time / 2.0
             if terms.added_mass_form == "impulse":
-                imp = m_a * v_mid * n_w[..., None]
-                d_imp = (np.roll(imp, -1, axis=2) - np.roll(imp, 1, axis=2)) * (self.n_time / 2.0)
-                F = F - d_imp - np.cross(omega, imp, axisa=0, axisb=0, axisc=0)
+                ix, iy, iz = m_a * v_mid * nx, m_a * v_mid * ny, m_a * v_mid * nz
+                dix = (np.roll(ix, -1, axis=1) - np.roll(ix, 1, axis=1)) * half
+                diy = (np.roll(iy, -1, axis=1) - np.roll(iy, 1, axis=1)) * half
+                diz = (np.roll(iz, -1, axis=1) - np.roll(iz, 1, axis=1)) * half
+                Fx = Fx - dix - (qq * iz - rr * iy)
+                Fy = Fy - diy - (rr * ix - p * iz)
+                Fz = Fz - diz - (p * iy - qq * ix)
             else:
-                dv = (np.roll(v_mid, -1, axis=1) - np.roll(v_mid, 1, axis=1)) * (self.n_time / 2.0)
-                F = F - (m_a * dv) * n_w[..., None]
-        F = F / S_t
-        moment = np.cross(P, F, axisa=0, axisb=0, axisc=0)
-        force_mean = F.sum(axis=(1, 3)).mean(axis=1)
-        moment_mean = moment.sum(axis=(1, 3)).mean(axis=1)
-        return np.array([force_mean[0], force_mean[1], force_mean[2],
-                         moment_mean[0], moment_mean[1], moment_mean[2]])
+                dv = (np.roll(v_mid, -1, axis=1) - np.roll(v_mid, 1, axis=1)) * half
+                f = m_a * dv
+                Fx = Fx - f * nx
+                Fy = Fy - f * ny
+                Fz = Fz - f * nz
+        scale = 1.0 / (2.0 * g.S_wing * self.n_time)
+        Mx = Py * Fz - Pz * Fy
+        My = Pz * Fx - Px * Fz
+        Mz = Px * Fy - Py * Fx
+        return np.array([np.sum(c) for c in (Fx, Fy, Fz, Mx, My, Mz)]) * scale
 
     def forces_vector(self, state: Sequence[float] | Array = (0.0,) * 6,
                       control: Mapping[str, float] | None = None,

@@ -258,6 +258,8 @@ class ParityReport:
             sign = "same" if r.same_sign else "opposite"
             if r.paper == 0.0:
                 sign = "-"
+            elif _f4(r.quasi_steady) == "0.0000":  # zero to round-off: no sign
+                ratio, sign = "0", "zero"
             part = self.split[r.parameter]
             lines.append(f"{r.parameter:<16} {_f4(r.quasi_steady):>12} {_f4(r.paper):>8} "
                          f"{ratio:>6} {sign:<8} {_f4(part['translational']):>8} "

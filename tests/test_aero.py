@@ -312,6 +312,9 @@ def test_aerodynamics_doc_prose_numbers(model, reports):
     assert max(p[o]["max_error_pct"] for p in pairs for o in "YLN") < 6.0
     assert all(p[o]["ten_pct_radius"] is None for p in pairs for o in "YLN")
     assert lin["inputs"]["delta_Phi_a"]["L"]["max_error_pct"] < 1.0
+    far = pair_scan(model, ("delta_v", "delta_r"), extent=4.0, points=17)
+    # the grid is half a box apart: the radii are grid values, compared exactly
+    assert (far["Y"]["ten_pct_radius"], far["N"]["ten_pct_radius"]) == (2.5, 3.0)
 
 
 def derivative_rows(m):

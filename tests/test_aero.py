@@ -326,3 +326,17 @@ def derivative_rows(m):
 def translational_share(m):
     single = m.with_options(terms=Terms(rotational=False, added_mass=False))
     return -single.forces_vector(trim=m.trim())[2] / m.geometry.weight
+
+
+def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
+    """Axes and signs as the paper's: Eq. (10) with the model's derivatives has +g+ in its first
+    row and the sign of Eq. (12) in every aerodynamic entry the paper prints as nonzero."""
+    from dronefly.aero.compare import system_matrices
+    from dronefly.plant.model import A1_EQ12, INERTIAS_SECT21
+
+    values = {r.parameter: r.quasi_steady for r in reports[0].rows}
+    (A1, B1), _ = system_matrices(values)
+    assert A1[0, 3] == INERTIAS_SECT21["g_plus"] > 0 and INERTIAS_SECT21["Ixz_plus"] < 0
+    paper = np.asarray(A1_EQ12)
+    printed = np.abs(paper[:3, :3]) > 0.0
+    assert np.array_equal(np.sign(A1[:3, :3])[printed], np.sign(paper[:3, :3])[printed])

@@ -41,6 +41,7 @@ __all__ = [
     "linearity_scan",
     "linearity_summary",
     "pair_scan",
+    "system_matrices",
     "parity_report",
     "term_contributions",
     "trim_table",
@@ -157,7 +158,7 @@ def derivative_table(model: QuasiSteadyModel, step: float = 1e-3) -> list[Deriva
             for p, F, inp in (*LATERAL_PARAMETERS, *LONGITUDINAL_PARAMETERS)]
 
 
-def _matrices(values: dict[str, float]) -> tuple[tuple[Array, Array], tuple[Array, Array]]:
+def system_matrices(values: dict[str, float]) -> tuple[tuple[Array, Array], tuple[Array, Array]]:
     """Lateral (A1, B1) and longitudinal (A, B) with the derivatives of ``values`` and the
     paper's mass, inertias and gravity."""
     lat = dict(lateral_model.default_parameters().__dict__)
@@ -171,7 +172,7 @@ def _matrices(values: dict[str, float]) -> tuple[tuple[Array, Array], tuple[Arra
 def eigenvalues(values: dict[str, float]) -> dict[str, list[complex]]:
     """Lateral and longitudinal eigenvalues per wing beat of the derivatives ``values``
     (with the paper's m+, g+, Ix+, Iz+, Ixz+, Iy+), in the project's order."""
-    (A1, _), (A, _) = _matrices(values)
+    (A1, _), (A, _) = system_matrices(values)
     return {"lateral": sort_eigenvalues(np.linalg.eigvals(A1)),
             "longitudinal": sort_eigenvalues(np.linalg.eigvals(A))}
 
@@ -200,7 +201,7 @@ def closed_loop(values: dict[str, float]) -> dict[str, object]:
         quasi-steady eigenvalue with a positive real part onto the imaginary axis and keeping
         the others; ``matched_eigenvalues`` its closed loop.
     """
-    (A1q, B1q), _ = _matrices(values)
+    (A1q, B1q), _ = system_matrices(values)
     A1p, _ = lateral_model.system_matrices(lateral_model.default_parameters())
     k = np.asarray(PAPER_GAINS_EQ27)
     b = B1q[:, 0]

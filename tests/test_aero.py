@@ -340,3 +340,10 @@ def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
     paper = np.asarray(A1_EQ12)
     printed = np.abs(paper[:3, :3]) > 0.0
     assert np.array_equal(np.sign(A1[:3, :3])[printed], np.sign(paper[:3, :3])[printed])
+
+
+def test_a_model_without_lift_has_no_trim(capsys):
+    assert main(["aero", "--no-translational", "--no-added-mass"]) == 2
+    assert "no trim" in capsys.readouterr().err
+    assert main(["aero", "--no-translational"]) == 2
+    assert "no trim with angles of attack" in capsys.readouterr().err

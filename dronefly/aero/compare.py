@@ -21,7 +21,7 @@ from ..controller.law import PAPER_GAINS_EQ27
 from ..lateral import STATE_BOUNDS_SECT36, sort_eigenvalues
 from ..plant import model as lateral_model
 from ..plant_longitudinal import model as longitudinal_model
-from .quasisteady import CONTROLS, FORCES, STATES, QuasiSteadyModel, Trim
+from .quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES, QuasiSteadyModel, Trim
 
 __all__ = [
     "CONTROL_BOX_RAD",
@@ -31,6 +31,7 @@ __all__ = [
     "LINEARITY_BLOCKS",
     "LONGITUDINAL_PARAMETERS",
     "ParityReport",
+    "STATE_BOX",
     "TRIM_VARIANTS",
     "ackermann",
     "answer",
@@ -51,6 +52,7 @@ Array = NDArray[np.float64]
 
 #: Sect. 3.6: the controls stay within +/-0.4 rad; the states within STATE_BOUNDS_SECT36.
 CONTROL_BOX_RAD: float = 0.4
+#: Sect. 3.6: |dv+|, |dp+|, |dr+| <= 0.15 (and the same box for du+, dw+, dq+ here).
 STATE_BOX: float = STATE_BOUNDS_SECT36[0]
 
 #: (parameter, force, input) of the lateral derivatives, Eq. (9)'s names.
@@ -236,6 +238,8 @@ class ParityReport:
         ctrl = {k: (cx(v) if k != "matched_gains" else v) for k, v in self.controller.items()}
         return {
             "coefficients": self.coefficients,
+            "coefficient_source": COEFFICIENT_SETS[self.coefficients].source
+            if self.coefficients in COEFFICIENT_SETS else None,
             "terms": self.terms,
             "trim": self.trim,
             "derivatives": {r.parameter: {"quasi_steady": r.quasi_steady, "paper": r.paper,

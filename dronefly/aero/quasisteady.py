@@ -59,7 +59,7 @@ midpoint rule); time derivatives inside the added mass are periodic central diff
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -223,6 +223,7 @@ class Trim:
     forces: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, float]:
+        """Angles in deg, the residual over the weight, and the forces at trim (``X_plus``...)."""
         return {"alpha_d_deg": math.degrees(self.alpha_d), "alpha_u_deg": math.degrees(self.alpha_u),
                 "phibar_deg": math.degrees(self.phibar), "residual_over_weight": self.residual,
                 **{f"{k}_plus": v for k, v in self.forces.items()}}
@@ -491,8 +492,9 @@ class QuasiSteadyModel:
     def trim(self, tol: float = 1e-12, max_iter: int = 30) -> Trim:
         """alpha_d, alpha_u and phibar such that X = 0, Z = -W+ and M = 0 (cached).
 
-        Newton's method with a central-difference Jacobian, from 30 deg, 30 deg, 0.
-        Raises :class:`DroneflyError` if the residual does not fall below ``tol`` W+.
+        Newton's method with a central-difference Jacobian, from 30 deg, 30 deg, 0. Raises
+        :class:`DroneflyError` if the residual does not fall below ``tol`` W+ or the angles
+        leave 0 < alpha < 90 deg, |phibar| < 90 deg (a model without the lift terms).
         """
         if self._trim is not None:
             return self._trim
@@ -514,9 +516,22 @@ class QuasiSteadyModel:
                 dz = np.zeros(3)
                 dz[j] = h
                 J[:, j] = (residual(z + dz) - residual(z - dz)) / (2 * h)
-            z = z - np.linalg.solve(J, res)
+            try:
+                z = z - np.linalg.solve(J, res)
+            except np.linalg.LinAlgError:
+                raise DroneflyError(f"no trim: the force and pitch moment do not depend on the "
+                                    f"angles of attack ({self.coefficients.name}, terms "
+                                    f"{self.terms})") from None
             res = residual(z)
+            if not np.all(np.isfinite(res)):
+                break
         err = float(np.max(np.abs(res)))
+        if not (0.0 < z[0] < np.pi / 2 and 0.0 < z[1] < np.pi / 2 and abs(z[2]) < np.pi / 2):
+            raise DroneflyError(
+                f"no trim with angles of attack in (0, 90) deg and |phibar| < 90 deg: Newton "
+                f"ended at alpha_d = {math.degrees(z[0]):.4g} deg, alpha_u = "
+                f"{math.degrees(z[1]):.4g} deg, phibar = {math.degrees(z[2]):.4g} deg "
+                f"({self.coefficients.name}, terms {self.terms})")
         if not err < max(tol, 1e-9):
             raise DroneflyError(f"trim did not converge: residual {err:.3g} of the weight "
                                 f"({self.coefficients.name}, terms {self.terms})")
@@ -547,8 +562,3 @@ def _named(values: Mapping[str, float] | None, names: Sequence[str], what: str) 
 
 def _controls(control: Mapping[str, float] | None) -> dict[str, float]:
     return _named(control, CONTROLS, "control")
-
-
-def terms_without(*names: str) -> Terms:
-    """:class:`Terms` with the named terms switched off."""
-    return replace(Terms(), **{n: False for n in names})

@@ -274,7 +274,10 @@ def test_aerodynamics_doc_prose_numbers(model, reports):
         f"closer with `wang2004` ({wrows['Yv_plus'].ratio:.2f}, {wrows['Xu_plus'].ratio:.2f})",
         f"**Lv, Mu** ({rows['Lv_plus'].ratio:.1f}, {rows['Mu_plus'].ratio:.1f}; rotational",
         f"Phi/2 = {math.degrees(g.Phi_rad) / 2:.1f} deg ahead of",
-        f"Lr, {rows['Lr_plus'].paper:.3f} in the CFD, is {rows['Lr_plus'].ratio:.0f} times",
+        f"**Yp, Np, Lr, Xq** ({rows['Yp_plus'].ratio:.2f}, {rows['Np_plus'].ratio:.2f}, "
+        f"{rows['Lr_plus'].ratio:.2f}, {rows['Xq_plus'].ratio:.2f}; mostly rotational)",
+        f"Yp is {rows['Yp_plus'].ratio:.0f} times the CFD's and Lr, {rows['Lr_plus'].paper:.3f} in "
+        f"the CFD, is {rows['Lr_plus'].ratio:.0f} times",
         f"**L_Phi_a, Z_Phi** ({rows['L_Phi_a_plus'].ratio:.2f}, {rows['Z_Phi_plus'].ratio:.2f}, "
         "translational)",
         f"L_Phi_a is {irows['L_Phi_a_plus'].ratio:.2f} and Z_Phi {irows['Z_Phi_plus'].ratio:.2f} of",

@@ -69,6 +69,11 @@ _EPILOG = {
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
              "130 interrupted (rerun to resume)" + _UNITS,
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
+    "aero": "examples:\n  dronefly aero\n  dronefly aero --json --coefficients wang2004\n"
+            "  dronefly aero forces --state delta_v=0.1 --control delta_Phi_a=0.2 --json\n"
+            "  dronefly aero --no-rotational --added-mass-form impulse\n"
+            "units: states non-dimensional (x+: dv/U, dp t_w, ...), controls in rad; forces "
+            "over 0.5 rho U^2 S_t, moments over 0.5 rho U^2 S_t c",
     "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50\n"
                 "units: --stop/--step in wing beats; --gamma0 in rad (SI)",
 }
@@ -288,6 +293,24 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--no-plot", action="store_true", help="do not write the PNG maps")
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.add_argument("--json", action="store_true", help="print the JSON summary")
+    q = add("aero", "quasi-steady blade-element model of the wings: its derivatives beside the "
+            "paper's CFD values, or its cycle-averaged forces", commands.aero)
+    q.add_argument("what", nargs="?", choices=("table", "forces"), default="table",
+                   help="table (default): trim, derivatives, eigenvalues, Eq. (27); forces: the "
+                        "cycle-averaged X, Y, Z, L, M, N at --state and --control")
+    q.add_argument("--state", action="append", default=[], type=parse_setting,
+                   metavar="NAME=VALUE", help="with forces: a state delta_u ... delta_r "
+                   "(non-dimensional, repeatable)")
+    q.add_argument("--control", action="append", default=[], type=parse_setting,
+                   metavar="NAME=VALUE", help="with forces: a control delta_Phi_a ... "
+                   "delta_alpha_2 in rad (repeatable)")
+    q.add_argument("--coefficients", default="dickinson1999", metavar="NAME",
+                   help="translational coefficients: dickinson1999 (default), wang2004")
+    for term in ("translational", "rotational", "added-mass"):
+        q.add_argument(f"--no-{term}", action="store_true", help=f"switch off the {term} term")
+    q.add_argument("--added-mass-form", choices=("sane2001", "impulse"), default="sane2001",
+                   help="added mass as Sane & Dickinson 2001 (default) or the impulse rate")
+    q.add_argument("--json", action="store_true", help="print JSON")
     return p
 
 

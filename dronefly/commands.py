@@ -14,7 +14,7 @@ from typing import Any
 from dronefly.errors import DroneflyError
 from dronefly.extras import require
 
-__all__ = ["EXIT_FAILED", "EXIT_OK", "EXIT_USAGE", "analyze", "build", "check", "cosim", "demo",
+__all__ = ["EXIT_FAILED", "EXIT_OK", "EXIT_USAGE", "aero", "analyze", "build", "check", "cosim", "demo",
            "simulate", "sweep"]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
@@ -231,3 +231,31 @@ def sweep(args: argparse.Namespace) -> int:
               file=sys.stderr)
         code = EXIT_FAILED
     return code
+
+
+def aero(args: argparse.Namespace) -> int:
+    import json
+
+    from dronefly.aero import QuasiSteadyModel, Terms, parity_report
+
+    if args.what != "forces" and (args.state or args.control):
+        raise DroneflyError("--state and --control need 'dronefly aero forces'")
+
+    def number(name: str, text: str) -> float:
+        try:
+            return float(text)
+        except ValueError:
+            raise DroneflyError(f"{name}={text!r} is not a number") from None
+
+    model = QuasiSteadyModel(args.coefficients, Terms(
+        translational=not args.no_translational, rotational=not args.no_rotational,
+        added_mass=not args.no_added_mass, added_mass_form=args.added_mass_form))
+    if args.what == "forces":
+        forces = model.forces({k: number(k, v) for k, v in args.state},
+                              {k: number(k, v) for k, v in args.control})
+        print(json.dumps(forces, indent=2) if args.json
+              else "  ".join(f"{k}+ = {v:+.6f}" for k, v in forces.items()))
+        return EXIT_OK
+    report = parity_report(model)
+    print(json.dumps(report.to_json(), indent=2) if args.json else report.table())
+    return EXIT_OK

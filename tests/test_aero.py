@@ -1,0 +1,352 @@
+"""The quasi-steady blade-element model (dronefly.aero): exact symmetries, closed forms, trim,
+and the convergence of its central-difference derivatives."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from dronefly.aero import QuasiSteadyModel, Terms, Trim, WingGeometry
+from dronefly.aero.compare import ackermann, derivatives, eigenvalues, parity_report
+from dronefly.aero.quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES
+from dronefly.cli import main
+from dronefly.errors import DroneflyError
+
+pytestmark = pytest.mark.numeric
+
+LATERAL_OUT = [FORCES.index(f) for f in "YLN"]
+LONGITUDINAL_OUT = [FORCES.index(f) for f in "XZM"]
+
+
+@pytest.fixture(scope="module")
+def model() -> QuasiSteadyModel:
+    m = QuasiSteadyModel()
+    m.trim()
+    return m
+
+
+@pytest.mark.parametrize("coefficients", sorted(COEFFICIENT_SETS))
+def test_trim_balances_the_weight_and_the_lateral_forces_vanish(coefficients):
+    m = QuasiSteadyModel(coefficients)
+    tr = m.trim()
+    W = m.geometry.weight
+    f = m.forces_vector()
+    # the acceptance bound: X, Z + W, M below 1e-6 of the weight
+    assert abs(f[0]) < 1e-6 * W and abs(f[2] + W) < 1e-6 * W and abs(f[4]) < 1e-6 * W
+    assert tr.residual < 1e-6
+    # mirror symmetry of the two wings: Y, L, N cancel to round-off (sums of ~1e2 terms of
+    # order 1: 1e-12 W is a thousand ulps)
+    assert np.all(np.abs(f[LATERAL_OUT]) < 1e-12 * W)
+    assert 0.0 < tr.alpha_d < math.pi / 2 and 0.0 < tr.alpha_u < math.pi / 2
+
+
+@pytest.mark.parametrize("name", ["delta_v", "delta_p", "delta_r", "delta_Phi_a",
+                                  "delta_alpha_1a", "delta_alpha_2a"])
+def test_lateral_forces_are_odd_and_longitudinal_even_in_a_lateral_input(model, name):
+    def at(value):
+        if name in STATES:
+            x = np.zeros(6)
+            x[STATES.index(name)] = value
+            return model.forces_vector(x)
+        return model.forces_vector(np.zeros(6), {name: value})
+
+    plus, minus = at(0.2), at(-0.2)
+    scale = model.geometry.weight
+    # a lateral disturbance mirrors to its negative: Y, L, N change sign, X, Z, M do not,
+    # exactly up to the round-off of the mirrored sums
+    np.testing.assert_allclose(plus[LATERAL_OUT], -minus[LATERAL_OUT], rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(plus[LONGITUDINAL_OUT], minus[LONGITUDINAL_OUT], rtol=0,
+                               atol=1e-12 * scale)
+    assert np.max(np.abs(plus[LATERAL_OUT])) > 1e-3  # and it does act on the lateral forces
+
+
+def _constant_aoa(coefficients: str, n_time: int = 200, **geometry) -> QuasiSteadyModel:
+    """Translation only, the wing flipping instantly at the reversals (no rotation phase)."""
+    g = replace(WingGeometry.from_flight_data(), rotation_fraction=0.0, **geometry)
+    return QuasiSteadyModel(coefficients, Terms(rotational=False, added_mass=False),
+                            n_time=n_time, geometry=g)
+
+
+@pytest.mark.parametrize("coefficients", sorted(COEFFICIENT_SETS))
+def test_mean_lift_at_constant_angle_of_attack_is_the_second_moment_closed_form(coefficients):
+    """A wing at constant alpha, a harmonic stroke, no body motion: the velocity at r is
+    r dphi/dt, so mean lift = CL(alpha) * 0.5 rho S r2^2 mean(dphi/dt^2); over
+    0.5 rho U^2 S_t with U = 2 Phi n r2 this is CL(alpha) pi^2/8 for both wings."""
+    alpha = math.radians(35.0)
+    m = _constant_aoa(coefficients)
+    f = m.forces_vector(trim=Trim(alpha, alpha, 0.0, 0.0))
+    cl = float(COEFFICIENT_SETS[coefficients].lift(np.array(alpha)))
+    # Gauss-Jacobi integrates r^2 c(r) exactly, the midpoint rule sin^2 exactly: round-off only
+    assert f[2] == pytest.approx(-cl * math.pi**2 / 8, rel=1e-12)
+    assert abs(f[0]) < 1e-12 and abs(f[1]) < 1e-12
+
+
+def test_flapping_counter_torque_against_its_closed_form():
+    """Roots on the yaw axis, constant alpha: a yaw rate w adds -/+ k w r along each wing's
+    stroke, so N = -2 CD k^2 I3/S_t g(w), g(w) = mean (a + w)|a + w| over a = A sin, A = pi Phi,
+    g(w) = (4/pi) [(3w/4) sqrt(A^2 - w^2) + (A^2/4 + w^2/2) asin(w/A)], linear to O(w^3/A^2)
+    (the counter-torque of Hedrick, Cheng & Deng 2009)."""
+    alpha = math.radians(35.0)
+    m = _constant_aoa("dickinson1999", n_time=4000, hinge=(0.0, 0.0, 0.0))
+    g = m.geometry
+    A = math.pi * g.Phi_rad
+    # third moment of area of the beta planform: S R^3 E[r^3] of Beta(p, q)
+    p, q = g.p, g.q
+    I3 = g.S_wing * g.R**3 * p * (p + 1) * (p + 2) / ((p + q) * (p + q + 1) * (p + q + 2))
+    cd = float(COEFFICIENT_SETS["dickinson1999"].drag(np.array(alpha)))
+    for w in (0.05, 0.1, 0.3):
+        gw = 4 / math.pi * (0.75 * w * math.sqrt(A * A - w * w)
+                            + (A * A / 4 + w * w / 2) * math.asin(w / A))
+        expected = -2 * cd * g.k**2 * I3 / (2 * g.S_wing) * gw
+        N = m.forces({"delta_r": w}, trim=Trim(alpha, alpha, 0.0, 0.0))["N"]
+        # the midpoint rule on |a + w| (a kink at each zero crossing): error O(dt^2) = 6e-8,
+        # relative; 1e-6 leaves room
+        assert N == pytest.approx(expected, rel=1e-6)
+        # and the linear counter-torque -(8/pi) CD k^2 A I3/S_t w holds to (w/A)^2
+        linear = -(8 / math.pi) * cd * g.k**2 * A * I3 / (2 * g.S_wing) * w
+        assert N == pytest.approx(linear, rel=(w / A) ** 2)
+
+
+@pytest.mark.parametrize("name,force", [("delta_v", "L"), ("delta_Phi_a", "L"),
+                                        ("delta_alpha_2a", "N"), ("delta_alpha_1", "Z")])
+def test_central_differences_converge_at_second_order(model, name, force):
+    i = FORCES.index(force)
+    hs = (0.04, 0.02, 0.01, 0.005)
+    d = [derivatives(model, h, (name,))[name][i] for h in hs]
+    ratios = [(d[j] - d[j + 1]) / (d[j + 1] - d[j + 2]) for j in range(2)]
+    # error ~ c2 h^2 (+ c3 |h|^3 from the folding of alpha where the velocity passes the
+    # chord line at the reversals): successive differences shrink by 4 (up to 5.5 observed)
+    assert all(3.5 < r < 6.0 for r in ratios), ratios
+
+
+def test_derivatives_against_a_finer_grid_and_richardson(model):
+    fine = QuasiSteadyModel(n_span=32, n_time=800)
+    fine.trim()
+    names = ("delta_v", "delta_p", "delta_r", "delta_u", "delta_w", "delta_q", *CONTROLS)
+    d = derivatives(model, 1e-3, names)
+    df = derivatives(fine, 1e-3, names)
+    for name in names:
+        scale = np.max(np.abs(df[name]))
+        # the 200-sample cycle and 20 elements against 800 and 32: the midpoint rule's
+        # O(dt^2) = 2.5e-5 and the round-off of the steps; 1 % of the largest derivative
+        assert np.max(np.abs(d[name] - df[name])) < 1e-2 * scale, name
+    # Richardson extrapolation from steps 0.02 and 0.01 agrees with the 1e-3 step
+    d1 = derivatives(model, 0.01, ("delta_Phi_a", "delta_alpha_2a"))
+    d2 = derivatives(model, 0.02, ("delta_Phi_a", "delta_alpha_2a"))
+    for name in d1:
+        rich = (4 * d1[name] - d2[name]) / 3
+        np.testing.assert_allclose(rich, d[name], rtol=0, atol=1e-6 * np.max(np.abs(d[name])))
+
+
+def test_paper_derivatives_give_the_papers_eigenvalues():
+    from dronefly.harness.paper.values import table2_eigenvalues
+    from dronefly.plant.model import default_parameters
+    from dronefly.plant_longitudinal.model import default_parameters as lon
+
+    values = {**default_parameters().__dict__, **lon().__dict__}
+    ev = eigenvalues(values)
+    # Table 2 is printed to 3 decimals
+    np.testing.assert_allclose(ev["lateral"], table2_eigenvalues(), atol=1e-3)
+    assert ev["longitudinal"][0].real == pytest.approx(0.0481, abs=1e-4)
+
+
+def test_ackermann_against_the_harness_design():
+    from dronefly.harness.paper.analysis import ackermann_gains
+    from dronefly.plant.model import default_parameters, system_matrices
+
+    A, B = system_matrices(default_parameters())
+    targets = [0.0, -0.089 + 0.057j, -0.089 - 0.057j, -0.51]
+    np.testing.assert_allclose(ackermann(A, B[:, 0], targets),
+                               np.ravel(ackermann_gains(A, B, targets, 0)), rtol=1e-9)
+
+
+def test_report_json_has_the_schema(model):
+    r = parity_report(model).to_json()
+    assert r["coefficients"] == "dickinson1999"
+    assert {"quasi_steady", "paper"} <= set(r["derivatives"]["Lp_plus"])
+    parts = r["derivatives"]["Lp_plus"]["terms"]
+    assert sum(parts.values()) == pytest.approx(r["derivatives"]["Lp_plus"]["quasi_steady"],
+                                                abs=1e-9)
+    assert len(r["derivatives"]) == 9 + 9 + 9 + 12
+    assert set(r["eigenvalues"]) == {"lateral", "longitudinal"}
+    assert len(r["eigenvalues"]["lateral"]["quasi_steady"]) == 4
+
+
+def test_cli_forces_json_and_bad_input(capsys):
+    assert main(["aero", "forces", "--state", "delta_v=0.1", "--control", "delta_Phi_a=0.2",
+                 "--no-rotational", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == set(FORCES)
+    assert main(["aero", "forces", "--state", "delta_x=0.1"]) == 2
+    assert "delta_x" in capsys.readouterr().err
+    assert main(["aero", "--coefficients", "nope"]) == 2
+    assert "nope" in capsys.readouterr().err
+    with pytest.raises(DroneflyError):
+        QuasiSteadyModel(n_time=7)
+
+
+# -- docs/aerodynamics.md and README.md quote what the code renders ---------------------------
+
+from pathlib import Path  # noqa: E402
+
+from docnumbers import NumericText  # noqa: E402
+from docnumbers import assert_same_numbers as same  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "aerodynamics.md"
+
+
+def _block(text: str, name: str) -> str:
+    import re
+
+    m = re.search(rf"<!-- aero:{name} -->\n```text\n(.*?)\n```", text, re.S)
+    assert m, f"no aero:{name} block in {DOC.name}"
+    return m.group(1)
+
+
+@pytest.fixture(scope="module")
+def reports(model):
+    impulse = QuasiSteadyModel(terms=Terms(added_mass_form="impulse"))
+    return parity_report(model), parity_report(impulse)
+
+
+def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
+    from dronefly.aero.compare import answer, linearity_summary, trim_table
+
+    text = DOC.read_text(encoding="utf-8")
+    default, impulse = reports
+
+    def assert_same_numbers(expected: str, actual: str, hint: str) -> None:
+        # columns realign when a sign appears: compare with whitespace runs as one space
+        same(" ".join(expected.split()), " ".join(actual.split()), hint)
+
+    assert_same_numbers(_block(text, "table"), default.table(), "aero:table")
+    assert_same_numbers(_block(text, "impulse"), impulse.table(), "aero:impulse")
+    assert_same_numbers(_block(text, "trim"), trim_table(), "aero:trim")
+    assert_same_numbers(_block(text, "linearity"), linearity_summary(model), "aero:linearity")
+    ans = answer(default, model)
+    assert_same_numbers(_block(text, "answer"), ans, "aero:answer")
+    readme = NumericText((ROOT / "README.md").read_text(encoding="utf-8"))
+    for line in ans.splitlines():
+        assert line in readme, f"README does not quote: {line[:60]}"
+
+
+def test_aerodynamics_doc_prose_numbers(model, reports):
+    """The numbers the prose quotes beside the generated blocks, recomputed."""
+    from dronefly.aero.compare import linearity_scan, pair_scan, LATERAL_PAIRS
+
+    text = NumericText(DOC.read_text(encoding="utf-8"))
+    default, impulse = reports
+    g = model.geometry
+    wang = QuasiSteadyModel("wang2004")
+    rows = {r.parameter: r for r in default.rows}
+    wrows = {r.parameter: r for r in derivative_rows(wang)}
+    irows = {r.parameter: r for r in impulse.rows}
+
+    def slope(name, a, fn):
+        h = 1e-6
+        f = getattr(COEFFICIENT_SETS[name], fn)
+        return float((f(np.array(a + h)) - f(np.array(a - h))) / (2 * h))
+
+    ad = 0.5 * (model.trim().alpha_d + model.trim().alpha_u)
+    aw = 0.5 * (wang.trim().alpha_d + wang.trim().alpha_u)
+    cd = lambda n, a: float(COEFFICIENT_SETS[n].drag(np.array(a)))  # noqa: E731
+    lin = linearity_scan(model, ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a"), tuple("YLN"))
+    lon = linearity_scan(model, ("delta_Phi", "delta_alpha_1", "delta_phibar", "delta_alpha_2"),
+                         tuple("XZM"))
+    pairs = [pair_scan(model, p, points=17) for p in LATERAL_PAIRS]
+    quotes = [
+        f"r1 = {g.r1_hat:.3f} R, p = {g.p:.2f}, q = {g.q:.2f}",
+        f"has CD({math.degrees(ad):.1f} deg) = {cd('dickinson1999', ad):.2f}, Wang's "
+        f"CD({math.degrees(aw):.1f} deg) = {cd('wang2004', aw):.2f}, and `wang2004` gives "
+        f"{wrows['Nr_plus'].ratio:.2f} of the CFD value",
+        f"**Lp, Zw, Mq** ({rows['Lp_plus'].ratio:.2f}, {rows['Zw_plus'].ratio:.2f}, "
+        f"{rows['Mq_plus'].ratio:.2f}, translational)",
+        f"the slope dCL/dalpha at trim, {slope('dickinson1999', ad, 'lift'):.1f} per rad for "
+        f"Dickinson's fit at {math.degrees(ad):.1f} deg",
+        f"slope {slope('wang2004', aw, 'lift'):.1f} per rad at {math.degrees(aw):.1f} deg: "
+        f"{wrows['Lp_plus'].ratio:.2f}, {wrows['Zw_plus'].ratio:.2f}, {wrows['Mq_plus'].ratio:.2f}",
+        f"**Yv, Xu** ({rows['Yv_plus'].ratio:.2f}, {rows['Xu_plus'].ratio:.2f}, translational)",
+        f"closer with `wang2004` ({wrows['Yv_plus'].ratio:.2f}, {wrows['Xu_plus'].ratio:.2f})",
+        f"**Lv, Mu** ({rows['Lv_plus'].ratio:.1f}, {rows['Mu_plus'].ratio:.1f}; rotational",
+        f"Phi/2 = {math.degrees(g.Phi_rad) / 2:.1f} deg ahead of",
+        f"**Yp, Np, Lr, Xq** ({rows['Yp_plus'].ratio:.2f}, {rows['Np_plus'].ratio:.2f}, "
+        f"{rows['Lr_plus'].ratio:.2f}, {rows['Xq_plus'].ratio:.2f}; mostly rotational)",
+        f"Yp is {rows['Yp_plus'].ratio:.0f} times the CFD's and Lr, {rows['Lr_plus'].paper:.3f} in "
+        f"the CFD, is {rows['Lr_plus'].ratio:.0f} times",
+        f"**L_Phi_a, Z_Phi** ({rows['L_Phi_a_plus'].ratio:.2f}, {rows['Z_Phi_plus'].ratio:.2f}, "
+        "translational)",
+        f"L_Phi_a is {irows['L_Phi_a_plus'].ratio:.2f} and Z_Phi {irows['Z_Phi_plus'].ratio:.2f} of",
+        f"**L_alpha_1a, Z_alpha_1** ({rows['L_alpha_1a_plus'].ratio:.2f}, "
+        f"{rows['Z_alpha_1_plus'].ratio:.2f}, translational)",
+        f"**N_alpha_2a, X_alpha_2** ({rows['N_alpha_2a_plus'].ratio:.2f}, "
+        f"{rows['X_alpha_2_plus'].ratio:.2f}, translational)",
+        f"({slope('dickinson1999', ad, 'drag'):.1f} per rad for Dickinson's fit, "
+        f"{slope('wang2004', aw, 'drag'):.1f} for Wang's: `wang2004` gives "
+        f"{wrows['N_alpha_2a_plus'].ratio:.2f} and {wrows['X_alpha_2_plus'].ratio:.2f})",
+        f"**M_phibar** ({rows['M_phibar_plus'].ratio:.2f}, opposite, translational)",
+        f"The magnitude agrees ({-rows['M_phibar_plus'].ratio:.2f})",
+        f"The lateral divergence is faster ({default.eigenvalues['lateral']['quasi_steady'][0].real:+.4f} "
+        f"against {default.eigenvalues['lateral']['paper'][0].real:+.4f} per wing beat): the "
+        f"quasi-steady Lv is {rows['Lv_plus'].ratio:.1f} times",
+        f"leave the loop unstable ({default.controller['qs_A_qs_B'][0].real:+.4f} per wing beat)",
+        f"quasi-steady B, {default.controller['paper_A_qs_B'][0].real:+.4f}: the gains assume the "
+        f"CFD's L_Phi_a, and the model's is {rows['L_Phi_a_plus'].ratio:.2f} of it",
+        f"the loop is neutral again ({impulse.controller['paper_A_qs_B'][0].real:+.4f})",
+        "k = " + ", ".join(f"{k:.3f}" for k in default.controller["matched_gains"]) + ": a dv+ "
+        f"gain {default.controller['matched_gains'][0] / -0.3192:.0f} times the paper's",
+        f"carries {100 * (1 - 1.0 * translational_share(model)):.0f} % of the weight in the default trim",
+        f"swings from {math.degrees(model.trim().alpha_d):.1f} deg to "
+        f"{math.degrees(model.trim().alpha_d + 0.4):.0f} deg",
+        f"(its maximum is at {(90 + 7.2) / 2.13:.1f} deg), and the other's to "
+        f"{math.degrees(model.trim().alpha_d - 0.4):.0f} deg",
+        f"dalpha_2a ({lin['inputs']['delta_alpha_2a']['N']['max_error_pct']:.1f} % on N at 0.8 rad)",
+        f"17 % on Z at 0.4 rad, 10 % at {lon['inputs']['delta_alpha_1']['Z']['ten_pct_extent']:.2f} rad",
+    ]
+    for q in quotes:
+        assert q in text, f"docs/aerodynamics.md does not quote: {q}"
+    # integers the prose quotes, with their bounds
+    assert round(lon["inputs"]["delta_alpha_1"]["Z"]["max_error_box_pct"]) == 17
+    assert max(p[o]["max_error_box_pct"] for p in pairs for o in "YLN") < 1.0
+    assert max(p[o]["max_error_pct"] for p in pairs for o in "YLN") < 6.0
+    assert all(p[o]["ten_pct_radius"] is None for p in pairs for o in "YLN")
+    assert lin["inputs"]["delta_Phi_a"]["L"]["max_error_pct"] < 1.0
+    far = pair_scan(model, ("delta_v", "delta_r"), extent=4.0, points=17)
+    # the grid is half a box apart: the radii are grid values, compared exactly
+    assert (far["Y"]["ten_pct_radius"], far["N"]["ten_pct_radius"]) == (2.5, 3.0)
+
+
+def derivative_rows(m):
+    from dronefly.aero.compare import derivative_table
+
+    return derivative_table(m)
+
+
+def translational_share(m):
+    single = m.with_options(terms=Terms(rotational=False, added_mass=False))
+    return -single.forces_vector(trim=m.trim())[2] / m.geometry.weight
+
+
+def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
+    """Axes and signs as the paper's: Eq. (10) with the model's derivatives has +g+ in its first
+    row and the sign of Eq. (12) in every aerodynamic entry the paper prints as nonzero."""
+    from dronefly.aero.compare import system_matrices
+    from dronefly.plant.model import A1_EQ12, INERTIAS_SECT21
+
+    values = {r.parameter: r.quasi_steady for r in reports[0].rows}
+    (A1, B1), _ = system_matrices(values)
+    assert A1[0, 3] == INERTIAS_SECT21["g_plus"] > 0 and INERTIAS_SECT21["Ixz_plus"] < 0
+    paper = np.asarray(A1_EQ12)
+    printed = np.abs(paper[:3, :3]) > 0.0
+    assert np.array_equal(np.sign(A1[:3, :3])[printed], np.sign(paper[:3, :3])[printed])
+
+
+def test_a_model_without_lift_has_no_trim(capsys):
+    assert main(["aero", "--no-translational", "--no-added-mass"]) == 2
+    assert "no trim" in capsys.readouterr().err
+    assert main(["aero", "--no-translational"]) == 2
+    assert "no trim with angles of attack" in capsys.readouterr().err

@@ -156,43 +156,29 @@ class System:
                 for c in system.connections]
         sys_ = cls(fmus, cons, params, name=system.name or path.stem)
         sys_._tmp = tmp  # the extracted FMUs live as long as the system
-        sys_.stop_s = _stop_time(Path(tmp.name, "SystemStructure.ssd"))
-        sys_.start_s = _start_time(Path(tmp.name, "SystemStructure.ssd"))
+        ssd_file = Path(tmp.name, "SystemStructure.ssd")
+        sys_.stop_s = _experiment_time(ssd_file, "stopTime")
+        sys_.start_s = _experiment_time(ssd_file, "startTime") or 0.0
         return sys_
 
 
-def _start_time(ssd: Path) -> float:
-    """The DefaultExperiment's startTime of an SSD, s (0 if it gives none)."""
+def _experiment_time(ssd: Path, attribute: str) -> float | None:
+    """The DefaultExperiment's ``attribute`` (``startTime``, ``stopTime``) of an SSD, s, or None
+    where it gives none (fmpy 0.3 reads neither). A stop time must be > 0."""
     import xml.etree.ElementTree as ET
 
     for el in ET.parse(ssd).getroot():
-        if el.tag.rsplit("}", 1)[-1] == "DefaultExperiment" and el.get("startTime") is not None:
-            try:
-                start = float(el.get("startTime"))
-            except ValueError as e:
-                raise SystemSpecError(f"DefaultExperiment startTime = {el.get('startTime')!r} "
-                                      "is not a number") from e
-            if not math.isfinite(start):
-                raise SystemSpecError(f"DefaultExperiment startTime = {start!r} s must be finite")
-            return start
-    return 0.0
-
-
-def _stop_time(ssd: Path) -> float | None:
-    """The DefaultExperiment's stopTime of an SSD, s (fmpy 0.3 does not read it)."""
-    import xml.etree.ElementTree as ET
-
-    for el in ET.parse(ssd).getroot():
-        if el.tag.rsplit("}", 1)[-1] == "DefaultExperiment" and el.get("stopTime") is not None:
-            try:
-                stop = float(el.get("stopTime"))
-            except ValueError as e:
-                raise SystemSpecError(f"DefaultExperiment stopTime = {el.get('stopTime')!r} "
-                                      "is not a number") from e
-            if not (math.isfinite(stop) and stop > 0):
-                raise SystemSpecError(f"DefaultExperiment stopTime = {stop!r} s must be "
-                                      "finite and > 0")
-            return stop
+        text = el.get(attribute)
+        if el.tag.rsplit("}", 1)[-1] != "DefaultExperiment" or text is None:
+            continue
+        try:
+            value = float(text)
+        except ValueError as e:
+            raise SystemSpecError(f"DefaultExperiment {attribute} = {text!r} is not a number") from e
+        if not math.isfinite(value) or (attribute == "stopTime" and value <= 0):
+            raise SystemSpecError(f"DefaultExperiment {attribute} = {value!r} s must be finite"
+                                  + (" and > 0" if attribute == "stopTime" else ""))
+        return value
     return None
 
 

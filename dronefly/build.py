@@ -48,7 +48,7 @@ class _Spec:
 
 _FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
         "fmi/state.py", "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
-_PLANT = (*_FMI, "linear.py", "linear_slave.py")
+_PLANT = (*_FMI, "linear.py", "linear_algebra.py", "linear_slave.py")
 _CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/delay.py",
                "controller/timing.py", "controller/variables.py", "controller/slave.py")
 
@@ -76,7 +76,7 @@ FMUS: dict[str, _Spec] = {
     "StateFeedbackLongitudinalDelayed": _controller("StateFeedbackLongitudinalDelayed"),
     "DroneFlyHover6DOF": _Spec(
         module="plant_6dof.slave", cls="DroneFlyHover6DOF",
-        files=(*_FMI, "linear.py", "longitudinal.py", "hover6dof.py", "plant/model.py",
+        files=(*_FMI, "linear.py", "linear_algebra.py", "longitudinal.py", "hover6dof.py", "plant/model.py",
                "plant_longitudinal/model.py", "plant_6dof/model.py", "plant_6dof/slave.py"),
         readme="plant_6dof/README.md", reference="plant_6dof/DroneFlyHover6DOF_ref.csv"),
 }

@@ -121,7 +121,7 @@ class LinearPlantSlave(SlaveBase):
                 raise ValueError(f"{name} = {value!r} must be finite and > 0")
         self._n, self._scale = n, list(self.AXIS.scale_vector(U, n))
         self._set_values(self._matrix,
-                         [*self._model.A.ravel().tolist(), *self._model.B.ravel().tolist()])
+                         [x for M in (self._model.A_rows, self._model.B_rows) for row in M for x in row])
 
     def _update_outputs(self) -> None:
         # Before initialization ends, the initial unknowns already follow the start values and

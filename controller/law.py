@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Sequence
+from typing import Sequence, Tuple
 
 from ..axes import Axis, dot
 from ..errors import DroneflyError
@@ -44,7 +44,7 @@ __all__ = [
     "integral_gain_name",
 ]
 
-Gains = tuple[tuple[float, ...], ...]
+Gains = Tuple[Tuple[float, ...], ...]  # (typing.Tuple: Python 3.8 hosts)
 
 #: Eq. (27): delta_Phi_a = k1 dv+ + k2 dp+ + k3 dr+ + k4 dgamma, making the lateral
 #: motion neutrally stable (closed-loop eigenvalues 0, -0.089 +/- 0.057i, -0.510).

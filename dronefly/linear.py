@@ -14,7 +14,7 @@ and imports numpy (and scipy) only when called; an FMU never calls it.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple
 
 from .lateral import sort_eigenvalues
 from .linear_algebra import expm
@@ -28,9 +28,9 @@ if TYPE_CHECKING:
 __all__ = ["Rows", "ZohModel", "discretize_zoh", "zoh_rows"]
 
 #: a matrix as a tuple of rows of floats
-Rows = tuple[tuple[float, ...], ...]
+Rows = Tuple[Tuple[float, ...], ...]  # (typing.Tuple: Python 3.8 hosts)
 #: (x, u) -> [row . (x; u) for row in [Phi, Gamma]], the step of one step size
-Product = Callable[[Sequence[float], Sequence[float]], list[float]]
+Product = Callable[[Sequence[float], Sequence[float]], List[float]]
 
 
 def _rows(M: Any) -> Rows:

@@ -8,20 +8,22 @@ approximant of degree 3, 5, 7, 9 or 13, chosen from the 1-norm of M (N. J. Higha
 and squaring method for the matrix exponential revisited", SIAM J. Matrix Anal. Appl. 26(4),
 2005, Algorithm 2.3 and Table 2.3). The tests cross-check it against ``scipy.linalg.expm``.
 
-Matrices are sequences of rows (lists or tuples of floats). Every result is computed in plain
-float arithmetic in a fixed order: the same on every machine, independent of any BLAS.
+Matrices are sequences of rows (lists or tuples of floats). Every sum of products is
+``math.fsum`` (correctly rounded), every other operation plain float arithmetic in a fixed
+order: the same bits on every machine and Python version (``sum`` of floats changed in 3.12),
+independent of any BLAS.
 Shipped inside every FMU; imports only the standard library.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import List, Sequence
 
 __all__ = ["Matrix", "expm", "identity", "matmul", "norm1", "solve"]
 
 #: a dense matrix as a list of rows
-Matrix = list[list[float]]
+Matrix = List[List[float]]  # (typing.List: Python 3.8 hosts)
 
 #: Higham (2005), Table 2.3: the largest 1-norm for which the [m/m] Pade approximant of degree
 #: m has a backward error of at most the unit round-off 2**-53
@@ -49,20 +51,22 @@ def identity(n: int) -> Matrix:
 
 
 def matmul(a: Sequence[Sequence[float]], b: Sequence[Sequence[float]]) -> Matrix:
-    """The product ``a @ b`` (each entry summed in the order of the inner index)."""
+    """The product ``a @ b`` (each entry the correctly rounded sum of the rounded products)."""
     cols = list(zip(*b))
-    return [[sum([x * y for x, y in zip(row, col)], 0.0) for col in cols] for row in a]
+    fsum = math.fsum
+    return [[fsum([x * y for x, y in zip(row, col)]) for col in cols] for row in a]
 
 
 def norm1(a: Sequence[Sequence[float]]) -> float:
     """The 1-norm of ``a``: the largest column sum of absolute values."""
-    return max(sum(abs(x) for x in col) for col in zip(*a))
+    return max(math.fsum(abs(x) for x in col) for col in zip(*a))
 
 
 def _combine(terms: Sequence[tuple[float, Sequence[Sequence[float]]]]) -> Matrix:
     """sum of c * M over the (c, M) pairs, entry by entry in the given order."""
     n, m = len(terms[0][1]), len(terms[0][1][0])
-    return [[sum([c * M[i][j] for c, M in terms], 0.0) for j in range(m)] for i in range(n)]
+    fsum = math.fsum
+    return [[fsum([c * M[i][j] for c, M in terms]) for j in range(m)] for i in range(n)]
 
 
 def solve(a: Sequence[Sequence[float]], b: Sequence[Sequence[float]]) -> Matrix:

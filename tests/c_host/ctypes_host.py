@@ -4,11 +4,14 @@ Loads the binary of one extracted FMU into this process (which keeps it loaded u
 instantiates it, runs a few steps with logging on, prints what happened, and exits with
 ``sys.exit(0)``: a crash at process exit shows as another exit code.
 
-    python ctypes_host.py FMU_DIR MODEL_ID TOKEN FMI STEPS [--modules]
+    python ctypes_host.py FMU_DIR MODEL_ID TOKEN FMI STEPS [--step H] [--set VR=VALUE]...
+                          [--output VR] [--modules]
 
-FMI is 2 or 3. Output lines: ``log: <message>`` for each logged message, ``instance: NULL``
-or ``instance: ok``, ``status <call> <int>`` for each call after instantiation, ``output
-<value>`` for the first output after the steps, and with ``--modules`` one line
+FMI is 2 or 3; STEPS steps of H seconds (default 0.001) from t = 0; ``--set`` sets a Float64
+(FMI 2.0: Real) in initialization mode; each ``--output`` (default 0) is read after the steps.
+Output lines: ``log: <message>`` for each logged message, ``instance: NULL`` or ``instance:
+ok``, ``status <call> <int>`` for each call after instantiation, ``output <repr>`` for each
+output after the steps, and with ``--modules`` one line
 ``modules: <name> ...`` listing the top-level modules in ``sys.modules`` that are not in the
 standard library (``sys.stdlib_module_names``), besides the FMU's own.
 """
@@ -18,7 +21,7 @@ import os
 import sys
 
 
-def _log(message: bytes) -> None:
+def _log(message):
     text = message.decode("utf-8", "replace") if message else ""
     for line in text.splitlines() or [""]:
         print(f"log: {line}", flush=True)
@@ -37,7 +40,22 @@ class Callbacks2(ctypes.Structure):
                 ("componentEnvironment", ctypes.c_void_p)]
 
 
-def run2(lib: ctypes.CDLL, folder: str, token: str, steps: int) -> None:
+def options():
+    """(step, {vr: value} to set, output vr) from the command line."""
+    argv = sys.argv[6:]
+    step, values, out = 0.001, {}, []
+    for i, a in enumerate(argv):
+        if a == "--step":
+            step = float(argv[i + 1])
+        elif a == "--set":
+            vr, _, value = argv[i + 1].partition("=")
+            values[int(vr)] = float(value)
+        elif a == "--output":
+            out.append(int(argv[i + 1]))
+    return step, values, out or [0]
+
+
+def run2(lib, folder, token, steps):
     libc = ctypes.CDLL(None)
     cb = Callbacks2(_logger2, ctypes.cast(libc.calloc, ctypes.c_void_p),
                     ctypes.cast(libc.free, ctypes.c_void_p), None, None)
@@ -58,21 +76,22 @@ def run2(lib: ctypes.CDLL, folder: str, token: str, steps: int) -> None:
     lib.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
     print("status setupExperiment", lib.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0, 0.0))
     print("status enterInitializationMode", lib.fmi2EnterInitializationMode(c))
+    h, values, out = options()
+    for vr, x in values.items():
+        print("status setReal", lib.fmi2SetReal(c, (ctypes.c_uint * 1)(vr), 1,
+                                                (ctypes.c_double * 1)(x)))
     print("status exitInitializationMode", lib.fmi2ExitInitializationMode(c))
-    h = 0.001
     for k in range(steps):
         print("status doStep", lib.fmi2DoStep(c, k * h, h, 1))
-    vr, value = (ctypes.c_uint * 1)(0), (ctypes.c_double * 1)()
-    # value reference 0 is the first variable; print the first output instead when known
-    out = int(os.environ.get("DRONEFLY_HOST_OUTPUT_VR", "0"))
-    vr[0] = out
-    print("status getReal", lib.fmi2GetReal(c, vr, 1, value))
-    print(f"output {value[0]!r}")
+    for o in out:
+        vr, value = (ctypes.c_uint * 1)(o), (ctypes.c_double * 1)()
+        print("status getReal", lib.fmi2GetReal(c, vr, 1, value))
+        print(f"output {value[0]!r}")
     print("status terminate", lib.fmi2Terminate(c))
     lib.fmi2FreeInstance(c)
 
 
-def run3(lib: ctypes.CDLL, folder: str, token: str, steps: int) -> None:
+def run3(lib, folder, token, steps):
     lib.fmi3InstantiateCoSimulation.restype = ctypes.c_void_p
     lib.fmi3InstantiateCoSimulation.argtypes = [
         ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_bool, ctypes.c_bool,
@@ -91,6 +110,12 @@ def run3(lib: ctypes.CDLL, folder: str, token: str, steps: int) -> None:
                                                 ctypes.c_bool, ctypes.c_double]
     print("status enterInitializationMode",
           lib.fmi3EnterInitializationMode(c, False, 0.0, 0.0, False, 0.0))
+    h, values, out = options()
+    lib.fmi3SetFloat64.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t,
+                                   ctypes.c_void_p, ctypes.c_size_t]
+    for vr, x in values.items():
+        print("status setFloat64", lib.fmi3SetFloat64(c, (ctypes.c_uint * 1)(vr), 1,
+                                                      (ctypes.c_double * 1)(x), 1))
     lib.fmi3ExitInitializationMode.argtypes = [ctypes.c_void_p]
     print("status exitInitializationMode", lib.fmi3ExitInitializationMode(c))
     lib.fmi3DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_bool,
@@ -98,31 +123,30 @@ def run3(lib: ctypes.CDLL, folder: str, token: str, steps: int) -> None:
                                ctypes.POINTER(ctypes.c_bool), ctypes.POINTER(ctypes.c_double)]
     flags = [ctypes.c_bool() for _ in range(3)]
     last = ctypes.c_double()
-    h = 0.001
     for k in range(steps):
         print("status doStep", lib.fmi3DoStep(c, k * h, h, True, *map(ctypes.byref, flags),
                                              ctypes.byref(last)))
-    vr, value = (ctypes.c_uint * 1)(int(os.environ.get("DRONEFLY_HOST_OUTPUT_VR", "1"))), \
-        (ctypes.c_double * 1)()
     lib.fmi3GetFloat64.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t,
                                    ctypes.c_void_p, ctypes.c_size_t]
-    print("status getFloat64", lib.fmi3GetFloat64(c, vr, 1, value, 1))
-    print(f"output {value[0]!r}")
+    for o in out:
+        vr, value = (ctypes.c_uint * 1)(o), (ctypes.c_double * 1)()
+        print("status getFloat64", lib.fmi3GetFloat64(c, vr, 1, value, 1))
+        print(f"output {value[0]!r}")
     lib.fmi3Terminate.argtypes = [ctypes.c_void_p]
     print("status terminate", lib.fmi3Terminate(c))
     lib.fmi3FreeInstance.argtypes = [ctypes.c_void_p]
     lib.fmi3FreeInstance(c)
 
 
-def foreign_modules() -> list[str]:
+def foreign_modules():
     """Top-level modules loaded that are neither standard library nor the FMU's own."""
-    std = set(sys.stdlib_module_names) | set(sys.builtin_module_names)
+    std = set(getattr(sys, "stdlib_module_names", ())) | set(sys.builtin_module_names)
     tops = {name.partition(".")[0] for name in sys.modules}
     own = ("dronefly_", "dronefly3_", "pythonfmu")  # the FMU's package and entry, its wrapper
     return sorted(t for t in tops if t not in std and not t.startswith(own) and t != "__main__")
 
 
-def main() -> int:
+def main():
     folder, model, token, fmi, steps = sys.argv[1:6]
     folder = os.path.abspath(folder)
     platform = "linux64" if fmi == "2" else "x86_64-linux"

@@ -115,7 +115,7 @@ def _wrapper_files() -> dict[str, bytes]:
 def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
     """Package name and ``{path in FMU: content}`` of one FMU (no model description), for
     FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.package3`)."""
-    from .build_entry import entry2, entry3
+    from .build_entry import entry2, entry3, host_documentation
     from .package3 import FMI3_FILES, wrapper3_binaries
 
     spec = FMUS[name]
@@ -142,7 +142,7 @@ def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
     files["resources/slavemodule.txt"] = entry_module.encode()
     for rel, data in wrapper.items():
         files[rel.replace("{model}", name)] = data
-    files["documentation/README.md"] = _source_path(spec.readme).read_bytes()
+    files.update(host_documentation(name, _source_path(spec.readme).read_bytes()))
     return pkg, files
 
 

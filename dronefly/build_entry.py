@@ -1,5 +1,6 @@
-"""The entry module of an FMU: what the wrapper imports first, and what it does when the FMU's
-Python side cannot start.
+"""The entry module of an FMU: what the wrapper imports first, what it does when the FMU's
+Python side cannot start, and what the FMU says its host needs (:data:`HOST_REQUIREMENT` in the
+model description, :func:`host_documentation` in ``documentation/``).
 
 pythonfmu's and pythonfmu3's wrappers import the module named in ``resources/slavemodule.txt``
 and take a slave class from it. If that import raised, pythonfmu 0.7.0 would log the error only
@@ -21,9 +22,56 @@ The stand-in uses only the standard library and runs on any CPython 3.
 
 from __future__ import annotations
 
+import html
 from string import Template
 
-__all__ = ["entry2", "entry3"]
+__all__ = ["HOST_REQUIREMENT", "NEWEST_TESTED_PYTHON", "OLDEST_PYTHON", "entry2", "entry3",
+           "host_documentation"]
+
+#: the oldest CPython the FMUs start in (pythonfmu 0.7.0's facade imports typing.Literal);
+#: tests/test_host_requirements.py runs every CPython 3 of the machine and checks both bounds
+OLDEST_PYTHON = (3, 8)
+#: the newest CPython the tests ran the FMUs in
+NEWEST_TESTED_PYTHON = (3, 13)
+_RANGE = "%d.%d to %d.%d" % (*OLDEST_PYTHON, *NEWEST_TESTED_PYTHON)
+
+#: appended to every FMU's modelDescription description
+HOST_REQUIREMENT = (f"Host requirements: a CPython 3 interpreter ({_RANGE} tested) with its "
+                    "standard library only, no packages; see documentation/index.html")
+
+_HOST_ITEMS = (
+    f"A CPython 3 interpreter, {_RANGE} (tested on Linux x86_64), with its standard library "
+    "only. The FMU ships all the Python code it runs in resources/ (the model, the slave base, "
+    "pythonfmu's Python facade) and imports no package: no numpy, scipy or fmpy.",
+    "How the FMU finds its interpreter: its binary (pythonfmu's or pythonfmu3's) does not link "
+    "a Python library; it uses the interpreter loaded in the host process. In a Python host "
+    "(FMPy, a script using ctypes) that is the host's own interpreter. A host that is not "
+    "written in Python (Dymola, Simulink, OMSimulator, a C program) must load one: on Linux "
+    "preload the shared libpython (LD_PRELOAD=/path/to/libpython3.X.so.1.0, and PYTHONHOME "
+    "when the interpreter is not installed in its configured prefix); the binary starts it on "
+    "the first instantiation. On Windows python3.dll of a CPython 3 installation must be on "
+    "the DLL search path (PATH); not tested here.",
+    "When the Python side cannot start (an interpreter older than "
+    "%d.%d, an import that fails), instantiation writes one line to the host's standard error "
+    "naming the model, the Python version and the cause, logs the same through the FMI logger "
+    "(FMI 2.0: with logging on), and returns NULL; the host can still exit cleanly."
+    % OLDEST_PYTHON,
+)
+
+
+def host_documentation(model: str, readme: bytes) -> dict[str, bytes]:
+    """``documentation/index.html`` (the FMI entry point) and ``documentation/README.md`` of an
+    FMU: what the host needs, then the model's README (``readme``, Markdown)."""
+    md = "\n".join(["", "## What the host needs", "", *(f"- {item}" for item in _HOST_ITEMS), ""])
+    page = "\n".join([
+        "<!DOCTYPE html>", '<html lang="en">', '<head><meta charset="utf-8">',
+        f"<title>{html.escape(model)}</title></head>", "<body>",
+        f"<h1>{html.escape(model)}</h1>", "<h2>What the host needs</h2>", "<ul>",
+        *(f"<li>{html.escape(item)}</li>" for item in _HOST_ITEMS), "</ul>",
+        '<p>The model, its variables and its reference result: <a href="README.md">README.md'
+        "</a>.</p>", "</body>", "</html>", ""])
+    return {"documentation/index.html": page.encode(),
+            "documentation/README.md": readme.rstrip(b"\n") + b"\n" + md.encode()}
 
 #: defines _cannot_start(resources, error, fmi); $pkg and $model are substituted
 _CANNOT_START = Template('''\

@@ -20,6 +20,7 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
+from dronefly.build_entry import HOST_REQUIREMENT, NEWEST_TESTED_PYTHON, OLDEST_PYTHON
 from dronefly.lateral import N_HZ
 
 pytestmark = pytest.mark.integration
@@ -29,8 +30,6 @@ HOST = Path(__file__).parent / "c_host" / "ctypes_host.py"
 #: the controllers' inputs): small, inside the linear range
 INPUT = 0.01
 STEPS, STEP = 20, 0.1 / N_HZ  # 20 steps of 0.1 wing beat (the delayed controllers: 10 steps)
-#: the oldest CPython the FMUs start in (pythonfmu 0.7.0 imports typing.Literal, Python 3.8)
-OLDEST = (3, 8)
 
 
 @dataclass(frozen=True)
@@ -215,9 +214,31 @@ def reference_outputs(extracted) -> dict[tuple[int, str], list[float]]:
 
 def test_interpreters_found():
     """The machine's CPython 3 interpreters, listed in the test report: at least this one and
-    one other (the image ships several)."""
+    one other (the image ships several); the newest is the newest the FMUs' documentation says
+    was tested (NEWEST_TESTED_PYTHON), so that a newer interpreter updates it."""
     print("CPython 3 interpreters:", ", ".join(f"{v} ({e})" for v, e in INTERPRETERS.items()))
     assert len(INTERPRETERS) >= 2, INTERPRETERS
+    newest = max(tuple(map(int, v.split(".")[:2])) for v in INTERPRETERS)
+    if newest < NEWEST_TESTED_PYTHON:
+        pytest.skip(f"this machine's newest CPython is {newest}: cannot confirm "
+                    f"{NEWEST_TESTED_PYTHON}")
+    assert newest == NEWEST_TESTED_PYTHON, "update NEWEST_TESTED_PYTHON after this test passes"
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_every_fmu_says_what_its_host_needs(extracted, fmi):
+    """documentation/index.html (the FMI entry point) and documentation/README.md name the
+    Python versions and "no packages"; the modelDescription's description ends with the host
+    requirement."""
+    versions = "%d.%d to %d.%d" % (*OLDEST_PYTHON, *NEWEST_TESTED_PYTHON)
+    for name in FMU_NAMES:
+        fmu = extracted[fmi, name]
+        for page in ("index.html", "README.md"):
+            text = (fmu.folder / "documentation" / page).read_text()
+            assert "What the host needs" in text and versions in text, (name, page)
+            assert "standard library only" in text and "no package" in text, (name, page)
+        root = ET.parse(fmu.folder / "modelDescription.xml").getroot()
+        assert root.get("description").endswith(". " + HOST_REQUIREMENT), name
 
 
 @pytest.mark.parametrize("version", list(INTERPRETERS))
@@ -228,7 +249,7 @@ def test_fmus_run_on_every_cpython(extracted, reference_outputs, version):
     changed in 3.12: a few round-offs per step over 20 steps of a stable linear map); before,
     instantiation is refused with the one line that names the version, and the host exits 0."""
     exe = INTERPRETERS[version]
-    supported = tuple(map(int, version.split(".")[:2])) >= OLDEST
+    supported = tuple(map(int, version.split(".")[:2])) >= OLDEST_PYTHON
     for fmi in (2, 3):
         for name in ON_EVERY_PYTHON:
             r = host(exe, extracted[fmi, name])

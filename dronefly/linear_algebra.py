@@ -9,7 +9,7 @@ and squaring method for the matrix exponential revisited", SIAM J. Matrix Anal. 
 2005, Algorithm 2.3 and Table 2.3). The tests cross-check it against ``scipy.linalg.expm``.
 
 Matrices are sequences of rows (lists or tuples of floats). Every sum of products is
-``math.fsum`` (correctly rounded), every other operation plain float arithmetic in a fixed
+``math.fsum`` (correctly rounded; the plain sum where it overflows), every other operation plain float arithmetic in a fixed
 order: the same bits on every machine and Python version (``sum`` of floats changed in 3.12),
 independent of any BLAS.
 Shipped inside every FMU; imports only the standard library.
@@ -45,6 +45,15 @@ _PADE: dict[int, tuple[float, ...]] = {
 }
 
 
+def _fsum(values: list[float]) -> float:
+    """``math.fsum``, or the plain sum (inf or nan) where fsum refuses: an infinite or nan term,
+    or an intermediate overflow (the exponential overflowing the float range)."""
+    try:
+        return math.fsum(values)
+    except (OverflowError, ValueError):
+        return sum(values, 0.0)
+
+
 def identity(n: int) -> Matrix:
     """The n x n identity matrix."""
     return [[1.0 if i == j else 0.0 for j in range(n)] for i in range(n)]
@@ -53,20 +62,18 @@ def identity(n: int) -> Matrix:
 def matmul(a: Sequence[Sequence[float]], b: Sequence[Sequence[float]]) -> Matrix:
     """The product ``a @ b`` (each entry the correctly rounded sum of the rounded products)."""
     cols = list(zip(*b))
-    fsum = math.fsum
-    return [[fsum([x * y for x, y in zip(row, col)]) for col in cols] for row in a]
+    return [[_fsum([x * y for x, y in zip(row, col)]) for col in cols] for row in a]
 
 
 def norm1(a: Sequence[Sequence[float]]) -> float:
     """The 1-norm of ``a``: the largest column sum of absolute values."""
-    return max(math.fsum(abs(x) for x in col) for col in zip(*a))
+    return max(_fsum([abs(x) for x in col]) for col in zip(*a))
 
 
 def _combine(terms: Sequence[tuple[float, Sequence[Sequence[float]]]]) -> Matrix:
     """sum of c * M over the (c, M) pairs, entry by entry in the given order."""
     n, m = len(terms[0][1]), len(terms[0][1][0])
-    fsum = math.fsum
-    return [[fsum([c * M[i][j] for c, M in terms]) for j in range(m)] for i in range(n)]
+    return [[_fsum([c * M[i][j] for c, M in terms]) for j in range(m)] for i in range(n)]
 
 
 def solve(a: Sequence[Sequence[float]], b: Sequence[Sequence[float]]) -> Matrix:

@@ -140,3 +140,10 @@ def test_zero_order_hold_is_the_same_under_another_blas_kernel(tmp_path):
                            env={**os.environ, **extra}, timeout=60, check=True).stdout.split()
             for extra in ({}, {"OPENBLAS_CORETYPE": "Prescott"})]
     assert [float.fromhex(x) for x in runs[0]] == [float.fromhex(x) for x in runs[1]]
+
+
+def test_expm_beyond_the_float_range_is_not_finite_rather_than_an_error():
+    """exp(1000 I) overflows: entries inf or nan, no exception (the plant then refuses the step
+    or keeps the zero state, tests/test_plant_slave.py)."""
+    E = expm([[1000.0, 1.0], [0.0, 1000.0]])
+    assert not all(math.isfinite(x) for row in E for x in row)

@@ -31,9 +31,9 @@ __all__ = ["Rows", "Stepper", "ZohModel", "discretize_zoh", "zoh_rows"]
 Rows = Tuple[Tuple[float, ...], ...]  # (typing.Tuple: Python 3.8 hosts)
 #: (x, u) -> [row . (x; u) for row in [Phi, Gamma]], the step of one step size
 Product = Callable[[Sequence[float], Sequence[float]], List[float]]
-#: (x, u) -> (the next x, the next x times the scale), or None if a value is not finite
-Stepper = Callable[[Sequence[float], Sequence[float]],
-                   "Tuple[List[float], List[float]] | None"]
+#: (x, value table) -> the next x (its scaled values written to the table), or None if a value
+#: is not finite
+Stepper = Callable[[Sequence[float], List[float]], "List[float] | None"]
 
 
 def _rows(M: Any) -> Rows:
@@ -81,36 +81,36 @@ def _straight_line_product(rows: tuple[tuple[float, ...], ...], n_states: int) -
     return namespace["bind"](*(c for row in rows for c in row))
 
 
-def _straight_line_stepper(rows: Rows, n_states: int, scale: Sequence[float]) -> Stepper:
-    """:func:`_straight_line_product` fused with the output scaling and a finiteness check.
+def _straight_line_stepper(rows: Rows, n_states: int, scale: Sequence[float],
+                           inputs: Sequence[int], outputs: Sequence[int]) -> Stepper:
+    """:func:`_straight_line_product` fused with reading the controls from and writing the scaled
+    state to a value table, with a finiteness check.
 
     Returns
     -------
     callable
-        ``stepper(x, u)``: ``(x1, y)`` with ``x1`` the product's result (the same floats) and
-        ``y[i] = x1[i] * scale[i]``; or None if any of ``u``, ``y`` is not finite (detected
-        from their plain sum, so also if that sum alone overflows: the caller then checks each
-        value).
+        ``stepper(x, r)``: the next state (the product's floats for ``u = [r[i] for i in
+        inputs]``), after setting ``r[outputs[i]] = x1[i] * scale[i]``; or None, changing
+        nothing, if any of ``u``, ``y`` is not finite (detected from their plain sum, so also if
+        that sum alone overflows: the caller then checks each value).
     """
     width = len(rows[0])
     xs = [f"x{j}" for j in range(width)]
     coefficients = [f"c{i}_{j}" for i in range(len(rows)) for j in range(width)]
     scales = [f"s{i}" for i in range(len(rows))]
     n = len(rows)
-    lines = [f"        n{i} = " + " + ".join(["0.0", *(f"c{i}_{j} * {xs[j]}" for j in range(width))])
-             for i in range(n)]
+    lines = [f"        {', '.join(xs[:n_states])}, = x"]
+    lines += [f"        {xs[n_states + k]} = r[{int(i)}]" for k, i in enumerate(inputs)]
+    lines += [f"        n{i} = " + " + ".join(["0.0", *(f"c{i}_{j} * {xs[j]}" for j in range(width))])
+              for i in range(n)]
     lines += [f"        y{i} = n{i} * s{i}" for i in range(n)]
     total = " + ".join([*xs[n_states:], *(f"y{i}" for i in range(n))])
+    lines += [f"        total = {total}", "        if total - total != 0.0:",
+              "            return None"]
+    lines += [f"        r[{int(o)}] = y{i}" for i, o in enumerate(outputs)]
+    lines.append(f"        return [{', '.join(f'n{i}' for i in range(n))}]")
     source = (f"def bind({', '.join(coefficients + scales)}):\n"
-              f"    def stepper(x, u):\n"
-              f"        {', '.join(xs[:n_states])}, = x\n"
-              f"        {', '.join(xs[n_states:])}, = u\n"
-              + "\n".join(lines) + "\n"
-              f"        total = {total}\n"
-              f"        if total - total != 0.0:\n"
-              f"            return None\n"
-              f"        return [{', '.join(f'n{i}' for i in range(n))}], "
-              f"[{', '.join(f'y{i}' for i in range(n))}]\n"
+              f"    def stepper(x, r):\n" + "\n".join(lines) + "\n"
               f"    return stepper\n")
     namespace: dict[str, Callable[..., Stepper]] = {}
     exec(compile(source, "<dronefly.linear stepper>", "exec"), namespace)
@@ -255,15 +255,17 @@ class ZohModel:
                 f"most {math.log(1e300) / max(growth, 1e-300):.0f} wing beats")
         return product(x, u)
 
-    def stepper(self, h: float, scale: Sequence[float]) -> "Stepper | None":
-        """The step of ``h`` fused with the scaling of the outputs, for the FMUs' doStep
-        (:func:`_straight_line_stepper`; the state as :meth:`step_list` gives it); None where
+    def stepper(self, h: float, scale: Sequence[float], inputs: Sequence[int],
+                outputs: Sequence[int]) -> "Stepper | None":
+        """The step of ``h`` for the FMUs' doStep, on a value table: the controls read from
+        rows ``inputs``, the state times ``scale`` written to rows ``outputs``
+        (:func:`_straight_line_stepper`; the state as :meth:`step_list` gives it). None where
         exp(A h) overflows (then :meth:`step_list` decides). Not cached: the caller keeps it."""
         Phi, Gamma = self.transition_rows(h)
         M = tuple(p + g for p, g in zip(Phi, Gamma))
         if not all(math.isfinite(x) for row in M for x in row):
             return None
-        return _straight_line_stepper(M, len(Phi[0]), scale)
+        return _straight_line_stepper(M, len(Phi[0]), scale, inputs, outputs)
 
     def _growth_rate(self, h: float) -> float:
         """The fastest growth per unit of time of exp(A t), from a step of ``h`` that overflows:

@@ -150,18 +150,19 @@ class LinearPlantSlave(SlaveBase):
 
     def _advance(self, t: float, h: float) -> None:
         r = self._real
-        u = r[self._inputs]
         stepper = self._steppers.get(h)
         if stepper is None:
             if len(self._steppers) >= 16:  # a bounded cache, as the model's
                 self._steppers.clear()
-            stepper = self._steppers[h] = (self._model.stepper(h * self._n, self._scale)
-                                           or False)
-        if stepper:  # the fused step: all values finite
-            out = stepper(self._x, u)
-            if out is not None:
-                self._x, r[self._outputs] = out
+            stepper = self._steppers[h] = self._model.stepper(
+                h * self._n, self._scale, range(self._inputs.start, self._inputs.stop),
+                range(self._outputs.start, self._outputs.stop)) or False
+        if stepper:  # the fused step (None: a value is not finite, checked below)
+            x = stepper(self._x, r)
+            if x is not None:
+                self._x = x
                 return
+        u = r[self._inputs]
         total = sum(u)
         if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite
             self._check_finite(self.AXIS.control_names, u)

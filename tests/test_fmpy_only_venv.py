@@ -4,7 +4,8 @@ user runs them: ``fmpy.simulate_fmu`` of every FMU that ``dronefly build`` write
 fmu_*/, controller/ and harness/interop/ (issue 28).
 
 The environment is created once per test session in a temporary folder (``pip install
-fmpy==<this environment's version>``, from PyPI or the configured wheel folders; about 20 s).
+fmpy==<this environment's version>`` by this environment's pip, from PyPI or the configured
+wheel folders; about 10 s).
 """
 
 from __future__ import annotations
@@ -46,10 +47,13 @@ json.dump(report, open(sys.argv[2], "w"))
 def fmpy_only_python(tmp_path_factory) -> Path:
     """The interpreter of a fresh virtual environment with fmpy (and its dependencies) only."""
     env = tmp_path_factory.mktemp("fmpy_only_venv")
-    subprocess.run([sys.executable, "-m", "venv", str(env)], check=True, timeout=120)
+    # no pip inside (ensurepip is half the time): this environment's pip installs into it
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env)], check=True,
+                   timeout=120)
     python = env / "bin" / "python"
-    r = subprocess.run([str(python), "-m", "pip", "install", "--quiet", "--no-compile",
-                        f"fmpy=={version('fmpy')}"], capture_output=True, text=True, timeout=600)
+    r = subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install",
+                        "--quiet", "--no-compile", f"fmpy=={version('fmpy')}"],
+                       capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, f"pip install fmpy failed (needs PyPI or a wheel folder):\n{r.stderr}"
     return python
 

@@ -5,7 +5,10 @@ instantiates it, runs a few steps with logging on, prints what happened, and exi
 ``sys.exit(0)``: a crash at process exit shows as another exit code.
 
     python ctypes_host.py FMU_DIR MODEL_ID TOKEN FMI STEPS [--step H] [--set VR=VALUE]...
-                          [--output VR] [--modules]
+                          [--output VR]... [--modules] [+ FMU_DIR MODEL_ID ...]...
+
+Several FMUs, separated by ``+``, run one after the other in the same process (and
+interpreter); the lines of the k-th start with ``fmu k``.
 
 FMI is 2 or 3; STEPS steps of H seconds (default 0.001) from t = 0; ``--set`` sets a Float64
 (FMI 2.0: Real) in initialization mode; each ``--output`` (default 0) is read after the steps.
@@ -40,9 +43,8 @@ class Callbacks2(ctypes.Structure):
                 ("componentEnvironment", ctypes.c_void_p)]
 
 
-def options():
-    """(step, {vr: value} to set, output vr) from the command line."""
-    argv = sys.argv[6:]
+def options(argv):
+    """(step, {vr: value} to set, output vrs) from one FMU's options."""
     step, values, out = 0.001, {}, []
     for i, a in enumerate(argv):
         if a == "--step":
@@ -76,7 +78,7 @@ def run2(lib, folder, token, steps):
     lib.fmi2DoStep.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
     print("status setupExperiment", lib.fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0, 0.0))
     print("status enterInitializationMode", lib.fmi2EnterInitializationMode(c))
-    h, values, out = options()
+    h, values, out = options(OPTIONS[0])
     for vr, x in values.items():
         print("status setReal", lib.fmi2SetReal(c, (ctypes.c_uint * 1)(vr), 1,
                                                 (ctypes.c_double * 1)(x)))
@@ -110,7 +112,7 @@ def run3(lib, folder, token, steps):
                                                 ctypes.c_bool, ctypes.c_double]
     print("status enterInitializationMode",
           lib.fmi3EnterInitializationMode(c, False, 0.0, 0.0, False, 0.0))
-    h, values, out = options()
+    h, values, out = options(OPTIONS[0])
     lib.fmi3SetFloat64.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t,
                                    ctypes.c_void_p, ctypes.c_size_t]
     for vr, x in values.items():
@@ -146,12 +148,28 @@ def foreign_modules():
     return sorted(t for t in tops if t not in std and not t.startswith(own) and t != "__main__")
 
 
+#: the options of the FMU being run (set by main)
+OPTIONS = [[]]
+
+
 def main():
-    folder, model, token, fmi, steps = sys.argv[1:6]
-    folder = os.path.abspath(folder)
-    platform = "linux64" if fmi == "2" else "x86_64-linux"
-    lib = ctypes.CDLL(os.path.join(folder, "binaries", platform, f"{model}.so"))
-    (run2 if fmi == "2" else run3)(lib, folder, token, int(steps))
+    args = [a for a in sys.argv[1:] if a != "--modules"]
+    groups, current = [], []
+    for a in args:
+        if a == "+":
+            groups.append(current)
+            current = []
+        else:
+            current.append(a)
+    groups.append(current)
+    for k, group in enumerate(groups):
+        print(f"fmu {k}", flush=True)
+        folder, model, token, fmi, steps = group[:5]
+        OPTIONS[0] = group[5:]
+        folder = os.path.abspath(folder)
+        platform = "linux64" if fmi == "2" else "x86_64-linux"
+        lib = ctypes.CDLL(os.path.join(folder, "binaries", platform, f"{model}.so"))
+        (run2 if fmi == "2" else run3)(lib, folder, token, int(steps))
     if "--modules" in sys.argv:
         print("modules:", *foreign_modules())
     print(f"python {sys.version_info[0]}.{sys.version_info[1]}.{sys.version_info[2]}",

@@ -17,7 +17,7 @@ import math
 from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple
 
 from .lateral import sort_eigenvalues
-from .linear_algebra import expm
+from .linear_algebra import expm, norm1
 
 if TYPE_CHECKING:
     import numpy as np
@@ -268,17 +268,22 @@ class ZohModel:
         return _straight_line_stepper(M, len(Phi[0]), scale, inputs, outputs)
 
     def _growth_rate(self, h: float) -> float:
-        """The fastest growth per unit of time of exp(A t), from a step of ``h`` that overflows:
-        log ||exp(A t)||_1 / t at the longest t = h / 2**k that does not (which tends to the
-        largest real part of A's eigenvalues as t grows)."""
-        t = h
-        while t > 1e-300:
-            t *= 0.5
-            Phi, _ = zoh_rows(self.A_rows, self.B_rows, t)
-            norm = max(sum(abs(x) for x in col) for col in zip(*Phi))
-            if math.isfinite(norm):
-                return math.log(norm) / t
-        return math.inf
+        """The fastest growth per unit of time of exp(A t), for the message of a step of ``h``
+        that overflows: log ||exp(A t)||_1 / t at the longest t = t0 2^k < h that does not
+        overflow (which tends to the largest real part of A's eigenvalues as t grows), from
+        t0 = 700 / ||A||_1, where ||exp(A t0)|| <= e^700 is finite: a few exponentials."""
+        norm = norm1(self.A_rows)
+        if not norm > 0.0:
+            return 0.0
+        t, rate = min(h, 700.0 / norm), math.inf
+        while True:
+            e = norm1(expm([[x * t for x in row] for row in self.A_rows]))
+            if not math.isfinite(e):
+                return rate
+            rate = math.log(e) / t if e > 0.0 else rate
+            if t >= h:
+                return rate
+            t = min(2.0 * t, h)
 
     def _product(self, h: float) -> Product | bool:
         """The product of [Phi, Gamma] for a step of ``h`` (cached); False if it overflows."""

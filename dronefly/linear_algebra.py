@@ -182,4 +182,6 @@ def expm(a: Sequence[Sequence[float]]) -> Matrix:
     r = solve(_combine([(1.0, v), (-1.0, u)]), _combine([(1.0, v), (1.0, u)]))
     for _ in range(s):
         r = matmul(r, r)
+        if not all(math.isfinite(x) for row in r for x in row):
+            break  # overflowed: stays inf or nan (and fsum would only be slower)
     return r

@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any, Sequence
+from typing import Any, Sequence, Tuple
 
 from .timing import DRIFT, DRIFT_CAP, MAX_SAMPLES, TOLERANCE, SensingError, Timing
 
 __all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
 
-State = tuple[float, ...]
+State = Tuple[float, ...]  # (typing.Tuple: Python 3.8 hosts)
 
 
 class Sensor:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Sequence
+from typing import Callable, Sequence, Tuple
 
 from ..axes import Axis, dot
 from ..errors import DroneflyError
@@ -44,7 +44,7 @@ __all__ = [
     "integral_gain_name",
 ]
 
-Gains = tuple[tuple[float, ...], ...]
+Gains = Tuple[Tuple[float, ...], ...]  # (typing.Tuple: Python 3.8 hosts)
 
 #: Eq. (27): delta_Phi_a = k1 dv+ + k2 dp+ + k3 dr+ + k4 dgamma, making the lateral
 #: motion neutrally stable (closed-loop eigenvalues 0, -0.089 +/- 0.057i, -0.510).
@@ -162,6 +162,50 @@ class FeedbackLaw:
     def has_integral(self) -> bool:
         """Whether any integral gain is non-zero."""
         return self.KI is not None and any(k != 0.0 for row in self.KI for k in row)
+
+    @cached_property
+    def evaluate_proportional(self) -> Callable[[Sequence[float]],
+                                                "tuple[list[float], bool] | None"]:
+        """:meth:`evaluate` without integral action (``z`` = None), compiled into straight-line
+        Python for the FMUs' hot path.
+
+        Returns
+        -------
+        callable
+            ``f(x)``: ``(u, saturated)`` with the same floats as ``evaluate(x)`` (each control
+            the same sum of products: ``0.0 + k0 x0 + k1 x1 + ...``, what ``dot`` computes
+            before Python 3.12, or ``math.sumprod`` where ``dot`` is that); or None where
+            ``evaluate`` would check the values (a non-finite state or control, or a sum of
+            them that overflows): call it then.
+        """
+        c = len(self.axis.state_names)
+        xs = [f"x{j}" for j in range(c)]
+        rows = self._rows
+        names: dict[str, object] = {"sumprod": dot}
+        lines = [f"    {', '.join(xs)}, = x", f"    t = {' + '.join(xs)}",
+                 "    if t - t != 0.0:", "        return None"]
+        for i, row in enumerate(rows):
+            if row is None:
+                lines.append(f"    u{i} = 0.0")
+            elif hasattr(math, "sumprod"):  # dot is math.sumprod (Python 3.12+)
+                names[f"k{i}"] = row
+                lines.append(f"    u{i} = sumprod(k{i}, x)")
+            else:
+                names.update({f"k{i}_{j}": k for j, k in enumerate(row)})
+                lines.append(f"    u{i} = " + " + ".join(
+                    ["0.0", *(f"k{i}_{j} * x{j}" for j in range(c))]))
+        us = [f"u{i}" for i in range(len(rows))]
+        lines += [f"    t = {' + '.join(us)}", "    if t - t != 0.0:", "        return None",
+                  "    saturated = False"]
+        if self.limit_enabled:
+            names["lim"] = self.u_max
+            for u in us:
+                lines += [f"    if {u} > lim:", f"        {u}, saturated = lim, True",
+                          f"    elif {u} < -lim:", f"        {u}, saturated = -lim, True"]
+        lines.append(f"    return [{', '.join(us)}], saturated")
+        source = "def evaluate_proportional(x):\n" + "\n".join(lines) + "\n"
+        exec(compile(source, "<dronefly.controller.law>", "exec"), names)
+        return names["evaluate_proportional"]  # type: ignore[return-value]
 
     def evaluate(self, x: Sequence[float], z: Sequence[float] | None = None
                  ) -> tuple[tuple[float, ...], bool]:

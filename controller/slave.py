@@ -60,6 +60,7 @@ class _Feedback(SlaveBase):
         self._timing: Timing | None = None
         self._sensor = Sensor(len(axis.state_names))
         self._outputs_valid = False  # the last output computation succeeded
+        self._proportional: FeedbackLaw | None = None  # see _update_outputs
 
     def _current_law(self) -> FeedbackLaw:
         """The law of the current parameters, validated (rebuilt only when they changed)."""
@@ -96,12 +97,25 @@ class _Feedback(SlaveBase):
         sensor = self._sensor
         sensed = (x if timing.immediate and self.DIRECT_FEEDTHROUGH
                   else sensor.sensed(t, x, timing, self.DIRECT_FEEDTHROUGH))
-        z = sensor.integral_in_effect(t, timing, self.DIRECT_FEEDTHROUGH) if law.has_integral else None
-        u, saturated = law.evaluate(sensed, z)
+        if law.has_integral:
+            z = sensor.integral_in_effect(t, timing, self.DIRECT_FEEDTHROUGH)
+            u, saturated = law.evaluate(sensed, z)
+        else:  # K x+ compiled (the same floats); None: evaluate checks the values, raising
+            out = law.evaluate_proportional(sensed)
+            u, saturated = law.evaluate(sensed) if out is None else out
         r[self._outputs] = u
         r[self._sat_vr] = saturated
 
     def _update_outputs(self) -> None:
+        law = self._law
+        if (law is not None and self._proportional is law and not self._dirty
+                and self._timing is not None):  # the hot path: u = K x+ of the inputs now
+            out = law.evaluate_proportional(self._inputs(self._real))
+            if out is not None:  # (None: the general path below names a bad value)
+                r = self._real
+                r[self._outputs], r[self._sat_vr] = out
+                self._outputs_valid = True
+                return
         self._outputs_valid = False
         # parameters are re-read only after one was set (the base class's dirty flag)
         fresh = self._dirty or self._law is None or self._timing is None
@@ -109,6 +123,9 @@ class _Feedback(SlaveBase):
         timing = self._current_timing() if fresh else self._timing
         self._outputs_at(self._time, law, timing)  # type: ignore[arg-type]
         self._outputs_valid = True
+        # the law whose outputs are K x+ of the inputs at once (no delay, sampling, integral)
+        self._proportional = (law if timing.immediate and self.DIRECT_FEEDTHROUGH  # type: ignore[union-attr]
+                              and not law.has_integral else None)  # type: ignore[union-attr]
 
     def _initialize(self) -> None:
         warned = self._sensor.off_grid is False

@@ -54,7 +54,7 @@ class _Spec:
 
 _FMI = ("errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
         "fmi/state.py", "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py")
-_PLANT = (*_FMI, "linear.py", "linear_slave.py")
+_PLANT = (*_FMI, "linear.py", "linear_algebra.py", "linear_slave.py")
 _CONTROLLER = (*_FMI, "longitudinal.py", "controller/law.py", "controller/delay.py",
                "controller/timing.py", "controller/variables.py", "controller/slave.py")
 
@@ -82,26 +82,10 @@ FMUS: dict[str, _Spec] = {
     "StateFeedbackLongitudinalDelayed": _controller("StateFeedbackLongitudinalDelayed"),
     "DroneFlyHover6DOF": _Spec(
         module="plant_6dof.slave", cls="DroneFlyHover6DOF",
-        files=(*_FMI, "linear.py", "longitudinal.py", "hover6dof.py", "plant/model.py",
+        files=(*_FMI, "linear.py", "linear_algebra.py", "longitudinal.py", "hover6dof.py", "plant/model.py",
                "plant_longitudinal/model.py", "plant_6dof/model.py", "plant_6dof/slave.py"),
         readme="plant_6dof/README.md", reference="plant_6dof/DroneFlyHover6DOF_ref.csv"),
 }
-
-
-_ENTRY = """\
-# Entry module named in resources/slavemodule.txt; the pythonfmu wrapper imports it and then
-# evaluates this file once more in the module's namespace on every fmi2Instantiate.
-# pythonfmu 0.7.0's findClass releases one reference to this module's globals per load that it
-# never took (Py_DECREF of the borrowed PyModule_GetDict result). Each evaluation takes that
-# reference first, as a bare reference count that nothing ever releases: no container holds
-# it, so the dictionary is freed exactly once when the interpreter ends. (Holding it in a
-# list inside the dictionary itself made the count too low at teardown: the list released
-# references that findClass had already released, a double free at process exit.)
-import ctypes as _ctypes
-_ctypes.pythonapi.Py_IncRef(_ctypes.py_object(globals()))
-del _ctypes
-from {pkg}.{module} import {cls}  # noqa: E402,F401
-"""
 
 
 def _source_path(rel: str) -> Path:
@@ -137,13 +121,15 @@ def _wrapper_files() -> dict[str, bytes]:
 def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
     """Package name and ``{path in FMU: content}`` of one FMU (no model description), for
     FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.package3`)."""
-    from .package3 import ENTRY3, FMI3_FILES, wrapper3_binaries
+    from .build_entry import entry2, entry3, host_documentation
+    from .package3 import FMI3_FILES, wrapper3_binaries
 
     spec = FMUS[name]
     rels = spec.files if fmi == 2 else (*spec.files, *FMI3_FILES)
     sources = {rel: _source_path(rel).read_bytes() for rel in rels}
     wrapper = _wrapper_files()
-    entry_text = _ENTRY if fmi == 2 else ENTRY3
+    entry = entry2 if fmi == 2 else entry3
+    entry_text = entry("{pkg}", spec.module, spec.cls, name)  # hashed with the package unnamed
     if fmi == 3:  # pythonfmu's Python facade (the base class), pythonfmu3's binaries
         wrapper = {**{k: v for k, v in wrapper.items() if not k.startswith("binaries/")},
                    **wrapper3_binaries()}
@@ -157,13 +143,12 @@ def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
         parts = rel.split("/")[:-1]
         for i in range(len(parts) + 1):
             files.setdefault(f"resources/{pkg}/{'/'.join(parts[:i] + ['__init__.py'])}", b"")
-    entry = f"{pkg}_slave"
-    files[f"resources/{entry}.py"] = entry_text.format(pkg=pkg, module=spec.module,
-                                                       cls=spec.cls).encode()
-    files["resources/slavemodule.txt"] = entry.encode()
+    entry_module = f"{pkg}_slave"
+    files[f"resources/{entry_module}.py"] = entry(pkg, spec.module, spec.cls, name).encode()
+    files["resources/slavemodule.txt"] = entry_module.encode()
     for rel, data in wrapper.items():
         files[rel.replace("{model}", name)] = data
-    files["documentation/README.md"] = _source_path(spec.readme).read_bytes()
+    files.update(host_documentation(name, _source_path(spec.readme).read_bytes()))
     return pkg, files
 
 

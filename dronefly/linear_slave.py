@@ -100,6 +100,7 @@ class LinearPlantSlave(SlaveBase):
         axis = self.AXIS
         self._x = [0.0] * len(axis.state_names)  # x+, non-dimensional
         self._model: Any = None
+        self._stepper_model: Any = None
         self._scale = [1.0] * len(axis.state_names)
         self._n = 1.0
         vr = self._vr
@@ -110,6 +111,8 @@ class LinearPlantSlave(SlaveBase):
         self._starts = tuple(f"{s}_start" for s in axis.state_names)
         self._matrix = tuple(v.name for v in self.VARIABLES
                              if v.causality == "calculatedParameter")
+        #: step size [s] -> the model's fused step for the current model and scales
+        self._steppers: dict[float, Any] = {}
 
     def _refresh(self) -> None:
         params = self.PARAMETERS(*self._values(self._params))
@@ -119,9 +122,13 @@ class LinearPlantSlave(SlaveBase):
         for name, value in (("n", n), ("U", U)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name} = {value!r} must be finite and > 0")
-        self._n, self._scale = n, list(self.AXIS.scale_vector(U, n))
+        scale = list(self.AXIS.scale_vector(U, n))
+        if self._steppers and (self._model is not self._stepper_model or scale != self._scale
+                               or n != self._n):
+            self._steppers.clear()
+        self._n, self._scale, self._stepper_model = n, scale, self._model
         self._set_values(self._matrix,
-                         [*self._model.A.ravel().tolist(), *self._model.B.ravel().tolist()])
+                         [x for M in (self._model.A_rows, self._model.B_rows) for row in M for x in row])
 
     def _update_outputs(self) -> None:
         # Before initialization ends, the initial unknowns already follow the start values and
@@ -143,6 +150,18 @@ class LinearPlantSlave(SlaveBase):
 
     def _advance(self, t: float, h: float) -> None:
         r = self._real
+        stepper = self._steppers.get(h)
+        if stepper is None:
+            if len(self._steppers) >= 16:  # a bounded cache, as the model's
+                self._steppers.clear()
+            stepper = self._steppers[h] = self._model.stepper(
+                h * self._n, self._scale, range(self._inputs.start, self._inputs.stop),
+                range(self._outputs.start, self._outputs.stop)) or False
+        if stepper:  # the fused step (None: a value is not finite, checked below)
+            x = stepper(self._x, r)
+            if x is not None:
+                self._x = x
+                return
         u = r[self._inputs]
         total = sum(u)
         if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite

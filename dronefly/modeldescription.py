@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from xml.etree.ElementTree import Element, SubElement, tostring
 
+from .build_entry import HOST_REQUIREMENT
 from .fmi import SlaveBase
 
 __all__ = ["add_units_and_log_categories", "format_value", "model_description",
@@ -51,7 +52,7 @@ def model_description(cls: type[SlaveBase], guid: str) -> Element:
         "fmiVersion": "2.0",
         "modelName": cls.MODEL_NAME,
         "guid": guid,
-        "description": cls.MODEL_DESCRIPTION,
+        "description": f"{cls.MODEL_DESCRIPTION.rstrip('.')}. {HOST_REQUIREMENT}",
         "generationTool": cls.GENERATION_TOOL,
         "variableNamingConvention": "structured",
         "numberOfEventIndicators": "0",

@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 from xml.etree.ElementTree import Element, SubElement, tostring
 
+from .build_entry import HOST_REQUIREMENT
 from .fmi.table3 import Var3, array_dependencies
 from .modeldescription import add_units_and_log_categories, format_value
 
@@ -52,7 +53,7 @@ def model_description3(cls: Any, token: str) -> Element:
         "fmiVersion": "3.0",
         "modelName": cls.MODEL_NAME,
         "instantiationToken": token,
-        "description": cls.MODEL_DESCRIPTION,
+        "description": f"{cls.MODEL_DESCRIPTION.rstrip('.')}. {HOST_REQUIREMENT}",
         "generationTool": cls.GENERATION_TOOL,
         "variableNamingConvention": "structured",
     })

@@ -1,5 +1,6 @@
-"""What an FMI 3.0 package adds to :mod:`dronefly.build`'s: pythonfmu3's binaries, the entry module
-pythonfmu3 reads, the FMI 3.0 side of the slave base, and the FMI 3.0 model description.
+"""What an FMI 3.0 package adds to :mod:`dronefly.build`'s: pythonfmu3's binaries, the FMI 3.0
+side of the slave base, and the FMI 3.0 model description (the entry module pythonfmu3 reads:
+:func:`dronefly.build_entry.entry3`).
 
 The FMI 3.0 FMU ships the same model and controller code as the FMI 2.0 one, plus
 :mod:`dronefly.fmi.fmi3` and :mod:`dronefly.fmi.table3`, in its own content-addressed package
@@ -14,24 +15,10 @@ import importlib
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ENTRY3", "FMI3_FILES", "model_description3", "wrapper3_binaries"]
+__all__ = ["FMI3_FILES", "model_description3", "wrapper3_binaries"]
 
 #: the sources an FMI 3.0 FMU ships besides its FMI 2.0 twin's
 FMI3_FILES = ("fmi/fmi3.py", "fmi/table3.py")
-
-ENTRY3 = '''\
-# Entry module named in resources/slavemodule.txt. pythonfmu3's wrapper imports it and takes
-# the class defined on a line "class <Name>(...Fmi3Slave...):" in this file.
-from {pkg}.fmi.fmi3 import fmi3_class
-from {pkg}.{module} import {cls} as _Model
-
-Fmi3Slave = fmi3_class(_Model)
-
-
-class {cls}(Fmi3Slave):
-    """The FMI 3.0 Co-Simulation slave of {cls}."""
-'''
-
 
 def wrapper3_binaries() -> dict[str, bytes]:
     """pythonfmu3's binaries as the FMU ships them (``{model}`` stands for the model name).

@@ -82,11 +82,11 @@ def gamma_from_quaternion(e: Sequence[float]) -> float:
 
 def _aero_rows(A: object, B: object, rows: Sequence[int], gravity_column: int) -> tuple:
     """Rows of A (without the attitude column, which holds only gravity) and B, as floats."""
-    a = tuple(tuple(float(A[i, j]) for j in range(3)) for i in rows)
+    a = tuple(tuple(float(A[i][j]) for j in range(3)) for i in rows)
     b = tuple(tuple(float(x) for x in B[i]) for i in rows)
     for i in rows[1:]:  # the moment rows: no attitude dependence (structural zeros)
-        if A[i, gravity_column] != 0.0:
-            raise Hover6DOFError(f"A[{i + 1},{gravity_column + 1}] = {A[i, gravity_column]!r}: "
+        if A[i][gravity_column] != 0.0:
+            raise Hover6DOFError(f"A[{i + 1},{gravity_column + 1}] = {A[i][gravity_column]!r}: "
                                  "a moment that depends on the attitude is not aerodynamic")
     return a, b
 
@@ -216,7 +216,7 @@ class Hover6DOF:
         if unknown:
             raise Hover6DOFError(f"terms {sorted(unknown)!r}: choose from {sorted(TERMS)}")
         for name, axis, params in (("_lat", lateral, lp), ("_lon", longitudinal, np_)):
-            object.__setattr__(self, name, _aero_rows(*axis.system_matrices(params), (0, 1, 2), 3))
+            object.__setattr__(self, name, _aero_rows(*axis.system_rows(params), (0, 1, 2), 3))
         G = _gyroscopic(lp.Ix_plus, np_.Iy_plus, lp.Iz_plus, lp.Ixz_plus)
         for name, f in zip(("_rhs", "_substeps"), _make_functions(
                 self._lat[0], self._lon[0], G, lp.g_plus, frozenset(self.terms))):

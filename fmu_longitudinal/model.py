@@ -26,14 +26,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from typing import Sequence
-
-import numpy as np
-from numpy.typing import NDArray
+from typing import TYPE_CHECKING, Sequence
 
 from ..errors import DroneflyError
 from ..lateral import INERTIAS_SECT21
-from ..linear import ZohModel
+from ..linear import Rows, ZohModel
 from ..longitudinal import CONTROL_NAMES, IY_PLUS, STATE_NAMES
 
 __all__ = [
@@ -48,9 +45,14 @@ __all__ = [
     "derive_derivatives",
     "parameter_dependencies",
     "system_matrices",
+    "system_rows",
 ]
 
-Array = NDArray[np.float64]
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    Array = NDArray[np.float64]
 
 #: Sect. 3.5: the longitudinal system matrix A as printed (per wing beat; from Ref. [17]).
 A_SECT35: tuple[tuple[float, ...], ...] = (
@@ -157,27 +159,43 @@ def default_parameters() -> LongitudinalParameters:
                                   g_plus=INERTIAS_SECT21["g_plus"], **derive_derivatives())
 
 
-def system_matrices(p: LongitudinalParameters) -> tuple[Array, Array]:
-    """A (4x4, per wing beat) and B (4x4, per wing beat per rad) from the parameters."""
+def system_rows(p: LongitudinalParameters) -> tuple[Rows, Rows]:
+    """A (4x4, per wing beat) and B (4x4, per wing beat per rad) from the parameters, as
+    tuples of rows (plain Python).
+
+    Raises
+    ------
+    ModelParameterError
+        A parameter is not valid, or an entry overflows.
+    """
     p.validate()
     scale = (p.m_plus, p.m_plus, p.Iy_plus)
-    A = np.zeros((4, 4))
-    B = np.zeros((4, len(_CONTROLS)))
+    A = [[0.0] * 4 for _ in range(4)]
+    B = [[0.0] * len(_CONTROLS) for _ in range(4)]
     for i in range(len(_FORCES)):
         for j, name in enumerate(_A_NAMES[i]):
-            A[i, j] = getattr(p, name) / scale[i]
+            A[i][j] = getattr(p, name) / scale[i]
         for j, name in enumerate(_B_NAMES[i]):
-            B[i, j] = getattr(p, name) / scale[i]
-    A[0, 3] = -p.g_plus
-    A[3, 2] = 1.0
+            B[i][j] = getattr(p, name) / scale[i]
+    A[0][3] = -p.g_plus
+    A[3][2] = 1.0
     for label, M in (("A", A), ("B", B)):
-        bad = np.argwhere(~np.isfinite(M))
-        if len(bad):
-            i, j = bad[0]
-            raise ModelParameterError(
-                f"{label}[{i + 1},{j + 1}] = {M[i, j]!r} is not finite: the parameters overflow "
-                f"(m_plus = {p.m_plus!r}, Iy_plus = {p.Iy_plus!r}, or a derivative)")
-    return A, B
+        for i, row in enumerate(M):
+            for j, x in enumerate(row):
+                if not math.isfinite(x):
+                    raise ModelParameterError(
+                        f"{label}[{i + 1},{j + 1}] = {x!r} is not finite: the parameters "
+                        f"overflow (m_plus = {p.m_plus!r}, Iy_plus = {p.Iy_plus!r}, or a "
+                        "derivative)")
+    return tuple(map(tuple, A)), tuple(map(tuple, B))
+
+
+def system_matrices(p: LongitudinalParameters) -> "tuple[Array, Array]":
+    """A and B of :func:`system_rows` as numpy arrays, for the analyses (imports numpy)."""
+    import numpy as np
+
+    A, B = system_rows(p)
+    return np.array(A), np.array(B)
 
 
 class LongitudinalModel(ZohModel):
@@ -191,7 +209,7 @@ class LongitudinalModel(ZohModel):
 
     def __init__(self, params: LongitudinalParameters) -> None:
         self.params = params
-        super().__init__(*system_matrices(params))
+        super().__init__(*system_rows(params))
 
 
 def parameter_dependencies(row: int, col: int, controls: bool) -> tuple[str, ...]:

@@ -21,12 +21,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from typing import Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
-import numpy as np
-from numpy.typing import NDArray
 from ..errors import DroneflyError
-from ..linear import ZohModel, discretize_zoh
+from ..linear import Rows, ZohModel, discretize_zoh
 from ..lateral import (CONTROL_NAMES, FLIGHT_DATA, INERTIAS_SECT21, N_HZ, STATE_NAMES, U_M_PER_S,
                        reference_scales, to_dimensional, to_nondimensional)
 
@@ -47,11 +45,16 @@ __all__ = [
     "discretize_zoh",
     "reference_scales",
     "system_matrices",
+    "system_rows",
     "to_dimensional",
     "to_nondimensional",
 ]
 
-Array = NDArray[np.float64]
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    Array = NDArray[np.float64]
 
 #: Eq. (12): the system matrix A1 as printed (non-dimensional, per wing beat).
 A1_EQ12: tuple[tuple[float, ...], ...] = (
@@ -80,7 +83,7 @@ class ModelParameterError(DroneflyError):
 
 
 def derive_stability_derivatives(
-    A1: Array | tuple[tuple[float, ...], ...] = A1_EQ12,
+    A1: Any = A1_EQ12,
     inertias: Mapping[str, float] = INERTIAS_SECT21,
 ) -> dict[str, float]:
     """Invert Eq. (10): the nine stability derivatives behind a system matrix.
@@ -97,16 +100,19 @@ def derive_stability_derivatives(
     dict
         ``Yv_plus`` ... ``Nr_plus`` (non-dimensional).
     """
-    a = np.asarray(A1, dtype=float)
+    a = _rows_of(A1)
     m, Ix, Iz, Ixz = (inertias[k] for k in ("m_plus", "Ix_plus", "Iz_plus", "Ixz_plus"))
-    inertia_matrix = np.array([[Ix, -Ixz], [-Ixz, Iz]])
-    LN = inertia_matrix @ a[1:3, 0:3]
     out: dict[str, float] = {}
-    for j, s in enumerate("vpr"):
-        out[f"Y{s}_plus"] = float(m * a[0, j])
-        out[f"L{s}_plus"] = float(LN[0, j])
-        out[f"N{s}_plus"] = float(LN[1, j])
+    for j, s in enumerate("vpr"):  # [L; N] = [[Ix, -Ixz], [-Ixz, Iz]] [A1 row 2; A1 row 3]
+        out[f"Y{s}_plus"] = float(m * a[0][j])
+        out[f"L{s}_plus"] = float(Ix * a[1][j] + -Ixz * a[2][j])
+        out[f"N{s}_plus"] = float(-Ixz * a[1][j] + Iz * a[2][j])
     return out
+
+
+def _rows_of(M: Any) -> Rows:
+    """A matrix (rows of numbers, or a 2-D array) as a tuple of rows of floats."""
+    return tuple(tuple(float(x) for x in row) for row in M)
 
 
 @dataclass(frozen=True)
@@ -182,15 +188,20 @@ _STABILITY = tuple(tuple(f"{F}{s}_plus" for F in "YLN") for s in "vpr")
 _CONTROL = tuple(tuple(f"{F}_{c}_plus" for F in "YLN") for c in ("Phi_a", "alpha_1a", "alpha_2a"))
 
 
-def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
-    """A1 and B1 of Eq. (9) by Eqs. (10)-(11).
+def system_rows(p: LateralParameters) -> tuple[Rows, Rows]:
+    """A1 and B1 of Eq. (9) by Eqs. (10)-(11), as tuples of rows (plain Python).
 
     Returns
     -------
-    A1 : (4, 4) ndarray
+    A1 : 4 rows of 4 floats
         Non-dimensional system matrix, per wing beat.
-    B1 : (4, 3) ndarray
+    B1 : 4 rows of 3 floats
         Non-dimensional control matrix, per wing beat per rad.
+
+    Raises
+    ------
+    ModelParameterError
+        A parameter is not valid, or an entry overflows.
     """
     p.validate()
     det = p.Ix_plus * p.Iz_plus - p.Ixz_plus**2
@@ -202,23 +213,35 @@ def system_matrices(p: LateralParameters) -> tuple[Array, Array]:
             (p.Ixz_plus * L + p.Ix_plus * N) / det,
         )
 
-    A = np.zeros((4, 4))
+    A = [[0.0] * 4 for _ in range(4)]
     for j, names in enumerate(_STABILITY):
-        A[0:3, j] = _rows(*(getattr(p, n) for n in names))
-    A[0, 3] = p.g_plus
-    A[3, 1] = 1.0
-    B = np.zeros((4, 3))
+        for i, x in enumerate(_rows(*(getattr(p, n) for n in names))):
+            A[i][j] = x
+    A[0][3] = p.g_plus
+    A[3][1] = 1.0
+    B = [[0.0] * 3 for _ in range(4)]
     for j, names in enumerate(_CONTROL):
-        B[0:3, j] = _rows(*(getattr(p, n) for n in names))
+        for i, x in enumerate(_rows(*(getattr(p, n) for n in names))):
+            B[i][j] = x
     for label, M in (("A", A), ("B", B)):
-        bad = np.argwhere(~np.isfinite(M))
-        if len(bad):
-            i, j = bad[0]
-            raise ModelParameterError(
-                f"{label}[{i + 1},{j + 1}] = {M[i, j]!r} is not finite: the parameters overflow "
-                f"Eqs. (10)-(11) (m_plus = {p.m_plus!r}, Ix_plus = {p.Ix_plus!r}, "
-                f"Iz_plus = {p.Iz_plus!r}, Ixz_plus = {p.Ixz_plus!r}, or a derivative)")
-    return A, B
+        for i, row in enumerate(M):
+            for j, x in enumerate(row):
+                if not math.isfinite(x):
+                    raise ModelParameterError(
+                        f"{label}[{i + 1},{j + 1}] = {x!r} is not finite: the parameters "
+                        f"overflow Eqs. (10)-(11) (m_plus = {p.m_plus!r}, Ix_plus = "
+                        f"{p.Ix_plus!r}, Iz_plus = {p.Iz_plus!r}, Ixz_plus = {p.Ixz_plus!r}, "
+                        "or a derivative)")
+    return tuple(map(tuple, A)), tuple(map(tuple, B))
+
+
+def system_matrices(p: LateralParameters) -> "tuple[Array, Array]":
+    """A1 (4 x 4, per wing beat) and B1 (4 x 3, per wing beat per rad) of :func:`system_rows`
+    as numpy arrays, for the analyses (imports numpy)."""
+    import numpy as np
+
+    A, B = system_rows(p)
+    return np.array(A), np.array(B)
 
 
 class LateralModel(ZohModel):
@@ -234,4 +257,4 @@ class LateralModel(ZohModel):
 
     def __init__(self, params: LateralParameters) -> None:
         self.params = params
-        super().__init__(*system_matrices(params))
+        super().__init__(*system_rows(params))

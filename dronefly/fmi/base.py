@@ -40,7 +40,7 @@ from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
 from .calls import (MODES, do_step_status, enter, exit_initialization_mode, in_state, refuse,
-                    setup_experiment)
+                    setup_experiment, step_refused)
 from .host import finalize_at_exit, inside_fmpy_container, leave_sys_path
 from .state import (get_fmu_state, set_fmu_state, snapshot, state_from_bytes,
                     state_to_bytes)
@@ -109,6 +109,9 @@ class SlaveBase(Fmi2Slave):
             for mode in MODES for kind in ("Real", "Boolean")
         }
         self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
+        #: per state, the Real inputs that may be set (no parameter: a set changes no model)
+        self._input_rows = {mode: frozenset(i for i in self._settable[mode, "Real"]
+                                            if vars_[i].causality == "input") for mode in MODES}
         self._n_vars = len(vars_)
         self._fmu_id = self._class_fmu_id()
         # The wrapper puts the resources folder at the front of sys.path on every
@@ -202,6 +205,20 @@ class SlaveBase(Fmi2Slave):
         self._enter("Terminate", "terminated")
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        # the hot path: every check of do_step_status passes (stepping, nothing pending,
+        # initialized, no parameter set, the clock continued exactly, no stop time, a finite
+        # step > 0); anything else takes do_step_status, which says why it refuses
+        if (self._mode == "stepping" and not self._pending and not self._dirty
+                and current_time == self._time and self._stop_time is None
+                and self._initialized):
+            end = current_time + step_size
+            if step_size > 0.0 and end - end == 0.0:
+                try:
+                    self._advance(current_time, step_size)
+                except BaseException as e:  # never let an exception reach the wrapper
+                    return step_refused(self, e, current_time) == 0
+                self._time = end
+                return True
         return do_step_status(self, current_time, step_size) == 0
 
     # value access and FMU state: functions of .values and .state, bound

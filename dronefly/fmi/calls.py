@@ -20,7 +20,7 @@ from typing import Any
 from pythonfmu.enums import Fmi2Status
 
 __all__ = ["ALLOWED", "MODES", "do_step_status", "enter", "exit_initialization_mode",
-           "in_state", "refuse", "setup_experiment"]
+           "in_state", "refuse", "setup_experiment", "step_refused"]
 
 MODES = ("instantiated", "initialization", "stepping", "terminated")
 #: co-simulation call-sequence table (FMI 2.0 section 4.2.4, FMI 3.0 section 4.2): the states
@@ -141,10 +141,19 @@ def do_step_status(self: Any, current_time: float, step_size: float) -> int:
         self._advance(current_time, step_size)
         self._time = end
         return _OK
-    except ValueError as e:
-        return self._refuse(f"step refused at t = {current_time!r} s: {e}")
-    except KeyboardInterrupt:  # Ctrl-C landed in this FMU's code: refuse, never Fatal
-        return self._refuse(f"step from t = {current_time!r} s interrupted (SIGINT); "
-                            "nothing changed")
     except BaseException as e:  # never let an exception reach the wrapper
-        return self._refuse(f"internal error at t = {current_time!r} s: {e!r}")
+        return step_refused(self, e, current_time)
+
+
+def step_refused(self: Any, error: BaseException, current_time: float) -> int:
+    """Log why the step from ``current_time`` raised ``error``; the status it is refused with
+    (Discard). A ValueError names a bad value; anything else is an internal error."""
+    try:
+        if isinstance(error, ValueError):
+            return self._refuse(f"step refused at t = {current_time!r} s: {error}")
+        if isinstance(error, KeyboardInterrupt):  # Ctrl-C landed in this FMU's code
+            return self._refuse(f"step from t = {current_time!r} s interrupted (SIGINT); "
+                                "nothing changed")
+        return self._refuse(f"internal error at t = {current_time!r} s: {error!r}")
+    except BaseException:  # never let an exception reach the wrapper
+        return int(Fmi2Status.discard)

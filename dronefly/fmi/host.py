@@ -134,7 +134,8 @@ def _at_exit(lib: str) -> None:
     import os
     import threading
 
-    if threading.get_native_id() != os.getpid():  # not the main thread: a C host's shutdown
+    native_id = getattr(threading, "get_native_id", None)  # Python 3.8+
+    if native_id is None or native_id() != os.getpid():  # not the main thread: a C host's shutdown
         return
     release_interpreter_guard(lib)
 

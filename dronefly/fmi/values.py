@@ -77,6 +77,16 @@ def get_string(self: Any, vrs: list[int]) -> list[str]:
 
 
 def set_real(self: Any, vrs: list[int], values: list[float]) -> None:
+    try:  # the hot path of every co-simulation step: inputs only, each settable now
+        if self._input_rows[self._mode].issuperset(vrs):
+            r = self._real
+            for i, x in zip(vrs, values):
+                r[i] = x
+            if self.DIRECT_FEEDTHROUGH or not self._initialized:
+                self._stale = True
+            return
+    except BaseException:  # (the general path below says what is wrong)
+        pass
     set_rows(self, vrs, values, "Real")
 
 

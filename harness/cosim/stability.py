@@ -45,7 +45,11 @@ RATE_TOL_PER_WINGBEAT = 1e-6
 #: has norm near 1 (1e-13 measured over 300 steps); a loop other than the one modelled
 #: deviates by O(1).
 TRAJECTORY_TOL = 1e-8
-_DELAY_MODE = 1e-9  # |mu| below this: a pure delay, no continuous rate
+#: |mu| below this: a pure delay, no continuous rate. Above the noise floor of the fitted
+#: delay modes: a Jacobi fit at the 1e-5 wing-beat check step leaves them at 1e-12 to 3e-9
+#: (a transition matrix 1 ulp off moves them across 1e-9); a physical mode this small would
+#: decay at 16 / step per wing beat.
+_DELAY_MODE = 1e-7
 
 
 def sort_eigenvalues(ev: np.ndarray) -> np.ndarray:

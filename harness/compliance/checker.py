@@ -231,6 +231,7 @@ class _Context:
         self.on_event = on_event
         self.warnings: list[str] = []
         self.instances: list[Instance] = []
+        self.fatal: str | None = None  # the check in which the FMU returned Fatal
         self.fmi = f"fmi{fmu.fmi_version}"
         de = fmu.model_description.defaultExperiment
         start = float(de.startTime) if de is not None and de.startTime is not None else 0.0
@@ -277,7 +278,8 @@ class _Context:
     def log_tail(self, k: int = 3) -> str:
         """The last ``k`` messages the FMU logged (those above OK first)."""
         msgs = [m for i in self.instances for m in i.messages]
-        bad = [m for m in msgs if m.status > 0] or msgs
+        # a status that is not an int: a message delivered by an FMU that corrupted its host
+        bad = [m for m in msgs if not isinstance(m.status, int) or m.status > 0] or msgs
         return "; ".join(f"{m.category or 'log'}: {m.message.strip()}" for m in bad[-k:])
 
 
@@ -676,6 +678,8 @@ def _status_of(call: Callable[[], Any]) -> int:
 
 
 _STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+#: the rule that forbids any call after Fatal, the checker's own calls included
+_FATAL_RULE = {"fmi2": "FMI 2.0 2.1.3", "fmi3": "FMI 3.0 2.2.3"}
 
 
 def _expect_discard(ctx: _Context, inst: Instance, t: float, h: float, fragment: str,
@@ -873,7 +877,10 @@ def run_checks(path: Path, progress: Callable[[dict], None] | None = None,
                 continue
             if progress:
                 progress({"begin": name})
-            result = _one(ctx, name, fn)
+            result = _one(ctx, name, fn) if ctx.fatal is None else CheckResult(
+                name, True, f"not run: the FMU returned {ctx.fmi}Fatal in {ctx.fatal}, after "
+                f"which no function of any of its instances may be called ({_FATAL_RULE[ctx.fmi]})",
+                rule_of(name, fmu.fmi_version, ctx.profile), skipped=True)
             report.checks.append(result)
             if progress:
                 progress(asdict(result))
@@ -893,14 +900,19 @@ def _one(ctx: _Context, name: str, fn: Callable[[_Context], str]) -> CheckResult
         result = CheckResult(name, False, str(e), rule)
     except Exception as e:  # an FMI call failed: that is a finding, not a crash
         result = CheckResult(name, False, f"{type(e).__name__}: {e}".rstrip("."), rule)
+        if getattr(e, "status", None) == 4:
+            ctx.fatal = name
     finally:
-        for inst in ctx.instances:  # the ones a failed check left live
+        for inst in ctx.instances if ctx.fatal is None else ():  # nothing after a Fatal
             try:
                 inst.free()
             except Exception:
                 pass
     if not result.passed:
-        tail = ctx.log_tail()
+        try:
+            tail = ctx.log_tail()
+        except Exception as e:  # after a Fatal the FMU may have corrupted the process
+            tail = f"(its log cannot be read: {type(e).__name__})"
         if tail:
             result = replace(result, detail=f"{result.detail} (the FMU logged: {tail})")
     return replace(result, warning="; ".join(ctx.warnings),

@@ -47,8 +47,16 @@ Omega x r, the spanwise component removed. Terms (each can be switched off, :cla
   the sign of V.e_c and so jumps where V crosses the wing normal mid-rotation; the
   Kutta-Joukowski direction is smooth in the state (the derivatives exist) and differs from
   the normal by the angle of attack;
-- added mass (Sane & Dickinson 2001 form, per element): -rho (pi/4) c^2 dr d(V_n)/dt n with V_n
-  the normal velocity of the mid-chord.
+- added mass (per element, the mass m_a = rho (pi/4) c^2 dr of the mid-chord's normal
+  velocity V_n), in one of two forms (:class:`Terms`): ``"impulse"`` (the default) is the rate
+  of change of the fluid impulse, -d/dt(m_a V_n n) - Omega x (m_a V_n n) in body axes. In an
+  ideal fluid the added-mass force is the rate of change of the fluid impulse; for a periodic
+  wing motion (no body rates) the impulse is periodic and the force averages to zero over the
+  cycle, exactly. ``"sane2001"`` (Sane & Dickinson 2001) is -m_a dV_n/dt n: it drops
+  m_a V_n dn/dt, the turning of the wing normal, and so averages to m_a mean(V_n dn/dt), a
+  net force of no physical origin (an upward force carrying 31 % of the weight at its trim,
+  :func:`dronefly.aero.compare.trim_table`); it is kept for comparison with the literature
+  that uses it.
 
 All forces act on the pitch axis of their element; the body's own aerodynamic force is not
 modelled (Sun's CFD finds it negligible in hover). Cycle averages are the mean over
@@ -150,16 +158,24 @@ COEFFICIENT_SETS: dict[str, CoefficientSet] = {
 class Terms:
     """Which force terms the model adds (each True by default), and the added-mass form.
 
-    ``added_mass_form`` is ``"sane2001"`` (Sane & Dickinson 2001: the normal acceleration
-    of the element, -m_a dV_n/dt n) or ``"impulse"`` (the rate of change of the fluid
-    impulse, -d/dt(m_a V_n n), which includes V_n dn/dt and so averages to zero over a
-    periodic cycle).
+    Parameters
+    ----------
+    translational, rotational, added_mass : bool
+        Add the translational lift and drag, the rotational force, the added mass.
+    added_mass_form : {"impulse", "sane2001"}
+        ``"impulse"`` (default): the rate of change of the fluid impulse,
+        -d/dt(m_a V_n n) (in body axes, minus Omega x m_a V_n n), the ideal-fluid added-mass
+        force; for a periodic wing motion without body rates it averages to zero over the
+        cycle (the mean of the derivative of a periodic function). ``"sane2001"`` (Sane &
+        Dickinson 2001): -m_a dV_n/dt n, the normal acceleration alone; it drops
+        m_a V_n dn/dt, the turning of the wing normal, so its cycle average is not zero (an
+        artefact of the form: at its trim it carries 31 % of the weight).
     """
 
     translational: bool = True
     rotational: bool = True
     added_mass: bool = True
-    added_mass_form: str = "sane2001"
+    added_mass_form: str = "impulse"
 
 
 @dataclass(frozen=True)

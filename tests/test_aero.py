@@ -71,6 +71,29 @@ def _constant_aoa(coefficients: str, n_time: int = 200, **geometry) -> QuasiStea
                             n_time=n_time, geometry=g)
 
 
+def test_cycle_average_equals_the_mean_of_the_instantaneous_forces(model):
+    """Two evaluations of the same model: the cycle average through the state-independent
+    maps and by parts (``forces_vector``) and the instantaneous forces element by element
+    (``forces_over_cycle``). Translation and rotation are the same sums rearranged; the added
+    mass differs by the central differences' O(1/n_time^2)."""
+    x = (0.1, 0.15, -0.1, 0.1, 0.05, -0.12)
+    u = {"delta_Phi_a": 0.2, "delta_alpha_2a": 0.1, "delta_phibar": 0.1}
+    W = model.geometry.weight
+    for form in ("impulse", "sane2001"):
+        m = QuasiSteadyModel(terms=Terms(added_mass=False, added_mass_form=form), n_time=400)
+        a = m.forces_vector(x, u, trim=model.trim())
+        # the same sums in another order: round-off (1e-12 W)
+        np.testing.assert_allclose(a, m.forces_over_cycle(x, u, trim=model.trim()).mean(axis=1),
+                                   rtol=0, atol=1e-12 * W)
+        errs = []
+        for nt in (400, 800):
+            am = _added_mass_only(form, n_time=nt)
+            errs.append(np.max(np.abs(am.forces_vector(x, u, trim=model.trim())
+                                      - am.forces_over_cycle(x, u, trim=model.trim()).mean(axis=1))))
+        # the difference is the central differences' error: second order (ratio 4 on halving)
+        assert 3.5 < errs[0] / errs[1] < 4.5, errs
+
+
 @pytest.mark.parametrize("coefficients", sorted(COEFFICIENT_SETS))
 def test_mean_lift_at_constant_angle_of_attack_is_the_second_moment_closed_form(coefficients):
     """A wing at constant alpha, a harmonic stroke, no body motion: the velocity at r is
@@ -131,9 +154,10 @@ def test_derivatives_against_a_finer_grid_and_richardson(model):
     df = derivatives(fine, 1e-3, names)
     for name in names:
         scale = np.max(np.abs(df[name]))
-        # the 200-sample cycle and 20 elements against 800 and 32: the midpoint rule's
-        # O(dt^2) = 2.5e-5 and the round-off of the steps; 1 % of the largest derivative
-        assert np.max(np.abs(d[name] - df[name])) < 1e-2 * scale, name
+        # the default grid (8 elements, 100 samples) against 32 and 800: the accuracy it was
+        # chosen for, 0.1 % of the input's largest derivative (the finer grid's own error,
+        # O(dt^2), is 64 times smaller)
+        assert np.max(np.abs(d[name] - df[name])) < 1e-3 * scale, name
     # Richardson extrapolation from steps 0.02 and 0.01 agrees with the 1e-3 step
     d1 = derivatives(model, 0.01, ("delta_Phi_a", "delta_alpha_2a"))
     d2 = derivatives(model, 0.02, ("delta_Phi_a", "delta_alpha_2a"))
@@ -385,15 +409,19 @@ def test_the_default_added_mass_is_the_impulse_rate():
 def test_impulse_added_mass_force_averages_to_zero_over_the_cycle(model, state, control):
     """Without body rates the wing motion in body axes is periodic, so the fluid impulse
     I = m_a V_n n is periodic and its rate of change averages to zero over the cycle: an exact
-    identity, which the periodic central differences of the cycle keep exactly (their sum
-    telescopes), so only round-off remains."""
+    identity. The instantaneous forces (``forces_over_cycle``, element by element, the rate of
+    change as periodic central differences) keep it exactly on the sampled cycle (the sum of
+    the differences telescopes), so only round-off remains; the cycle average
+    (``forces_vector``, by parts) holds it by construction."""
     m = _added_mass_only("impulse")
-    f = m.forces_vector(state, control, trim=model.trim())
+    f = m.forces_over_cycle(state, control, trim=model.trim()).mean(axis=1)
+    assert np.all(np.abs(m.forces_vector(state, control, trim=model.trim())[:3])
+                  < 1e-12 * model.geometry.weight)
     # the same term's size: the sane2001 form's average at the same motion (its nonzero mean)
     scale = np.max(np.abs(_added_mass_only("sane2001").forces_vector(state, control,
                                                                      trim=model.trim())[:3]))
     assert scale > 0.1 * model.geometry.weight
-    # round-off of sums over 200 samples x 40 elements of terms of order the weight: 1e-12 W
+    # round-off of sums over 100 samples x 16 elements of terms of order the weight: 1e-12 W
     assert np.all(np.abs(f[:3]) < 1e-12 * model.geometry.weight), f[:3]
 
 
@@ -406,8 +434,11 @@ def test_sane2001_added_mass_has_a_spurious_mean_lift_of_31_percent_of_the_weigh
     W = full.geometry.weight
     share = -_added_mass_only("sane2001").forces_vector(trim=tr)[2] / W
     fine = -_added_mass_only("sane2001", n_time=2000).forces_vector(trim=tr)[2] / W
-    # the cycle's quadrature converges at O(dt^2): 200 against 2000 samples within 0.1 %
+    # the cycle's quadrature (by parts) against 20 times the samples: within 0.1 %
     assert share == pytest.approx(fine, rel=1e-3)
+    # and the instantaneous forces' mean (central differences, O(dt^2)) converges to it
+    direct = -_added_mass_only("sane2001", n_time=2000).forces_over_cycle(trim=tr)[2].mean() / W
+    assert direct == pytest.approx(fine, rel=1e-4)
     # the share the documents quote as 31 %, away from a rounding edge
     assert 0.305 < share < 0.315
     # and the impulse form's share at its trim is zero (the identity above)

@@ -265,7 +265,7 @@ class ParityReport:
                  + ", ".join(k for k, v in self.terms.items() if v is True) + ")",
                  f"trim: alpha_d {self.trim['alpha_d_deg']:.3f} deg, alpha_u "
                  f"{self.trim['alpha_u_deg']:.3f} deg, phibar {self.trim['phibar_deg']:.3f} deg, "
-                 f"residual {self.trim['residual_over_weight']:.1e} of the weight", "",
+                 f"residual {_residual(self.trim['residual_over_weight'])} of the weight", "",
                  f"{'parameter':<16} {'quasi-steady':>12} {'paper':>8} {'ratio':>6} "
                  f"{'sign':<8} {'transl.':>8} {'rotat.':>8} {'added m.':>8}"]
         for r in self.rows:
@@ -289,6 +289,12 @@ class ParityReport:
         lines.append("coefficient matching on the quasi-steady model: k = "
                      + ", ".join(f"{g:.4f}" for g in c["matched_gains"]))
         return "\n".join(lines)
+
+
+def _residual(value: float) -> str:
+    """The trim residual over the weight: below the trim's tolerance 1e-12 it is round-off,
+    printed as the bound (its digits differ between machines)."""
+    return "< 1e-12" if value < 1e-12 else f"{value:.1e}"
 
 
 def _f4(value: float) -> str:

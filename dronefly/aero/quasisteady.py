@@ -252,6 +252,15 @@ class Trim:
                 **{f"{k}_plus": v for k, v in self.forces.items()}}
 
 
+def _cross(a: Array, b: Array) -> Array:
+    """Row-wise cross product of two (N, 3) arrays."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
     """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
     tau = np.mod(t - start, 1.0) / duration
@@ -516,8 +525,8 @@ class QuasiSteadyModel:
         n = -sps * e_t + cps * up
         dn = -dps * e_c + (sps * dph) * e_r  # dn/dt+
         H = vec(g.hinge[0] + zero, side * g.hinge[1] + zero, g.hinge[2] + zero)
-        s_or = np.sum(np.cross(e_r, e_c) * n, axis=-1)[:, None]  # +/-1
-        Hxn, Hxc = np.cross(H, n), np.cross(H, e_c)
+        s_or = np.sum(_cross(e_r, e_c) * n, axis=-1)[:, None]  # +/-1
+        Hxn, Hxc = _cross(H, n), _cross(H, e_c)
         z1, z3 = np.zeros((T2, 1)), np.zeros((T2, 3))
         # V = k dphi r e_t + (u, v, w) + k Omega x P; V.a = k dphi r e_t.a + a.(u, v, w)
         # + k Omega.(P x a), with P x n = H x n - s r e_c and P x e_c = H x e_c + s r n
@@ -530,7 +539,7 @@ class QuasiSteadyModel:
         # P x F = Fc (H x e_c + s r n) + Fn (H x n - s r e_c)
         M = np.stack([np.hstack([e_c, Hxc]), np.hstack([z3, s_or * n]),
                       np.hstack([n, Hxn]), np.hstack([z3, -s_or * e_c])])  # (4, T2, 6)
-        etxn = dph * np.cross(e_t, n)  # dP/dt+ x n over r
+        etxn = dph * _cross(e_t, n)  # dP/dt+ x n over r
         if self.terms.added_mass_form == "impulse":
             # mean of -dI/dt - Omega x I, I = m_a v n: -Omega x sum(I); its moment, by parts,
             # sum(dP x I) - Omega sum(P.I) + Q Omega, Q_ij = sum(I_i P_j), P.n = H.n
@@ -539,8 +548,8 @@ class QuasiSteadyModel:
             am1 = np.hstack([z3, etxn, z1, (n[:, :, None] * e_r[:, None, :]).reshape(T2, 9)])
         else:
             # mean of -m_a dv/dt n, by parts: sum(v m_a dn/dt), moment sum(v m_a d(P x n)/dt)
-            am0 = np.hstack([dn, np.cross(H, dn)])
-            am1 = np.hstack([z3, etxn + np.cross(e_r, dn)])
+            am0 = np.hstack([dn, _cross(H, dn)])
+            am1 = np.hstack([z3, etxn + _cross(e_r, dn)])
         c_rot = np.pi * (0.75 - g.x0_hat)
         chord, cw, r = self._chord, self._cw, self._r
         self._map = {

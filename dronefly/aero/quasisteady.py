@@ -553,7 +553,8 @@ class QuasiSteadyModel:
         c_rot = np.pi * (0.75 - g.x0_hat)
         chord, cw, r = self._chord, self._cw, self._r
         self._map = {
-            "A": A, "B": B, "M": M.reshape(4 * T2, 6), "am": np.stack([am0, am1]).reshape(2 * T2, -1),
+            "A": A, "B": B, "M": M.reshape(4 * T2, 6),
+            "am": np.stack([am0, am1]).reshape(2 * T2, -1),
             "rot": (2.0 * c_rot * k * side.repeat(self.n_time, 1).reshape(T2, 1) * s_or)
             * (chord * cw)[None, :],
             "R": np.stack([np.ones_like(r), r], axis=1),  # (S, 2): span sums of f and r f

@@ -71,7 +71,7 @@ _EPILOG = {
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
     "aero": "examples:\n  dronefly aero\n  dronefly aero --json --coefficients wang2004\n"
             "  dronefly aero forces --state delta_v=0.1 --control delta_Phi_a=0.2 --json\n"
-            "  dronefly aero --no-rotational --added-mass-form impulse\n"
+            "  dronefly aero --no-rotational --added-mass-form sane2001\n"
             "units: states non-dimensional (x+: dv/U, dp t_w, ...), controls in rad; forces "
             "over 0.5 rho U^2 S_t, moments over 0.5 rho U^2 S_t c",
     "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50\n"
@@ -308,8 +308,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="translational coefficients: dickinson1999 (default), wang2004")
     for term in ("translational", "rotational", "added-mass"):
         q.add_argument(f"--no-{term}", action="store_true", help=f"switch off the {term} term")
-    q.add_argument("--added-mass-form", choices=("sane2001", "impulse"), default="sane2001",
-                   help="added mass as Sane & Dickinson 2001 (default) or the impulse rate")
+    q.add_argument("--added-mass-form", choices=("impulse", "sane2001"), default="impulse",
+                   help="added mass as the rate of change of the fluid impulse (default; "
+                        "averages to zero over a cycle) or Sane & Dickinson 2001's normal "
+                        "acceleration alone")
     q.add_argument("--json", action="store_true", help="print JSON")
     return p
 

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
     Array = NDArray[np.float64]
 
-__all__ = ["Rows", "Stepper", "ZohModel", "discretize_zoh", "zoh_rows"]
+__all__ = ["Rows", "Stepper", "ZohModel", "discretize_zoh", "finite_rows", "zoh_rows"]
 
 #: a matrix as a tuple of rows of floats
 Rows = Tuple[Tuple[float, ...], ...]  # (typing.Tuple: Python 3.8 hosts)
@@ -115,6 +115,21 @@ def _straight_line_stepper(rows: Rows, n_states: int, scale: Sequence[float],
     namespace: dict[str, Callable[..., Stepper]] = {}
     exec(compile(source, "<dronefly.linear stepper>", "exec"), namespace)
     return namespace["bind"](*(c for row in rows for c in row), *map(float, scale))
+
+
+def finite_rows(A: "list[list[float]]", B: "list[list[float]]", error: type,
+                why: str) -> "tuple[Rows, Rows]":
+    """``A`` and ``B`` as :data:`Rows`, or ``error`` naming the first entry that is not finite.
+
+    ``why`` ends the message: the parameters that may have overflowed.
+    """
+    for label, M in (("A", A), ("B", B)):
+        for i, row in enumerate(M):
+            for j, x in enumerate(row):
+                if not math.isfinite(x):
+                    raise error(f"{label}[{i + 1},{j + 1}] = {x!r} is not finite: the "
+                                f"parameters overflow {why}")
+    return tuple(map(tuple, A)), tuple(map(tuple, B))
 
 
 def zoh_rows(A: Sequence[Sequence[float]], B: Sequence[Sequence[float]],

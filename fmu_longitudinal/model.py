@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Sequence
 
 from ..errors import DroneflyError
 from ..lateral import INERTIAS_SECT21
-from ..linear import Rows, ZohModel
+from ..linear import Rows, ZohModel, finite_rows
 from ..longitudinal import CONTROL_NAMES, IY_PLUS, STATE_NAMES
 
 __all__ = [
@@ -179,15 +179,8 @@ def system_rows(p: LongitudinalParameters) -> tuple[Rows, Rows]:
             B[i][j] = getattr(p, name) / scale[i]
     A[0][3] = -p.g_plus
     A[3][2] = 1.0
-    for label, M in (("A", A), ("B", B)):
-        for i, row in enumerate(M):
-            for j, x in enumerate(row):
-                if not math.isfinite(x):
-                    raise ModelParameterError(
-                        f"{label}[{i + 1},{j + 1}] = {x!r} is not finite: the parameters "
-                        f"overflow (m_plus = {p.m_plus!r}, Iy_plus = {p.Iy_plus!r}, or a "
-                        "derivative)")
-    return tuple(map(tuple, A)), tuple(map(tuple, B))
+    return finite_rows(A, B, ModelParameterError, f"(m_plus = {p.m_plus!r}, Iy_plus = "
+                       f"{p.Iy_plus!r}, or a derivative)")
 
 
 def system_matrices(p: LongitudinalParameters) -> "tuple[Array, Array]":

@@ -24,7 +24,7 @@ from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, Any, Mapping
 
 from ..errors import DroneflyError
-from ..linear import Rows, ZohModel, discretize_zoh
+from ..linear import Rows, ZohModel, discretize_zoh, finite_rows
 from ..lateral import (CONTROL_NAMES, FLIGHT_DATA, INERTIAS_SECT21, N_HZ, STATE_NAMES, U_M_PER_S,
                        reference_scales, to_dimensional, to_nondimensional)
 
@@ -223,16 +223,9 @@ def system_rows(p: LateralParameters) -> tuple[Rows, Rows]:
     for j, names in enumerate(_CONTROL):
         for i, x in enumerate(_rows(*(getattr(p, n) for n in names))):
             B[i][j] = x
-    for label, M in (("A", A), ("B", B)):
-        for i, row in enumerate(M):
-            for j, x in enumerate(row):
-                if not math.isfinite(x):
-                    raise ModelParameterError(
-                        f"{label}[{i + 1},{j + 1}] = {x!r} is not finite: the parameters "
-                        f"overflow Eqs. (10)-(11) (m_plus = {p.m_plus!r}, Ix_plus = "
-                        f"{p.Ix_plus!r}, Iz_plus = {p.Iz_plus!r}, Ixz_plus = {p.Ixz_plus!r}, "
-                        "or a derivative)")
-    return tuple(map(tuple, A)), tuple(map(tuple, B))
+    return finite_rows(A, B, ModelParameterError, f"Eqs. (10)-(11) (m_plus = {p.m_plus!r}, "
+                       f"Ix_plus = {p.Ix_plus!r}, Iz_plus = {p.Iz_plus!r}, Ixz_plus = "
+                       f"{p.Ixz_plus!r}, or a derivative)")
 
 
 def system_matrices(p: LateralParameters) -> "tuple[Array, Array]":

@@ -6,6 +6,7 @@ Needs matplotlib (the ``plot`` extra), imported when a figure is drawn.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -44,11 +45,7 @@ def plot_fig2(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0) ->
     axes[0].legend(fontsize=7, ncol=2)
     fig.suptitle(f"quasi-steady model ({model.coefficients.name}): Fig. 2 of the paper redrawn; "
                  "grey: the +/-0.4 rad box of Sect. 3.6", fontsize=9)
-    fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return _save(fig, path)
 
 
 def plot_linearity_maps(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0) -> Path:
@@ -75,6 +72,13 @@ def plot_linearity_maps(model: QuasiSteadyModel, path: str | Path, extent: float
         fig.colorbar(mesh, ax=ax, label="max error of Y+, L+, N+ [%]")
     fig.suptitle("quasi-steady model: error of the tangent at hover over pairs of the lateral "
                  "state (red: the box of Sect. 3.6)", fontsize=9)
+    return _save(fig, path)
+
+
+def _save(fig: "Any", path: str | Path) -> Path:
+    """Lay out, write (110 dpi) and close ``fig``; the path written."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out, dpi=110)

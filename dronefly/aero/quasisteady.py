@@ -75,7 +75,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -621,12 +621,19 @@ class QuasiSteadyModel:
         :meth:`forces_vector` up to their O(1/n_time^2) difference in the added mass's moment
         (round-off elsewhere). Parameters as :meth:`forces_vector`.
         """
+        return self._samples(*self._kinematics_and_state(state, control, trim))
+
+    def _kinematics_and_state(self, state: Sequence[float] | Array,
+                              control: Mapping[str, float] | None,
+                              trim: Trim | None) -> tuple[Any, ...]:
+        """(Phi, phibar, alpha_d, alpha_u, x) for :meth:`_mean` and :meth:`_samples`; a state
+        that is not 6 finite numbers is refused naming it."""
         x = np.asarray(state, dtype=float)
         if x.shape != (6,) or not np.all(np.isfinite(x)):
             raise DroneflyError(f"state = {state!r}: expected 6 finite numbers "
                                 f"({', '.join(STATES)})")
         kin = self.wing_kinematics(control, trim)
-        return self._samples(kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"], x)
+        return kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"], x
 
     def forces_vector(self, state: Sequence[float] | Array = (0.0,) * 6,
                       control: Mapping[str, float] | None = None,
@@ -642,12 +649,7 @@ class QuasiSteadyModel:
         trim : Trim, optional
             The reference (default: the trimmed hover).
         """
-        x = np.asarray(state, dtype=float)
-        if x.shape != (6,) or not np.all(np.isfinite(x)):
-            raise DroneflyError(f"state = {state!r}: expected 6 finite numbers "
-                                f"({', '.join(STATES)})")
-        kin = self.wing_kinematics(control, trim)
-        return self._mean(kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"], x)
+        return self._mean(*self._kinematics_and_state(state, control, trim))
 
     def forces(self, state: Mapping[str, float] | None = None,
                control: Mapping[str, float] | None = None,

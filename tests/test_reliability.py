@@ -72,7 +72,13 @@ _CHILD = textwrap.dedent("""
 """)
 
 
-def test_fifty_processes_using_the_fmus_exit_cleanly(built_fmus):
+#: processes that must all exit 0. Without the exit handler of docs/fmi-limits.md, 6 of 30
+#: processes aborted at exit (a rate of about 0.2); 30 processes then miss that regression with
+#: probability 0.8**30 < 0.2 %, each process loading three FMUs
+_EXIT_RUNS = 30
+
+
+def test_processes_using_the_fmus_exit_cleanly(built_fmus):
     """Plant, controller, plant again in one process, with and without errors: exit code 0,
     every time (no abort in pythonfmu's finalizePythonInterpreter at exit)."""
     paths = [str(built_fmus[n]) for n in ("DroneFlyLateral", "StateFeedback", "DroneFlyLateral")]
@@ -82,9 +88,9 @@ def test_fifty_processes_using_the_fmus_exit_cleanly(built_fmus):
                               capture_output=True, text=True, timeout=120)
 
     with ThreadPoolExecutor(max_workers=2) as pool:
-        results = list(pool.map(run, range(50)))
+        results = list(pool.map(run, range(_EXIT_RUNS)))
     bad = [(r.returncode, r.stderr[-300:]) for r in results if r.returncode != 0]
-    assert not bad, f"{len(bad)} of 50 processes failed: {bad[:3]}"
+    assert not bad, f"{len(bad)} of {_EXIT_RUNS} processes failed: {bad[:3]}"
 
 
 def test_the_fuzz_survives_and_counts_a_crashing_fmu(tmp_path):

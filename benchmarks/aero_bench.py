@@ -37,10 +37,10 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    from dronefly.aero import QuasiSteadyModel, parity_report
-    from dronefly.plant.model import LateralModel, default_parameters
-    from dronefly.plant_longitudinal.model import LongitudinalModel
-    from dronefly.plant_longitudinal.model import default_parameters as lon_parameters
+    from dronefly.harness.aero import QuasiSteadyModel, parity_report
+    from dronefly.models.lateral_dynamics import LateralModel, default_parameters
+    from dronefly.models.longitudinal_dynamics import LongitudinalModel
+    from dronefly.models.longitudinal_dynamics import default_parameters as lon_parameters
 
     lat, lon = LateralModel(default_parameters()), LongitudinalModel(lon_parameters())
     x4, u3, u4 = [0.01, 0.02, 0.0, 0.1], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]

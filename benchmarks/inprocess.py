@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args(argv)
     from dronefly.controller.slave import StateFeedback
-    from dronefly.plant.slave import DroneFlyLateral
+    from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
     times: dict[str, list[float]] = {"ours": [], "null": []}
     for _ in range(args.repeats):  # interleaved, fresh instances per repeat

@@ -18,7 +18,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from dronefly.interrupt import deferred_sigint
+from dronefly.core.interrupt import deferred_sigint
 
 from dronefly.harness.cosim.records import LoopRun
 

@@ -70,9 +70,9 @@ class PlantBench:
 
     def __init__(self, fmus: dict[str, Path], stack: contextlib.ExitStack) -> None:
         from dronefly.harness.cosim.fmu import FMU
-        from dronefly.plant import model as lat
-        from dronefly.plant_6dof.model import Hover6DOF, quaternion_from_euler
-        from dronefly.plant_longitudinal import model as lon
+        from dronefly.models import lateral_dynamics as lat
+        from dronefly.models.rigid_body import Hover6DOF, quaternion_from_euler
+        from dronefly.models import longitudinal_dynamics as lon
 
         lp, np_ = lat.default_parameters(), lon.default_parameters()
         self._nl = Hover6DOF(lp, np_)
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.steps < 2 or args.repeats < 1:
         ap.error("--steps must be >= 2 and --repeats >= 1")
-    from dronefly.build import build_fmu
+    from dronefly.builder.build import build_fmu
 
     start = datetime.now(timezone.utc)
     print(f"started {start:%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, {_load()}")

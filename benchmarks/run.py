@@ -54,7 +54,7 @@ from plants import TARGET_RATIO, PlantBench, report as plants_report, steps_for 
 def _build(out: Path) -> dict[str, Path]:
     from pythonfmu import FmuBuilder
 
-    from dronefly.build import build_all
+    from dronefly.builder.build import build_all
 
     fmus = {p.stem: p for p in build_all(out) if p.suffix == ".fmu"}  # not DroneFlyHover6DOF.ssp
     for name in ("NullPlant", "NullController"):
@@ -132,8 +132,8 @@ def _fmi_calls_per_step(run, steps: int = 50) -> float:
 def _systems(fmus: dict[str, Path]) -> dict[int, object]:
     """Systems of 2, 3 and 4 FMUs: the lateral pair, the pair and the open-loop longitudinal
     plant, the hover system (instances and initial states of ``hover_system``)."""
-    from dronefly.harness.system.description import System
-    from dronefly.harness.system.ssp import hover_system
+    from dronefly.harness.cosim.system import System
+    from dronefly.harness.cosim.ssp import hover_system
 
     hover = hover_system(fmus)
     out: dict[int, object] = {}
@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--steps must be >= 2 and --repeats >= 1")
     from dronefly.harness.cosim.fmu import FMU
     from dronefly.harness.cosim.master import Loop
-    from dronefly.harness.system.master import SystemMaster
+    from dronefly.harness.cosim.system_master import SystemMaster
 
     h, N = 0.1 / 164.0, args.steps
     times: dict[str, list[float]] = {}

@@ -24,7 +24,7 @@ from pathlib import Path
 
 
 def _bare_loop_s(plant: Path, controller: Path, repeats: int) -> float:
-    from dronefly.controller.law import default_gains, gain_name
+    from dronefly.models.feedback import default_gains, gain_name
     from dronefly.harness.cosim.fmu import FMU
     from dronefly.harness.cosim.master import Loop
 
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print JSON")
     args = ap.parse_args(argv)
 
-    from dronefly.build import build_all
+    from dronefly.builder.build import build_all
     from dronefly.harness.sweep.run import run_sweep
     from dronefly.harness.sweep.cases import DEFAULT_DIRECTIONS, SweepSpec
 

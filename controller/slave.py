@@ -16,14 +16,13 @@ from typing import Any, ClassVar
 
 from pythonfmu.enums import Fmi2Status
 
-from ..axes import Axis
+from ..models.axes import Axis
 from ..fmi import SlaveBase
-from ..lateral import LATERAL, N_HZ
-from ..longitudinal import LONGITUDINAL
+from ..models.lateral import LATERAL, N_HZ
+from ..models.longitudinal import LONGITUDINAL
 from .delay import Sensor, Timing
-from .law import FeedbackLaw, default_gains, default_longitudinal_gains
-from .variables import (LAW_PARAMETERS, TIMING, all_gains, all_integral_gains,
-                        controller_variables)
+from ..models.feedback import FeedbackLaw, default_gains, default_longitudinal_gains
+from .variables import LAW_PARAMETERS, TIMING, all_gains, all_integral_gains, controller_variables
 
 __all__ = ["StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
            "StateFeedbackLongitudinalDelayed"]

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 
-from ..errors import DroneflyError
+from ..core.errors import DroneflyError
 
 __all__ = ["DRIFT", "DRIFT_CAP", "MAX_SAMPLES", "TOLERANCE", "SensingError", "Timing",
            "tolerance"]

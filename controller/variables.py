@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ..axes import Axis
+from ..models.axes import Axis
 from ..fmi import Var
-from ..lateral import N_HZ, U_M_PER_S
-from .law import U_MAX_LINEAR_RANGE, Gains, gain_name, integral_gain_name
+from ..models.lateral import N_HZ, U_M_PER_S
+from ..models.feedback import U_MAX_LINEAR_RANGE, Gains, gain_name, integral_gain_name
 
 __all__ = ["LAW_PARAMETERS", "TIMING", "all_gains", "all_integral_gains", "controller_variables"]
 

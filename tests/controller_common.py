@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from dronefly.harness.paper import values as pv
-from dronefly.controller import law as L
-from dronefly.plant import model as M
+from dronefly.models import feedback as L
+from dronefly.models import lateral_dynamics as M
 
 ROOT = Path(__file__).resolve().parents[1]
 STATES = list(M.STATE_NAMES)

@@ -14,7 +14,7 @@ import signal
 import sys
 from typing import Any
 
-from dronefly import interrupt
+from dronefly.core import interrupt
 
 __all__ = ["SigintAtCheck", "install_at_check", "sigint_after_chunk"]
 
@@ -43,7 +43,7 @@ class SigintAtCheck(interrupt.Deferred):
 
 
 def install_at_check(monkeypatch: Any, at: int) -> None:
-    """Make :func:`dronefly.interrupt.deferred_sigint` use :class:`SigintAtCheck` (``at``-th read)."""
+    """Make :func:`dronefly.core.interrupt.deferred_sigint` use :class:`SigintAtCheck` (``at``-th read)."""
     monkeypatch.setattr(SigintAtCheck, "at", at)
     monkeypatch.setattr(SigintAtCheck, "reads", 0)
     monkeypatch.setattr(interrupt, "Deferred", SigintAtCheck)
@@ -66,7 +66,7 @@ def sigint_after_chunk(run_sweep: Any) -> Any:
 if __name__ == "__main__":
     # as from a terminal: a background test run may have started this process with SIGINT ignored
     signal.signal(signal.SIGINT, signal.default_int_handler)
-    from dronefly.cli import main
+    from dronefly.cli.app import main
     from dronefly.harness.sweep import run as sweep_run
 
     if sys.argv[1] == "sweep":

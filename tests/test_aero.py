@@ -1,4 +1,4 @@
-"""The quasi-steady blade-element model (dronefly.aero): exact symmetries, closed forms, trim,
+"""The quasi-steady blade-element model (dronefly.harness.aero): exact symmetries, closed forms, trim,
 and the convergence of its central-difference derivatives."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dronefly.aero import QuasiSteadyModel, Terms, Trim, WingGeometry
-from dronefly.aero.compare import ackermann, derivatives, eigenvalues, parity_report
-from dronefly.aero.quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES
-from dronefly.cli import main
-from dronefly.errors import DroneflyError
+from dronefly.harness.aero import QuasiSteadyModel, Terms, Trim, WingGeometry
+from dronefly.harness.aero.compare import ackermann, derivatives, eigenvalues, parity_report
+from dronefly.models.quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES
+from dronefly.cli.app import main
+from dronefly.core.errors import DroneflyError
 
 pytestmark = pytest.mark.numeric
 
@@ -168,8 +168,8 @@ def test_derivatives_against_a_finer_grid_and_richardson(model):
 
 def test_paper_derivatives_give_the_papers_eigenvalues():
     from dronefly.harness.paper.values import table2_eigenvalues
-    from dronefly.plant.model import default_parameters
-    from dronefly.plant_longitudinal.model import default_parameters as lon
+    from dronefly.models.lateral_dynamics import default_parameters
+    from dronefly.models.longitudinal_dynamics import default_parameters as lon
 
     values = {**default_parameters().__dict__, **lon().__dict__}
     ev = eigenvalues(values)
@@ -180,7 +180,7 @@ def test_paper_derivatives_give_the_papers_eigenvalues():
 
 def test_ackermann_against_the_harness_design():
     from dronefly.harness.paper.analysis import ackermann_gains
-    from dronefly.plant.model import default_parameters, system_matrices
+    from dronefly.models.lateral_dynamics import default_parameters, system_matrices
 
     A, B = system_matrices(default_parameters())
     targets = [0.0, -0.089 + 0.057j, -0.089 - 0.057j, -0.51]
@@ -239,7 +239,7 @@ def reports(model):
 
 
 def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
-    from dronefly.aero.compare import answer, linearity_summary, trim_table
+    from dronefly.harness.aero.compare import answer, linearity_summary, trim_table
 
     text = DOC.read_text(encoding="utf-8")
     default, sane = reports
@@ -261,7 +261,7 @@ def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
 
 def test_aerodynamics_doc_prose_numbers(model, reports):
     """The numbers the prose quotes beside the generated blocks, recomputed."""
-    from dronefly.aero.compare import linearity_scan, pair_scan, LATERAL_PAIRS
+    from dronefly.harness.aero.compare import linearity_scan, pair_scan, LATERAL_PAIRS
 
     text = NumericText(DOC.read_text(encoding="utf-8"))
     default, sane_report = reports
@@ -353,7 +353,7 @@ def test_aerodynamics_doc_prose_numbers(model, reports):
 
 
 def derivative_rows(m):
-    from dronefly.aero.compare import derivative_table
+    from dronefly.harness.aero.compare import derivative_table
 
     return derivative_table(m)
 
@@ -366,8 +366,8 @@ def translational_share(m):
 def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
     """Axes and signs as the paper's: Eq. (10) with the model's derivatives has +g+ in its first
     row and the sign of Eq. (12) in every aerodynamic entry the paper prints as nonzero."""
-    from dronefly.aero.compare import system_matrices
-    from dronefly.plant.model import A1_EQ12, INERTIAS_SECT21
+    from dronefly.harness.aero.compare import system_matrices
+    from dronefly.models.lateral_dynamics import A1_EQ12, INERTIAS_SECT21
 
     values = {r.parameter: r.quasi_steady for r in reports[0].rows}
     (A1, B1), _ = system_matrices(values)

@@ -15,13 +15,13 @@ import pytest
 from numpy.testing import assert_allclose
 from docnumbers import same_numbers
 
-from dronefly.cli import main
+from dronefly.cli.app import main
 from dronefly.harness.paper import analysis as an
 from dronefly.harness.paper import values as pv
 from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabilising_designs
 from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze, reproduction_table
-from dronefly.plant import model
+from dronefly.models import lateral_dynamics as model
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 

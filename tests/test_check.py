@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.build import FMUS
-from dronefly.cli import main
+from dronefly.builder.build import FMUS
+from dronefly.cli.app import main
 from dronefly.harness.compliance.suite import check_fmu, format_reports
 from fmu_helpers import build_crashing_fmu
 
@@ -56,13 +56,13 @@ def test_broken_model_description_fails_validate(built_fmus, tmp_path, capsys):
 
 def test_state_that_is_not_captured_fails(tmp_path, monkeypatch):
     """A plant whose FMU state forgets the integrator state: continuation differs."""
-    import dronefly.build as build
+    import dronefly.builder.build as build
 
     original = build._source_path
 
     def patched(rel):
         path = original(rel)
-        if rel == "linear_slave.py":
+        if rel == "fmu_src/linear_slave.py":
             text = path.read_text()
             bad = text.replace('return {"x": list(self._x)}', 'return {"x": [0.0] * 4}')
             assert bad != text
@@ -134,7 +134,7 @@ def test_the_fmus_own_log_message_is_shown(tmp_path, monkeypatch, capsys):
     or not (the failure line: what the FMU logged)."""
     import json
 
-    import dronefly.build as build
+    import dronefly.builder.build as build
 
     original = build._source_path
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.build import FMUS
-from dronefly.cli import main
-from dronefly.simulate import exact_open_loop
+from dronefly.builder.build import FMUS
+from dronefly.cli.app import main
+from dronefly.harness.cosim.simulate import exact_open_loop
 
 
 def test_help_lists_subcommands(capsys):

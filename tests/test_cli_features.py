@@ -1,6 +1,6 @@
 """What a user sets from the command line reaches the co-simulation; exit codes say what failed.
 
-Oracles: the eigenvalues of A1 + B1 K computed from dronefly.plant.model with the same
+Oracles: the eigenvalues of A1 + B1 K computed from dronefly.models.lateral_dynamics with the same
 parameters (not from the FMU), and python's own behaviour for --version.
 """
 
@@ -15,13 +15,14 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly import __version__, commands
-from dronefly.cli import main
-from dronefly.errors import DroneflyError
+from dronefly import __version__
+from dronefly.cli import app as cli_main
+from dronefly.cli.app import main
+from dronefly.core.errors import DroneflyError
 from dronefly.harness.cosim.params import parse_gains
-from dronefly.harness.cosim.run import cosimulate
-from dronefly.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, sort_eigenvalues
-from dronefly.plant import model
+from dronefly.harness.stability.run import cosimulate
+from dronefly.models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, sort_eigenvalues
+from dronefly.models import lateral_dynamics as model
 
 pytestmark = pytest.mark.integration
 
@@ -178,7 +179,7 @@ def test_a_bug_is_not_reported_as_bad_input(monkeypatch, capsys):
     def broken(args):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(commands, "demo", broken)
+    monkeypatch.setattr(cli_main, "demo", broken)
     assert main(["demo"]) == 1
     err = capsys.readouterr().err
     assert "internal error (a bug" in err and "RuntimeError: boom" in err and "Traceback" not in err
@@ -190,7 +191,7 @@ def test_bad_input_is_one_line_exit_2(monkeypatch, capsys):
     def bad(args):
         raise DroneflyError("x = 'y' is not a number\nsecond line")
 
-    monkeypatch.setattr(commands, "demo", bad)
+    monkeypatch.setattr(cli_main, "demo", bad)
     assert main(["demo"]) == 2
     err = capsys.readouterr().err
     assert err == "dronefly demo: error: x = 'y' is not a number\n"

@@ -16,10 +16,10 @@ import pytest
 
 from dronefly.controller import delay as D
 from dronefly.controller import timing as T
-from dronefly.controller import law as L
+from dronefly.models import feedback as L
 from dronefly.controller.slave import (StateFeedback, StateFeedbackDelayed,
-                                       StateFeedbackLongitudinalDelayed)
-from dronefly.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES
+    StateFeedbackLongitudinalDelayed)
+from dronefly.models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES
 from fmu_helpers import model_description
 
 WB = 1.0 / N_HZ  # one wing beat [s]

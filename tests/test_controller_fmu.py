@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.controller import law as L
-from dronefly.plant import model as M
+from dronefly.models import feedback as L
+from dronefly.models import lateral_dynamics as M
 
 from controller_common import (B1_COL1_EQ24, CONTROLS, EIG_EQ27, GAINS, H, STATES, dimensional,
                                expected_controls, random_gains)
@@ -43,7 +43,7 @@ def test_fmpy_validate_reports_no_problems(built_fmus):
 
 @pytest.mark.integration
 def test_reproducible_build_and_own_package(tmp_path, built_fmus):
-    from dronefly.build import build_fmu, fmu_sources
+    from dronefly.builder.build import build_fmu, fmu_sources
 
     again = build_fmu("StateFeedback", tmp_path)
     assert again.read_bytes() == built_fmus["StateFeedback"].read_bytes()
@@ -54,9 +54,10 @@ def test_reproducible_build_and_own_package(tmp_path, built_fmus):
     shipped = {k for k in files_c if k.startswith(f"resources/{pkg_c}/") and k.endswith(".py")
                and not k.endswith("__init__.py")}
     assert shipped == {f"resources/{pkg_c}/{r}" for r in
-                       ("errors.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py", "fmi/state.py",
-                        "fmi/values.py", "fmi/vars.py", "axes.py", "lateral.py", "longitudinal.py",
-                        "controller/law.py", "controller/delay.py", "controller/timing.py",
+                       ("core/errors.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
+                        "fmi/state.py", "fmi/values.py", "fmi/vars.py", "models/axes.py",
+                        "models/lateral.py", "models/longitudinal.py",
+                        "models/feedback.py", "controller/delay.py", "controller/timing.py",
                         "controller/variables.py",
                         "controller/slave.py")}
 

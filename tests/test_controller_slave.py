@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.controller import law as L
+from dronefly.models import feedback as L
 from dronefly.controller.slave import StateFeedback
 
 from controller_common import CONTROLS, H, STATES, dimensional, expected_controls

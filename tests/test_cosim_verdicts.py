@@ -19,13 +19,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronefly.cli import main
-from dronefly.controller.law import integral_gain_name
-from dronefly.harness.cosim.run import RATE_TOL_PER_WINGBEAT, cosimulate
+from dronefly.cli.app import main
+from dronefly.models.feedback import integral_gain_name
+from dronefly.harness.stability.run import RATE_TOL_PER_WINGBEAT, cosimulate
 from dronefly.harness.cosim.stability import classify
 from dronefly.harness.latency.designs import DESIGNS, design
 from dronefly.harness.latency.sampled import sampled_margin, sampled_rates
-from dronefly.lateral import N_HZ
+from dronefly.models.lateral import N_HZ
 
 pytestmark = pytest.mark.integration
 
@@ -173,7 +173,7 @@ def _sampled_rates_oracle(K: np.ndarray, h: float) -> np.ndarray:
     matrix, not the harness's discretisation), per wing beat, sorted by real part."""
     from scipy.linalg import expm
 
-    from dronefly.plant import model
+    from dronefly.models import lateral_dynamics as model
 
     A, B = model.system_matrices(model.default_parameters())
     E = expm(np.block([[A, B], [np.zeros((3, 7))]]) * h)
@@ -355,22 +355,23 @@ def test_setuptools_builds_apart_from_the_fmus():
         assert not d.is_relative_to(ROOT / "build"), d
 
 
-def test_a_checkout_named_dronefly_is_diagnosed_in_one_line(tmp_path):
+def test_a_checkout_named_dronefly_is_the_package(tmp_path):
     """Python started in the folder that holds a checkout named dronefly imports the checkout
-    as the package (its build/ as dronefly.build): the import fails with one line saying so,
-    not 'cannot import name ... (unknown location)'."""
+    as the package: the checkout's root folder is the package, so that is the same code (no
+    folder of the checkout, build/ with its FMUs included, passes for a module)."""
     import subprocess
     import sys
 
     (tmp_path / "dronefly").symlink_to(ROOT, target_is_directory=True)
-    r = subprocess.run([sys.executable, "-c", "from dronefly.build import project_fmus"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=60,
+    code = ("import dronefly.builder.build as b, dronefly.cli.app as m; "
+            "print(b.__file__); print(m.__file__)")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=60,
                        env={k: v for k, v in __import__("os").environ.items()
                             if k != "PYTHONPATH"})
-    assert r.returncode == 1
-    last = r.stderr.strip().splitlines()[-1]
-    assert last.startswith("ImportError: ") and "is a dronefly-fmu checkout" in last, r.stderr
-    assert "unknown location" not in r.stderr
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(tmp_path / "dronefly" / "builder" / "build.py"),
+                                str(tmp_path / "dronefly" / "cli" / "app.py")]
 
 
 # --- point 8: analyze --targets puts the design first ---------------------------------------
@@ -379,7 +380,7 @@ def test_analyze_targets_prints_the_design_first(capsys):
     the JSON; they place the targets: eig(A1 + b k) with the model's A1, b (Table 1) equal
     the targets to 1e-9 (distinct, well-separated targets: the eigenvalues of the closed
     loop move by about cond(V) * 1e-15 * |k|, cond(V) < 1e3 here)."""
-    from dronefly.plant import model
+    from dronefly.models import lateral_dynamics as model
 
     targets = "--targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51"
     assert main(["analyze", targets]) == 0
@@ -428,7 +429,7 @@ def test_altitude_lost_says_with_which_controllers():
     (9.762 mm), each quoted to its printed rounding (0.05 mm)."""
     import re
 
-    from dronefly.harness.nonlinear.terms import term_errors
+    from dronefly.harness.validity.terms import term_errors
 
     both = 1e3 * term_errors("+dgamma").altitude_lost_m["all"]
     alone = 1e3 * term_errors("+dgamma", longitudinal_control=False).altitude_lost_m["all"]

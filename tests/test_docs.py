@@ -101,7 +101,7 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
 # --- numbers ---------------------------------------------------------------------------------
 @pytest.mark.numeric
 def test_readme_verdict_table_is_what_demo_prints(tmp_path):
-    from dronefly.harness.cosim.demo import verdict_table
+    from dronefly.harness.stability.demo import verdict_table
 
     table = verdict_table(out_dir=tmp_path / "cosim")
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -114,7 +114,7 @@ def test_readme_verdict_table_is_what_demo_prints(tmp_path):
 
 @pytest.mark.numeric
 def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
-    from dronefly.harness.cosim.run import cosimulate
+    from dronefly.harness.stability.run import cosimulate
     from dronefly.harness.paper.reproduction import reproduction_table
     from dronefly.harness.paper.rows import summary
 
@@ -136,7 +136,7 @@ def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
 
 @pytest.mark.numeric
 def test_simulate_deviation_quoted_in_readme(tmp_path):
-    from dronefly.simulate import simulate_plant
+    from dronefly.harness.cosim.simulate import simulate_plant
 
     run = simulate_plant(out_dir=tmp_path)
     assert run.max_rel_error < 1e-13  # README: "about 1e-14"

@@ -1,5 +1,5 @@
-"""The FMUs' plain-Python matrix exponential (dronefly.linear_algebra.expm) and zero-order hold
-(dronefly.linear.zoh_rows), against scipy.linalg.expm and analytic exponentials."""
+"""The FMUs' plain-Python matrix exponential (dronefly.models.linear_algebra.expm) and zero-order hold
+(dronefly.models.linear.zoh_rows), against scipy.linalg.expm and analytic exponentials."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.linalg import expm as scipy_expm
 
-from dronefly.linear import zoh_rows
-from dronefly.linear_algebra import expm, matmul, solve
-from dronefly.plant import model as lateral
-from dronefly.plant_longitudinal import model as longitudinal
+from dronefly.models.linear import zoh_rows
+from dronefly.models.linear_algebra import expm, matmul, solve
+from dronefly.models import lateral_dynamics as lateral
+from dronefly.models import longitudinal_dynamics as longitudinal
 
 U = 2.0 ** -53  # unit round-off of double precision
 #: Relative 1-norm error allowed between two backward-stable exponentials of M: each is off by
@@ -133,7 +133,8 @@ def test_zero_order_hold_is_the_same_under_another_blas_kernel(tmp_path):
     import subprocess
     import sys
 
-    code = ("from dronefly.plant import model as m; from dronefly.linear import zoh_rows; "
+    code = ("from dronefly.models import lateral_dynamics as m; "
+            "from dronefly.models.linear import zoh_rows; "
             "A, B = m.system_rows(m.default_parameters()); "
             "print(*[x.hex() for M in zoh_rows(A, B, 0.1) for r in M for x in r])")
     runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

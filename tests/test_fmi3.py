@@ -19,7 +19,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
-from dronefly.build import FMUS
+from dronefly.builder.build import FMUS
 
 pytestmark = pytest.mark.integration
 
@@ -82,7 +82,7 @@ def test_slave_state_round_trip_and_foreign_state(feedback3):
 
 def test_slave_warns_off_the_grid_naming_fmi_3(feedback3):
     """The off-grid warning names the FMU's own standard: 'FMI 3.0 co-simulation'."""
-    from dronefly.lateral import N_HZ
+    from dronefly.models.lateral import N_HZ
 
     s = feedback3
     s.enter_initialization_mode()
@@ -123,7 +123,7 @@ def test_fmi3_binary_folder_is_the_loaded_librarys_or_this_machines_platform_tup
 
 def test_fmi3_binary_releases_its_interpreter_guard_at_exit(built_fmus3):
     """pythonfmu3's binary (binaries/x86_64-linux/<model>.so) frees its interpreter guard twice
-    at process exit unless an exit handler released it first (dronefly/fmi/host.py): the FMU
+    at process exit unless an exit handler released it first (fmi/host.py): the FMU
     registers that handler for the library the host loaded. Without it an Ecos child aborted
     at exit ("corrupted double-linked list") in 6 of 30 runs of build/fmi3/DroneFlyHover.ssp."""
     import posixpath
@@ -227,7 +227,7 @@ def test_model_description_arrays_units_dependencies(built_fmus, built_fmus3, na
 
 
 def _pair(plant, controller, master):
-    from dronefly.harness.cosim.run import cosimulate
+    from dronefly.harness.stability.run import cosimulate
 
     return cosimulate(plant, controller, master=master, stop_wingbeats=60, out_dir=None,
                       plot=False, set_values={"controller.K[1,2]": -0.25})
@@ -251,8 +251,8 @@ def test_hover_system_fmi3_ssp_and_mixed_equal_fmi2(built_fmus, built_fmus3):
     """The four-FMU hover system: from build/fmi3/DroneFlyHover.ssp (FMI 3.0 FMUs) and mixed
     (FMI 2.0 plants, FMI 3.0 controllers) equal to the FMI 2.0 system; same verdicts (the
     trajectories decide them: the mixed run's verdicts are not identified again)."""
-    from dronefly.harness.system.run import cosimulate_system
-    from dronefly.harness.system.ssp import hover_system
+    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.cosim.ssp import hover_system
 
     kw = dict(stop_wingbeats=60, out_dir=None, plot=False)
     ref = cosimulate_system(built_fmus["DroneFlyHover.ssp"], verdicts=False, **kw)
@@ -273,11 +273,11 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     neutral verdict and the FMI 2.0 SSP's trajectory over its 300 wing beats, to 1e-12. Its
     controller.ssv binds the elements K[i,j] of the FMI 3.0 array K: with gains other than the
     FMUs' defaults both SSPs still agree, and differ from the default run."""
-    from dronefly.controller.law import default_gains
+    from dronefly.models.feedback import default_gains
     from dronefly.harness.interop.closedloop import ClosedLoopSpec
     from dronefly.harness.cosim.master import CoSimError
     from dronefly.harness.interop.ssp import run_ssp, write_ssp
-    from dronefly.harness.system.run import cosimulate_system
+    from dronefly.harness.stability.system import cosimulate_system
 
     kw = dict(out_dir=None, plot=False)
     ref = cosimulate_system(built_fmus["DroneFlyClosedLoop.ssp"], verdicts=False, **kw)
@@ -313,7 +313,7 @@ def test_check_passes_on_fmi3(built_fmus3, name):
 def _broken_build(tmp_path, rel, old, new, name="StateFeedback"):
     """An FMI 3.0 FMU of ``name`` built with ``old`` replaced by ``new`` in its copy of the
     dronefly module ``rel`` (nothing else changed)."""
-    import dronefly.build as build
+    import dronefly.builder.build as build
 
     original = build._source_path
 
@@ -381,7 +381,7 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     instance while keeping its pointer, so any later call may crash the host). After Fatal no
     function of any instance may be called (FMI 3.0 2.2.3): the check fails the step that
     returned it and runs nothing more, unless the use after free kills it first."""
-    from dronefly.cli import main
+    from dronefly.cli.app import main
 
     fmu = _broken_build(tmp_path, "fmi/fmi3.py", "        return _RESULTS[do_step_status(self, "
                         "current_time, step_size)]", "        raise RuntimeError('broken doStep')",

@@ -14,7 +14,7 @@ import pytest
 
 from dronefly.controller.slave import StateFeedback
 from dronefly.fmi.state import MAGIC, StateHandle
-from dronefly.plant.slave import DroneFlyLateral
+from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
 H = 1e-3  # s
 

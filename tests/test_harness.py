@@ -11,9 +11,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
-from dronefly.cli import main
-from dronefly.errors import DroneflyError
-from dronefly.harness.cosim.run import cosimulate
+from dronefly.cli.app import main
+from dronefly.core.errors import DroneflyError
+from dronefly.harness.stability.run import cosimulate
 from dronefly.harness.cosim.fmu import FMU, FMUError
 from dronefly.harness.cosim.master import CoSimError, Loop
 
@@ -209,8 +209,8 @@ def test_record_adds_columns_and_leaves_the_default_ones_bit_for_bit(fmus, tmp_p
     """cosimulate(record=): the CSV is the default one with the recorded columns appended
     (each line byte for byte); the recorded values against independent oracles: the
     controller's input as set equals the plant's output at the point (Gauss-Seidel), A[1,1]
-    is Eq. (9)'s A1[1,1] from dronefly.plant.model, no limit means never saturated."""
-    from dronefly.plant import model
+    is Eq. (9)'s A1[1,1] from dronefly.models.lateral_dynamics, no limit means never saturated."""
+    from dronefly.models import lateral_dynamics as model
 
     record = ["controller.delta_p", "plant.A[1,1]", "controller.saturated"]
     base = cosimulate(*fmus, stop_wingbeats=10, out_dir=tmp_path / "a", plot=False, name="r")
@@ -275,11 +275,11 @@ def test_values_are_converted_to_the_declared_types(fmus):
 
 
 def test_result_files_are_written_together_or_not_at_all(tmp_path):
-    """dronefly.files.write_run_files (both cosim commands): a failing plot leaves no file;
+    """dronefly.core.files.write_run_files (both cosim commands): a failing plot leaves no file;
     otherwise CSV, PNG and JSON, the JSON naming the other two."""
     from types import SimpleNamespace
 
-    from dronefly.files import write_run_files
+    from dronefly.core.files import write_run_files
     from dronefly.harness.cosim.records import LoopRun
 
     run = LoopRun(["a"], np.array([0.0, 0.5]), np.array([[1.0], [0.1 + 0.2]]))
@@ -335,7 +335,7 @@ def test_fmi3_adapter_sets_and_gets_integer_enumeration_and_string_values(monkey
     import fmpy.fmi3
 
     from dronefly.harness.cosim.fmi3 import FMU3Adapter
-    from dronefly.harness.system.values import SETTER, typed_value
+    from dronefly.harness.cosim.values import SETTER, typed_value
 
     monkeypatch.setattr(fmpy.fmi3, "FMU3Slave", _FakeSlave3)
     kinds = ["String", "Enumeration", "Int8", "UInt16", "Int32", "UInt64", "Boolean"]

@@ -20,8 +20,8 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from dronefly.build_entry import HOST_REQUIREMENT, NEWEST_TESTED_PYTHON, OLDEST_PYTHON
-from dronefly.lateral import N_HZ
+from dronefly.builder.entry import HOST_REQUIREMENT, NEWEST_TESTED_PYTHON, OLDEST_PYTHON
+from dronefly.models.lateral import N_HZ
 
 pytestmark = pytest.mark.integration
 
@@ -156,7 +156,7 @@ def test_fmu_imports_only_the_standard_library(extracted, name, fmi):
     module outside the standard library besides its own package and pythonfmu's facade; its
     outputs are fmpy's for the same experiment in this interpreter (the same code and
     interpreter: equal but for the last bit, 1e-13 of the largest output)."""
-    from dronefly.build import FMUS
+    from dronefly.builder.build import FMUS
 
     assert set(FMU_NAMES) == set(FMUS)
     fmu = extracted[fmi, name]
@@ -172,7 +172,8 @@ def test_fmu_imports_only_the_standard_library(extracted, name, fmi):
 def _break(fmu: Extracted, folder: Path) -> Extracted:
     """A copy of ``fmu`` whose model module imports a package that is not installed."""
     shutil.copytree(fmu.folder, folder)
-    (model,) = glob.glob(str(folder / "resources" / "dronefly*" / "plant" / "model.py"))
+    (model,) = glob.glob(str(folder / "resources" / "dronefly*" / "models"
+                             / "lateral_dynamics.py"))
     with open(model, "a") as f:
         f.write("\nimport dronefly_not_installed_package  # noqa: E402,F401\n")
     return Extracted(folder, fmu.fmi, fmu.model, fmu.token, fmu.inputs, fmu.outputs)

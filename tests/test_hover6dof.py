@@ -2,8 +2,8 @@
 
 Oracles, none of them our own output:
 
-- the Newton-Euler equations of fmu_hover6dof/README.md written again here, independently of
-  fmu_hover6dof/model.py (numpy, scipy's ``Rotation`` for the attitude matrix, the inertia
+- the Newton-Euler equations of fmu_src/hover6dof/README.md written again here, independently of
+  models/rigid_body.py (numpy, scipy's ``Rotation`` for the attitude matrix, the inertia
   tensor inverted by numpy), integrated by ``scipy.integrate.solve_ivp`` (DOP853, rtol 1e-12);
 - the linear models (A, B of Eq. 12 and Sect. 3.5, from the linear plants' modules) stepped
   with an exact zero-order hold (``scipy.linalg.expm``);
@@ -25,11 +25,11 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
-from dronefly.controller.law import LONGITUDINAL_GAINS_DESIGN_B, PAPER_GAINS_EQ27
-from dronefly.lateral import N_HZ, U_M_PER_S
-from dronefly.plant import model as lat
-from dronefly.plant_6dof.model import Hover6DOF, initial_state, outputs
-from dronefly.plant_longitudinal import model as lon
+from dronefly.models.feedback import LONGITUDINAL_GAINS_DESIGN_B, PAPER_GAINS_EQ27
+from dronefly.models.lateral import N_HZ, U_M_PER_S
+from dronefly.models import lateral_dynamics as lat
+from dronefly.models.rigid_body import Hover6DOF, initial_state, outputs
+from dronefly.models import longitudinal_dynamics as lon
 
 LP, NP = lat.default_parameters(), lon.default_parameters()
 A1, B1 = lat.system_matrices(LP)

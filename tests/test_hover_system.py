@@ -15,15 +15,15 @@ import pytest
 from docnumbers import same_numbers
 from sigint_at import install_at_check
 
-from dronefly.cli import main
-from dronefly.controller.law import PAPER_GAINS_EQ27, LONGITUDINAL_GAINS_DESIGN_B, gain_name
-from dronefly.harness.system.description import Connection, System
-from dronefly.harness.system.master import SystemMaster
-from dronefly.harness.system.run import cosimulate_system
-from dronefly.harness.system.ssp import hover_system, write_system_ssp
-from dronefly.lateral import sort_eigenvalues
-from dronefly.plant import model as lateral_model
-from dronefly.plant_longitudinal import model as longitudinal_model
+from dronefly.cli.app import main
+from dronefly.models.feedback import PAPER_GAINS_EQ27, LONGITUDINAL_GAINS_DESIGN_B, gain_name
+from dronefly.harness.cosim.system import Connection, System
+from dronefly.harness.cosim.system_master import SystemMaster
+from dronefly.harness.stability.system import cosimulate_system
+from dronefly.harness.cosim.ssp import hover_system, write_system_ssp
+from dronefly.models.lateral import sort_eigenvalues
+from dronefly.models import lateral_dynamics as lateral_model
+from dronefly.models import longitudinal_dynamics as longitudinal_model
 
 pytestmark = [pytest.mark.integration, pytest.mark.numeric]
 
@@ -92,7 +92,7 @@ def test_hover_ssp_describes_four_fmus_both_loops(hover_ssp):
 
 
 def test_default_hover_system_lateral_neutral_longitudinal_stable(hover_ssp, monkeypatch):
-    import dronefly.harness.system.run as run_module
+    import dronefly.harness.stability.system as run_module
 
     def no_open_loop(*args, **kw):
         raise AssertionError("open-loop runs without open_loop")
@@ -203,7 +203,7 @@ def test_cli_a_failed_cross_check_exits_1_with_the_outputs(hover_ssp, tmp_path, 
 
 def test_cli_open_loop_cross_check_is_enforced_too(hover_ssp, tmp_path, capsys, monkeypatch):
     """With a tolerance no identification meets, every check fails, the open loop's too."""
-    import dronefly.harness.system.run as run_module
+    import dronefly.harness.stability.system as run_module
 
     monkeypatch.setattr(run_module, "CHECK_TOL_PER_WINGBEAT", 1e-14)
     code = main(["cosim", "--system", str(hover_ssp), "--stop", "2", "--no-plot", "--out",
@@ -336,7 +336,7 @@ def test_docs_systems_numbers_are_the_code_s(hover_ssp):
         # its tolerance, not the round-off-dominated deviation
         diff = same_numbers(r.summary(), "\n".join(ln for ln in printed if not ln.startswith("csv:")))
         assert diff is None, diff
-    from dronefly.harness.system.run import CHECK_STEP_WB, CHECK_TOL_PER_WINGBEAT
+    from dronefly.harness.stability.system import CHECK_STEP_WB, CHECK_TOL_PER_WINGBEAT
 
     assert "by more than 1e-6 per\nwing beat at the 1e-5 step" in doc
     assert (CHECK_TOL_PER_WINGBEAT, CHECK_STEP_WB) == (1e-6, 1e-5)

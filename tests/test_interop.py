@@ -20,14 +20,14 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
-from dronefly.lateral import scale_vector
+from dronefly.models.lateral import scale_vector
 from dronefly.harness.interop.closedloop import CLOSED_LOOP
-from dronefly.harness.interop.container import (container_verdict, fix_connection_types, run_container,
-                                        write_container)
+from dronefly.harness.interop.container import (container_verdict, fix_connection_types,
+    run_container, write_container)
 from dronefly.harness.interop.ssp import run_ssp, ssp_parameter_set, ssp_verdict
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.interop.libcosim import (c_host_env, libcosim_available, libcosim_verdict,
-                                      libpython_path, run_libcosim, step_ns)
+    libpython_path, run_libcosim, step_ns)
 from dronefly.harness.cosim.master import Loop
 from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
 
@@ -156,7 +156,7 @@ def test_libcosim_runs_the_ssp(libcosim, fmus, ssp):
 def test_ssp_content(ssp):
     from fmpy.ssp.ssd import find_components, get_connections, read_ssd
 
-    from dronefly.controller.law import default_gains
+    from dronefly.models.feedback import default_gains
 
     ssd = read_ssd(str(ssp))  # schema-validated by fmpy
     assert [c.name for c in find_components(ssd.system)] == ["plant", "controller"]
@@ -269,7 +269,7 @@ def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path
 
 
 def test_closed_loop_artefacts_are_reproducible(fmus, ssp, container, tmp_path):
-    from dronefly.build import build_closed_loop
+    from dronefly.builder.build import build_closed_loop
 
     again = build_closed_loop(tmp_path, *fmus)
     assert [p.read_bytes() for p in again] == [ssp.read_bytes(), container.read_bytes()]
@@ -364,7 +364,7 @@ def test_importer_verdicts_of_a_loop_they_do_not_model_are_refused(delayed_pair)
     """fmpy's SSP run and the container FMU of the delayed loop: the fit of the map without
     delay states leaves a residual far above rounding (O(1e-2) and more, against 1e-15 for the
     loop it models): CrossCheckError naming the importer, never a verdict."""
-    from dronefly.errors import CrossCheckError
+    from dronefly.core.errors import CrossCheckError
 
     _, _, ssp_path, container_path = delayed_pair
     with pytest.raises(CrossCheckError, match="fmpy SSP .*fit residual"):
@@ -374,7 +374,7 @@ def test_importer_verdicts_of_a_loop_they_do_not_model_are_refused(delayed_pair)
 
 
 def test_libcosim_verdict_of_a_loop_it_does_not_model_is_refused(libcosim, delayed_pair):
-    from dronefly.errors import CrossCheckError
+    from dronefly.core.errors import CrossCheckError
 
     plant, ctrl, _, _ = delayed_pair
     with pytest.raises(CrossCheckError, match="libcosim .*fit residual"):

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from dronefly.harness.interop.libcosim import libcosim_available, step_ns
-from dronefly.harness.system.description import System
-from dronefly.harness.system.master import SystemMaster
+from dronefly.harness.cosim.system import System
+from dronefly.harness.cosim.system_master import SystemMaster
 
 pytestmark = pytest.mark.integration
 
@@ -66,7 +66,7 @@ def test_fmpy_ssp_runs_the_nonlinear_system_as_a_drop_in(built_fmus):
 
     from dronefly.harness.interop.ssp import ssp_parameter_set
     from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36
-    from dronefly.lateral import N_HZ, U_M_PER_S
+    from dronefly.models.lateral import N_HZ, U_M_PER_S
 
     last = {}
     for name, plant in (("DroneFlyHover6DOF.ssp", "plant"), ("DroneFlyHover.ssp", "lateral")):

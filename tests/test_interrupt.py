@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.interrupt import deferred_sigint
+from dronefly.core.interrupt import deferred_sigint
 
 
 def test_sigint_sets_a_flag_instead_of_raising(sigint_as_in_a_terminal):

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from dronefly import lateral as L
-from dronefly.build import fmu_sources
+from dronefly.models import lateral as L
+from dronefly.builder.build import fmu_sources
 from dronefly.controller.slave import StateFeedback
-from dronefly.plant.slave import DroneFlyLateral
+from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
@@ -61,4 +61,4 @@ def test_controller_fmu_needs_no_numpy_or_scipy():
                 elif isinstance(node, ast.ImportFrom) and not node.level:
                     imported.add((node.module or "").split(".")[0])
     assert not imported & {"numpy", "scipy"}, imported
-    assert not any("plant/" in rel for rel in files)
+    assert not any("fmu_src/" in rel or "_dynamics" in rel for rel in files)

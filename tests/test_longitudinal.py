@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.controller import law as L
-from dronefly.errors import DroneflyError
+from dronefly.models import feedback as L
+from dronefly.core.errors import DroneflyError
 from dronefly.harness.paper import longitudinal as lon
-from dronefly.longitudinal import CONTROL_NAMES, IY_PLUS, LONGITUDINAL, STATE_NAMES
-from dronefly.plant_longitudinal import model as M
+from dronefly.models.longitudinal import CONTROL_NAMES, IY_PLUS, LONGITUDINAL, STATE_NAMES
+from dronefly.models import longitudinal_dynamics as M
 
 from fmu_helpers import model_description, set_values, start
 

@@ -10,7 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
-from dronefly.plant import model as M
+from dronefly.models import lateral_dynamics as M
 
 #: Eq. (24): first column of B1 as printed (the delta Phi_a column).
 B1_COL1_EQ24 = tuple(float(t) for t in pv.EQ24_B_COLUMN)
@@ -126,7 +126,7 @@ def test_zoh_steps_compose_exactly(h1, h2):
 
 
 def test_zoh_against_eigendecomposition():
-    from dronefly.simulate import exact_open_loop
+    from dronefly.harness.cosim.simulate import exact_open_loop
 
     m = M.LateralModel(M.default_parameters())
     x0_dim = np.array([0.1, 2.0, -1.0, 0.1])

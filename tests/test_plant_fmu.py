@@ -10,8 +10,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
-from dronefly.plant import model as M
-from dronefly.simulate import exact_open_loop
+from dronefly.models import lateral_dynamics as M
+from dronefly.harness.cosim.simulate import exact_open_loop
 from dronefly.harness.cosim.fmu import FMU
 from fmu_helpers import model_description, start
 
@@ -33,7 +33,7 @@ def test_fmpy_validate_reports_no_problems(built_fmus):
 
 
 def test_reproducible_build(tmp_path, built_fmus):
-    from dronefly.build import build_fmu
+    from dronefly.builder.build import build_fmu
 
     again = build_fmu("DroneFlyLateral", tmp_path)
     first = built_fmus["DroneFlyLateral"]
@@ -234,14 +234,14 @@ def test_fmu_runs_the_code_it_ships(built_fmus, monkeypatch):
 
 def test_module_names_are_content_addressed(tmp_path, monkeypatch, built_fmus):
     """Two versions of the plant in one process each run their own code."""
-    import dronefly.build as build
+    import dronefly.builder.build as build
 
     pkg, _ = build.fmu_sources("DroneFlyLateral")
     original = build._source_path
 
     def patched(rel):
         path = original(rel)
-        if rel == "plant/model.py":
+        if rel == "models/lateral_dynamics.py":
             text = path.read_text().replace('"L_Phi_a_plus": 2.236', '"L_Phi_a_plus": 4.472')
             path = tmp_path / "model.py"
             path.write_text(text)

@@ -9,8 +9,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.fmi import UNITS
-from dronefly.plant import model as M
-from dronefly.plant.slave import DroneFlyLateral
+from dronefly.models import lateral_dynamics as M
+from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
 
 @pytest.fixture

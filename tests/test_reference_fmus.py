@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.cli import main
+from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
 from dronefly.harness.compliance.suite import JSON_SCHEMA, check_fmu, format_reports
 
@@ -261,8 +261,8 @@ def test_master_equals_fmpy_and_the_reference_results(ref, model, version):
     import fmpy
     import numpy as np
 
-    from dronefly.harness.system.description import System
-    from dronefly.harness.system.master import SystemMaster
+    from dronefly.harness.cosim.system import System
+    from dronefly.harness.cosim.system_master import SystemMaster
 
     path = ref / version / f"{model}.fmu"
     if not path.is_file():
@@ -302,8 +302,8 @@ def test_cosim_system_on_reference_fmus(ref, tmp_path, capsys):
 
     import numpy as np
 
-    from dronefly.harness.system.description import System
-    from dronefly.harness.system.ssp import write_system_ssp
+    from dronefly.harness.cosim.system import System
+    from dronefly.harness.cosim.ssp import write_system_ssp
 
     ssp = write_system_ssp(System({"stair": ref / "fmi3" / "Stair.fmu"}), tmp_path / "s.ssp",
                            stop_s=10.0)
@@ -344,7 +344,7 @@ def test_cosim_system_on_reference_fmus(ref, tmp_path, capsys):
 ])
 def test_failures_name_the_fmi_versions_call(call, version, name):
     """The master says its calls in FMI 2.0 terms; a failure names the FMU's own call."""
-    from dronefly.harness.system.master import call_name
+    from dronefly.harness.cosim.system_master import call_name
 
     assert call_name(call, version) == name
 

@@ -15,7 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
-from dronefly.build import FMUS
+from dronefly.builder.build import FMUS
 from dronefly.harness.compliance.fuzz import fuzz_fmu
 from fmu_helpers import build_crashing_fmu
 

@@ -14,7 +14,7 @@ import pytest
 
 from dronefly.harness.paper import values as pv
 from dronefly.harness.paper.reproduction import reproduction_table
-from dronefly.plant import model
+from dronefly.models import lateral_dynamics as model
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 

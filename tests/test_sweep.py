@@ -11,7 +11,7 @@ import pytest
 
 from dronefly.harness.sweep.run import COLUMNS, read_rows, run_sweep
 from dronefly.harness.sweep.cases import (STATE_BOUNDS_SECT36, Case, SweepInputError, SweepSpec,
-                                          gain_matrix)
+    gain_matrix)
 
 pytestmark = pytest.mark.integration
 
@@ -53,7 +53,7 @@ def test_cases_are_deterministic_and_cover_the_box() -> None:
     for j in range(4):  # a Latin hypercube: one sample per stratum in every dimension
         assert sorted(np.floor((u[:, j] + 1.0) / 2.0 * 50).astype(int)) == list(range(50))
     K = gain_matrix("stabilising")
-    from dronefly.plant.model import default_parameters, system_matrices
+    from dronefly.models.lateral_dynamics import default_parameters, system_matrices
 
     A, B = system_matrices(default_parameters())
     assert np.max(np.linalg.eigvals(A + B @ K).real) < -0.05
@@ -157,7 +157,7 @@ def test_output_folder_of_another_sweep_is_refused(fmus, reference, tmp_path: Pa
 
 
 def test_cli_sweep(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from dronefly.cli import main
+    from dronefly.cli.app import main
 
     out = tmp_path / "sw"
     code = main(["sweep", "--plant", str(fmus["plant"]), "--controller", str(fmus["controller"]),
@@ -190,7 +190,7 @@ def test_cli_sweep(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
 ])
 def test_cli_bad_input(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
                        named: str) -> None:
-    from dronefly.cli import main
+    from dronefly.cli.app import main
 
     out = tmp_path / "out"
     out.mkdir()

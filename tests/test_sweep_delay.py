@@ -45,7 +45,7 @@ def one_blas_thread():
 
 
 def _cli(fmus: dict[str, Path], *args: str) -> int:
-    from dronefly.cli import main
+    from dronefly.cli.app import main
 
     return main(["sweep", "--plant", str(fmus["plant"]), "--controller", str(fmus["controller"]),
                  "--no-progress", "--workers", "1", *args])
@@ -170,7 +170,7 @@ def test_delays_with_a_system_or_a_delayed_controller_exit_2(built_fmus, tmp_pat
                                                               named):
     """A system's controllers take their timing by --set; StateFeedbackDelayed's default delay
     would stay in the cases of delay 0, which set nothing."""
-    from dronefly.cli import main
+    from dronefly.cli.app import main
 
     out = tmp_path / "out"
     where = (["--system", str(built_fmus["DroneFlyHover.ssp"])] if how == "system" else

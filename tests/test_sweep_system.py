@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.cli import main
+from dronefly.cli.app import main
 from dronefly.harness.sweep.cases import SweepInputError, SweepSpec
 from dronefly.harness.sweep.run import read_rows, run_sweep
-from dronefly.harness.system.description import System
-from dronefly.harness.system.ssp import write_system_ssp
+from dronefly.harness.cosim.system import System
+from dronefly.harness.cosim.ssp import write_system_ssp
 
 pytestmark = pytest.mark.integration
 
@@ -65,8 +65,8 @@ def test_process_pool_on_a_system(built_fmus, tmp_path):
 
 def _phi_a_only_ssp(built_fmus, tmp_path) -> Path:
     """The lateral pair with only delta_Phi_a wired: gains on the other controls act nowhere."""
-    from dronefly.harness.system.description import Connection
-    from dronefly.lateral import STATE_NAMES
+    from dronefly.harness.cosim.system import Connection
+    from dronefly.models.lateral import STATE_NAMES
 
     cons = [Connection("plant", s, "ctrl", s) for s in STATE_NAMES]
     cons.append(Connection("ctrl", "delta_Phi_a", "plant", "delta_Phi_a"))

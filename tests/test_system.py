@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronefly.cli import main
+from dronefly.cli.app import main
 from dronefly.harness.cosim.master import Loop
-from dronefly.harness.system.description import Connection, System, SystemSpecError
-from dronefly.harness.system.master import SystemMaster
-from dronefly.controller.law import PAPER_GAINS_EQ27
-from dronefly.lateral import CONTROL_NAMES, STATE_NAMES, scale_vector
+from dronefly.harness.cosim.system import Connection, System, SystemSpecError
+from dronefly.harness.cosim.system_master import SystemMaster
+from dronefly.models.feedback import PAPER_GAINS_EQ27
+from dronefly.models.lateral import CONTROL_NAMES, STATE_NAMES, scale_vector
 
 pytestmark = pytest.mark.integration
 
@@ -123,7 +123,7 @@ def test_pair_through_the_system_master_equals_the_former_pair_master(built_fmus
     """Oracle: the pair master kept in benchmarks/ (and its Jacobi ordering, kept above),
     bit for bit, for the pair through SystemMaster (derived order, fresh instances) and
     through Loop (the pair's order, reused instances, Jacobi's u_source0)."""
-    from dronefly.controller.law import gain_name
+    from dronefly.models.feedback import gain_name
 
     former = _former_pair_master()
     system = System.by_name({"plant": built_fmus["DroneFlyLateral"],
@@ -221,7 +221,7 @@ def test_ssp_and_python_give_the_same_trajectory(built_fmus, gain, tmp_path):
 def test_algebraic_loop_is_refused_with_its_cycle_and_runs_under_jacobi(gain):
     """g1.u = 2 given (the input keeps it at initialization: its source g2 comes later in
     the loop), then every FMU answers from the previous point's inputs."""
-    from dronefly.harness.system.run import cosimulate_system
+    from dronefly.harness.stability.system import cosimulate_system
 
     k1, k2, u0 = 0.5, -0.8, 2.0
     system = System({"g1": gain, "g2": gain},
@@ -287,7 +287,7 @@ def test_failed_call_stops_the_run_naming_instance_call_and_time(built_fmus, gai
 
 
 def test_cli_marks_a_failed_run_incomplete_and_keeps_its_csv(built_fmus, gain, tmp_path, capsys):
-    from dronefly.harness.system.ssp import write_system_ssp
+    from dronefly.harness.cosim.ssp import write_system_ssp
 
     ssp = write_system_ssp(_three(built_fmus, gain), tmp_path / "three.ssp")
     out = tmp_path / "o"
@@ -346,7 +346,7 @@ def test_values_of_the_wrong_type_are_refused_naming_them(gain, name, value, fra
     with SystemMaster(System({"g": gain})) as sm, \
             pytest.raises(SystemSpecError, match=re.escape(fragment)):
         sm.run(0.1, 2, values={"g": {name: value}})
-    from dronefly.harness.system.run import cosimulate_system
+    from dronefly.harness.stability.system import cosimulate_system
 
     with pytest.raises(SystemSpecError, match=re.escape(fragment)):
         cosimulate_system(System({"g": gain}), set_values={f"g.{name}": value}, out_dir=None)
@@ -360,8 +360,8 @@ def test_values_of_the_wrong_type_are_refused_naming_them(gain, name, value, fra
 def test_pair_values_of_the_wrong_type_exit_2(built_fmus, tmp_path, capsys, setting, fragment):
     """The --plant/--controller path refuses them the same way (one line, exit 2, nothing
     written), and so does its Python API."""
-    from dronefly.errors import DroneflyError
-    from dronefly.harness.cosim.run import cosimulate
+    from dronefly.core.errors import DroneflyError
+    from dronefly.harness.stability.run import cosimulate
 
     out = tmp_path / "o"
     code = main(["cosim", "--plant", str(built_fmus["DroneFlyLateral"]), "--controller",
@@ -377,7 +377,7 @@ def test_pair_values_of_the_wrong_type_exit_2(built_fmus, tmp_path, capsys, sett
 def test_a_huge_value_exits_2_naming_it(built_fmus, gain, tmp_path, capsys):
     """--set of 400 digits on an Integer: one line naming instance.NAME, exit 2 (it raised
     OverflowError, an internal error)."""
-    from dronefly.harness.system.ssp import write_system_ssp
+    from dronefly.harness.cosim.ssp import write_system_ssp
 
     ssp = write_system_ssp(_three(built_fmus, gain), tmp_path / "three.ssp")
     out = tmp_path / "o"
@@ -393,7 +393,7 @@ def test_a_huge_value_exits_2_naming_it(built_fmus, gain, tmp_path, capsys):
 def test_record_any_variable_of_any_instance(built_fmus, gain):
     """Inputs (as set for the step from each point), parameters, calculated parameters,
     Integer and Boolean outputs, array elements; the Real outputs unchanged by them."""
-    from dronefly.plant import model
+    from dronefly.models import lateral_dynamics as model
 
     states = [f"plant.{s}" for s in STATE_NAMES]
     extra = ["plant.delta_Phi_a", "gain.u", "gain.k", "gain.m", "gain.negate", "gain.steps",
@@ -418,7 +418,7 @@ def test_record_any_variable_of_any_instance(built_fmus, gain):
 def test_default_recording_reads_nothing_more(built_fmus, gain):
     """Recording the Real outputs adds no call to a step (the plan's record ops are empty);
     the default also records the Integer and Boolean outputs, each read with its own call."""
-    from dronefly.harness.system.plan import build_nodes, record_ops
+    from dronefly.harness.cosim.plan import build_nodes, record_ops
 
     with SystemMaster(_three(built_fmus, gain)) as sm:
         kind = {n: sm.fmus[n.split(".")[0]].variables[n.split(".", 1)[1]].type for n in sm.names}
@@ -455,7 +455,7 @@ def test_the_pair_records_more_variables_after_its_own(plant, controller):
 
 def test_ssp_round_trip_keeps_integer_boolean_and_string_values(gain, tmp_path):
     """Our SSP writer and reader: each SSV value keeps its type, and the system runs."""
-    from dronefly.harness.system.ssp import write_system_ssp
+    from dronefly.harness.cosim.ssp import write_system_ssp
 
     values = {"k": 0.25, "m": 3, "negate": True, "label": "g1", "u": 2.0}
     back = System.from_ssp(write_system_ssp(System({"g": gain}, parameters={"g": values}),
@@ -524,7 +524,7 @@ def test_ssv_enumeration_items_are_resolved_by_name(gain, tmp_path):
     naming it and the items (int('left') raised 'not a valid Enumeration')."""
     from types import SimpleNamespace as NS
 
-    from dronefly.harness.system.values import typed_value
+    from dronefly.harness.cosim.values import typed_value
 
     ssv = ('<?xml version="1.0" encoding="UTF-8"?><ssv:ParameterSet version="1.0" name="g" '
            'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">'
@@ -559,7 +559,7 @@ def test_a_large_fmi2_value_reference_is_read_as_fmi2():
     from ctypes import c_double
     from types import SimpleNamespace as NS
 
-    from dronefly.harness.system.plan import build_nodes, record_ops
+    from dronefly.harness.cosim.plan import build_nodes, record_ops
 
     variables = [NS(name="loc", type="Real", causality="local", valueReference=2 ** 30 + 5)]
     fmu = NS(model_description=NS(modelVariables=variables), fmi_version=2, elements={},
@@ -588,7 +588,7 @@ def test_sweep_compare_refuses_a_set_value_the_two_systems_read_differently(buil
 
     from dronefly.harness.sweep.cases import SweepInputError
     from dronefly.harness.sweep.run import run_sweep
-    from dronefly.harness.system.ssp import write_system_ssp
+    from dronefly.harness.cosim.ssp import write_system_ssp
 
     d = tmp_path / "real_m"
     d.mkdir()

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from docnumbers import NumericText, same_numbers
 
-from dronefly.cli import main
-from dronefly.harness.nonlinear.terms import line_profile, linearisation_error, term_errors
-from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36, SweepInputError, SweepSpec, \
-    direction_vector
+from dronefly.cli.app import main
+from dronefly.harness.validity.terms import line_profile, linearisation_error, term_errors
+from dronefly.harness.sweep.cases import (STATE_BOUNDS_SECT36, SweepInputError, SweepSpec,
+    direction_vector)
 from dronefly.harness.sweep.compare import LONGITUDINAL_AXES, compare_summary
 from dronefly.harness.sweep.run import run_sweep
 

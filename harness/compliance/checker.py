@@ -56,7 +56,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
+from ..cosim.fmu import FMU, FMUError, Instance
 
 __all__ = ["CHECK_NAMES", "PROFILES", "RULES", "CheckOptions", "CheckResult", "CheckSkipped",
            "FMUReport", "profile_for", "rule_of", "run_checks"]
@@ -797,7 +797,7 @@ def _check_logger_format(ctx: _Context) -> str:
 def _check_reference(ctx: _Context) -> str:
     if not ctx.ours:
         raise CheckSkipped("reference results are the project's FMUs' (dronefly profile)")
-    from dronefly.harness.compliance.reference import REFERENCES, check_reference
+    from .reference import REFERENCES, check_reference
 
     if ctx.fmu.name not in REFERENCES:
         raise CheckSkipped("no reference result for this model")
@@ -823,7 +823,7 @@ _CHECKS: list[tuple[str, Callable[[_Context], str]]] = [
 
 def rule_of(name: str, fmi_version: int, profile: str) -> str:
     """The rule line of check ``name`` (with the dronefly profile's promise if it adds one)."""
-    from dronefly.harness.compliance.fmi3checks import FMI3_RULES
+    from .fmi3checks import FMI3_RULES
 
     r2, r3, ours = {**RULES, **FMI3_RULES}.get(name, ("", "", ""))
     rule = r3 if fmi_version == 3 else r2
@@ -831,7 +831,7 @@ def rule_of(name: str, fmi_version: int, profile: str) -> str:
 
 
 def _iter_checks(ctx: _Context) -> Iterator[tuple[str, Callable[[_Context], str]]]:
-    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS, FMI3_PROFILES
+    from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
 
     for name, fn in _CHECKS:
         yield name, fn

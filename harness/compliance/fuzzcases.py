@@ -27,11 +27,10 @@ import random
 import sys
 from typing import Any, Callable
 
-from dronefly.harness.compliance.fuzzkit import (BAD_VALUES, ERROR, LOGGING, OK, PRINTED, STATES,
-                                                 Case, experiment, instantiate, reals,
-                                                 to_state)
-from dronefly.harness.compliance.fuzzrandom import group_churn, group_random
-from dronefly.harness.cosim.fmu import FMU
+from .fuzzkit import (BAD_VALUES, ERROR, LOGGING, OK, PRINTED, STATES, Case, experiment,
+    instantiate, reals, to_state)
+from .fuzzrandom import group_churn, group_random
+from ..cosim.fmu import FMU
 
 __all__ = ["GROUPS", "run_groups"]
 

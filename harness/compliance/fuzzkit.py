@@ -9,7 +9,7 @@ import math
 import tempfile
 from typing import Any
 
-from dronefly.harness.cosim.fmu import FMU, Instance
+from ..cosim.fmu import FMU, Instance
 
 __all__ = ["BAD_VALUES", "DISCARD", "ERROR", "FATAL", "LOGGING", "OK", "PRINTED", "STATES", "WARNING",
            "Case", "Printed", "experiment", "instantiate", "reals", "to_state"]

@@ -10,8 +10,8 @@ import math
 import random
 from typing import Any, Callable
 
-from dronefly.harness.compliance.fuzzkit import Case, experiment, instantiate, reals, to_state
-from dronefly.harness.cosim.fmu import FMU, Instance
+from .fuzzkit import Case, experiment, instantiate, reals, to_state
+from ..cosim.fmu import FMU, Instance
 
 __all__ = ["group_churn", "group_random"]
 

@@ -17,10 +17,10 @@ from typing import Callable
 
 import numpy as np
 
-from dronefly.files import write_csv_atomic, write_text_atomic
-from dronefly import longitudinal as lon
-from dronefly.hover6dof import OUTPUT_NAMES
-from dronefly.plant.model import CONTROL_NAMES, N_HZ, STATE_NAMES
+from ...core.files import write_csv_atomic, write_text_atomic
+from ...models import longitudinal as lon
+from ...models.hover6dof import OUTPUT_NAMES
+from ...models.lateral_dynamics import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
            "write_reference"]
@@ -71,9 +71,12 @@ def _longitudinal_controller_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
+_PACKAGE_ROOT = Path(__file__).resolve().parents[2]  # harness/compliance/../..
+
+
 @dataclass(frozen=True)
 class _Setup:
-    folder: str  # subpackage of dronefly holding the files
+    folder: str  # the folder holding the files, below the package root
     inputs: Callable[[np.ndarray], dict[str, np.ndarray]]
     outputs: tuple[str, ...]
     stop_wingbeats: float = 30.0
@@ -91,9 +94,9 @@ def _hover6dof_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
 
 
 REFERENCES: dict[str, _Setup] = {
-    "DroneFlyLateral": _Setup("plant", _plant_inputs, STATE_NAMES),
+    "DroneFlyLateral": _Setup("fmu_src/lateral", _plant_inputs, STATE_NAMES),
     "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
-    "DroneFlyLongitudinal": _Setup("plant_longitudinal", _longitudinal_plant_inputs,
+    "DroneFlyLongitudinal": _Setup("fmu_src/longitudinal", _longitudinal_plant_inputs,
                                    lon.STATE_NAMES, stop_wingbeats=60.0),
     "StateFeedbackLongitudinal": _Setup("controller", _longitudinal_controller_inputs,
                                         (*lon.CONTROL_NAMES, "saturated"), stop_wingbeats=60.0),
@@ -102,10 +105,10 @@ REFERENCES: dict[str, _Setup] = {
     "StateFeedbackLongitudinalDelayed": _Setup("controller", _longitudinal_controller_inputs,
                                                (*lon.CONTROL_NAMES, "saturated"),
                                                stop_wingbeats=60.0),
-    "DroneFlyHover6DOF": _Setup("plant_6dof", _hover6dof_inputs, OUTPUT_NAMES,
+    "DroneFlyHover6DOF": _Setup("fmu_src/hover6dof", _hover6dof_inputs, OUTPUT_NAMES,
                                 stop_wingbeats=60.0),
     # the container FMU: the closed loop from its default initial state (a 0.1 rad roll)
-    "DroneFlyClosedLoop": _Setup("harness.interop", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
+    "DroneFlyClosedLoop": _Setup("harness/interop", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
                                  stop_wingbeats=100.0),
 }
 
@@ -123,10 +126,7 @@ class ReferenceCheck:
 
 def reference_paths(model: str) -> tuple[Path, Path, Path]:
     """(``_in.csv``, ``_ref.opt``, ``_ref.csv``) of a model in the source tree."""
-    import importlib
-
-    setup = REFERENCES[model]
-    folder = Path(importlib.import_module(f"dronefly.{setup.folder}").__file__).resolve().parent
+    folder = _PACKAGE_ROOT / REFERENCES[model].folder
     return (folder / f"{model}_in.csv", folder / f"{model}_ref.opt", folder / f"{model}_ref.csv")
 
 

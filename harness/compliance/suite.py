@@ -23,8 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
-from dronefly.harness.compliance.checker import (CHECK_NAMES, CheckOptions, CheckResult,
-                                                 FMUReport, rule_of, run_checks)
+from .checker import CHECK_NAMES, CheckOptions, CheckResult, FMUReport, rule_of, run_checks
 
 __all__ = ["JSON_SCHEMA", "check_fmu", "check_fmus", "format_reports", "not_checked",
            "reports_json", "reports_junit"]
@@ -64,7 +63,7 @@ def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
                 "fuzz", True, "not applicable: the fuzz calls the FMI 2.0 API; FMI 3.0 has "
                 "the state-machine check", rule="dronefly profile: the fuzz", skipped=True))
         elif report.checks and report.checks[0].name != "load":
-            from dronefly.harness.compliance.fuzz import fuzz_fmu
+            from .fuzz import fuzz_fmu
 
             t1 = time.perf_counter()
             f = fuzz_fmu(path, random_calls=100, instances=5)
@@ -116,7 +115,7 @@ def not_checked(path: Path) -> str | None:
 
 
 def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUReport:
-    from dronefly.harness.compliance.fuzz import describe_exit
+    from .fuzz import describe_exit
 
     with tempfile.TemporaryDirectory(prefix="dronefly_check_") as tmp:
         rows = Path(tmp, "checks.jsonl")
@@ -171,7 +170,7 @@ def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUR
 def _not_run(path: Path, report: FMUReport, crashed: str | None,
              options: CheckOptions) -> list[CheckResult]:
     """One failed row listing the checks a crash left out (none if it left none out)."""
-    from dronefly.harness.compliance.fmi3checks import FMI3_CHECKS, FMI3_PROFILES
+    from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
 
     profile = report.profile or "standard"
     names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS

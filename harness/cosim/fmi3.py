@@ -103,7 +103,7 @@ def _extent(md: Any, dim: Any) -> int:
         param = next((v for v in md.modelVariables if v.valueReference == dim.valueReference),
                      None)
     if param is None or param.start is None:
-        from dronefly.errors import DroneflyError
+        from ...core.errors import DroneflyError
 
         raise DroneflyError(f"an array dimension names value reference {dim.valueReference}, "
                             "which is no variable with a start value")
@@ -235,7 +235,7 @@ class FMU3Adapter:
     def _int(self, vr: int) -> str:
         kind = INT_TYPES.get(self._types.get(vr, ""))
         if kind is None:
-            from dronefly.errors import DroneflyError
+            from ...core.errors import DroneflyError
 
             raise DroneflyError(f"value reference {vr} is a {self._types.get(vr, 'unknown')} "
                                 "variable, not an integer one")

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from dronefly.errors import DroneflyError
+from ...core.errors import DroneflyError
 
 __all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "start_values"]
 

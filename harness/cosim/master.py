@@ -23,10 +23,10 @@ import dataclasses
 import math
 from typing import Any, Mapping, Sequence
 
-from dronefly.errors import DroneflyError
+from ...core.errors import DroneflyError
 
-from dronefly.harness.cosim.fmu import FMU, FMUError, Instance
-from dronefly.harness.cosim.records import MASTERS, MAX_STEPS, LoopRun, StepFailure
+from .fmu import FMU, FMUError, Instance
+from .records import MASTERS, MAX_STEPS, LoopRun, StepFailure
 
 __all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "connect_by_name",
            "step_count"]
@@ -111,7 +111,7 @@ class Loop:
     """
 
     def __init__(self, plant: FMU, controller: FMU) -> None:
-        from dronefly.harness.system.description import System
+        from .system import System
 
         self.plant, self.controller = plant, controller
         self.states = plant.names("output")
@@ -128,9 +128,9 @@ class Loop:
 
     def master(self, master: str = "gauss-seidel") -> Any:
         """The :class:`SystemMaster` of the pair under ``master`` (made once)."""
-        from dronefly.harness.system.description import SystemSpecError
-        from dronefly.harness.system.graph import Order
-        from dronefly.harness.system.master import SystemMaster
+        from .system import SystemSpecError
+        from .graph import Order
+        from .system_master import SystemMaster
 
         if master not in self._masters:
             try:
@@ -160,7 +160,7 @@ class Loop:
         Real, Integer or Boolean (see :meth:`SystemMaster.run`). A failure names the FMU
         (its model name), the call and the time.
         """
-        from dronefly.harness.system.description import SystemSpecError
+        from .system import SystemSpecError
 
         if master not in MASTERS:
             raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")

@@ -16,9 +16,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from dronefly.controller.law import default_gains
-from dronefly.errors import DroneflyError
-from dronefly.lateral import CONTROL_NAMES, STATE_NAMES
+from ...models.feedback import default_gains
+from ...core.errors import DroneflyError
+from ...models.lateral import CONTROL_NAMES, STATE_NAMES
 
 __all__ = ["GAIN_SETS", "SHARED_SCALES", "STABILISING_LAMBDA1", "ParameterError", "as_gain_matrix",
            "gain_matrix", "parse_gains", "resolve_assignments", "scale_ratios"]
@@ -41,8 +41,8 @@ def gain_matrix(name: str) -> np.ndarray:
     if name == "open":
         return np.zeros(_SHAPE)
     if name == "stabilising":
-        from dronefly.harness.paper.design import move_lambda1_gains
-        from dronefly.plant import model
+        from ..paper.design import move_lambda1_gains
+        from ...models import lateral_dynamics as model
 
         A, B = model.system_matrices(model.default_parameters())
         K = np.zeros(_SHAPE)
@@ -126,7 +126,7 @@ def resolve_assignments(values: Mapping[str, Any],
     A name is ``instance.NAME`` or a bare ``NAME`` that exactly one instance has. It must be
     a parameter (fixed or tunable) or an input; its value (a number, a boolean or text, as
     ``--set`` gives it) is converted as the system master converts every value
-    (:func:`dronefly.harness.system.values.typed_value`: Real a finite number, Integer a whole
+    (:func:`dronefly.harness.cosim.values.typed_value`: Real a finite number, Integer a whole
     number, Boolean true/false/1/0, String text). Values are in the FMU's own (SI) unit.
 
     Raises
@@ -135,8 +135,8 @@ def resolve_assignments(values: Mapping[str, Any],
         An unknown or ambiguous name, a variable that cannot be set, a value its type cannot
         take (one line naming ``instance.NAME`` and the value).
     """
-    from dronefly.harness.system.description import SystemSpecError
-    from dronefly.harness.system.values import settable, typed_value
+    from .system import SystemSpecError
+    from .values import settable, typed_value
 
     out: dict[str, dict[str, Any]] = {}
     for key, value in values.items():

@@ -3,7 +3,7 @@ stopped it early, the FMUs' messages) and :class:`StepFailure`; the masters' nam
 limit on the steps of a run.
 
 Shared by the pair's :class:`~.master.Loop` and the system master
-(:mod:`dronefly.harness.system.master`) that runs it.
+(:mod:`dronefly.harness.cosim.system_master`) that runs it.
 """
 
 from __future__ import annotations

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dronefly import lateral
-from dronefly.errors import CrossCheckError
+from ...models import lateral
+from ...core.errors import CrossCheckError
 
 __all__ = ["FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TOL_PER_WINGBEAT", "TRAJECTORY_TOL",
            "Identification", "checked", "classify", "cross_check_failures", "identify",
@@ -53,7 +53,7 @@ _DELAY_MODE = 1e-7
 
 
 def sort_eigenvalues(ev: np.ndarray) -> np.ndarray:
-    """As an array, in the order of :func:`dronefly.lateral.sort_eigenvalues`."""
+    """As an array, in the order of :func:`dronefly.models.lateral.sort_eigenvalues`."""
     return np.array(lateral.sort_eigenvalues(np.ravel(ev)), dtype=complex)
 
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dronefly.controller.law import default_gains, gain_name
-from dronefly.harness.cosim.fmu import start_values
-from dronefly.lateral import STATE_NAMES, plant_scales
-from dronefly.harness.cosim.master import CoSimError
+from ...models.feedback import default_gains, gain_name
+from ..cosim.fmu import start_values
+from ...models.lateral import STATE_NAMES, plant_scales
+from ..cosim.master import CoSimError
 
 __all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "CONTROLLER", "GUID_NAMESPACE", "PLANT", "ClosedLoopSpec",
            "parameter_values", "reference_scales"]

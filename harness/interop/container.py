@@ -35,13 +35,13 @@ from typing import Any, Mapping
 import numpy as np
 from fmpy import read_model_description
 
-from dronefly.files import write_zip
-from dronefly.harness.interop.closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec,
-                        parameter_values, reference_scales)
-from dronefly.harness.interop.nestedshim import install_shims
-from dronefly.harness.cosim.master import connect_by_name
-from dronefly.harness.cosim.stability import Identification, checked, identify
-from dronefly.lateral import STATE_NAMES
+from ...core.files import write_zip
+from .closedloop import (GUID_NAMESPACE, CLOSED_LOOP, CONTAINER_TYPES, ClosedLoopSpec,
+    parameter_values, reference_scales)
+from .nestedshim import install_shims
+from ..cosim.master import connect_by_name
+from ..cosim.stability import Identification, checked, identify
+from ...models.lateral import STATE_NAMES
 
 __all__ = ["Verdict", "container_configuration", "container_verdict", "fix_connection_types", "run_container",
            "write_container"]

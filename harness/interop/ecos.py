@@ -46,13 +46,13 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from dronefly.harness.cosim.master import CoSimError
-from dronefly.harness.cosim.stability import checked, identify
-from dronefly.harness.interop.closedloop import reference_scales
-from dronefly.harness.interop.container import Verdict
-from dronefly.harness.interop.libcosim import InteropRun
-from dronefly.harness.interop.ssp import ssp_parameter_set
-from dronefly.lateral import STATE_NAMES
+from ..cosim.master import CoSimError
+from ..cosim.stability import checked, identify
+from .closedloop import reference_scales
+from .container import Verdict
+from .libcosim import InteropRun
+from .ssp import ssp_parameter_set
+from ...models.lateral import STATE_NAMES
 
 __all__ = ["ecos_available", "ecos_env", "ecos_verdict", "run_ecos", "tbb_library_dir"]
 
@@ -167,7 +167,7 @@ def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
 
 def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
     """n [Hz] and the state scales of the plant component's FMU."""
-    from dronefly.harness.cosim.fmi3 import read_view  # FMI 2.0 or 3.0
+    from ..cosim.fmi3 import read_view  # FMI 2.0 or 3.0
 
     source = _component(ssp, plant).get("source")
     with zipfile.ZipFile(ssp) as z, tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:

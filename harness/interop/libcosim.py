@@ -40,10 +40,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from dronefly.harness.interop.closedloop import reference_scales
-from dronefly.lateral import STATE_NAMES
-from dronefly.harness.cosim.master import CoSimError
-from dronefly.harness.cosim.stability import Identification, checked, identify
+from .closedloop import reference_scales
+from ...models.lateral import STATE_NAMES
+from ..cosim.master import CoSimError
+from ..cosim.stability import Identification, checked, identify
 
 __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
            "run_libcosim", "step_ns"]

@@ -39,7 +39,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable
 
-from dronefly.fmi.host import PYTHONFMU_BESIDE_SHIM
+from ...fmi.host import PYTHONFMU_BESIDE_SHIM
 
 __all__ = ["REAL_SUFFIX", "SHIM_SOURCE", "install_shims", "shim_library"]
 

@@ -28,15 +28,15 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from dronefly.files import write_zip
-from dronefly.harness.interop.closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec,
-                        parameter_values, reference_scales)
-from dronefly.harness.cosim.master import CoSimError
-from dronefly.harness.cosim.fmi3 import read_view
-from dronefly.harness.cosim.master import connect_by_name
-from dronefly.harness.cosim.stability import checked, identify
-from dronefly.harness.interop.container import Verdict
-from dronefly.lateral import STATE_NAMES
+from ...core.files import write_zip
+from .closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, parameter_values,
+    reference_scales)
+from ..cosim.master import CoSimError
+from ..cosim.fmi3 import read_view
+from ..cosim.master import connect_by_name
+from ..cosim.stability import checked, identify
+from .container import Verdict
+from ...models.lateral import STATE_NAMES
 
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
 

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
-from dronefly.harness.latency.loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
+from .loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
 
 __all__ = ["Crossing", "DelayMargin", "crossings", "delay_margin", "loop_gain",
            "origin_crossing_delay", "quasi_polynomial_residual", "real_root_delay"]

@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from dronefly.controller.law import PAPER_GAINS_EQ27, U_MAX_LINEAR_RANGE
-from dronefly.harness.cosim.params import STABILISING_LAMBDA1, gain_matrix
-from dronefly.harness.latency.loop import FeedbackLoop, LatencyInputError
-from dronefly.harness.paper.analysis import coefficient_matching_gains, lateral_system, ordered_eigen
-from dronefly.harness.paper.design import lqr_gains
-from dronefly.lateral import CONTROL_NAMES, STATE_BOUNDS_SECT36
+from ...models.feedback import PAPER_GAINS_EQ27, U_MAX_LINEAR_RANGE
+from ..cosim.params import STABILISING_LAMBDA1, gain_matrix
+from .loop import FeedbackLoop, LatencyInputError
+from ..paper.analysis import coefficient_matching_gains, lateral_system, ordered_eigen
+from ..paper.design import lqr_gains
+from ...models.lateral import CONTROL_NAMES, STATE_BOUNDS_SECT36
 
 __all__ = ["DESIGNS", "PI_DOUBLE_ROOT", "bryson_weights", "design", "designs", "pi_loop"]
 

@@ -27,8 +27,8 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from dronefly.harness.latency.loop import FeedbackLoop, LatencyInputError
-from dronefly.harness.latency.sampled import delay_split, sampled_matrix
+from .loop import FeedbackLoop, LatencyInputError
+from .sampled import delay_split, sampled_matrix
 
 __all__ = ["DelayedIdentification", "augmented_trajectory", "cosimulate_runs",
            "identify_delayed"]
@@ -151,7 +151,7 @@ def cosimulate_runs(plant: Any, controller: Any, loop: FeedbackLoop, Ts: float, 
     LatencyInputError
         A run stopped early or diverged (the message says which).
     """
-    from dronefly.harness.cosim.fmu import FMU
+    from ..cosim.fmu import FMU
 
     with contextlib.ExitStack() as stack:
         p = plant if isinstance(plant, FMU) else stack.enter_context(FMU(Path(plant)))
@@ -161,9 +161,9 @@ def cosimulate_runs(plant: Any, controller: Any, loop: FeedbackLoop, Ts: float, 
 
 def _runs(p: Any, c: Any, loop: FeedbackLoop, Ts: float, tau: float, n_steps: int,
           substeps: int) -> list[NDArray[np.float64]]:
-    from dronefly.controller.law import gain_name, integral_gain_name
-    from dronefly.harness.cosim.master import Loop
-    from dronefly.lateral import plant_scales
+    from ...models.feedback import gain_name, integral_gain_name
+    from ..cosim.master import Loop
+    from ...models.lateral import plant_scales
 
     pair = Loop(p, c)
     scale = np.array(plant_scales(p.start_values()))

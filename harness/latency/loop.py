@@ -19,7 +19,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from dronefly.errors import DroneflyError
+from ...core.errors import DroneflyError
 
 __all__ = ["FeedbackLoop", "LatencyInputError", "NEUTRAL_RATE"]
 

@@ -15,15 +15,14 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from dronefly.harness.latency.continuous import DelayMargin, delay_margin
-from dronefly.harness.latency.designs import DESIGNS, bryson_weights, design, designs
-from dronefly.harness.latency.loop import FeedbackLoop, LatencyInputError
-from dronefly.harness.latency.sampled import (Response, SampledMargin, excess_rate, response,
-                                              sampled_margin, sampled_rates)
-from dronefly.harness.cosim.stability import classify
-from dronefly.harness.paper.analysis import lateral_system
-from dronefly.harness.paper.design import lqr_gains
-from dronefly.lateral import CONTROL_NAMES, N_HZ
+from .continuous import DelayMargin, delay_margin
+from .designs import DESIGNS, bryson_weights, design, designs
+from .loop import FeedbackLoop, LatencyInputError
+from .sampled import Response, SampledMargin, excess_rate, response, sampled_margin, sampled_rates
+from ..cosim.stability import classify
+from ..paper.analysis import lateral_system
+from ..paper.design import lqr_gains
+from ...models.lateral import CONTROL_NAMES, N_HZ
 
 __all__ = ["COST_DELAYS_MS", "MarginRow", "ROLL", "Redesign", "TARGETS_MS", "cost", "cost_table",
            "margin_rows", "margin_table", "markdown", "ms_to_wb", "redesign_table", "redesigns",

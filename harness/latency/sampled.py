@@ -8,7 +8,7 @@ equilibrium (x = 0, z = 0, so u = 0 until the first sample takes effect).
 
 With tau = d Ts + eps (0 <= eps < Ts), over [t_k, t_(k+1)) the control is u_(k-d-1) until
 t_k + eps and u_(k-d) after, so the plant, integrated exactly (zero-order hold by the
-matrix exponential of the augmented matrix, :func:`dronefly.linear.discretize_zoh`), gives
+matrix exponential of the augmented matrix, :func:`dronefly.models.linear.discretize_zoh`), gives
 
     x_(k+1) = Phi x_k + Gamma(Ts - eps) u_(k-d) + e^(A (Ts - eps)) Gamma(eps) u_(k-d-1),
 
@@ -31,10 +31,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import eig
 from scipy.optimize import brentq
 
-from dronefly.harness.cosim.stability import classify, rates_from_transition
-from dronefly.harness.latency.loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
-from dronefly.linear import discretize_zoh
-from dronefly.lateral import STATE_BOUNDS_SECT36
+from ..cosim.stability import classify, rates_from_transition
+from .loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
+from ...models.linear import discretize_zoh
+from ...models.lateral import STATE_BOUNDS_SECT36
 
 __all__ = ["Response", "SampledMargin", "delay_split", "excess_rate", "response",
            "sampled_margin", "sampled_matrix", "sampled_rates", "verdict_map"]

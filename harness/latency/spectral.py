@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import brentq
 
-from dronefly.harness.latency.loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
+from .loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
 
 __all__ = ["chebyshev_differentiation", "collocation_margin", "collocation_roots",
            "dominant_root"]

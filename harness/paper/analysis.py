@@ -1,7 +1,7 @@
 """Eigen-, modal, controllability and pole-placement analysis (Sects. 3.3-3.5).
 
-Lateral matrices come from :mod:`dronefly.plant.model`; the longitudinal ones
-from the printed A, B of Sect. 3.5 (:mod:`dronefly.plant_longitudinal.model`). The
+Lateral matrices come from :mod:`dronefly.models.lateral_dynamics`; the longitudinal ones
+from the printed A, B of Sect. 3.5 (:mod:`dronefly.models.longitudinal_dynamics`). The
 modal form lives in :mod:`dronefly.harness.paper.modal` (re-exported here).
 All rates are non-dimensional, per wing beat (t+ = t n); controls in rad.
 """
@@ -15,13 +15,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import place_poles
 
-from dronefly.errors import DroneflyError
-from dronefly.plant import model
-from dronefly.plant_longitudinal.model import A_SECT35, B_SECT35
+from ...core.errors import DroneflyError
+from ...models import lateral_dynamics as model
+from ...models.longitudinal_dynamics import A_SECT35, B_SECT35
 
-from dronefly.harness.paper.modal import (LATERAL_CONVENTION, LONGITUDINAL_CONVENTION,
-                                          ModalConvention, ModalForm, eigenvector_table,
-                                          modal_decomposition, ordered_eigen)
+from .modal import (LATERAL_CONVENTION, LONGITUDINAL_CONVENTION, ModalConvention, ModalForm,
+    eigenvector_table, modal_decomposition, ordered_eigen)
 
 __all__ = [
     "AnalysisInputError", "LATERAL_CONVENTION", "LONGITUDINAL_CONVENTION", "ModalConvention",

@@ -16,11 +16,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_continuous_are
 
-from dronefly.harness.cosim.stability import sort_eigenvalues
-from dronefly.plant import model
+from ..cosim.stability import sort_eigenvalues
+from ...models import lateral_dynamics as model
 
-from dronefly.harness.paper.analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
-                       eigenvector_table, input_index, ordered_eigen)
+from .analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
+    eigenvector_table, input_index, ordered_eigen)
 
 __all__ = ["Design", "DisturbanceResponse", "analysis_report", "lqr_gains", "move_lambda1_gains",
            "peak_control", "stabilising_designs"]
@@ -167,11 +167,10 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
     AnalysisInputError
         Bad input name, non-finite or non-conjugate targets, uncontrollable input.
     """
-    from dronefly.harness.paper import values as pv
-    from dronefly.harness.paper.analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
-                           characteristic_affine, controllability, lateral_system,
-                           longitudinal_system, modal_decomposition, parse_targets,
-                           place_poles_gains)
+    from . import values as pv
+    from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
+        characteristic_affine, controllability, lateral_system, longitudinal_system,
+        modal_decomposition, parse_targets, place_poles_gains)
 
     u = input_index(design_input)
     custom = None if targets is None else parse_targets(targets)

@@ -32,10 +32,9 @@ from scipy.linalg import expm
 from scipy.optimize import minimize_scalar
 from scipy.signal import place_poles
 
-from dronefly.harness.paper.analysis import (AnalysisInputError, coefficient_matching_gains,
-                                             ordered_eigen)
-from dronefly.longitudinal import CONTROL_NAMES, STATE_NAMES
-from dronefly.plant_longitudinal.model import default_parameters, system_matrices
+from .analysis import AnalysisInputError, coefficient_matching_gains, ordered_eigen
+from ...models.longitudinal import CONTROL_NAMES, STATE_NAMES
+from ...models.longitudinal_dynamics import default_parameters, system_matrices
 
 __all__ = ["INPUT_SETS", "TARGETS", "LongitudinalDesign", "design", "designs", "peak_controls",
            "targets"]

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from dronefly.harness.paper import values as pv
-from dronefly.harness.paper.analysis import (ModalConvention, ackermann_gains, characteristic_affine,
-                                             coefficient_matching_gains, modal_decomposition,
-                                             place_poles_gains)
-from dronefly.harness.paper.rows import format_bound, format_vector
+from . import values as pv
+from .analysis import (ModalConvention, ackermann_gains, characteristic_affine,
+    coefficient_matching_gains, modal_decomposition, place_poles_gains)
+from .rows import format_bound, format_vector
 
 __all__ = ["LAT_INPUTS", "Notes"]
 

@@ -8,7 +8,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.harness.paper.rows import Row, format_number, format_vector, summary
+from .rows import Row, format_number, format_vector, summary
 
 __all__ = ["render", "render_markdown", "render_text"]
 

@@ -3,9 +3,9 @@
 Every number is stored once, as the text printed in the paper (so that its
 rounding, half a unit in the last printed digit, is known), with its source.
 ``"a×10^-n"`` is written ``"ae-n"``. The lateral system matrix of Eq. (12) lives
-in :mod:`dronefly.plant.model` (``A1_EQ12``) and Eq. (24) reprints it verbatim,
+in :mod:`dronefly.models.lateral_dynamics` (``A1_EQ12``) and Eq. (24) reprints it verbatim,
 so it is imported, not repeated; likewise Sect. 3.5's longitudinal A and B live in
-:mod:`dronefly.plant_longitudinal.model` (``A_SECT35``, ``B_SECT35``) and are formatted
+:mod:`dronefly.models.longitudinal_dynamics` (``A_SECT35``, ``B_SECT35``) and are formatted
 here as printed (4 decimals; a printed 0 or 1 as such). A number that appears in two equations (e.g.
 0.4993 in Eq. 24 and Eq. 26) is two printed numbers and is checked twice.
 
@@ -18,10 +18,10 @@ from __future__ import annotations
 import math
 from decimal import Decimal
 
-from dronefly.controller.law import PAPER_GAINS_EQ27
-from dronefly.longitudinal import CONTROL_NAMES
-from dronefly.plant.model import A1_EQ12
-from dronefly.plant_longitudinal.model import A_SECT35, B_SECT35
+from ...models.feedback import PAPER_GAINS_EQ27
+from ...models.longitudinal import CONTROL_NAMES
+from ...models.lateral_dynamics import A1_EQ12
+from ...models.longitudinal_dynamics import A_SECT35, B_SECT35
 
 __all__ = [
     "EQ12_A1", "EQ12_DECIMALS", "EQ12_STRUCTURAL", "EQ19_A_LNN", "EQ20_B_LN",
@@ -97,7 +97,7 @@ SECT35_A = _as_printed(A_SECT35)
 SECT35_B = _as_printed(B_SECT35)
 #: Eq. (30) control vector order; the text lists dPhi, dphi_bar, dalpha1, dalpha2,
 #: but B_n's rows (slow subsidence ~ B row 2) show that B uses Eq. (30)'s order. The names
-#: live in the plant's interface (:mod:`dronefly.longitudinal`).
+#: live in the plant's interface (:mod:`dronefly.models.longitudinal`).
 LONGITUDINAL_CONTROLS = CONTROL_NAMES
 #: Structural entries of the longitudinal A (dtheta' = dq; no theta in w, q rows)
 #: and B (no control in the dtheta row), 0-based; all other entries are rounded.

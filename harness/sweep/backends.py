@@ -9,9 +9,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
-from dronefly.harness.sweep.cases import Case, SweepInputError, one_line
-from dronefly.harness.sweep.worker import (ChunkInterrupted, FmuRef, blas_single_thread,
-                                           close_all, init_worker, run_chunk, warm)
+from .cases import Case, SweepInputError, one_line
+from .worker import (ChunkInterrupted, FmuRef, blas_single_thread, close_all, init_worker,
+    run_chunk, warm)
 
 __all__ = ["chunk_cases", "connect_scheduler", "make_progress_bar", "run_dask", "run_here", "run_pool",
            "stderr_is_tty"]

@@ -34,14 +34,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from dronefly.errors import DroneflyError
-from dronefly.controller.law import U_MAX_LINEAR_RANGE
-from dronefly.lateral import STATE_BOUNDS_SECT36, eigen_order
-from dronefly.harness.cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
-from dronefly.plant import model
-from dronefly.harness.cosim.master import MASTERS, MAX_STEPS
-from dronefly.harness.sweep.parse import (AXES, SweepInputError, one_line, parse_floats,
-                                          parse_int, parse_names, parse_slices)
+from ...core.errors import DroneflyError
+from ...models.feedback import U_MAX_LINEAR_RANGE
+from ...models.lateral import STATE_BOUNDS_SECT36, eigen_order
+from ..cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
+from ...models import lateral_dynamics as model
+from ..cosim.master import MASTERS, MAX_STEPS
+from .parse import (AXES, SweepInputError, one_line, parse_floats, parse_int, parse_names,
+    parse_slices)
 
 __all__ = ["MAX_CASES", "AXES", "one_line", "Case", "DEFAULT_DIRECTIONS", "DISTURBANCES", "GAIN_SETS",
            "STABILISING_LAMBDA1", "STATE_BOUNDS_SECT36", "SweepInputError", "SweepSpec",

@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from dronefly.longitudinal import LONGITUDINAL
+from ...models.longitudinal import LONGITUDINAL
 
-from dronefly.harness.sweep.cases import AXES, STATE_BOUNDS_SECT36
+from .cases import AXES, STATE_BOUNDS_SECT36
 
 __all__ = ["COMPARE_COLUMNS", "LONGITUDINAL_AXES", "compare_runs", "compare_summary",
            "format_comparison"]

@@ -15,9 +15,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.files import atomic_path
+from ...core.files import atomic_path
 
-from dronefly.harness.sweep.cases import AXES, STATE_BOUNDS_SECT36
+from .cases import AXES, STATE_BOUNDS_SECT36
 
 __all__ = ["write_compare_maps"]
 

@@ -15,7 +15,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.files import atomic_path
+from ...core.files import atomic_path
 
 __all__ = ["format_delay_groups", "write_delay_map"]
 

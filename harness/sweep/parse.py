@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Iterable, Sequence
 
-from dronefly.errors import DroneflyError
+from ...core.errors import DroneflyError
 
 __all__ = ["AXES", "SweepInputError", "one_line", "parse_floats", "parse_int", "parse_names",
            "parse_slices"]

@@ -20,9 +20,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.files import atomic_path, write_csv_atomic
-from dronefly.harness.sweep.cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
-from dronefly.harness.sweep.compare import COMPARE_COLUMNS
+from ...core.files import atomic_path, write_csv_atomic
+from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
+from .compare import COMPARE_COLUMNS
 
 __all__ = ["COLUMNS", "DELAY_COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
            "summarize", "write_maps", "write_results"]
@@ -183,7 +183,7 @@ def format_summary(summary: dict[str, Any]) -> str:
              f"within bounds: {s['within_bounds']}/{s['cases']} "
              f"({100 * (s['fraction_within_bounds'] or 0):.1f} %), errors: {s['errors']}"]
     if "delay_groups" in s:  # the delay axes: one line per configuration, with its verdict
-        from dronefly.harness.sweep.delaymap import format_delay_groups
+        from .delaymap import format_delay_groups
 
         lines += format_delay_groups(s)
     for g in ([] if "delay_groups" in s else s["groups"]):
@@ -196,7 +196,7 @@ def format_summary(summary: dict[str, Any]) -> str:
             lines.append("    largest amplitude within bounds: " + ", ".join(
                 f"{d} {'-' if v is None else format(v, 'g')}" for d, v in best))
     if "comparison" in s:
-        from dronefly.harness.sweep.compare import format_comparison
+        from .compare import format_comparison
 
         lines += format_comparison(s["comparison"])
     lines.append(f"csv: {s['csv']}")
@@ -234,7 +234,7 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
     delay x sample period (:func:`.delaymap.write_delay_map`)."""
     from matplotlib.figure import Figure
 
-    from dronefly.harness.sweep.delaymap import write_delay_map
+    from .delaymap import write_delay_map
 
     grid = [r for r in rows if r["family"] == "grid"]
     timed = bool(rows) and "delay_wb" in rows[0]

@@ -25,15 +25,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from dronefly.harness.sweep.cases import Case, SweepInputError, SweepSpec
-from dronefly.files import write_text_atomic
-from dronefly.harness.sweep.results import (COLUMNS, load_done, read_rows, result_row,
-                                            summarize, write_maps, write_results)
-from dronefly.harness.sweep.backends import (chunk_cases, connect_scheduler, make_progress_bar,
-                                             run_dask, run_here, run_pool, stderr_is_tty)
-from dronefly.harness.sweep.compare import compare_summary
-from dronefly.harness.sweep.delays import delay_results, delay_summary
-from dronefly.harness.sweep.worker import FmuRef
+from .cases import Case, SweepInputError, SweepSpec
+from ...core.files import write_text_atomic
+from .results import (COLUMNS, load_done, read_rows, result_row, summarize, write_maps,
+    write_results)
+from .backends import (chunk_cases, connect_scheduler, make_progress_bar, run_dask, run_here,
+    run_pool, stderr_is_tty)
+from .compare import compare_summary
+from .delays import delay_results, delay_summary
+from .worker import FmuRef
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
 
@@ -51,8 +51,8 @@ class SweepResult:
 
 def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
     """Open both FMUs and connect them by name here, before any file is written."""
-    from dronefly.harness.cosim.fmu import FMU, FMUError
-    from dronefly.harness.cosim.master import CoSimError, Loop
+    from ..cosim.fmu import FMU, FMUError
+    from ..cosim.master import CoSimError, Loop
 
     try:
         with FMU(refs[0].path) as p, FMU(refs[1].path) as c:
@@ -65,10 +65,10 @@ def _resolve_values(refs: tuple[FmuRef, FmuRef],
                     set_values: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
     from fmpy import read_model_description
 
-    from dronefly.harness.cosim.params import resolve_assignments
+    from ..cosim.params import resolve_assignments
 
-    from dronefly.harness.cosim.fmu import start_values
-    from dronefly.harness.cosim.params import scale_ratios
+    from ..cosim.fmu import start_values
+    from ..cosim.params import scale_ratios
 
     mds = {k: read_model_description(str(r.path)) for k, r in zip(("plant", "controller"), refs)}
     try:
@@ -92,7 +92,7 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
     """((SystemRef,) or (SystemRef, SystemRef), case values, LateralLoop) of ``--system``
     (and ``--compare``), checked here; ``--set`` values go to the systems that have the
     instance (the same typed value in both)."""
-    from dronefly.harness.sweep.system import SystemRef, check_system
+    from .system import SystemRef, check_system
 
     if plant is not None or controller is not None:
         raise SweepInputError("--plant/--controller cannot be combined with --system (set "
@@ -120,7 +120,7 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
 
 def _values_for(ref: Any, set_values: Mapping[str, Any] | None) -> dict[str, Any]:
     """The ``instance.NAME`` values whose instance the system has."""
-    from dronefly.harness.system.description import System
+    from ..cosim.system import System
 
     instances = set(System.from_ssp(ref.path).fmus)
     return {k: v for k, v in (set_values or {}).items() if k.partition(".")[0] in instances}
@@ -140,7 +140,7 @@ def _check_gains_reach(cases: Sequence[Case], lateral: Any) -> None:
 
 
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
-    from dronefly.build import BuildError, project_fmus
+    from ...builder.build import BuildError, project_fmus
 
     try:
         plant, controller = project_fmus(plant, controller)
@@ -285,7 +285,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     maps = write_maps(rows, out) if plot else []
     summary = summarize(rows, all_cases) | (delay_summary(rows) if timed else {})
     if cmp:
-        from dronefly.harness.sweep.comparemaps import write_compare_maps
+        from .comparemaps import write_compare_maps
 
         summary["comparison"] = compare_summary(rows)
         summary["compare"] = refs[1].path

@@ -2,7 +2,7 @@
 
 The system must hold one lateral plant (Real outputs ``delta_v``, ``delta_p``, ``delta_r``,
 ``delta_gamma`` with ``*_start`` parameters, ``n`` and ``U``; see
-:func:`dronefly.harness.system.verdicts.find_plants`) whose inputs are driven by one
+:func:`dronefly.harness.cosim.verdicts.find_plants`) whose inputs are driven by one
 controller with gain parameters ``K[i,j]``. Each case sets the lateral plant's initial state
 and the controller's gains (mapped through the connections: row = the controller output
 that drives the plant's control, column = the controller input that senses the plant's
@@ -25,10 +25,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from dronefly.controller.law import gain_name
-from dronefly.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
-from dronefly.longitudinal import LONGITUDINAL
-from dronefly.harness.sweep.parse import SweepInputError
+from ...models.feedback import gain_name
+from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
+from ...models.longitudinal import LONGITUDINAL
+from .parse import SweepInputError
 
 __all__ = ["EARTH", "LateralLoop", "SystemRef", "check_system", "close_systems", "open_system",
            "run_system_case"]
@@ -126,16 +126,16 @@ def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
                  master: str = "gauss-seidel") -> tuple[LateralLoop, dict[str, Any]]:
     """Open the system here, before any file is written; apply ``--set`` values and find
     the lateral loop. Returns it and the ``--set`` values converted to their variables'
-    declared types (:mod:`dronefly.harness.system.values`), by ``instance.NAME``.
+    declared types (:mod:`dronefly.harness.cosim.values`), by ``instance.NAME``.
 
     Raises
     ------
     SweepInputError
         Unreadable SSP, a bad ``--set`` name, no lateral loop, a controller without gains.
     """
-    from dronefly.harness.cosim.fmu import FMUError
-    from dronefly.harness.system.description import System, SystemSpecError
-    from dronefly.harness.system.master import SystemMaster
+    from ..cosim.fmu import FMUError
+    from ..cosim.system import System, SystemSpecError
+    from ..cosim.system_master import SystemMaster
 
     try:
         system = System.from_ssp(ref.path).with_values(dict(set_values or {}))
@@ -150,8 +150,8 @@ def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
 
 def _open(ref: SystemRef, data: bytes | None,
           master: str = "gauss-seidel") -> tuple[Any, LateralLoop]:
-    from dronefly.harness.system.description import System
-    from dronefly.harness.system.master import SystemMaster
+    from ..cosim.system import System
+    from ..cosim.system_master import SystemMaster
 
     key = (threading.get_ident(), ref.digest, master)
     with _LOCK:

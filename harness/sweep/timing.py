@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dronefly.linear import discretize_zoh
+from ...models.linear import discretize_zoh
 
 __all__ = ["MAX_PERIOD_STEPS", "TOL", "Timing", "grid_monodromy", "grid_simulate",
            "timing_params"]

@@ -19,15 +19,14 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dronefly.interrupt import pending as interrupt_pending
-from dronefly.lateral import STATE_NAMES, plant_scales
+from ...core.interrupt import pending as interrupt_pending
+from ...models.lateral import STATE_NAMES, plant_scales
 
-from dronefly.harness.sweep.cases import (AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line)
-from dronefly.harness.sweep.compare import compare_runs
-from dronefly.harness.sweep.timing import timing_params
-from dronefly.harness.sweep.results import (RESULT_COLUMNS)
-from dronefly.harness.sweep.system import (SystemRef, close_systems, open_system,
-                                           run_system_case)
+from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line
+from .compare import compare_runs
+from .timing import timing_params
+from .results import RESULT_COLUMNS
+from .system import SystemRef, close_systems, open_system, run_system_case
 
 
 __all__ = ["ChunkInterrupted", "FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk",
@@ -58,7 +57,7 @@ _TMP: list[str] = []
 
 
 def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
-    from dronefly.harness.cosim.fmu import FMU
+    from ..cosim.fmu import FMU
 
     with _LOCK:
         if ref.digest not in _FMUS:
@@ -76,7 +75,7 @@ def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
 
 def loop_for(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
     """(Loop, plant instance, controller instance, x+ scale) of this thread, made once."""
-    from dronefly.harness.cosim.master import Loop
+    from ..cosim.master import Loop
 
     key = (threading.get_ident(), refs[0].digest, refs[1].digest)
     if key not in _LOOPS:
@@ -134,7 +133,7 @@ def blas_single_thread(required: bool = False) -> Any:
         from threadpoolctl import threadpool_limits
     except ImportError:
         if required:
-            from dronefly.extras import require
+            from ...core.extras import require
 
             require("threadpoolctl", "pass --workers 1")
         return _NoLimit()
@@ -212,7 +211,7 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     wall_s : float
         Wall time of the whole chunk in the worker, s.
     """
-    from dronefly.controller.law import gain_name
+    from ...models.feedback import gain_name
 
     t_chunk = time.perf_counter()
     loop_s, out = 0.0, []

@@ -1,0 +1,6 @@
+import sys
+
+from .cli.app import main
+
+if __name__ == "__main__":  # not when a spawned worker process imports it
+    sys.exit(main())

@@ -1,0 +1,165 @@
+"""FMU ``DroneFlyHover6DOF``: the hovering drone fly as a nonlinear rigid body, FMI 2.0 CS.
+
+A drop-in for ``DroneFlyLateral`` and ``DroneFlyLongitudinal`` (their states, controls and
+parameters, with the same names, units and causalities; see :mod:`dronefly.models.hover6dof`). The
+wrapper only maps variables; the equations live in :mod:`.model`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from ...fmi import SlaveBase, Var
+from ...models.hover6dof import (EARTH_OUTPUTS, EULER_OUTPUTS, EXTRA_STARTS, OUTPUT_NAMES,
+    STATE_OUTPUTS)
+from ...models.lateral import LATERAL, N_HZ, U_M_PER_S
+from ...models.lateral import parameter_description as lateral_text
+from ...models.longitudinal import LONGITUDINAL
+from ...models.longitudinal import parameter_description as longitudinal_text
+from ...models import lateral_dynamics as lateral
+from ...models import longitudinal_dynamics as longitudinal
+from ...models.rigid_body import STATE_SIZE, Hover6DOF, Hover6DOFError, initial_state, outputs
+
+__all__ = ["DroneFlyHover6DOF"]
+
+_AXES = (LATERAL, LONGITUDINAL)
+_LAT_PARAMS = lateral.LateralParameters.names()
+_LON_PARAMS = longitudinal.LongitudinalParameters.names()
+_STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS))
+_ATTITUDE = ("delta_gamma_start", "delta_theta_start", "psi_start")
+_VELOCITY = ("delta_u_start", "delta_v_start", "delta_w_start")
+
+
+def _slice(vrs: tuple[int, ...]) -> slice:
+    """Consecutive value references ``vrs`` as one slice of the value table."""
+    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
+        raise ValueError(f"value references {vrs} are not consecutive")
+    return slice(vrs[0], vrs[0] + len(vrs))
+
+
+def _initial_dependencies(name: str) -> tuple[str, ...]:
+    """The knowns an output's initial value is computed from (FMI 2.0 InitialUnknowns)."""
+    if name in ("delta_gamma", "delta_theta", "theta"):
+        return (f"{name if name != 'theta' else 'delta_theta'}_start",)
+    if name in ("phi", "psi"):
+        return _ATTITUDE
+    if name in STATE_OUTPUTS:
+        return (f"{name}_start", "U" if name in ("delta_u", "delta_v", "delta_w") else "n")
+    if name in ("x_earth", "y_earth", "z_earth"):
+        return (f"{name}_start", "n", "U")
+    return (*_VELOCITY, *_ATTITUDE, "U")  # the earth-axis velocity
+
+
+def _variables() -> tuple[Var, ...]:
+    out: list[Var] = []
+    unit, disp = LATERAL.control_unit
+    for axis in _AXES:
+        for name, text in zip(axis.control_names, axis.control_descriptions):
+            out.append(Var(name, "input", "continuous", f"{text} ({axis.name}; held over each "
+                           "step)", unit, disp, start=0.0))
+    states = [(n, d, u) for a in _AXES
+              for n, d, u in zip(a.state_names, a.state_descriptions, a.state_units)]
+    extra = [(n, d, (u, du)) for n, u, du, d in (*EULER_OUTPUTS, *EARTH_OUTPUTS)]
+    table = {n: (d, u) for n, d, u in (*states, *extra)}
+    for name in OUTPUT_NAMES:
+        text, (u, du) = table[name]
+        out.append(Var(name, "output", "continuous", text, u, du, initial="calculated",
+                       dependencies=(), initial_dependencies=_initial_dependencies(name)))
+    defaults = (lateral.default_parameters(), longitudinal.default_parameters())
+    for names, params, describe in ((_LAT_PARAMS, defaults[0], lateral_text),
+                                    (_LON_PARAMS, defaults[1], longitudinal_text)):
+        for name in names:
+            if any(v.name == name for v in out):
+                continue  # m_plus and g_plus: one parameter for both axes
+            out.append(Var(name, "parameter", "tunable", describe(name), "1",
+                           start=getattr(params, name)))
+    out.append(Var("n", "parameter", "tunable",
+                   "wing-beat frequency; reference time t_w = 1/n (Sect. 2.4)", "Hz", start=N_HZ))
+    out.append(Var("U", "parameter", "tunable", "reference velocity U = 2 Phi n r2 (Sect. 2.4)",
+                   "m/s", start=U_M_PER_S))
+    for name, text, (u, du) in states:
+        out.append(Var(f"{name}_start", "parameter", "fixed", f"initial {text}", u, du,
+                       start=0.0))
+    for name, u, du, text in EXTRA_STARTS:
+        out.append(Var(name, "parameter", "fixed", text, u, du, start=0.0))
+    return tuple(out)
+
+
+class DroneFlyHover6DOF(SlaveBase):
+    """The hovering model drone fly as a rigid body in six degrees of freedom."""
+
+    MODEL_NAME = "DroneFlyHover6DOF"
+    MODEL_DESCRIPTION = (
+        "Hovering model drone fly as a nonlinear rigid body in six degrees of freedom (Newton-"
+        "Euler, full inertia tensor, exact gravity projection, quaternion attitude) with the "
+        "linear aerodynamic derivatives of Zhang & Sun (Eq. 12, Table 1, Sect. 3.5): the "
+        "aerodynamics stay linear, as the paper assumes; a drop-in for DroneFlyLateral and "
+        "DroneFlyLongitudinal")
+    VARIABLES = _variables()
+    DEFAULT_EXPERIMENT = (0.0, 30.0 / N_HZ, 0.1 / N_HZ)
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        vr = self._vr
+        self._controls = (*LATERAL.control_names, *LONGITUDINAL.control_names)
+        # the controls' and the outputs' rows of the value table, as slices
+        self._inputs = _slice(tuple(vr[n] for n in self._controls))
+        self._outputs = _slice(tuple(vr[n] for n in OUTPUT_NAMES))
+        self._x = initial_state(dict.fromkeys(_STARTS, 0.0), U_M_PER_S, N_HZ)
+        self._model: Hover6DOF | None = None
+        self._U, self._n = U_M_PER_S, N_HZ
+
+    def _refresh(self) -> None:
+        lp = lateral.LateralParameters(*self._values(_LAT_PARAMS))
+        np_ = longitudinal.LongitudinalParameters(*self._values(_LON_PARAMS))
+        if self._model is None or (self._model.lateral_params, self._model.longitudinal_params) \
+                != (lp, np_):
+            lp.validate()
+            np_.validate()
+            self._model = Hover6DOF(lp, np_)
+        n, U = self._values(("n", "U"))
+        for name, value in (("n", n), ("U", U)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} = {value!r} must be finite and > 0")
+        self._n, self._U = n, U
+
+    def _start_state(self) -> list[float]:
+        starts = self._values(_STARTS)
+        self._check_finite(_STARTS, starts)
+        self._refresh()
+        return initial_state(dict(zip(_STARTS, starts)), self._U, self._n)
+
+    def _write(self, x: list[float]) -> None:
+        self._real[self._outputs] = outputs(x, self._U, self._n)
+
+    def _update_outputs(self) -> None:
+        if not self._initialized:  # initial unknowns follow the starts until initialized
+            self._write(self._start_state())
+
+    def _initialize(self) -> None:
+        self._x = self._start_state()
+        self._write(self._x)
+
+    def _advance(self, t: float, h: float) -> None:
+        c = self._real[self._inputs]
+        total = sum(c)
+        if total - total != 0.0:  # inf or nan (or an overflowing sum): named if not finite
+            self._check_finite(self._controls, c)
+        c_lat, c_lon = c[:3], c[3:]
+        try:
+            x = self._model.step(self._x, c_lat, c_lon, h * self._n)  # type: ignore[union-attr]
+        except Hover6DOFError as e:  # name the inputs: the likely cause
+            inputs = ", ".join(f"{n} = {v!r}" for n, v in zip(self._controls, (*c_lat, *c_lon)))
+            raise ValueError(f"state overflow: {e}, with {inputs}") from e
+        self._x = x
+        self._write(x)
+
+    def _extra_state(self) -> dict[str, Any]:
+        return {"x": list(self._x)}
+
+    def _restore_extra_state(self, state: dict[str, Any]) -> None:
+        x = [float(v) for v in state["x"]]
+        if len(x) != STATE_SIZE or not all(math.isfinite(v) for v in x):
+            raise ValueError(f"the state must hold {STATE_SIZE} finite values, got {x!r}")
+        self._x = x

@@ -1,0 +1,1 @@
+"""``dronefly cosim``: co-simulated closed loops, their neutral-stability verdicts and plots."""

@@ -30,7 +30,7 @@ from ..core.errors import DroneflyError
 from ..core.files import write_zip
 
 if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
-    from ..harness.interop.closedloop import ClosedLoopSpec
+    from .closedloop import ClosedLoopSpec
 
 __all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
            "fmu_sources", "project_fmus", "project_systems"]
@@ -310,7 +310,7 @@ def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
 def build_all(out_dir: str | Path = "build") -> list[Path]:
     """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts and the
     hover system ``DroneFlyHover.ssp`` (both axes with their controllers, four FMUs)."""
-    from ..harness.interop.closedloop import CLOSED_LOOP
+    from .closedloop import CLOSED_LOOP
     from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 
     out = Path(out_dir)
@@ -347,9 +347,8 @@ def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | 
     BuildError
         The FMUs cannot be read or the artefacts cannot be written.
     """
-    from ..harness.interop.closedloop import ClosedLoopSpec
-    from ..harness.interop.container import write_container
-    from ..harness.interop.ssp import write_ssp
+    from .closedloop import ClosedLoopSpec
+    from .closedloop import write_container, write_ssp
 
     spec = ClosedLoopSpec() if spec is None else spec
     try:

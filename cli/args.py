@@ -2,8 +2,8 @@
 
 Each turns one option's text into a value or raises :class:`argparse.ArgumentTypeError`
 with one line naming the bad value; the parsing itself lives with the code that owns the
-value (gains and assignments in :mod:`dronefly.harness.cosim.params`, lists in
-:mod:`dronefly.harness.sweep.parse`).
+value (gains in :mod:`dronefly.harness.paper.gains`, assignments in
+:mod:`dronefly.harness.cosim.params`, lists in :mod:`dronefly.harness.sweep.parse`).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def floats_arg(name: str) -> Callable[[str], tuple[float, ...]]:
 
 
 def parse_gains(text: str) -> Any:
-    from ..harness.cosim.params import parse_gains as parse
+    from ..harness.paper.gains import parse_gains as parse
 
     return parse(text)
 

@@ -30,7 +30,7 @@ def build(args: argparse.Namespace) -> int:
 
 
 def simulate(args: argparse.Namespace) -> int:
-    from ..harness.cosim.simulate import simulate_plant
+    from ..harness.stability.simulate import simulate_plant
 
     result = simulate_plant(stop_wingbeats=args.stop, step_wingbeats=args.step,
                             gamma0=args.gamma0, out_dir=args.out)

@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.builder.build import FMUS
 from dronefly.cli.app import main
-from dronefly.harness.cosim.simulate import exact_open_loop
+from dronefly.harness.stability.simulate import exact_open_loop
 
 
 def test_help_lists_subcommands(capsys):

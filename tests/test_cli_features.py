@@ -19,7 +19,7 @@ from dronefly import __version__
 from dronefly.cli import app as cli_main
 from dronefly.cli.app import main
 from dronefly.core.errors import DroneflyError
-from dronefly.harness.cosim.params import parse_gains
+from dronefly.harness.paper.gains import parse_gains
 from dronefly.harness.stability.run import cosimulate
 from dronefly.models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, sort_eigenvalues
 from dronefly.models import lateral_dynamics as model

@@ -3,7 +3,7 @@
 One refused step (K[1,1] = NaN) stopped FMPy's container for good: pythonfmu answers
 fmi2Terminated with true after any fmi2Discard, and the container keeps that answer through
 fmi2Reset ("Expected currentCommunicationPoint=0 but was 0.00061"). The build puts a shim in
-front of the nested FMUs' Linux library (``dronefly.harness.interop.nestedshim``); fmi2Reset and a
+front of the nested FMUs' Linux library (``dronefly.builder.nestedshim``); fmi2Reset and a
 new initialization then give a container that runs exactly like a new instance. Each case runs in
 a child process (FMPy's container can take the host down).
 """
@@ -18,8 +18,8 @@ import zipfile
 
 import pytest
 
-from dronefly.harness.interop.container import write_container
-from dronefly.harness.interop.nestedshim import REAL_SUFFIX, shim_library
+from dronefly.builder.closedloop import write_container
+from dronefly.builder.nestedshim import REAL_SUFFIX, shim_library
 
 pytestmark = pytest.mark.integration
 

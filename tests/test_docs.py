@@ -136,7 +136,7 @@ def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
 
 @pytest.mark.numeric
 def test_simulate_deviation_quoted_in_readme(tmp_path):
-    from dronefly.harness.cosim.simulate import simulate_plant
+    from dronefly.harness.stability.simulate import simulate_plant
 
     run = simulate_plant(out_dir=tmp_path)
     assert run.max_rel_error < 1e-13  # README: "about 1e-14"

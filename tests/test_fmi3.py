@@ -274,9 +274,10 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     controller.ssv binds the elements K[i,j] of the FMI 3.0 array K: with gains other than the
     FMUs' defaults both SSPs still agree, and differ from the default run."""
     from dronefly.models.feedback import default_gains
-    from dronefly.harness.interop.closedloop import ClosedLoopSpec
+    from dronefly.builder.closedloop import ClosedLoopSpec
     from dronefly.harness.cosim.master import CoSimError
-    from dronefly.harness.interop.ssp import run_ssp, write_ssp
+    from dronefly.builder.closedloop import write_ssp
+    from dronefly.harness.interop.ssp import run_ssp
     from dronefly.harness.stability.system import cosimulate_system
 
     kw = dict(out_dir=None, plot=False)

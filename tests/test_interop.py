@@ -21,9 +21,8 @@ from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
 from dronefly.models.lateral import scale_vector
-from dronefly.harness.interop.closedloop import CLOSED_LOOP
-from dronefly.harness.interop.container import (container_verdict, fix_connection_types,
-    run_container, write_container)
+from dronefly.builder.closedloop import CLOSED_LOOP, fix_connection_types, write_container
+from dronefly.harness.interop.container import container_verdict, run_container
 from dronefly.harness.interop.ssp import run_ssp, ssp_parameter_set, ssp_verdict
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.interop.libcosim import (c_host_env, libcosim_available, libcosim_verdict,
@@ -353,8 +352,8 @@ def delayed_pair(built_fmus, tmp_path_factory):
     """The plant with StateFeedbackDelayed (one wing beat of sensing delay, ten steps of 0.1):
     a loop with a delay line that the importers' 4- and 8-state maps have no state for."""
     out = tmp_path_factory.mktemp("delayed_loop")
-    from dronefly.harness.interop.container import write_container
-    from dronefly.harness.interop.ssp import write_ssp
+    from dronefly.builder.closedloop import write_container
+    from dronefly.builder.closedloop import write_ssp
 
     plant, ctrl = built_fmus["DroneFlyLateral"], built_fmus["StateFeedbackDelayed"]
     return plant, ctrl, write_ssp(plant, ctrl, out), write_container(plant, ctrl, out)

@@ -335,7 +335,7 @@ def test_ecos_verdict_of_a_loop_it_does_not_model_is_refused(ecos, built_fmus, t
     8-state Jacobi map has no state for the delay line; its fit's residual is far above
     rounding, so ecos_verdict raises CrossCheckError instead of giving a verdict (issue 25)."""
     from dronefly.core.errors import CrossCheckError
-    from dronefly.harness.interop.ssp import write_ssp
+    from dronefly.builder.closedloop import write_ssp
 
     delayed = write_ssp(built_fmus["DroneFlyLateral"], built_fmus["StateFeedbackDelayed"],
                         tmp_path)

@@ -126,7 +126,7 @@ def test_zoh_steps_compose_exactly(h1, h2):
 
 
 def test_zoh_against_eigendecomposition():
-    from dronefly.harness.cosim.simulate import exact_open_loop
+    from dronefly.harness.stability.simulate import exact_open_loop
 
     m = M.LateralModel(M.default_parameters())
     x0_dim = np.array([0.1, 2.0, -1.0, 0.1])

@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
 from dronefly.models import lateral_dynamics as M
-from dronefly.harness.cosim.simulate import exact_open_loop
+from dronefly.harness.stability.simulate import exact_open_loop
 from dronefly.harness.cosim.fmu import FMU
 from fmu_helpers import model_description, start
 

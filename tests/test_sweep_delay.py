@@ -118,7 +118,7 @@ def test_grid_timing_is_the_fmus_and_model_b_where_it_applies(fmus, tmp_path):
     """Off the grid (sample period 1.5 on steps of 1) and with the Jacobi master, the rows equal
     the trajectories simulated from the timing alone; where the samples lie on the grid its
     periodic loop has model (b)'s rates."""
-    from dronefly.harness.cosim.params import gain_matrix
+    from dronefly.harness.paper.gains import gain_matrix
     from dronefly.harness.cosim.stability import rates_from_transition
     from dronefly.harness.latency.loop import FeedbackLoop
     from dronefly.harness.latency.sampled import sampled_rates
@@ -192,7 +192,7 @@ def test_doc_and_readme_numbers_are_the_code_s():
     :mod:`harness.sweep.delaytable` (which the other tests tie to the co-simulation)."""
     import math
 
-    from dronefly.harness.cosim.params import gain_matrix
+    from dronefly.harness.paper.gains import gain_matrix
     from dronefly.harness.latency.loop import FeedbackLoop
     from dronefly.harness.latency.sampled import verdict_map
     from dronefly.harness.paper.analysis import lateral_system

@@ -110,7 +110,7 @@ class _GainsFirst:
 
 
 def _gain_sets() -> dict[str, np.ndarray]:
-    from dronefly.harness.cosim.params import gain_matrix
+    from dronefly.harness.paper.gains import gain_matrix
 
     rng = np.random.default_rng(12)  # two random sets: every row and column in play
     return {"paper": gain_matrix("paper"), "random 1": rng.normal(0.0, 0.3, (3, 4)),

@@ -18,15 +18,17 @@ from ...core.files import write_zip
 from .fmi3 import read_view
 from .system import System, SystemSpecError
 
-__all__ = ["HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS", "hover_system",
-           "write_system_ssp"]
+__all__ = ["HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS", "SSC_NS", "SSD_NS", "SSV_NS",
+           "hover_system", "write_system_ssp", "xml_bytes"]
 
-_SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
-_SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
-_SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-ET.register_namespace("ssd", _SSD)
-ET.register_namespace("ssc", _SSC)
-ET.register_namespace("ssv", _SSV)
+#: the XML namespaces of SSP 1.0's system structure, common types and parameter values
+SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+SSC_NS = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+SSV_NS = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+ET.register_namespace("ssd", SSD_NS)
+ET.register_namespace("ssc", SSC_NS)
+ET.register_namespace("ssv", SSV_NS)
+_SSD, _SSC, _SSV = SSD_NS, SSC_NS, SSV_NS
 
 HOVER = "DroneFlyHover"
 HOVER_6DOF = "DroneFlyHover6DOF"
@@ -45,7 +47,8 @@ _SSP_TYPES = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean",
               **{t: "Integer" for t in ("Int8", "UInt8", "Int16", "UInt16", "Int32")}}
 
 
-def _xml(root: ET.Element) -> bytes:
+def xml_bytes(root: ET.Element) -> bytes:
+    """An SSP XML document as UTF-8 bytes: indented, with its declaration."""
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
 
@@ -112,7 +115,7 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
     if stop is not None:
         ET.SubElement(root, f"{{{_SSD}}}DefaultExperiment",
                       {"startTime": repr(float(system.start_s)), "stopTime": repr(float(stop))})
-    files["SystemStructure.ssd"] = _xml(root)
+    files["SystemStructure.ssd"] = xml_bytes(root)
     return write_zip(Path(path), files)
 
 
@@ -123,7 +126,7 @@ def _ssv(name: str, values: Mapping[str, object]) -> bytes:
         kind, text = _ssv_type(value)
         p = ET.SubElement(plist, f"{{{_SSV}}}Parameter", {"name": key})
         ET.SubElement(p, f"{{{_SSV}}}{kind}", {"value": text})
-    return _xml(pset)
+    return xml_bytes(pset)
 
 
 def hover_system(fmus: Mapping[str, str | Path],

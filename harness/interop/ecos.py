@@ -47,8 +47,9 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from ..cosim.master import CoSimError
+from ..cosim.ssp import SSD_NS
 from ..cosim.stability import checked, identify
-from .closedloop import reference_scales
+from ...builder.closedloop import reference_scales
 from .container import Verdict
 from .libcosim import InteropRun
 from .ssp import ssp_parameter_set
@@ -56,7 +57,6 @@ from ...models.lateral import STATE_NAMES
 
 __all__ = ["ecos_available", "ecos_env", "ecos_verdict", "run_ecos", "tbb_library_dir"]
 
-_SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
 
 #: The child: only ecospy and the standard library (no numpy), so it also shows the failure
 #: mode of a host that cannot import the FMUs' dependencies. Stages go to stderr.
@@ -152,7 +152,7 @@ def _component(ssp: Path, name: str) -> ET.Element:
     """The SSD's ``Component`` element of that name."""
     with zipfile.ZipFile(ssp) as z:
         root = ET.fromstring(z.read("SystemStructure.ssd"))
-    for comp in root.iter(f"{_SSD}Component"):
+    for comp in root.iter(f"{{{SSD_NS}}}Component"):
         if comp.get("name") == name:
             return comp
     raise CoSimError(f"the SSP {str(ssp)!r} has no component {name!r}")
@@ -160,7 +160,7 @@ def _component(ssp: Path, name: str) -> ET.Element:
 
 def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
     """The plant component's output and input connector names, in SSD order."""
-    cons = list(_component(ssp, plant).iter(f"{_SSD}Connector"))
+    cons = list(_component(ssp, plant).iter(f"{{{SSD_NS}}}Connector"))
     return ([c.get("name") for c in cons if c.get("kind") == "output"],
             [c.get("name") for c in cons if c.get("kind") == "input"])
 

@@ -40,7 +40,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .closedloop import reference_scales
+from ...builder.closedloop import reference_scales
 from ...models.lateral import STATE_NAMES
 from ..cosim.master import CoSimError
 from ..cosim.stability import Identification, checked, identify

@@ -28,89 +28,15 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ...core.files import write_zip
-from .closedloop import (CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, parameter_values,
-    reference_scales)
+from ...builder.closedloop import CLOSED_LOOP, PLANT, reference_scales
 from ..cosim.master import CoSimError
 from ..cosim.fmi3 import read_view
-from ..cosim.master import connect_by_name
+from ..cosim.ssp import SSD_NS
 from ..cosim.stability import checked, identify
 from .container import Verdict
 from ...models.lateral import STATE_NAMES
 
-__all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict", "write_ssp"]
-
-
-_SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
-_SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
-_SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-ET.register_namespace("ssd", _SSD)
-ET.register_namespace("ssc", _SSC)
-ET.register_namespace("ssv", _SSV)
-
-
-def _xml(root: ET.Element) -> bytes:
-    ET.indent(root, space="  ")
-    return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
-
-
-def _versions(pmd, cmd) -> str:
-    """"" for two FMI 2.0 FMUs, else which FMI version each FMU is."""
-    v = [str(md.fmiVersion) for md in (pmd, cmd)]
-    return "" if v == ["2.0", "2.0"] else f"; FMI {v[0]} plant, FMI {v[1]} controller"
-
-
-def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "build",
-              spec: ClosedLoopSpec = ClosedLoopSpec()) -> Path:
-    """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path.
-
-    The FMUs may be FMI 2.0 or FMI 3.0 (read through the harness's view,
-    :func:`dronefly.harness.cosim.fmi3.read_view`: an FMI 3.0 array ``K`` is bound by its
-    elements ``K[i,j]``, as SSP 1.0 has no array values; see docs/fmi3.md).
-    """
-    pmd, cmd = read_view(plant), read_view(controller)
-    n, _ = reference_scales(pmd)
-    params = parameter_values(pmd, spec)
-    step = spec.step_wingbeats / n
-    root = ET.Element(f"{{{_SSD}}}SystemStructureDescription",
-                      {"version": "1.0", "name": CLOSED_LOOP})
-    system = ET.SubElement(root, f"{{{_SSD}}}System", {
-        "name": CLOSED_LOOP,
-        "description": f"DroneFlyLateral plant with StateFeedback controller (Zhang & Sun, "
-                       f"Eq. 27); communication step {spec.step_wingbeats:g} wing beat = "
-                       f"{float(step)!r} s" + _versions(pmd, cmd)})
-    elements = ET.SubElement(system, f"{{{_SSD}}}Elements")
-    for comp, fmu, md in (("plant", PLANT, pmd), ("controller", CONTROLLER, cmd)):
-        c = ET.SubElement(elements, f"{{{_SSD}}}Component", {
-            "name": comp, "source": f"resources/{fmu}.fmu",
-            "type": "application/x-fmu-sharedlibrary"})
-        connectors = ET.SubElement(c, f"{{{_SSD}}}Connectors")
-        for v in md.modelVariables:
-            if v.causality in ("input", "output") and v.type == "Real":
-                con = ET.SubElement(connectors, f"{{{_SSD}}}Connector",
-                                    {"name": v.name, "kind": v.causality})
-                ET.SubElement(con, f"{{{_SSC}}}Real")
-        bindings = ET.SubElement(c, f"{{{_SSD}}}ParameterBindings")
-        ET.SubElement(bindings, f"{{{_SSD}}}ParameterBinding", {"source": f"resources/{comp}.ssv"})
-    connections = ET.SubElement(system, f"{{{_SSD}}}Connections")
-    for a, x, b, y in connect_by_name(pmd, cmd):
-        ET.SubElement(connections, f"{{{_SSD}}}Connection", {
-            "startElement": a, "startConnector": x, "endElement": b, "endConnector": y})
-    ET.SubElement(root, f"{{{_SSD}}}DefaultExperiment", {
-        "startTime": "0.0", "stopTime": repr(float(spec.stop_wingbeats / n))})
-    files = {"SystemStructure.ssd": _xml(root),
-             f"resources/{PLANT}.fmu": Path(plant).read_bytes(),
-             f"resources/{CONTROLLER}.fmu": Path(controller).read_bytes()}
-    for comp in ("plant", "controller"):
-        pset = ET.Element(f"{{{_SSV}}}ParameterSet", {"version": "1.0", "name": comp})
-        plist = ET.SubElement(pset, f"{{{_SSV}}}Parameters")
-        for k, v in params.items():
-            owner, _, name = k.partition(".")
-            if owner == comp:
-                p = ET.SubElement(plist, f"{{{_SSV}}}Parameter", {"name": name})
-                ET.SubElement(p, f"{{{_SSV}}}Real", {"value": repr(float(v))})
-        files[f"resources/{comp}.ssv"] = _xml(pset)
-    return write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
+__all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict"]
 
 
 def ssp_parameter_set(ssp: str | Path):
@@ -134,7 +60,7 @@ def ssp_parameter_set(ssp: str | Path):
 def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
     with zipfile.ZipFile(ssp) as z:
         root = ET.fromstring(z.read("SystemStructure.ssd"))
-    stop = float(root.find(f"{{{_SSD}}}DefaultExperiment").get("stopTime"))
+    stop = float(root.find(f"{{{SSD_NS}}}DefaultExperiment").get("stopTime"))
     with zipfile.ZipFile(ssp) as z:
         n = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
     return 0.1 / n, stop

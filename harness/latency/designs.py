@@ -5,7 +5,7 @@
 - ``eq27_exact``: the paper's coefficient matching (Eqs. 25-26) with lambda_1 = 0 exactly and
   the other eigenvalues of A kept: what Eq. (27) rounds.
 - ``stabilising``: the same method with lambda_1 moved to -0.1 (the harness's named gain set
-  ``stabilising``, :func:`dronefly.harness.cosim.params.gain_matrix`).
+  ``stabilising``, :func:`dronefly.harness.paper.gains.gain_matrix`).
 - ``lqr``: LQR (``scipy.linalg.solve_continuous_are``) with Bryson's rule: Q = diag(1 / x_max^2)
   from the Sect. 3.6 bounds (0.15, 0.15, 0.15, 0.22) and R = 1 / 0.4^2 from the control limit.
 - ``pi``: proportional-integral on the roll angle, u = k x+ + kI * integral of dgamma dt+
@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...models.feedback import PAPER_GAINS_EQ27, U_MAX_LINEAR_RANGE
-from ..cosim.params import STABILISING_LAMBDA1, gain_matrix
+from ..paper.gains import STABILISING_LAMBDA1, gain_matrix
 from .loop import FeedbackLoop, LatencyInputError
 from ..paper.analysis import coefficient_matching_gains, lateral_system, ordered_eigen
 from ..paper.design import lqr_gains

@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_continuous_are
 
-from ..cosim.stability import sort_eigenvalues
 from ...models import lateral_dynamics as model
+from ...models.lateral import sort_eigenvalues
 
 from .analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
     eigenvector_table, input_index, ordered_eigen)
@@ -139,7 +139,7 @@ def stabilising_designs(lambda1: float = -0.1, gamma0: float = 0.5,
     for method, u, k in todo:
         b = B[:, input_index(u)]
         ev = np.linalg.eigvals(closed_loop_matrix(A, b, k))
-        out.append(Design(method, u, k, sort_eigenvalues(ev),
+        out.append(Design(method, u, k, np.array(sort_eigenvalues(ev), dtype=complex),
                           peak_control(A, b, k, x_roll), peak_control(A, b, k, x_mode)))
     return out
 

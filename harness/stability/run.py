@@ -19,7 +19,8 @@ from ...models.feedback import default_gains, gain_name
 from ...models.lateral_dynamics import STATE_NAMES, discretize_zoh
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU
-from ..cosim.params import as_gain_matrix, resolve_assignments, scale_ratios
+from ..cosim.params import resolve_assignments, scale_ratios
+from ..paper.gains import as_gain_matrix
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from ..cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
     TRAJECTORY_TOL, Identification, classify, cross_check_failures, relative_deviation, identify,
@@ -206,7 +207,7 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         Non-dimensional gains u = K x+ (rows: delta_Phi_a, delta_alpha_1a, delta_alpha_2a;
         columns: dv+, dp+, dr+, dgamma): a named set ``paper`` (Eq. 27), ``stabilising`` or
         ``open``, an inline matrix, a ``.csv``/``.json`` file (see
-        :func:`~dronefly.harness.cosim.params.parse_gains`) or an array.
+        :func:`~dronefly.harness.paper.gains.parse_gains`) or an array.
     x0 : str or sequence, optional
         Non-dimensional initial state (dv+, dp+, dr+, dgamma). Default :data:`DEFAULT_X0`
         (a 0.1 rad roll), with the states whose ``plant.<state>_start`` [SI] ``set_values``

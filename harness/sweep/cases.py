@@ -37,7 +37,7 @@ import numpy as np
 from ...core.errors import DroneflyError
 from ...models.feedback import U_MAX_LINEAR_RANGE
 from ...models.lateral import STATE_BOUNDS_SECT36, eigen_order
-from ..cosim.params import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
+from ..paper.gains import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
 from ...models import lateral_dynamics as model
 from ..cosim.master import MASTERS, MAX_STEPS
 from .parse import (AXES, SweepInputError, one_line, parse_floats, parse_int, parse_names,

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cosim.params import gain_matrix
+from ..paper.gains import gain_matrix
 from ..cosim.stability import classify
 from ..latency.sampled import SampledMargin
 from ..paper.analysis import lateral_system

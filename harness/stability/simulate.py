@@ -83,7 +83,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
 
     from ...builder.build import ensure_fmu
 
-    from .master import step_count
+    from ..cosim.master import step_count
 
     if not math.isfinite(gamma0):
         raise DroneflyError(f"gamma0 = {gamma0!r} rad is not finite")

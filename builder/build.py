@@ -22,15 +22,18 @@ import re
 import sys
 import tempfile
 import uuid
+import zipfile
 from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ..core.errors import DroneflyError
 from ..core.files import write_zip
-
-if TYPE_CHECKING:  # the closed loop's spec, imported where it is used
-    from .closedloop import ClosedLoopSpec
+from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
+from .closedloop import CLOSED_LOOP, ClosedLoopSpec, write_container, write_ssp
+from .entry import entry2, entry3, host_documentation
+from .modeldescription import model_description_bytes
+from .package3 import FMI3_FILES, model_description3, wrapper3_binaries
 
 __all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
            "fmu_sources", "project_fmus", "project_systems"]
@@ -97,7 +100,6 @@ def _source_path(rel: str) -> Path:
 
 def _wrapper_files() -> dict[str, bytes]:
     """pythonfmu's binaries and its Python package, as the FMU ships them."""
-    from importlib.metadata import PackageNotFoundError, distribution
 
     # the installed distribution, not sys.modules["pythonfmu"]: after an FMU built by
     # pythonfmu ran in this process, that may be the FMU's own (since deleted) copy
@@ -119,8 +121,6 @@ def _wrapper_files() -> dict[str, bytes]:
 def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
     """Package name and ``{path in FMU: content}`` of one FMU (no model description), for
     FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.builder.package3`)."""
-    from .entry import entry2, entry3, host_documentation
-    from .package3 import FMI3_FILES, wrapper3_binaries
 
     spec = FMUS[name]
     rels = spec.files if fmi == 2 else (*spec.files, *FMI3_FILES)
@@ -153,8 +153,6 @@ def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
 def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str,
                        fmi: int = 2) -> bytes:
     """Generate the XML from the code the FMU ships, imported under its own name."""
-    from .package3 import model_description3
-    from .modeldescription import model_description_bytes
 
     spec = FMUS[name]
     with tempfile.TemporaryDirectory(prefix="dronefly_build_") as tmp:
@@ -180,7 +178,6 @@ def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str,
 def _built_package(path: Path, name: str, fmi: int) -> str | None:
     """The source package of the project's FMU ``name`` at ``path``; None if the file there
     is not one (not a zip, another FMU, a user's file)."""
-    import zipfile
 
     try:
         with zipfile.ZipFile(path) as z:
@@ -195,7 +192,6 @@ def _built_package(path: Path, name: str, fmi: int) -> str | None:
 
 def _has_member(path: Path, member: str) -> bool:
     """Whether ``path`` is a zip archive holding ``member`` (an artefact the build wrote)."""
-    import zipfile
 
     try:
         with zipfile.ZipFile(path) as z:
@@ -299,7 +295,6 @@ def project_fmus(plant: str | Path | None = None, controller: str | Path | None 
 def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
     """``DroneFlyHover.ssp`` (linear plants) and ``DroneFlyHover6DOF.ssp`` (the nonlinear one)
     in ``out_dir``, built (with every FMU) if either is missing."""
-    from ..harness.cosim.ssp import HOVER, HOVER_6DOF
 
     paths = (Path(out_dir) / f"{HOVER}.ssp", Path(out_dir) / f"{HOVER_6DOF}.ssp")
     if not all(p.is_file() for p in paths):
@@ -310,8 +305,6 @@ def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
 def build_all(out_dir: str | Path = "build") -> list[Path]:
     """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts and the
     hover system ``DroneFlyHover.ssp`` (both axes with their controllers, four FMUs)."""
-    from .closedloop import CLOSED_LOOP
-    from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 
     out = Path(out_dir)
     for name in FMUS:  # every target checked before anything is written
@@ -338,7 +331,7 @@ def build_all(out_dir: str | Path = "build") -> list[Path]:
 
 
 def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | Path,
-                      spec: "ClosedLoopSpec | None" = None) -> list[Path]:
+                      spec: ClosedLoopSpec | None = None) -> list[Path]:
     """``DroneFlyClosedLoop.ssp`` and the container FMU ``DroneFlyClosedLoop.fmu`` holding two
     built FMUs (see :mod:`dronefly.harness.interop`).
 
@@ -347,8 +340,6 @@ def build_closed_loop(out_dir: str | Path, plant: str | Path, controller: str | 
     BuildError
         The FMUs cannot be read or the artefacts cannot be written.
     """
-    from .closedloop import ClosedLoopSpec
-    from .closedloop import write_container, write_ssp
 
     spec = ClosedLoopSpec() if spec is None else spec
     try:

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 from .build import FMUS, BuildError, build_fmu
+from .closedloop import CLOSED_LOOP, CONTROLLER, PLANT, write_ssp
 
 __all__ = ["FMI3_OUT", "build_all3"]
 
@@ -23,9 +25,6 @@ def build_all3(out_dir: str | Path = Path("build") / FMI3_OUT) -> list[Path]:
     with the systems referencing them: ``DroneFlyClosedLoop.ssp`` (the lateral plant and its
     controller) and the hover systems ``DroneFlyHover.ssp`` and ``DroneFlyHover6DOF.ssp``.
     No container FMU (why: docs/fmi-limits.md)."""
-    from .closedloop import CLOSED_LOOP, CONTROLLER, PLANT
-    from .closedloop import write_ssp
-    from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 
     fmus = {name: build_fmu(name, out_dir, fmi=3) for name in FMUS}
     try:

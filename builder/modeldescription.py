@@ -9,10 +9,11 @@ units, explicit variability on parameters, Outputs with their dependencies
 
 from __future__ import annotations
 
+from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
-from .entry import HOST_REQUIREMENT
 from ..fmi import SlaveBase
+from .entry import HOST_REQUIREMENT
 
 __all__ = ["add_units_and_log_categories", "format_value", "model_description",
            "model_description_bytes"]
@@ -114,7 +115,6 @@ def _unknowns(cls: type[SlaveBase], parent: Element, tag: str,
 
 def model_description_bytes(cls: type[SlaveBase], guid: str) -> bytes:
     """Deterministic, pretty-printed modelDescription.xml."""
-    from xml.dom.minidom import parseString
 
     return parseString(tostring(model_description(cls, guid), "utf-8")).toprettyxml(
         indent="  ", encoding="UTF-8")

@@ -11,10 +11,11 @@ the union of what its elements depend on).
 from __future__ import annotations
 
 from typing import Any
+from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
-from .entry import HOST_REQUIREMENT
 from ..fmi.table3 import Var3, array_dependencies
+from .entry import HOST_REQUIREMENT
 from .modeldescription import add_units_and_log_categories, format_value
 
 __all__ = ["model_description3", "model_description3_bytes"]
@@ -102,7 +103,6 @@ def _unknown(parent: Element, tag: str, vr: int, deps: tuple[int, ...] | None) -
 
 def model_description3_bytes(cls: Any, token: str) -> bytes:
     """Deterministic, pretty-printed modelDescription.xml."""
-    from xml.dom.minidom import parseString
 
     return parseString(tostring(model_description3(cls, token), "utf-8")).toprettyxml(
         indent="  ", encoding="UTF-8")

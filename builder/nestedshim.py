@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import os
+import platform
 import shutil
 import subprocess
 import sys
@@ -186,7 +187,6 @@ def _compiler() -> str | None:
 @functools.lru_cache(maxsize=1)
 def shim_library() -> bytes | None:
     """The compiled shim for linux64 (x86_64), or ``None`` where it cannot be built here."""
-    import platform
 
     if not sys.platform.startswith("linux") or platform.machine() not in ("x86_64", "AMD64"):
         return None

@@ -12,8 +12,11 @@ binary is pythonfmu3's (``binaries/x86_64-linux/<model>.so``).
 from __future__ import annotations
 
 import importlib
+from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
 from typing import Any
+
+from .modeldescription3 import model_description3_bytes
 
 __all__ = ["FMI3_FILES", "model_description3", "wrapper3_binaries"]
 
@@ -28,7 +31,6 @@ def wrapper3_binaries() -> dict[str, bytes]:
     ImportError
         pythonfmu3 is not installed, or has no binaries.
     """
-    from importlib.metadata import PackageNotFoundError, distribution
 
     try:
         root = Path(str(distribution("pythonfmu3").locate_file("pythonfmu3"))).resolve()
@@ -44,7 +46,6 @@ def wrapper3_binaries() -> dict[str, bytes]:
 
 def model_description3(pkg: str, module: str, cls: str, token: str) -> bytes:
     """The FMI 3.0 XML of class ``cls`` of ``pkg.module`` (already importable)."""
-    from .modeldescription3 import model_description3_bytes
 
     fmi3 = importlib.import_module(f"{pkg}.fmi.fmi3")
     model: Any = getattr(importlib.import_module(f"{pkg}.{module}"), cls)

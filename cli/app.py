@@ -14,13 +14,14 @@ values are SI (the FMU's own unit: rad, m/s, rad/s, Hz).
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import traceback
-from typing import Callable, Sequence
+from types import ModuleType
+from typing import Sequence
 
 from .. import __version__
-from .commands import (EXIT_FAILED, EXIT_USAGE, analyze, aero, build, check, cosim, demo, simulate,
-                       sweep)
+from .commands import COMMANDS, EXIT_FAILED, EXIT_USAGE
 from .args import (converter, finite, floats_arg, int_arg, parse_gains, parse_names, parse_setting,
     parse_x0, positive)
 from ..core.errors import CrossCheckError, DroneflyError
@@ -101,17 +102,15 @@ def _parser() -> argparse.ArgumentParser:
                    help="show the traceback of an internal error (a bug) or of bad input")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    def add(name: str, helptext: str, fn: Callable[[argparse.Namespace], int]) -> argparse.ArgumentParser:
+    def add(name: str, helptext: str) -> argparse.ArgumentParser:
         sp = sub.add_parser(name, help=helptext, description=helptext, epilog=_EPILOG.get(name),
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-        sp.set_defaults(func=fn)
         return sp
 
-    b = add("build", "build every FMU of the project", build)
+    b = add("build", "build every FMU of the project")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
 
-    s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance",
-            simulate)
+    s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance")
     s.add_argument("--stop", type=positive, default=30.0, help="stop time in wing beats (default 30)")
     s.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")
     s.add_argument("--gamma0", type=finite, default=0.1,
@@ -119,7 +118,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
 
     c = add("cosim", "co-simulate plant and controller FMUs, or any system of FMUs from an SSP "
-            "file, with fmpy and check the stability of each loop", cosim)
+            "file, with fmpy and check the stability of each loop")
     c.add_argument("--system", default=None, metavar="SSP",
                    help="co-simulate the system of an SSP file (any number of FMI 2.0 CS FMUs); "
                         "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
@@ -170,8 +169,7 @@ def _parser() -> argparse.ArgumentParser:
 
     k = add("check", "FMI 2.0 and 3.0 co-simulation compliance checks, each naming its rule of "
             "the standard (validate, call sequence, start values, dependencies, reset, state, "
-            "bad input; for the project's FMUs also the dronefly profile and the fuzz)",
-            check)
+            "bad input; for the project's FMUs also the dronefly profile and the fuzz)")
     k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
                    "into --build, FMI 2.0 and FMI 3.0, and check every FMU there)")
     k.add_argument("--build", default="build", metavar="DIR",
@@ -202,8 +200,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="how long the checks of one FMU may take before it is reported as hung "
                         "(default 600 s)")
 
-    d = add("demo", "open loop and closed loop with the paper's gains: the verdict table",
-            demo)
+    d = add("demo", "open loop and closed loop with the paper's gains: the verdict table")
     d.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSVs and plots")
     d.add_argument("--no-plot", action="store_true", help="do not write the PNGs")
     d.add_argument("--set", dest="set_values", action="append", default=[],
@@ -213,8 +210,7 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if missing or out of date")
 
-    a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model",
-            analyze)
+    a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model")
     a.add_argument("--json", action="store_true", help="print JSON (table, matrices, eigenvalues, gains)")
     a.add_argument("--markdown", action="store_true", help="print the Markdown report (docs/reproduction.md)")
     a.add_argument("--targets", default=None, metavar="LIST",
@@ -225,7 +221,7 @@ def _parser() -> argparse.ArgumentParser:
                         "delta_alpha_2a")
     a.add_argument("--out", default=None, metavar="FILE", help="write to FILE instead of stdout")
     w = add("sweep", "co-simulate many disturbed closed loops: where do they stay within the "
-            "Sect. 3.6 bounds?", sweep)
+            "Sect. 3.6 bounds?")
     w.add_argument("--out", default="build/sweep", metavar="DIR",
                    help="folder of sweep.csv, sweep.json and map_*.png; rerun to resume "
                         "(default build/sweep)")
@@ -295,7 +291,7 @@ def _parser() -> argparse.ArgumentParser:
     w.add_argument("--no-progress", action="store_true", help="no progress bar")
     w.add_argument("--json", action="store_true", help="print the JSON summary")
     q = add("aero", "quasi-steady blade-element model of the wings: its derivatives beside the "
-            "paper's CFD values, or its cycle-averaged forces", aero)
+            "paper's CFD values, or its cycle-averaged forces")
     q.add_argument("what", nargs="?", choices=("table", "forces"), default="table",
                    help="table (default): trim, derivatives, eigenvalues, Eq. (27); forces: the "
                         "cycle-averaged X, Y, Z, L, M, N at --state and --control")
@@ -317,6 +313,14 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _command(name: str) -> ModuleType:
+    """The module of subcommand ``name`` (:data:`~dronefly.cli.commands.COMMANDS`), imported
+    when it runs: each loads its own analyses, and ``dronefly --help`` none."""
+    if name not in COMMANDS:  # the parser knows no other
+        raise AssertionError(f"subcommand {name!r} has no module")
+    return importlib.import_module(f"{__package__}.commands.{name}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (also used by ``python -m dronefly``)."""
     parser = _parser()
@@ -326,7 +330,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(e.code or 0)
     try:
         with deferred_sigint() as interrupt:  # Ctrl-C lands between steps, never in an FMU
-            code = int(args.func(args))
+            code = int(_command(args.command).run(args))
         if interrupt.requested:
             raise KeyboardInterrupt
         return code

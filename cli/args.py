@@ -9,9 +9,12 @@ value (gains in :mod:`dronefly.harness.paper.gains`, assignments in
 from __future__ import annotations
 
 import argparse
+import math
+import re
 from typing import Any, Callable
 
 from ..core.errors import DroneflyError
+from ..harness.sweep.cases import parse_floats, parse_int
 
 __all__ = ["converter", "finite", "floats_arg", "int_arg", "parse_gains",
            "parse_names", "parse_setting", "parse_x0", "positive"]
@@ -32,8 +35,6 @@ def converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
 
 def int_arg(name: str, lo: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
-        from ..harness.sweep.cases import parse_int
-
         return parse_int(text, name, lo)
 
     return converter(parse)
@@ -41,15 +42,21 @@ def int_arg(name: str, lo: int) -> Callable[[str], int]:
 
 def floats_arg(name: str) -> Callable[[str], tuple[float, ...]]:
     def parse(text: str) -> tuple[float, ...]:
-        from ..harness.sweep.cases import parse_floats
-
         return parse_floats(text, name)
 
     return converter(parse)
 
 
 def parse_gains(text: str) -> Any:
-    from ..harness.paper.gains import parse_gains as parse
+    """``--gains``: :func:`dronefly.harness.paper.gains.parse_gains`."""
+    from ..harness.paper.gains import parse_gains as parse  # start-up: numpy, scipy on use only
+
+    return parse(text)
+
+
+def parse_x0(text: str) -> Any:
+    """``--x0``: :func:`dronefly.harness.stability.run.parse_x0`."""
+    from ..harness.stability.run import parse_x0 as parse  # start-up: numpy, fmpy on use only
 
     return parse(text)
 
@@ -57,19 +64,12 @@ def parse_gains(text: str) -> Any:
 def parse_names(text: str) -> list[str]:
     """``a.x,b.K[1,2]`` -> ["a.x", "b.K[1,2]"]; each name must be instance.NAME (commas inside
     brackets belong to the name)."""
-    import re
 
     names = [t.strip() for t in re.split(r",(?![^\[\]]*\])", text) if t.strip()]
     bad = [n for n in names if not n.partition(".")[2]]
     if not names or bad:
         raise ValueError(f"{text!r}: expected instance.NAME[,instance.NAME...]")
     return names
-
-
-def parse_x0(text: str) -> Any:
-    from ..harness.stability.run import parse_x0 as parse
-
-    return parse(text)
 
 
 def parse_setting(text: str) -> tuple[str, str]:
@@ -83,8 +83,6 @@ def parse_setting(text: str) -> tuple[str, str]:
 
 
 def finite(text: str) -> float:
-    import math
-
     try:
         value = float(text)
     except ValueError:

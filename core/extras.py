@@ -6,11 +6,15 @@ with one line naming the extra to install (exit code 2).
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import sys
+from types import ModuleType
+from typing import Any
 
 from .errors import DroneflyError
 
-__all__ = ["EXTRAS", "MissingExtra", "require"]
+__all__ = ["EXTRAS", "MissingExtra", "optional", "pyplot", "require"]
 
 #: module -> (extra, what needs it)
 EXTRAS: dict[str, tuple[str, str]] = {
@@ -28,8 +32,6 @@ class MissingExtra(DroneflyError):
 
 def require(module: str, alternative: str = "") -> None:
     """Raise :class:`MissingExtra` naming the extra if ``module`` cannot be imported."""
-    import sys
-
     if module in sys.modules:  # imported already, or blocked (None: as if not installed)
         found = sys.modules[module] is not None
     else:
@@ -41,3 +43,35 @@ def require(module: str, alternative: str = "") -> None:
         extra, what = EXTRAS[module]
         raise MissingExtra(f"{module} is not installed ({what}): pip install 'dronefly-fmu[{extra}]'"
                            + (f", or {alternative}" if alternative else ""))
+
+
+def optional(module: str, *names: str, alternative: str = "") -> Any:
+    """A module of an optional package, imported when first needed (the packages of
+    :data:`EXTRAS` take a second or more to import, and most runs need none of them).
+
+    ``optional("matplotlib.figure")`` is the module; with ``names``, the attribute of that name
+    (one name) or a tuple of them: ``Figure = optional("matplotlib.figure", "Figure")``.
+
+    Raises
+    ------
+    MissingExtra
+        The package is not installed (names the extra, and ``alternative`` if given).
+    """
+    require(module.partition(".")[0], alternative)
+    mod: ModuleType = importlib.import_module(module)
+    if not names:
+        return mod
+    values = tuple(getattr(mod, n) for n in names)
+    return values[0] if len(values) == 1 else values
+
+
+def pyplot() -> ModuleType:
+    """matplotlib's pyplot on the Agg backend (figures written to files, never shown).
+
+    Raises
+    ------
+    MissingExtra
+        matplotlib is not installed.
+    """
+    optional("matplotlib").use("Agg")
+    return optional("matplotlib.pyplot")

@@ -10,10 +10,13 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import json
 import os
 import zipfile
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
+
+import numpy as np
 
 __all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_run_files",
            "write_text_atomic", "write_zip"]
@@ -98,9 +101,6 @@ def write_run_files(result: Any, out_dir: str | Path, name: str,
     plot : callable, optional
         ``plot(result, path)`` writes the PNG to ``path``; None writes no PNG.
     """
-    import json
-
-    import numpy as np
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -8,7 +8,14 @@ container) a logger that points into freed memory. Shipped inside every FMU.
 
 from __future__ import annotations
 
+import atexit
+import ctypes
+import os
+import os.path
+import platform
+import posixpath
 import sys
+import threading
 
 __all__ = ["PYTHONFMU_BESIDE_SHIM", "binary_folder3", "finalize_at_exit", "guarded_libraries",
            "inside_fmpy_container", "leave_sys_path", "loaded_libraries", "platform_tuple",
@@ -51,7 +58,6 @@ def finalize_at_exit(resources: str | None, model: str, folder: str = "linux64")
         The platform folder under ``binaries``: ``linux64`` (FMI 2.0), or the FMI 3.0
         platform tuple of the loaded library (:func:`binary_folder3`).
     """
-    import os.path
 
     if not resources or not sys.platform.startswith("linux"):
         return
@@ -60,7 +66,6 @@ def finalize_at_exit(resources: str | None, model: str, folder: str = "linux64")
     if lib in _FINALIZE:
         return
     _FINALIZE.add(lib)
-    import atexit
 
     atexit.register(_at_exit, lib)
 
@@ -104,9 +109,6 @@ def binary_folder3(resources: str | None, model: str) -> str:
     of this machine (:func:`platform_tuple`), where an FMI 3.0 host looks for it. Looked up
     once per FMU and model.
     """
-    import os.path
-    import platform
-    import posixpath
 
     key = (str(resources), model)
     if key not in _FOLDER3:
@@ -131,9 +133,6 @@ PYTHONFMU_BESIDE_SHIM = ".pythonfmu.so"
 
 
 def _at_exit(lib: str) -> None:
-    import os
-    import threading
-
     native_id = getattr(threading, "get_native_id", None)  # Python 3.8+
     if native_id is None or native_id() != os.getpid():  # not the main thread: a C host's shutdown
         return
@@ -156,8 +155,6 @@ def release_interpreter_guard(lib: str) -> str | None:
         The loader's name of the library whose guard was released, or ``None`` if neither is
         loaded. Releasing twice is harmless (the guard is then empty).
     """
-    import ctypes
-    import os
 
     loaded = loaded_libraries()
     for path in (lib[:-len(".so")] + PYTHONFMU_BESIDE_SHIM, lib):
@@ -175,7 +172,6 @@ def _same_file_key(path: str) -> str:
     """``path`` normalised as the loader's names are compared here: one leading slash, no
     ``.``/``..``, no doubled separators. The file itself may be gone (hosts that unpack FMUs
     into a temporary folder delete it while the library is still mapped), so no ``stat``."""
-    import posixpath
 
     return posixpath.normpath("/" + path.lstrip("/")) if path.startswith("/") \
         else posixpath.normpath(path)
@@ -190,8 +186,6 @@ def loaded_libraries() -> dict[str, list[str]]:
         Normalised path -> the loader's own names for it (what ``dlopen`` with
         ``RTLD_NOLOAD`` matches without touching the file system).
     """
-    import ctypes
-    import os
 
     class _Info(ctypes.Structure):  # the leading fields of struct dl_phdr_info
         _fields_ = [("addr", ctypes.c_void_p), ("name", ctypes.c_char_p)]
@@ -226,7 +220,6 @@ def inside_fmpy_container(resources: str | None) -> bool:
     """
     if not resources:
         return False
-    import os.path
 
     outer = os.path.dirname(os.path.dirname(os.path.abspath(resources)))
     return (os.path.basename(outer) == "resources"

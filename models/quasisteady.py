@@ -79,6 +79,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.special import roots_jacobi
 
 from ..core.errors import DroneflyError
 from .lateral import FLIGHT_DATA, reference_scales
@@ -310,7 +311,6 @@ class QuasiSteadyModel:
         self.terms = terms
         self.geometry = geometry or WingGeometry.from_flight_data()
         self.n_span, self.n_time = n_span, n_time
-        from scipy.special import roots_jacobi
 
         g = self.geometry
         # nodes x in [-1, 1] with weight (1-x)^(q-1) (1+x)^(p-1); r_hat = (1+x)/2

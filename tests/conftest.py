@@ -12,6 +12,7 @@ import signal
 from pathlib import Path
 
 import pytest
+from fmu_helpers import opened
 
 
 def _blas_kernels() -> list[str]:
@@ -79,16 +80,10 @@ def built_fmus3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 @pytest.fixture(scope="session")
 def plant(built_fmus):
     """The built DroneFlyLateral, read and extracted once."""
-    from dronefly.harness.cosim.fmu import FMU
-
-    with FMU(built_fmus["DroneFlyLateral"]) as fmu:
-        yield fmu
+    yield from opened(built_fmus["DroneFlyLateral"])
 
 
 @pytest.fixture(scope="session")
 def controller(built_fmus):
     """The built StateFeedback, read and extracted once."""
-    from dronefly.harness.cosim.fmu import FMU
-
-    with FMU(built_fmus["StateFeedback"]) as fmu:
-        yield fmu
+    yield from opened(built_fmus["StateFeedback"])

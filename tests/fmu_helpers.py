@@ -4,10 +4,18 @@ from __future__ import annotations
 
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 from xml.etree import ElementTree as ET
 
-__all__ = ["build_crashing_fmu", "model_description", "set_values", "start"]
+from dronefly.harness.cosim.fmu import FMU
+
+__all__ = ["build_crashing_fmu", "model_description", "opened", "set_values", "start"]
+
+
+def opened(path: Path) -> Iterator[FMU]:
+    """A fixture body: the FMU at ``path`` read and extracted, deleted after the last test."""
+    with FMU(path) as fmu:
+        yield fmu
 
 
 def model_description(path: Path) -> ET.Element:

@@ -16,7 +16,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly import __version__
-from dronefly.cli import app as cli_main
+from dronefly.cli.commands import demo as demo_command
 from dronefly.cli.app import main
 from dronefly.core.errors import DroneflyError
 from dronefly.harness.paper.gains import parse_gains
@@ -179,7 +179,7 @@ def test_a_bug_is_not_reported_as_bad_input(monkeypatch, capsys):
     def broken(args):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(cli_main, "demo", broken)
+    monkeypatch.setattr(demo_command, "run", broken)
     assert main(["demo"]) == 1
     err = capsys.readouterr().err
     assert "internal error (a bug" in err and "RuntimeError: boom" in err and "Traceback" not in err
@@ -191,7 +191,7 @@ def test_bad_input_is_one_line_exit_2(monkeypatch, capsys):
     def bad(args):
         raise DroneflyError("x = 'y' is not a number\nsecond line")
 
-    monkeypatch.setattr(cli_main, "demo", bad)
+    monkeypatch.setattr(demo_command, "run", bad)
     assert main(["demo"]) == 2
     err = capsys.readouterr().err
     assert err == "dronefly demo: error: x = 'y' is not a number\n"

@@ -115,14 +115,15 @@ def test_libcosim_equals_the_jacobi_harness(libcosim, fmus, harness_loop):
 
 
 def test_libcosim_verdicts(libcosim, fmus):
-    ident, h_wb = libcosim_verdict(*fmus)
+    v = libcosim_verdict(*fmus)
+    ident, h_wb = v.identification, v.step_wb
     assert abs(h_wb - 0.1) < 1e-6
     assert ident.verdict == "neutral"
     assert abs(ident.dominant_growth_rate) <= TOL_PER_WINGBEAT
     assert_allclose(ident.eigenvalues[:4], PAPER_TARGETS, atol=1e-3)
     assert ident.fit_residual < 1e-10
     zero = {f"K[{i},{j}]": 0.0 for i in range(1, 4) for j in range(1, 5)}
-    open_loop, _ = libcosim_verdict(*fmus, gains=zero)
+    open_loop = libcosim_verdict(*fmus, gains=zero).identification
     assert open_loop.verdict == "unstable"
     assert_allclose(open_loop.dominant_growth_rate, float(pv.EQ19_A_LNN[0][0]), atol=1e-3)
 

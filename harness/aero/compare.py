@@ -17,12 +17,12 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ...models import (lateral_dynamics as lateral_model,
+                       longitudinal_dynamics as longitudinal_model)
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.lateral import STATE_BOUNDS_SECT36, sort_eigenvalues
-from ...models import lateral_dynamics as lateral_model
-from ...models import longitudinal_dynamics as longitudinal_model
 from ...models.quasisteady import (COEFFICIENT_SETS, CONTROLS, FORCES, STATES, QuasiSteadyModel,
-    Trim)
+                                   Terms, Trim)
 
 __all__ = [
     "CONTROL_BOX_RAD",
@@ -476,7 +476,6 @@ TRIM_VARIANTS: tuple[tuple[str, str, dict[str, object]], ...] = (
 def trim_table() -> str:
     """The trimmed angles of every variant of :data:`TRIM_VARIANTS` [deg], and the share of
     the weight that each term carries at that trim [%]."""
-    from ...models.quasisteady import Terms
 
     lines = [f"{'coefficients':<14} {'terms':<26} {'alpha_d':>8} {'alpha_u':>8} {'phibar':>7} "
              f"{'transl. %':>9} {'rotat. %':>8} {'added m. %':>10}"]

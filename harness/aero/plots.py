@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from .compare import (CONTROL_BOX_RAD, LATERAL_PAIRS, STATE_BOX, derivatives, linearity_scan,
-    pair_scan)
+from ...core.extras import pyplot
 from ...models.quasisteady import FORCES, QuasiSteadyModel
+from .compare import (CONTROL_BOX_RAD, LATERAL_PAIRS, STATE_BOX, derivatives, linearity_scan,
+                      pair_scan)
 
 __all__ = ["plot_fig2", "plot_linearity_maps"]
 
@@ -22,10 +23,7 @@ _LATERAL_CONTROLS = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
 def plot_fig2(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0) -> Path:
     """Y+, L+, N+ against each lateral control out to ``extent`` times +/-0.4 rad, with the
     tangent at hover and the box of Sect. 3.6 (the paper's Fig. 2, from the model)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     scan = linearity_scan(model, _LATERAL_CONTROLS, ("Y", "L", "N"), extent=extent, points=33)
     d = derivatives(model, 1e-3, _LATERAL_CONTROLS)
@@ -52,10 +50,7 @@ def plot_linearity_maps(model: QuasiSteadyModel, path: str | Path, extent: float
     """Error of the linear Y+, L+, N+ over each pair of lateral states out to ``extent`` times
     the box, the largest of the three outputs in per cent of its scale, with the 1, 5 and 10 %
     contours and the box."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     for ax, pair in zip(axes, LATERAL_PAIRS):
@@ -77,7 +72,7 @@ def plot_linearity_maps(model: QuasiSteadyModel, path: str | Path, extent: float
 
 def _save(fig: "Any", path: str | Path) -> Path:
     """Lay out, write (110 dpi) and close ``fig``; the path written."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig.tight_layout()
     out = Path(path)

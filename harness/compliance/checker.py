@@ -55,8 +55,13 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
+from fmpy.validation import validate_fmu
 
 from ..cosim.fmu import FMU, FMUError, Instance
+from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES, FMI3_RULES
+from .fuzzkit import status_of
+from .reference import REFERENCES, check_reference
 
 __all__ = ["CHECK_NAMES", "PROFILES", "RULES", "CheckOptions", "CheckResult", "CheckSkipped",
            "FMUReport", "profile_for", "rule_of", "run_checks"]
@@ -312,7 +317,6 @@ def _named(vars_: list[_Var]) -> str:
 def _reader(vars_: list[_Var]) -> Callable[[Instance], list[float]]:
     """A function reading the values of ``vars_`` from an instance (each kind with its own
     get call) as floats; a refused get fails naming the variables."""
-    from fmpy.fmi1 import FMICallException
 
     groups = []
     for kind, getter in (("Real", "getReal"), ("Integer", "getInteger"),
@@ -352,8 +356,6 @@ def _read(inst: Instance, vars_: list[_Var]) -> list[float]:
 
 
 def _write(inst: Instance, var: _Var, value: float) -> None:
-    from fmpy.fmi1 import FMICallException
-
     s = inst.slave
     try:
         if var.kind == "Real":
@@ -387,7 +389,6 @@ def _excite(ctx: _Context, inst: Instance, k: int) -> None:
 
 def _do_step(ctx: _Context, inst: Instance, t: float, h: float) -> bool:
     """One step; True if the FMU ended the run (terminate requested, early return)."""
-    from fmpy.fmi1 import FMICallException
 
     if ctx.on_event is not None:
         ctx.on_event({"call": f"{ctx.fmi}DoStep(currentCommunicationPoint={t!r}, "
@@ -444,8 +445,6 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
 
 # -- the checks ------------------------------------------------------------------------------
 def _check_validate(ctx: _Context) -> str:
-    from fmpy.validation import validate_fmu
-
     problems = validate_fmu(str(ctx.fmu.path))
     _require(not problems, "; ".join(problems[:5]) + (" ..." if len(problems) > 5 else ""))
     return "no problems"
@@ -667,16 +666,6 @@ def _check_state(ctx: _Context) -> str:
             + ", ".join(parts))
 
 
-def _status_of(call: Callable[[], Any]) -> int:
-    from fmpy.fmi1 import FMICallException
-
-    try:
-        call()
-    except FMICallException as e:
-        return int(e.status)
-    return 0
-
-
 _STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 #: the rule that forbids any call after Fatal, the checker's own calls included
 _FATAL_RULE = {"fmi2": "FMI 2.0 2.1.3", "fmi3": "FMI 3.0 2.2.3"}
@@ -687,7 +676,7 @@ def _expect_discard(ctx: _Context, inst: Instance, t: float, h: float, fragment:
     before = len(inst.messages)
     ctx.event(call=f"{ctx.fmi}DoStep(currentCommunicationPoint={t!r}, "
                    f"communicationStepSize={h!r})")
-    status = _status_of(lambda: inst.slave.doStep(currentCommunicationPoint=t,
+    status = status_of(lambda: inst.slave.doStep(currentCommunicationPoint=t,
                                                   communicationStepSize=h))
     _require(status != 0, f"{fragment}: {ctx.fmi}DoStep returned OK")
     _require(status in (2, 3), f"{fragment}: {ctx.fmi}DoStep returned status {status}")
@@ -727,8 +716,6 @@ def _bad_input_ours(ctx: _Context) -> str:
 
 
 def _bad_input_standard(ctx: _Context) -> str:
-    from fmpy.fmi1 import FMICallException
-
     cases = []
     with ctx.instantiate("check") as inst:
         s = inst.slave
@@ -738,7 +725,7 @@ def _bad_input_standard(ctx: _Context) -> str:
                             f"last was {ctx.start!r})", ctx.start + 10 * ctx.step, ctx.step)):
             _init(ctx, inst)
             before = len(inst.messages)
-            status = _status_of(lambda: _do_step(ctx, inst, t, h))
+            status = status_of(lambda: _do_step(ctx, inst, t, h))
             _require(status != 4, f"{what}: {ctx.fmi}DoStep returned Fatal")
             if status == 0:
                 ctx.warnings.append(f"{what}: {ctx.fmi}DoStep returned OK")
@@ -785,7 +772,7 @@ def _check_logger_format(ctx: _Context) -> str:
                                              communicationStepSize=0.0))):
             _init(ctx, inst)
             ctx.event(call=f"{what} of instance {_PRINTF!r}")
-            if _status_of(call) != 0:
+            if status_of(call) != 0:
                 s.reset()
             else:
                 s.terminate()
@@ -797,7 +784,6 @@ def _check_logger_format(ctx: _Context) -> str:
 def _check_reference(ctx: _Context) -> str:
     if not ctx.ours:
         raise CheckSkipped("reference results are the project's FMUs' (dronefly profile)")
-    from .reference import REFERENCES, check_reference
 
     if ctx.fmu.name not in REFERENCES:
         raise CheckSkipped("no reference result for this model")
@@ -823,7 +809,6 @@ _CHECKS: list[tuple[str, Callable[[_Context], str]]] = [
 
 def rule_of(name: str, fmi_version: int, profile: str) -> str:
     """The rule line of check ``name`` (with the dronefly profile's promise if it adds one)."""
-    from .fmi3checks import FMI3_RULES
 
     r2, r3, ours = {**RULES, **FMI3_RULES}.get(name, ("", "", ""))
     rule = r3 if fmi_version == 3 else r2
@@ -831,8 +816,6 @@ def rule_of(name: str, fmi_version: int, profile: str) -> str:
 
 
 def _iter_checks(ctx: _Context) -> Iterator[tuple[str, Callable[[_Context], str]]]:
-    from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
-
     for name, fn in _CHECKS:
         yield name, fn
     if ctx.fmu.fmi_version == 3:

@@ -25,6 +25,8 @@ import math
 from ctypes import c_double as _f64, c_uint32 as _u32
 from typing import Any, Callable
 
+from .fuzzkit import status_of
+
 __all__ = ["FMI3_CHECKS", "FMI3_PROFILES", "FMI3_RULES", "Fmi3CheckFailed", "check_discard",
            "check_state_machine", "check_state_refusal"]
 
@@ -38,16 +40,6 @@ class Fmi3CheckFailed(AssertionError):
 def _require(cond: bool, msg: str) -> None:
     if not cond:
         raise Fmi3CheckFailed(msg)
-
-
-def _status_of(call: Callable[[], Any]) -> int:
-    from fmpy.fmi1 import FMICallException
-
-    try:
-        call()
-    except FMICallException as e:
-        return int(e.status)
-    return 0
 
 
 def _experiment(fmu: Any) -> tuple[float, float]:
@@ -70,7 +62,7 @@ def _init(inst: Any, start: float) -> None:
 
 def _expect(inst: Any, call: Callable[[], Any], status: int, fragment: str, what: str) -> None:
     before = len(inst.messages)
-    got = _status_of(call)
+    got = status_of(call)
     _require(got != _FATAL, f"{what}: fmi3Fatal")
     _require(got == status, f"{what}: status {got}, expected {status}")
     logged = " ".join(m.message for m in inst.messages[before:])
@@ -105,14 +97,14 @@ def check_state_machine(fmu: Any, ctx: Any = None) -> str:
             _expect(inst, _step(inst, start, h), _ERROR, f"{name} = 0.5 rejected",
                     f"a step after setting {name}")
             cases += 1
-        _require(_status_of(_step(inst, start, h)) == 0, "no recovery after the refused step")
+        _require(status_of(_step(inst, start, h)) == 0, "no recovery after the refused step")
         s.terminate()
         _expect(inst, _step(inst, start + h, h), _ERROR, "not allowed in state 'terminated'",
                 "fmi3DoStep after fmi3Terminate")
         s.reset()
         _init(inst, start)
         for k in range(3):
-            _require(_status_of(_step(inst, start + k * h, h)) == 0, "no run after fmi3Reset")
+            _require(status_of(_step(inst, start + k * h, h)) == 0, "no run after fmi3Reset")
         cases += 2
     return f"{cases} illegal calls answered fmi3Error with a logged message, none Fatal; " \
            "recovered by fmi3Reset"
@@ -127,7 +119,7 @@ def _state_machine_standard(fmu: Any) -> str:
                                                                s.terminate()))):
             prepare()
             before = len(inst.messages)
-            got = _status_of(_step(inst, start, h))
+            got = status_of(_step(inst, start, h))
             _require(got != _FATAL, f"fmi3DoStep {when}: fmi3Fatal")
             _require(got == _ERROR, f"fmi3DoStep {when}: status {got}, expected {_ERROR} "
                                     "(fmi3Error)")
@@ -138,7 +130,7 @@ def _state_machine_standard(fmu: Any) -> str:
             s.reset()  # after fmi3Error: fmi3Reset, fmi3FreeInstance or fmi3SetFMUState only
         _init(inst, start)
         for k in range(3):
-            _require(_status_of(_step(inst, start + k * h, h)) == 0, "no run after fmi3Reset")
+            _require(status_of(_step(inst, start + k * h, h)) == 0, "no run after fmi3Reset")
     return "fmi3DoStep before initialization and after fmi3Terminate: fmi3Error with a logged " \
            "message, none Fatal; recovered by fmi3Reset"
 
@@ -155,7 +147,7 @@ def check_discard(fmu: Any, ctx: Any = None) -> str:
         inst.slave.setReal(vr, [math.nan])
         _expect(inst, _step(inst, start, h), _DISCARD, f"{inputs[0]} = nan", "a NaN input")
         inst.slave.setReal(vr, good)
-        _require(_status_of(_step(inst, start, h)) == 0, "no step after the discarded one")
+        _require(status_of(_step(inst, start, h)) == 0, "no step after the discarded one")
     return f"{inputs[0]} = nan: fmi3Discard, then the step works"
 
 
@@ -167,17 +159,17 @@ def check_state_refusal(fmu: Any, ctx: Any = None) -> str:
         with fmu.instantiate("check") as inst:
             s = inst.slave
             _init(inst, start)
-            _require(_status_of(_step(inst, start, h)) == 0, "first step failed")
+            _require(status_of(_step(inst, start, h)) == 0, "first step failed")
             if corrupt:
                 blob = bytearray(s.serializeFMUstate(s.getFMUstate()))
                 blob[-2] ^= 0xFF
                 before = len(inst.messages)
                 state = s.deSerializeFMUstate(bytes(blob))
-                _require(_status_of(lambda: s.setFMUstate(state)) != _FATAL,
+                _require(status_of(lambda: s.setFMUstate(state)) != _FATAL,
                          "fmi3SetFMUState of corrupt bytes: fmi3Fatal")
                 logged = " ".join(m.message for m in inst.messages[before:])
                 _require("refused" in logged, f"corrupt state not refused in the log ({logged!r})")
-            _require(_status_of(_step(inst, start + h, h)) == 0, "the step after failed")
+            _require(status_of(_step(inst, start + h, h)) == 0, "the step after failed")
             runs.append(s.getReal([fmu.vr(n) for n in outputs]))
     _require(runs[0] == runs[1], "the instance changed after a refused state")
     return "corrupt serialized state refused (logged), the instance unchanged"

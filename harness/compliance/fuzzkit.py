@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import math
 import tempfile
-from typing import Any
+from typing import Any, Callable
+
+from fmpy.fmi1 import FMICallException
 
 from ..cosim.fmu import FMU, Instance
 
-__all__ = ["BAD_VALUES", "DISCARD", "ERROR", "FATAL", "LOGGING", "OK", "PRINTED", "STATES", "WARNING",
+__all__ = ["BAD_VALUES", "status_of", "DISCARD", "ERROR", "FATAL", "LOGGING", "OK", "PRINTED", "STATES", "WARNING",
            "Case", "Printed", "experiment", "instantiate", "reals", "to_state"]
 
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
@@ -52,8 +54,6 @@ class Case:
         self.problems: list[str] = []
 
     def call(self, fname: str, *args: Any) -> Any:
-        from fmpy.fmi1 import FMICallException
-
         before = len(self.inst.messages)
         PRINTED.new()
         try:
@@ -80,6 +80,15 @@ class Case:
     def result(self) -> dict[str, Any]:
         return {"case": self.name, "statuses": sorted(set(self.statuses)),
                 "problems": self.problems}
+
+
+def status_of(call: Callable[[], Any]) -> int:
+    """The FMI status of ``call()``: 0 (OK) if it returns, else the status it raised."""
+    try:
+        call()
+    except FMICallException as e:
+        return int(e.status)
+    return 0
 
 
 def experiment(fmu: FMU) -> tuple[float, float]:

@@ -15,7 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import fmpy
 import numpy as np
+from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
 from ...core.files import write_csv_atomic, write_text_atomic
 from ...models import longitudinal as lon
@@ -136,8 +138,6 @@ def _opt(setup: _Setup) -> dict[str, float]:
 
 
 def _simulate(fmu: Path, model: str, inputs: np.ndarray) -> np.ndarray:
-    import fmpy
-
     setup = REFERENCES[model]
     o = _opt(setup)
     return fmpy.simulate_fmu(str(fmu), start_time=o["StartTime"], stop_time=o["StopTime"],
@@ -179,7 +179,6 @@ def write_reference(model: str, fmu: Path) -> tuple[Path, Path, Path]:
 
 def check_reference(model: str, fmu: Path, folder: Path | None = None) -> ReferenceCheck:
     """Simulate ``fmu`` as the ``.opt`` file says and compare with ``_ref.csv``."""
-    from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
     inp, opt, ref = reference_paths(model)
     if folder is not None:

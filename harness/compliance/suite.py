@@ -13,17 +13,22 @@ Reports go to a terminal (:func:`format_reports`), to JSON (:func:`reports_json`
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
 import tempfile
 import time
+import traceback
+import xml.etree.ElementTree as ET
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
 from .checker import CHECK_NAMES, CheckOptions, CheckResult, FMUReport, rule_of, run_checks
+from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
+from .fuzz import describe_exit, fuzz_fmu
 
 __all__ = ["JSON_SCHEMA", "check_fmu", "check_fmus", "format_reports", "not_checked",
            "reports_json", "reports_junit"]
@@ -63,8 +68,6 @@ def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
                 "fuzz", True, "not applicable: the fuzz calls the FMI 2.0 API; FMI 3.0 has "
                 "the state-machine check", rule="dronefly profile: the fuzz", skipped=True))
         elif report.checks and report.checks[0].name != "load":
-            from .fuzz import fuzz_fmu
-
             t1 = time.perf_counter()
             f = fuzz_fmu(path, random_calls=100, instances=5)
             report.checks.append(CheckResult("fuzz", f.passed, f.summary().replace("\n", ";"),
@@ -115,8 +118,6 @@ def not_checked(path: Path) -> str | None:
 
 
 def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUReport:
-    from .fuzz import describe_exit
-
     with tempfile.TemporaryDirectory(prefix="dronefly_check_") as tmp:
         rows = Path(tmp, "checks.jsonl")
         opts = json.dumps(asdict(options))
@@ -170,7 +171,6 @@ def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUR
 def _not_run(path: Path, report: FMUReport, crashed: str | None,
              options: CheckOptions) -> list[CheckResult]:
     """One failed row listing the checks a crash left out (none if it left none out)."""
-    from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
 
     profile = report.profile or "standard"
     names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS
@@ -183,9 +183,6 @@ def _not_run(path: Path, report: FMUReport, crashed: str | None,
 
 
 def _child(path: str, rows: str, opts: str) -> None:
-    import os
-    import traceback
-
     fd = os.open(rows, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     try:
         def progress(row: dict) -> None:  # one unbuffered write per row: a crash loses none
@@ -250,7 +247,6 @@ def reports_json(reports: list[FMUReport]) -> dict:
 def reports_junit(reports: list[FMUReport]) -> str:
     """JUnit XML: a test suite per FMU, a test case per check (skipped as ``<skipped>``,
     failed as ``<failure>`` with the message), each with its duration."""
-    import xml.etree.ElementTree as ET
 
     root = ET.Element("testsuites", name="dronefly check")
     for r in reports:

@@ -29,6 +29,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
+from fmpy import read_model_description
+from fmpy.fmi3 import FMU3Slave
+
+from ...core.errors import DroneflyError
+
 __all__ = ["INT_TYPES", "VIRTUAL", "Element", "FMU3Adapter", "fmi2_view", "read_view"]
 
 #: first virtual value reference of an array element (FMI 3.0 references stay below it)
@@ -103,8 +108,6 @@ def _extent(md: Any, dim: Any) -> int:
         param = next((v for v in md.modelVariables if v.valueReference == dim.valueReference),
                      None)
     if param is None or param.start is None:
-        from ...core.errors import DroneflyError
-
         raise DroneflyError(f"an array dimension names value reference {dim.valueReference}, "
                             "which is no variable with a start value")
     return int(param.start)
@@ -112,7 +115,6 @@ def _extent(md: Any, dim: Any) -> int:
 
 def read_view(path: str | Path) -> Any:
     """fmpy's model description of an FMU file; of an FMI 3.0 FMU, the harness's view."""
-    from fmpy import read_model_description
 
     md = read_model_description(str(path))
     return fmi2_view(md)[0] if str(md.fmiVersion).startswith("3") else md
@@ -123,8 +125,6 @@ class FMU3Adapter:
 
     def __init__(self, md: Any, unzipdir: str, instance_name: str,
                  elements: dict[int, Element]) -> None:
-        from fmpy.fmi3 import FMU3Slave
-
         self._s = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir,
                             modelIdentifier=md.coSimulation.modelIdentifier,
                             instanceName=instance_name)
@@ -235,8 +235,6 @@ class FMU3Adapter:
     def _int(self, vr: int) -> str:
         kind = INT_TYPES.get(self._types.get(vr, ""))
         if kind is None:
-            from ...core.errors import DroneflyError
-
             raise DroneflyError(f"value reference {vr} is a {self._types.get(vr, 'unknown')} "
                                 "variable, not an integer one")
         return kind

@@ -11,6 +11,7 @@ context managers).
 
 from __future__ import annotations
 
+import re
 import shutil
 import tempfile
 import zipfile
@@ -19,7 +20,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+import fmpy
+from fmpy import platform, platform_tuple, sharedLibraryExtension
+from fmpy.fmi1 import calloc, free
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+from fmpy.logging import addLoggerProxy
+
 from ...core.errors import DroneflyError
+from .fmi3 import FMU3Adapter, fmi2_view
 
 __all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "start_values"]
 
@@ -75,9 +84,6 @@ def check_archive(path: Path) -> None:
     also nested ones), the Python module it names: pythonfmu crashes the host on a missing
     one. Raises :class:`FMUError` with one line naming what is missing.
     """
-    import re
-
-    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     try:
         with zipfile.ZipFile(path) as z:
@@ -122,8 +128,6 @@ class FMU:
     """
 
     def __init__(self, path: str | Path) -> None:
-        import fmpy
-
         self.path = Path(path)
         if not self.path.is_file():
             raise FMUError(f"FMU file {str(self.path)!r} " + (
@@ -143,8 +147,6 @@ class FMU:
         self.model_description3: Any = None
         self.elements: dict[int, Any] = {}
         if self.fmi_version == 3:
-            from .fmi3 import fmi2_view
-
             self.model_description3 = md
             self.model_description, self.elements = fmi2_view(md)
             md = self.model_description
@@ -199,10 +201,6 @@ class Instance:
     messages: list[LogMessage] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-        from fmpy.fmi1 import calloc, free
-
         self.name = _unique(self.name)
         if self.fmu.fmi_version == 3:
             self._instantiate3()
@@ -219,8 +217,6 @@ class Instance:
         cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:
-            from fmpy.logging import addLoggerProxy
-
             addLoggerProxy(byref(cb))
         except Exception:  # pragma: no cover - fmpy without the proxy
             pass
@@ -239,8 +235,6 @@ class Instance:
             raise FMUError(f"cannot instantiate {self.fmu.name!r}: {e}") from e
 
     def _instantiate3(self) -> None:
-        from .fmi3 import FMU3Adapter
-
         md = self.fmu.model_description3
         self.slave: Any = FMU3Adapter(md, str(self.fmu._unzipdir), self.name, self.fmu.elements)
 

@@ -24,9 +24,11 @@ import math
 from typing import Any, Mapping, Sequence
 
 from ...core.errors import DroneflyError
-
 from .fmu import FMU, FMUError, Instance
+from .graph import Order
 from .records import MASTERS, MAX_STEPS, LoopRun, StepFailure
+from .system import System, SystemSpecError
+from .system_master import SystemMaster
 
 __all__ = ["MASTERS", "MAX_STEPS", "CoSimError", "Loop", "LoopRun", "StepFailure", "connect_by_name",
            "step_count"]
@@ -111,8 +113,6 @@ class Loop:
     """
 
     def __init__(self, plant: FMU, controller: FMU) -> None:
-        from .system import System
-
         self.plant, self.controller = plant, controller
         self.states = plant.names("output")
         self.controls = plant.names("input")
@@ -128,9 +128,6 @@ class Loop:
 
     def master(self, master: str = "gauss-seidel") -> Any:
         """The :class:`SystemMaster` of the pair under ``master`` (made once)."""
-        from .system import SystemSpecError
-        from .graph import Order
-        from .system_master import SystemMaster
 
         if master not in self._masters:
             try:
@@ -160,7 +157,6 @@ class Loop:
         Real, Integer or Boolean (see :meth:`SystemMaster.run`). A failure names the FMU
         (its model name), the call and the time.
         """
-        from .system import SystemSpecError
 
         if master not in MASTERS:
             raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")

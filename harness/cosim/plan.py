@@ -15,6 +15,8 @@ from __future__ import annotations
 from ctypes import c_double, c_int, c_uint
 from typing import Any, Container, Mapping, Sequence
 
+import numpy as np
+
 from .system import Connection, SystemSpecError
 
 __all__ = ["RECORDABLE", "Node", "Op", "build_nodes", "gather", "get_ops", "put_ops", "record_ops",
@@ -162,7 +164,6 @@ def record_ops(nodes: Mapping[str, Node], every_out: Any) -> list[Op]:
 
     Only gets: the master reads them together with the point's outputs, before the inputs
     of the next step are set (and sets nothing more at the last point)."""
-    import numpy as np
 
     ops: list[Op] = []
     base = sum(len(n.out_names) for n in nodes.values())

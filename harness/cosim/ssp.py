@@ -15,6 +15,7 @@ from typing import Mapping, Sequence
 from xml.etree import ElementTree as ET
 
 from ...core.files import write_zip
+from ...models import lateral, longitudinal
 from .fmi3 import read_view
 from .system import System, SystemSpecError
 
@@ -149,7 +150,6 @@ def hover_system(fmus: Mapping[str, str | Path],
         The six-degree-of-freedom plant (instance ``plant``) in place of the two linear ones
         (:data:`HOVER_6DOF_FMUS`): three FMUs, the same controllers.
     """
-    from ...models import lateral, longitudinal
 
     models = HOVER_6DOF_FMUS if nonlinear else HOVER_FMUS
     missing = [m for m in models.values() if m not in fmus]

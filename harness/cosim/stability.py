@@ -25,8 +25,9 @@ from ...models import lateral
 from ...core.errors import CrossCheckError
 
 __all__ = ["FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TOL_PER_WINGBEAT", "TRAJECTORY_TOL",
-           "Identification", "checked", "classify", "cross_check_failures", "identify",
-           "rates_from_transition", "relative_deviation", "sort_eigenvalues"]
+           "Identification", "Verdict", "checked", "classify", "cross_check_failures", "identify",
+           "rates_from_transition", "relative_deviation", "sort_eigenvalues", "unit_start_values",
+           "verdict_of"]
 
 TOL_PER_WINGBEAT = 1e-3
 #: Largest fit residual max |z_(k+1) - F z_k| / |z_k| of a loop that is the linear map
@@ -111,6 +112,38 @@ def identify(runs: list[np.ndarray], step_wb: float, delay: bool) -> Identificat
     resid = float(np.max(np.linalg.norm(B - A @ Ft, axis=1)))
     rates = rates_from_transition(F, step_wb)
     return Identification(F, rates, float(np.max(rates.real)), classify(rates), resid)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """How an importer ran the closed loop: the identification and the runs it used."""
+
+    identification: Identification
+    runs: list[np.ndarray]  # non-dimensional state trajectories, one per unit initial state
+    step_wb: float  # the communication step of the runs, in wing beats
+
+    @property
+    def verdict(self) -> str:
+        """``unstable``, ``neutral`` or ``stable`` (:func:`classify`)."""
+        return self.identification.verdict
+
+
+def unit_start_values(scale: np.ndarray, prefix: str = "") -> list[dict[str, float]]:
+    """The start values of the runs an identification needs: one per unit initial state
+    x+_0 = e_i, dimensional (times ``scale``, [U, n, n, 1]), named ``<prefix><state>_start``."""
+    return [{f"{prefix}{s}_start": float(v) for s, v in zip(lateral.STATE_NAMES, e * scale)}
+            for e in np.eye(len(lateral.STATE_NAMES))]
+
+
+def verdict_of(runs: list[np.ndarray], step_wb: float, *, delay: bool, where: str) -> Verdict:
+    """:func:`identify` the runs and :func:`checked` the fit (``where`` names the runner).
+
+    Raises
+    ------
+    CrossCheckError
+        The fit's residual exceeds :data:`FIT_RESIDUAL_TOL`.
+    """
+    return Verdict(checked(identify(runs, step_wb, delay), where), runs, step_wb)
 
 
 def checked(ident: Identification, where: str) -> Identification:

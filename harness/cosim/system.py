@@ -9,10 +9,14 @@ from __future__ import annotations
 
 import math
 import tempfile
+import xml.etree.ElementTree as ET
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
+
+from fmpy import read_model_description
+from fmpy.ssp.ssd import read_ssd
 
 from ...core.errors import DroneflyError
 
@@ -98,7 +102,6 @@ class System:
         used; the system holds their paths). An input that no other instance provides stays
         unconnected; one that two instances provide is refused.
         """
-        from fmpy import read_model_description
 
         outputs: dict[str, list[str]] = {}
         inputs: dict[str, list[str]] = {}
@@ -125,7 +128,6 @@ class System:
     def from_ssp(cls, path: str | Path) -> "System":
         """Read an SSP: its components (FMUs inside the archive), connections and the
         parameter values bound to each component (SSV files or inline)."""
-        from fmpy.ssp.ssd import read_ssd
 
         path = Path(path)
         if not path.is_file():
@@ -165,7 +167,6 @@ class System:
 def _experiment_time(ssd: Path, attribute: str) -> float | None:
     """The DefaultExperiment's ``attribute`` (``startTime``, ``stopTime``) of an SSD, s, or None
     where it gives none (fmpy 0.3 reads neither). A stop time must be > 0."""
-    import xml.etree.ElementTree as ET
 
     for el in ET.parse(ssd).getroot():
         text = el.get(attribute)

@@ -32,15 +32,15 @@ import math
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from ...core.interrupt import deferred_sigint
-
 from .fmu import FMU, FMUError, Instance
-from .records import MASTERS, MAX_STEPS, LoopRun, StepFailure
-from .system import System, SystemSpecError
 from .graph import Order, check_connections, evaluation_order, feedthrough
 from .plan import (RECORDABLE, Node, build_nodes, get_ops, put_ops, record_ops, split_sources,
-    start_ops)
+                   start_ops)
+from .records import MASTERS, MAX_STEPS, LoopRun, StepFailure
+from .system import System, SystemSpecError
 from .values import SETTER, settable, typed_values
 
 __all__ = ["SystemMaster", "call_name"]
@@ -208,8 +208,6 @@ class SystemMaster:
              where: list[int], h: float, n_steps: int,
              parameters: Mapping[str, Mapping[str, Any]], interrupt: Any,
              inputs0: Mapping[str, Mapping[str, float]], start: float = 0.0) -> LoopRun:
-        from fmpy.fmi1 import FMICallException
-
         free = [nodes[i] for i in self.order.free]
         chained = [nodes[i] for i in self.order.chained]
         every = [nodes[i] for i in self.system.fmus]
@@ -316,7 +314,6 @@ def _terminated(node: Node, e: Any, t: float) -> float | None:
     A Discard without progress (the last successful time not after ``t``) is a refused step,
     a failure, also when the FMU says it terminated (pythonfmu 0.7.0 says so after every
     Discard)."""
-    from fmpy.fmi1 import FMICallException
 
     if node.fmu.fmi_version != 2 or e.status != 2:
         return None

@@ -3,37 +3,23 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
+import fmpy
 import numpy as np
 from fmpy import read_model_description
 
 from ...builder.closedloop import reference_scales
-from ..cosim.stability import Identification, checked, identify
 from ...models.lateral import STATE_NAMES
+from ..cosim.stability import Verdict, unit_start_values, verdict_of
 
-__all__ = ["Verdict", "container_verdict", "run_container"]
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """How an importer ran the closed loop: the identification and the runs it used."""
-
-    identification: Identification
-    runs: list[np.ndarray]  # non-dimensional state trajectories, one per unit initial state
-
-    @property
-    def verdict(self) -> str:
-        """``unstable``, ``neutral`` or ``stable`` (see :mod:`dronefly.harness.cosim.stability`)."""
-        return self.identification.verdict
+__all__ = ["container_verdict", "run_container"]
 
 
 def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None = None,
                   stop_s: float | None = None) -> np.ndarray:
     """``fmpy.simulate_fmu`` with the container's default experiment (output every step)."""
-    import fmpy
 
     md = read_model_description(fmu)
     step = float(md.defaultExperiment.stepSize)
@@ -63,9 +49,7 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
     n, scale = reference_scales(md)
     step = float(md.defaultExperiment.stepSize)
     runs = []
-    for e in np.eye(len(STATE_NAMES)):
-        res = run_container(fmu, start_values={f"{x}_start": float(v)
-                                               for x, v in zip(STATE_NAMES, e * scale)},
-                            stop_s=(n_steps + 1) * step)
+    for start in unit_start_values(scale):
+        res = run_container(fmu, start_values=start, stop_s=(n_steps + 1) * step)
         runs.append(np.column_stack([res[x] for x in STATE_NAMES]) / scale)
-    return Verdict(checked(identify(runs, step * n, delay=False), f"container {fmu}"), runs)
+    return verdict_of(runs, step * n, delay=False, where=f"container {fmu}")

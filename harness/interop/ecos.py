@@ -32,6 +32,7 @@ Ecos keys SSP parameter sets by the SSV's ``name`` and applies one per ``init``;
 from __future__ import annotations
 
 import functools
+import importlib.util
 import json
 import os
 import platform
@@ -40,20 +41,21 @@ import subprocess
 import sys
 import tempfile
 import zipfile
+from importlib import metadata
 from pathlib import Path
 from typing import Mapping
 from xml.etree import ElementTree as ET
 
 import numpy as np
 
+from ...builder.closedloop import reference_scales
+from ...models.lateral import STATE_NAMES
+from ..cosim.fmi3 import read_view
 from ..cosim.master import CoSimError
 from ..cosim.ssp import SSD_NS
-from ..cosim.stability import checked, identify
-from ...builder.closedloop import reference_scales
-from .container import Verdict
+from ..cosim.stability import Verdict, unit_start_values, verdict_of
 from .libcosim import InteropRun
 from .ssp import ssp_parameter_set
-from ...models.lateral import STATE_NAMES
 
 __all__ = ["ecos_available", "ecos_env", "ecos_verdict", "run_ecos", "tbb_library_dir"]
 
@@ -104,7 +106,6 @@ os._exit(0)
 def tbb_library_dir() -> str | None:
     """The folder holding ``libtbb.so.12`` of the PyPI package ``tbb``, or None (pip puts it
     into ``<prefix>/lib`` or ``~/.local/lib``, where the loader does not look)."""
-    from importlib import metadata
 
     try:
         files = metadata.distribution("tbb").files or []
@@ -132,7 +133,6 @@ def ecos_env(base: Mapping[str, str] | None = None) -> dict[str, str]:
 @functools.lru_cache(maxsize=1)
 def ecos_available() -> str | None:
     """None if ecospy runs here (probed once, in a child process), else why not."""
-    import importlib.util
 
     if not (sys.platform.startswith("linux") and platform.machine() in ("x86_64", "AMD64")):
         return f"the Ecos route is for Linux x86_64 (ecospy's binaries), not " \
@@ -167,7 +167,6 @@ def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
 
 def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
     """n [Hz] and the state scales of the plant component's FMU."""
-    from ..cosim.fmi3 import read_view  # FMI 2.0 or 3.0
 
     source = _component(ssp, plant).get("source")
     with zipfile.ZipFile(ssp) as z, tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:
@@ -299,9 +298,8 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
     ssp = Path(ssp).resolve()
     n_hz, scale = _plant_scales(ssp, "plant")
     step = 0.1 / n_hz
-    starts = [{**(overrides or {}),
-               **{f"plant.{s}_start": float(v) for s, v in zip(STATE_NAMES, e * scale)}}
-              for e in np.eye(len(STATE_NAMES))]
+    starts = [{**(overrides or {}), **start}
+              for start in unit_start_values(scale, prefix="plant.")]
     runs = []
     for r in _runs(ssp, step, n_steps, starts, "plant", env):
         if not r.complete:
@@ -312,4 +310,4 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
                              "the controller did not see x_0 before the first step")
         xs = r.states() / scale
         runs.append(np.vstack([xs[:1], xs]))
-    return Verdict(checked(identify(runs, step * n_hz, delay=True), f"Ecos {ssp}"), runs)
+    return verdict_of(runs, step * n_hz, delay=True, where=f"Ecos {ssp}")

@@ -33,17 +33,23 @@ finds step number 0 in the buffer, so a request from step 0 always loses the las
 
 from __future__ import annotations
 
+import ctypes.util
 import math
+import os
+import sys
+import sysconfig
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
 
+import fmpy
 import numpy as np
 
 from ...builder.closedloop import reference_scales
+from ...core.extras import optional
 from ...models.lateral import STATE_NAMES
 from ..cosim.master import CoSimError
-from ..cosim.stability import Identification, checked, identify
+from ..cosim.stability import Verdict, unit_start_values, verdict_of
 
 __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
            "run_libcosim", "step_ns"]
@@ -52,10 +58,8 @@ __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict",
 def libcosim_available() -> str | None:
     """None if libcosimpy can be used here, else why not."""
     try:
-        from libcosimpy.CosimExecution import CosimExecution  # noqa: F401
-        from libcosimpy._internal import libcosimc
-
-        libcosimc()
+        optional("libcosimpy.CosimExecution")
+        optional("libcosimpy._internal", "libcosimc")()
     except Exception as e:  # ImportError, OSError from the shared library
         return f"libcosimpy unavailable: {e!r}"
     return None
@@ -120,12 +124,14 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step_ns: int, n_s
     why = libcosim_available()
     if why:
         raise CoSimError(why)
-    from libcosimpy.CosimEnums import CosimVariableCausality, CosimVariableType
-    from libcosimpy.CosimExecution import CosimExecution
-    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    from libcosimpy.CosimObserver import CosimObserver
-    from libcosimpy.CosimSlave import CosimLocalSlave
-    from libcosimpy._internal import get_last_error_message
+    get_last_error_message = optional("libcosimpy._internal", "get_last_error_message")
+    CosimVariableCausality, CosimVariableType = optional(
+        "libcosimpy.CosimEnums", "CosimVariableCausality", "CosimVariableType")
+    CosimExecution = optional("libcosimpy.CosimExecution", "CosimExecution")
+    CosimLogLevel, log_output_level = optional("libcosimpy.CosimLogging", "CosimLogLevel",
+                                               "log_output_level")
+    CosimObserver = optional("libcosimpy.CosimObserver", "CosimObserver")
+    CosimLocalSlave = optional("libcosimpy.CosimSlave", "CosimLocalSlave")
 
     if int(step_ns) != step_ns or step_ns < 1:
         raise CoSimError(f"step_ns = {step_ns!r} ns must be a positive integer")
@@ -202,13 +208,13 @@ def run_libcosim(plant: str | Path, controller: str | Path, *, step_ns: int, n_s
 
 def libcosim_verdict(plant: str | Path, controller: str | Path, *,
                      gains: Mapping[str, float] | None = None, step_wingbeats: float = 0.1,
-                     n_steps: int = 20) -> tuple[Identification, float]:
+                     n_steps: int = 20) -> Verdict:
     """Identify the closed loop as co-simulated by libcosim and classify it.
 
     One run per unit initial state x_0 = e_i; x_(-1) is what libcosim fed the controller
     before the first step, read from its observer (0 for our plant, see the module text).
     Four such runs of 20 steps fix the 8 x 8 Jacobi transition matrix (the trajectories span
-    the stacked state space after one step). Returns the identification and the step in wing
+    the stacked state space after one step). The verdict's ``step_wb`` is the step in wing
     beats actually used (whole nanoseconds).
 
     Raises
@@ -217,26 +223,22 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
         The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
-    import fmpy
-
     md = fmpy.read_model_description(str(plant))
     n_hz, scale = reference_scales(md)
     h = step_ns(step_wingbeats, n_hz)
     h_wb = h * 1e-9 * n_hz
     runs = []
-    for x_now in np.eye(len(STATE_NAMES)):
-        r = run_libcosim(
-            plant, controller, step_ns=h, n_steps=n_steps,
-            plant_start={f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x_now * scale)},
-            controller_params=gains)
+    for start in unit_start_values(scale):
+        r = run_libcosim(plant, controller, step_ns=h, n_steps=n_steps, plant_start=start,
+                         controller_params=gains)
         if not r.complete:
             raise CoSimError(f"libcosim identification run failed: {r.error}")
         x_prev = np.array([r.controller_inputs0[s] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([x_prev, r.states() / scale]))
-    ident = checked(identify(runs, h_wb, delay=True), f"libcosim {plant} + {controller}")
-    if not math.isfinite(ident.dominant_growth_rate):
+    v = verdict_of(runs, h_wb, delay=True, where=f"libcosim {plant} + {controller}")
+    if not math.isfinite(v.identification.dominant_growth_rate):
         raise CoSimError("libcosim identification gave no finite growth rate")
-    return ident, h_wb
+    return v
 
 
 # -----------------------------------------------------------------------------
@@ -251,10 +253,6 @@ def libpython_path() -> str | None:
     version (same ABI). None means the interpreter is statically linked
     (``Py_ENABLE_SHARED = 0``) and no such library is installed (Debian: ``libpython3.X``).
     """
-    import ctypes.util
-    import os
-    import sys
-    import sysconfig
 
     libdir = sysconfig.get_config_var("LIBDIR") or ""
     multiarch = sysconfig.get_config_var("MULTIARCH") or ""
@@ -279,9 +277,6 @@ def c_host_env(base: Mapping[str, str] | None = None) -> dict[str, str]:
     (its standard library), ``PYTHONPATH`` = this environment's site-packages (numpy, scipy,
     which the FMUs import). Raises :class:`CoSimError` if there is no shared libpython.
     """
-    import os
-    import sys
-    import sysconfig
 
     lib = libpython_path()
     if lib is None:

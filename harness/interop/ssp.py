@@ -20,6 +20,8 @@ every FMU as FMI 2.0), so :func:`run_ssp` refuses it; docs/fmi3.md says what Eco
 
 from __future__ import annotations
 
+import io
+import re
 import tempfile
 import zipfile
 from pathlib import Path
@@ -27,14 +29,15 @@ from typing import Mapping
 from xml.etree import ElementTree as ET
 
 import numpy as np
+from fmpy.ssp.simulation import simulate_ssp
+from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
 
 from ...builder.closedloop import CLOSED_LOOP, PLANT, reference_scales
-from ..cosim.master import CoSimError
-from ..cosim.fmi3 import read_view
-from ..cosim.ssp import SSD_NS
-from ..cosim.stability import checked, identify
-from .container import Verdict
 from ...models.lateral import STATE_NAMES
+from ..cosim.fmi3 import read_view
+from ..cosim.master import CoSimError
+from ..cosim.ssp import SSD_NS
+from ..cosim.stability import Verdict, unit_start_values, verdict_of
 
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict"]
 
@@ -42,7 +45,6 @@ __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict"]
 def ssp_parameter_set(ssp: str | Path):
     """One fmpy ``ParameterSet`` of every component binding of the SSP, named
     ``<component>.<variable>`` as fmpy's ``simulate_ssp`` expects."""
-    from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
 
     ssd = read_ssd(str(ssp))  # validates the SSD and the SSV files against the SSP 1.0 schema
     merged = ParameterSet(name=CLOSED_LOOP)
@@ -68,8 +70,6 @@ def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
 
 def _fmi_versions(ssp: str | Path) -> dict[str, str]:
     """fmiVersion of every FMU in the SSP's resources, by file name."""
-    import io
-    import re
 
     out = {}
     with zipfile.ZipFile(ssp) as z:
@@ -102,7 +102,6 @@ def run_ssp(ssp: str | Path, *, step_s: float | None = None, stop_s: float | Non
     the values *after* the step, at t_(j+1), and the plant's control over step k is
     u_k = K x_(k-1) for k >= 2, with u_0 = u_1 = 0 (the controller sees 0 in its first step).
     """
-    from fmpy.ssp.simulation import simulate_ssp
 
     fmi3 = [name for name, version in _fmi_versions(ssp).items() if version.startswith("3")]
     if fmi3:  # fmpy/ssp/simulation.py instantiates every FMU as an FMU2Slave
@@ -141,10 +140,8 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
     with zipfile.ZipFile(ssp) as z:
         n, scale = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
     runs = []
-    for e in np.eye(len(STATE_NAMES)):
-        res = run_ssp(ssp, stop_s=(n_steps + 0.5) * d_step,
-                      overrides={f"plant.{s}_start": float(v)
-                                 for s, v in zip(STATE_NAMES, e * scale)})
+    for start in unit_start_values(scale, prefix="plant."):
+        res = run_ssp(ssp, stop_s=(n_steps + 0.5) * d_step, overrides=start)
         xs = np.column_stack([res[f"plant.{s}"] for s in STATE_NAMES]) / scale
         runs.append(np.vstack([np.zeros(len(STATE_NAMES)), xs]))
-    return Verdict(checked(identify(runs, d_step * n, delay=True), f"fmpy SSP {ssp}"), runs)
+    return verdict_of(runs, d_step * n, delay=True, where=f"fmpy SSP {ssp}")

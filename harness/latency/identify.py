@@ -27,6 +27,10 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ...models.feedback import gain_name, integral_gain_name
+from ...models.lateral import plant_scales
+from ..cosim.fmu import FMU
+from ..cosim.master import Loop
 from .loop import FeedbackLoop, LatencyInputError
 from .sampled import delay_split, sampled_matrix
 
@@ -151,7 +155,6 @@ def cosimulate_runs(plant: Any, controller: Any, loop: FeedbackLoop, Ts: float, 
     LatencyInputError
         A run stopped early or diverged (the message says which).
     """
-    from ..cosim.fmu import FMU
 
     with contextlib.ExitStack() as stack:
         p = plant if isinstance(plant, FMU) else stack.enter_context(FMU(Path(plant)))
@@ -161,10 +164,6 @@ def cosimulate_runs(plant: Any, controller: Any, loop: FeedbackLoop, Ts: float, 
 
 def _runs(p: Any, c: Any, loop: FeedbackLoop, Ts: float, tau: float, n_steps: int,
           substeps: int) -> list[NDArray[np.float64]]:
-    from ...models.feedback import gain_name, integral_gain_name
-    from ..cosim.master import Loop
-    from ...models.lateral import plant_scales
-
     pair = Loop(p, c)
     scale = np.array(plant_scales(p.start_values()))
     n_hz = float(p.start_values()["n"])

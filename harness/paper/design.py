@@ -18,9 +18,12 @@ from scipy.linalg import expm, solve_continuous_are
 
 from ...models import lateral_dynamics as model
 from ...models.lateral import sort_eigenvalues
-
-from .analysis import (AnalysisInputError, closed_loop_matrix, coefficient_matching_gains,
-    eigenvector_table, input_index, ordered_eigen)
+from . import values as pv
+from .analysis import (LONGITUDINAL_CONVENTION, AnalysisInputError, ModalConvention,
+                       ackermann_gains, characteristic_affine, closed_loop_matrix,
+                       coefficient_matching_gains, controllability, eigenvector_table, input_index,
+                       lateral_system, longitudinal_system, modal_decomposition, ordered_eigen,
+                       parse_targets, place_poles_gains)
 
 __all__ = ["Design", "DisturbanceResponse", "analysis_report", "lqr_gains", "move_lambda1_gains",
            "peak_control", "stabilising_designs"]
@@ -167,10 +170,6 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
     AnalysisInputError
         Bad input name, non-finite or non-conjugate targets, uncontrollable input.
     """
-    from . import values as pv
-    from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, ackermann_gains,
-        characteristic_affine, controllability, lateral_system, longitudinal_system,
-        modal_decomposition, parse_targets, place_poles_gains)
 
     u = input_index(design_input)
     custom = None if targets is None else parse_targets(targets)

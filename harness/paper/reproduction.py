@@ -19,15 +19,14 @@ from typing import Callable
 
 import numpy as np
 
-from ...models import lateral_dynamics as model
-from ...models import longitudinal_dynamics as lon_model
-
+from ...models import lateral_dynamics as model, longitudinal_dynamics as lon_model
 from . import values as pv
+from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, characteristic_affine,
+                       coefficient_matching_gains, eigenvector_table, longitudinal_system,
+                       modal_decomposition, ordered_eigen)
+from .design import analysis_report
 from .notes import Notes
 from .rows import Row, summary
-from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, characteristic_affine,
-    coefficient_matching_gains, eigenvector_table, longitudinal_system, modal_decomposition,
-    ordered_eigen)
 
 __all__ = ["Analysis", "Row", "analyze", "lateral_inputs", "longitudinal_inputs",
            "reproduction_table"]
@@ -227,7 +226,6 @@ def analyze(targets: str | None = None, design_input: str = "delta_Phi_a") -> An
     AnalysisInputError
         (a DroneflyError) for a bad input name or bad targets.
     """
-    from .design import analysis_report
 
     report = analysis_report(targets, design_input)
     rows, notes = _build()

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.extras import MissingExtra, pyplot
 from ...models.lateral import CONTROL_NAMES, STATE_BOUNDS_SECT36, STATE_NAMES
 
 __all__ = ["plot_loop"]
@@ -33,11 +34,8 @@ def plot_loop(result: Any, path: Path) -> bool:
     (which the real insect never reaches) does not hide the part where the model holds.
     """
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+        plt = pyplot()
+    except MissingExtra:
         return False
     run = result.run
     n = 1.0 / (run.time[1] - run.time[0]) * result.step_wingbeats if len(run.time) > 1 else 1.0

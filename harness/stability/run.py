@@ -14,17 +14,25 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ...builder.build import project_fmus
+from ...core.files import write_run_files
+from ...models.feedback import default_gains, gain_name, integral_gain_name
 from ...models.lateral import plant_scales
-from ...models.feedback import default_gains, gain_name
 from ...models.lateral_dynamics import STATE_NAMES, discretize_zoh
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU
-from ..cosim.params import resolve_assignments, scale_ratios
-from ..paper.gains import as_gain_matrix
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
+from ..cosim.params import resolve_assignments, scale_ratios
 from ..cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
-    TRAJECTORY_TOL, Identification, classify, cross_check_failures, relative_deviation, identify,
-    rates_from_transition, sort_eigenvalues)
+                               TRAJECTORY_TOL, Identification, classify, cross_check_failures,
+                               identify, rates_from_transition, relative_deviation,
+                               sort_eigenvalues)
+from ..latency.identify import identify_delayed
+from ..latency.loop import FeedbackLoop, LatencyInputError
+from ..latency.sampled import delay_split
+from ..paper.gains import as_gain_matrix
+from ..sweep.timing import Timing
+from .plot import plot_loop
 
 __all__ = ["DEFAULT_X0", "FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TRAJECTORY_TOL", "CosimResult",
            "cosimulate", "parse_x0"]
@@ -250,7 +258,6 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
-    from ...builder.build import project_fmus
 
     built: list[Path] = []
     plant, controller = project_fmus(plant, controller, build_dir, built=built)
@@ -270,7 +277,6 @@ def _controller_timing(cf: FMU, ctrl_values: Mapping[str, Any], n_hz: float
                        ) -> tuple[float, float, np.ndarray]:
     """(sensing delay, sample period) in wing beats and the integral gains KI (3x4) the
     controller runs with: its start values with ``ctrl_values`` set (0 where it has none)."""
-    from ...models.feedback import integral_gain_name
 
     start = {**cf.start_values(), **ctrl_values}
 
@@ -327,8 +333,6 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
         Km, KI = K * ratio, KI * ratio / ratio[1]
     timing = None
     if tau_wb or period_wb or KI.any():
-        from ..sweep.timing import Timing
-
         timing = Timing(step_wb, tau_wb, period_wb, jacobi)
         if jacobi and timing.tau_eff == 0.0 and (KI.any() or timing.model_b() is None):
             # the master's one-step lag delays the sensed state but not the integral of it:
@@ -395,9 +399,6 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
     if open_run is not None:
         result.extra["open_loop"] = open_run
     if out_dir is not None:
-        from ...core.files import write_run_files
-        from .plot import plot_loop
-
         write_run_files(result, out_dir, name or _default_name(K, master),
                         plot_loop if plot else None)
     return result
@@ -432,9 +433,6 @@ def _identify_model_b(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str
                       ) -> tuple[Identification, np.ndarray, np.ndarray, Any]:
     """The loop with its delay line and integral (model (b)): M fitted from runs from the unit
     states (the controller's line at the equilibrium), the exact M and its rates per wing beat."""
-    from ..latency.identify import identify_delayed
-    from ..latency.loop import FeedbackLoop, LatencyInputError
-    from ..latency.sampled import delay_split
 
     Ts, tau = timing.model_b()
     d, _ = delay_split(tau, Ts)

@@ -6,12 +6,15 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import fmpy
 import numpy as np
 
+from ...builder.build import ensure_fmu
 from ...core.errors import DroneflyError
 from ...core.files import write_csv_atomic
 from ...models.lateral import N_HZ, STATE_NAMES, STATE_UNITS, scale_vector
 from ...models.lateral_dynamics import LateralModel, default_parameters
+from ..cosim.master import step_count
 
 __all__ = ["PlantRun", "exact_open_loop", "simulate_plant"]
 
@@ -79,11 +82,7 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     gamma0 : float
         Initial roll angle [rad].
     """
-    import fmpy
 
-    from ...builder.build import ensure_fmu
-
-    from ..cosim.master import step_count
 
     if not math.isfinite(gamma0):
         raise DroneflyError(f"gamma0 = {gamma0!r} rad is not finite")

@@ -30,6 +30,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ...core.extras import pyplot
 from ...core.files import write_run_files
 from ..cosim.master import LoopRun, step_count
 from ..cosim.system import System, SystemSpecError
@@ -291,10 +292,7 @@ def _failures(axes: list[AxisVerdict], deviation: dict[str, float | None], again
 
 
 def _plot(result: SystemResult, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     run = result.run
     groups: dict[str, list[int]] = {}

@@ -6,12 +6,16 @@ worker limits BLAS to one thread and frees its FMU instances at the end.
 
 from __future__ import annotations
 
+import multiprocessing
+import sys
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, Callable
 
+from ...core.extras import optional
 from .cases import Case, SweepInputError, one_line
 from .worker import (ChunkInterrupted, FmuRef, blas_single_thread, close_all, init_worker,
-    run_chunk, warm)
+                     run_chunk, warm)
 
 __all__ = ["chunk_cases", "connect_scheduler", "make_progress_bar", "run_dask", "run_here", "run_pool",
            "stderr_is_tty"]
@@ -32,7 +36,8 @@ def chunk_cases(cases: list[Case], workers: int, chunk_steps: int | None) -> lis
 
 
 def connect_scheduler(address: str, timeout_s: float) -> Any:
-    from distributed.comm import parse_address, parse_host_port
+    parse_address, parse_host_port = optional("distributed.comm", "parse_address",
+                                              "parse_host_port")
 
     try:  # a malformed address fails here, before a Client exists to be torn down
         scheme, location = parse_address(address)
@@ -42,8 +47,7 @@ def connect_scheduler(address: str, timeout_s: float) -> Any:
         raise SweepInputError(f"scheduler address {address!r} is malformed: "
                               f"{one_line(str(e))}") from None
     try:
-        from distributed import Client
-
+        Client = optional("distributed", "Client")
         return Client(address, timeout=timeout_s, set_as_default=False)
     except Exception as e:
         raise SweepInputError(f"scheduler {address!r} unreachable: {one_line(str(e))}") from None
@@ -64,7 +68,7 @@ def make_progress_bar(**kw: Any) -> Any:
     ``disable=True`` a bar that shows nothing and needs no tqdm."""
     if kw.get("disable"):
         return _NoBar()
-    from tqdm import tqdm
+    tqdm = optional("tqdm", "tqdm")
 
     class Bar(tqdm):
         monitor_interval = 0
@@ -73,8 +77,6 @@ def make_progress_bar(**kw: Any) -> Any:
 
 
 def stderr_is_tty() -> bool:
-    import sys
-
     return bool(getattr(sys.stderr, "isatty", lambda: False)())
 
 
@@ -95,9 +97,6 @@ def run_here(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], collect: Cal
 
 def run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
               collect: Callable) -> None:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
     # fork: no re-import of __main__ (``python -m dronefly`` has no main guard); the
     # workers drop the inherited caches and open their own FMUs in the initializer
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
@@ -116,9 +115,8 @@ def run_pool(refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]], n: int,
 
 def run_dask(client: Any, refs: tuple[FmuRef, FmuRef], chunks: list[list[Case]],
               collect: Callable) -> None:
-    from distributed import as_completed
-
-    from distributed.diagnostics.plugin import WorkerPlugin
+    as_completed = optional("distributed", "as_completed")
+    WorkerPlugin = optional("distributed.diagnostics.plugin", "WorkerPlugin")
 
     class Cleanup(WorkerPlugin):
         """Deletes the worker's FMU extractions when the Dask worker closes."""

@@ -15,8 +15,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ...core.extras import optional
 from ...core.files import atomic_path
-
 from .cases import AXES, STATE_BOUNDS_SECT36
 
 __all__ = ["write_compare_maps"]
@@ -37,7 +37,7 @@ def _grid(rs: list[dict[str, str]], sx: str, sy: str, column: str) -> tuple:
 
 
 def _box(ax: Any, sx: str, sy: str) -> None:
-    from matplotlib.patches import Rectangle
+    Rectangle = optional("matplotlib.patches", "Rectangle")
 
     bx, by = (STATE_BOUNDS_SECT36[AXES.index(a)] for a in (sx, sy))
     ax.add_patch(Rectangle((-bx, -by), 2 * bx, 2 * by, fill=False, ls="--", lw=1.2, ec="k"))
@@ -45,8 +45,8 @@ def _box(ax: Any, sx: str, sy: str) -> None:
 
 def write_compare_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path]:
     """``compare_X_Y.png`` per grid slice of the first gain set and step (see module text)."""
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
+    LogNorm = optional("matplotlib.colors", "LogNorm")
+    Figure = optional("matplotlib.figure", "Figure")
 
     grid = [r for r in rows if r["family"] == "grid" and r.get("err_lateral")]
     if not grid:

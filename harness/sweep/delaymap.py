@@ -15,6 +15,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ...core.extras import optional
 from ...core.files import atomic_path
 
 __all__ = ["format_delay_groups", "write_delay_map"]
@@ -48,8 +49,8 @@ def write_delay_map(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list
     periods = sorted({float(r["sample_period_wb"]) for r in rows})
     if len(delays) < 2 or len(periods) < 2:
         return []
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
+    Figure = optional("matplotlib.figure", "Figure")
+    Rectangle = optional("matplotlib.patches", "Rectangle")
 
     combos = sorted({(float(r["step_wb"]), float(r["scale"])) for r in rows})
     written = []

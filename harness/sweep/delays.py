@@ -32,11 +32,17 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ...models.feedback import gain_name, integral_gain_name
+from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
 from ..cosim.calculated import plant_matrices
 from ..cosim.stability import classify, rates_from_transition
+from ..latency.identify import identify_delayed
+from ..latency.loop import FeedbackLoop, LatencyInputError
+from ..latency.sampled import delay_split, sampled_rates
 from .cases import Case, SweepInputError
 from .results import DELAY_COLUMNS
 from .timing import Timing, grid_monodromy, timing_params
+from .worker import FmuRef, loop_for
 
 __all__ = ["DELAY_COLUMNS", "MAX_LAG", "delay_results", "delay_summary", "is_delay_sweep",
            "loop_verdict"]
@@ -53,7 +59,6 @@ def is_delay_sweep(cases: Sequence[Case]) -> bool:
 
 def _plant_model(pair: Any, values: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
     """A (4x4, per wing beat) and B (4x3) as the plant FMU computes them with ``values`` set."""
-    from ...models.lateral import CONTROL_NAMES, STATE_NAMES
 
     if list(pair.states) != list(STATE_NAMES) or list(pair.controls) != list(CONTROL_NAMES):
         return None
@@ -61,8 +66,6 @@ def _plant_model(pair: Any, values: dict[str, Any]) -> tuple[np.ndarray, np.ndar
 
 
 def _integral_gains(pair: Any, values: dict[str, Any]) -> np.ndarray:
-    from ...models.feedback import integral_gain_name
-
     start = {**pair.controller.start_values(), **values}
     return np.array([[float(start.get(integral_gain_name(i, j)) or 0.0) for j in range(4)]
                      for i in range(3)])
@@ -71,7 +74,6 @@ def _integral_gains(pair: Any, values: dict[str, Any]) -> np.ndarray:
 def loop_verdict(loop: Any, timing: Timing) -> tuple[str, float]:
     """(verdict, dominant rate per wing beat) of a :class:`~dronefly.harness.latency.loop.
     FeedbackLoop` under ``timing``; ("", nan) where no model applies (see the module text)."""
-    from ..latency.sampled import delay_split, sampled_rates
 
     b = timing.model_b()
     if b is not None:
@@ -93,11 +95,6 @@ def _identify(pair: Any, insts: tuple, case: Case, loop: Any, timing: Timing,
               scale: np.ndarray) -> tuple[str, float]:
     """Verdict and dominant rate (its deviation from model (b)'s, per wing beat) identified
     from four co-simulated runs."""
-    from ...models.feedback import gain_name, integral_gain_name
-    from ..latency.identify import identify_delayed
-    from ..latency.loop import LatencyInputError
-    from ..latency.sampled import delay_split
-    from ...models.lateral import STATE_NAMES
 
     Ts, tau = timing.model_b()
     d, eps = delay_split(tau, Ts)
@@ -137,9 +134,6 @@ def delay_results(cases: Sequence[Case], refs: tuple) -> dict[str, dict[str, Any
     """
     if not is_delay_sweep(cases):
         return {}
-    from ..latency.loop import FeedbackLoop
-    from .worker import FmuRef, loop_for
-    from ...models.lateral import plant_scales
 
     if not isinstance(refs[0], FmuRef):
         raise SweepInputError("--delays/--sample-periods need the plant/controller pair, not "

@@ -17,13 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..paper.gains import gain_matrix
+from ...models.lateral import N_HZ
 from ..cosim.stability import classify
-from ..latency.sampled import SampledMargin
+from ..latency.loop import FeedbackLoop
+from ..latency.sampled import SampledMargin, sampled_margin, sampled_rates
 from ..paper.analysis import lateral_system
+from ..paper.gains import gain_matrix
 from .cases import CONTROL_BOUND, STATE_BOUNDS_SECT36, SweepSpec
 from .timing import Timing, grid_simulate
-from ...models.lateral import N_HZ
 
 __all__ = ["Cell", "MAP_COMMAND", "MAP_DELAYS_WB", "MAP_PERIODS_WB", "MAP_STEP_WB",
            "TABLE_DELAYS_WB", "cell", "cells", "map_spec", "margins", "table"]
@@ -84,8 +85,6 @@ class Cell:
 
 def cell(K: np.ndarray, delay: float, period: float) -> Cell:
     """The map's cell of gains ``K`` at ``delay`` and ``period`` (wing beats; see the module)."""
-    from ..latency.loop import FeedbackLoop
-    from ..latency.sampled import sampled_rates
 
     A, B = lateral_system()
     timing = Timing(MAP_STEP_WB, delay, period)
@@ -113,8 +112,6 @@ def _text(c: Cell) -> str:
 
 def margins() -> dict[tuple[str, float], SampledMargin]:
     """Margin (b) per gain set and sample period of the map (0: the step)."""
-    from ..latency.loop import FeedbackLoop
-    from ..latency.sampled import sampled_margin
 
     A, B = lateral_system()
     return {(g, T): sampled_margin(FeedbackLoop(A, B, gain_matrix(g)), T or MAP_STEP_WB,

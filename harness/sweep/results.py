@@ -20,9 +20,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ...core.extras import optional
 from ...core.files import atomic_path, write_csv_atomic
 from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
-from .compare import COMPARE_COLUMNS
+from .compare import COMPARE_COLUMNS, format_comparison
+from .delaymap import format_delay_groups, write_delay_map
 
 __all__ = ["COLUMNS", "DELAY_COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
            "summarize", "write_maps", "write_results"]
@@ -183,7 +185,6 @@ def format_summary(summary: dict[str, Any]) -> str:
              f"within bounds: {s['within_bounds']}/{s['cases']} "
              f"({100 * (s['fraction_within_bounds'] or 0):.1f} %), errors: {s['errors']}"]
     if "delay_groups" in s:  # the delay axes: one line per configuration, with its verdict
-        from .delaymap import format_delay_groups
 
         lines += format_delay_groups(s)
     for g in ([] if "delay_groups" in s else s["groups"]):
@@ -196,8 +197,6 @@ def format_summary(summary: dict[str, Any]) -> str:
             lines.append("    largest amplitude within bounds: " + ", ".join(
                 f"{d} {'-' if v is None else format(v, 'g')}" for d, v in best))
     if "comparison" in s:
-        from .compare import format_comparison
-
         lines += format_comparison(s["comparison"])
     lines.append(f"csv: {s['csv']}")
     lines.append(f"json: {Path(s['csv']).with_name('sweep.json')}")
@@ -213,7 +212,8 @@ _COLOURS = ("#00441b", "#1b7837", "#5aae61", "#a6dba0", "#d9f0d3",
 
 
 def _panel(ax: Any, rs: list[dict[str, str]], sx: str, sy: str) -> Any:
-    from matplotlib.colors import BoundaryNorm, ListedColormap
+    BoundaryNorm, ListedColormap = optional("matplotlib.colors", "BoundaryNorm",
+                                            "ListedColormap")
 
     xs = sorted({float(r[f"x0_{sx}"]) for r in rs})
     ys = sorted({float(r[f"x0_{sy}"]) for r in rs})
@@ -232,9 +232,7 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
     """One PNG per grid slice (and bound scale): ``map_X_Y.png`` (``..._scaleS.png``); with the
     delay axes one per delay and sample period too (``..._delayD_periodT.png``) and the map over
     delay x sample period (:func:`.delaymap.write_delay_map`)."""
-    from matplotlib.figure import Figure
-
-    from .delaymap import write_delay_map
+    Figure = optional("matplotlib.figure", "Figure")
 
     grid = [r for r in rows if r["family"] == "grid"]
     timed = bool(rows) and "delay_wb" in rows[0]

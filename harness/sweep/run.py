@@ -18,6 +18,7 @@ after chunks complete; a rerun with the same ``out_dir`` resumes: finished cases
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
@@ -25,14 +26,23 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from .cases import Case, SweepInputError, SweepSpec
+from fmpy import read_model_description
+
+from ...builder.build import BuildError, project_fmus
 from ...core.files import write_text_atomic
-from .results import (COLUMNS, load_done, read_rows, result_row, summarize, write_maps,
-    write_results)
+from ..cosim.fmu import FMU, FMUError, start_values
+from ..cosim.master import CoSimError, Loop
+from ..cosim.params import resolve_assignments, scale_ratios
+from ..cosim.system import System
 from .backends import (chunk_cases, connect_scheduler, make_progress_bar, run_dask, run_here,
-    run_pool, stderr_is_tty)
+                       run_pool, stderr_is_tty)
+from .cases import Case, SweepInputError, SweepSpec
 from .compare import compare_summary
+from .comparemaps import write_compare_maps
 from .delays import delay_results, delay_summary
+from .results import (COLUMNS, load_done, read_rows, result_row, summarize, write_maps,
+                      write_results)
+from .system import SystemRef, check_system
 from .worker import FmuRef
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
@@ -51,8 +61,6 @@ class SweepResult:
 
 def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
     """Open both FMUs and connect them by name here, before any file is written."""
-    from ..cosim.fmu import FMU, FMUError
-    from ..cosim.master import CoSimError, Loop
 
     try:
         with FMU(refs[0].path) as p, FMU(refs[1].path) as c:
@@ -63,13 +71,6 @@ def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
 
 def _resolve_values(refs: tuple[FmuRef, FmuRef],
                     set_values: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
-    from fmpy import read_model_description
-
-    from ..cosim.params import resolve_assignments
-
-    from ..cosim.fmu import start_values
-    from ..cosim.params import scale_ratios
-
     mds = {k: read_model_description(str(r.path)) for k, r in zip(("plant", "controller"), refs)}
     try:
         values = resolve_assignments(dict(set_values), mds) if set_values else {}
@@ -92,7 +93,6 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
     """((SystemRef,) or (SystemRef, SystemRef), case values, LateralLoop) of ``--system``
     (and ``--compare``), checked here; ``--set`` values go to the systems that have the
     instance (the same typed value in both)."""
-    from .system import SystemRef, check_system
 
     if plant is not None or controller is not None:
         raise SweepInputError("--plant/--controller cannot be combined with --system (set "
@@ -120,7 +120,6 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
 
 def _values_for(ref: Any, set_values: Mapping[str, Any] | None) -> dict[str, Any]:
     """The ``instance.NAME`` values whose instance the system has."""
-    from ..cosim.system import System
 
     instances = set(System.from_ssp(ref.path).fmus)
     return {k: v for k, v in (set_values or {}).items() if k.partition(".")[0] in instances}
@@ -140,8 +139,6 @@ def _check_gains_reach(cases: Sequence[Case], lateral: Any) -> None:
 
 
 def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple[FmuRef, FmuRef]:
-    from ...builder.build import BuildError, project_fmus
-
     try:
         plant, controller = project_fmus(plant, controller)
     except BuildError as e:
@@ -285,8 +282,6 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     maps = write_maps(rows, out) if plot else []
     summary = summarize(rows, all_cases) | (delay_summary(rows) if timed else {})
     if cmp:
-        from .comparemaps import write_compare_maps
-
         summary["comparison"] = compare_summary(rows)
         summary["compare"] = refs[1].path
         maps += write_compare_maps(rows, out) if plot else []
@@ -304,7 +299,6 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
                       {"plant": refs[0].path, "controller": refs[1].path}),
                    csv=str(csv_path),
                    maps=[str(m) for m in maps])
-    import json
 
     write_text_atomic(json_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
     return SweepResult(rows, summary, csv_path, json_path, maps)

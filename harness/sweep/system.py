@@ -18,6 +18,7 @@ values, unless ``--set`` gives them: a case is a lateral disturbance.
 
 from __future__ import annotations
 
+import tempfile
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +29,9 @@ import numpy as np
 from ...models.feedback import gain_name
 from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
 from ...models.longitudinal import LONGITUDINAL
+from ..cosim.fmu import FMUError
+from ..cosim.system import System, SystemSpecError
+from ..cosim.system_master import SystemMaster
 from .parse import SweepInputError
 
 __all__ = ["EARTH", "LateralLoop", "SystemRef", "check_system", "close_systems", "open_system",
@@ -133,9 +137,6 @@ def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
     SweepInputError
         Unreadable SSP, a bad ``--set`` name, no lateral loop, a controller without gains.
     """
-    from ..cosim.fmu import FMUError
-    from ..cosim.system import System, SystemSpecError
-    from ..cosim.system_master import SystemMaster
 
     try:
         system = System.from_ssp(ref.path).with_values(dict(set_values or {}))
@@ -150,16 +151,11 @@ def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
 
 def _open(ref: SystemRef, data: bytes | None,
           master: str = "gauss-seidel") -> tuple[Any, LateralLoop]:
-    from ..cosim.system import System
-    from ..cosim.system_master import SystemMaster
-
     key = (threading.get_ident(), ref.digest, master)
     with _LOCK:
         if key not in _OPEN:
             path = ref.path
             if data is not None and not Path(path).is_file():
-                import tempfile  # a remote worker without the file
-
                 d = tempfile.mkdtemp(prefix="dronefly_sweep_")
                 path = str(Path(d, Path(ref.path).name))
                 Path(path).write_bytes(data)

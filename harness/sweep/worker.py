@@ -8,26 +8,33 @@ workers execute.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import math
 import os
+import shutil
+import signal
+import tempfile
 import threading
 import time
 from dataclasses import dataclass
+from multiprocessing import util
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
+from ...core.extras import MissingExtra, optional
 from ...core.interrupt import pending as interrupt_pending
+from ...models.feedback import gain_name
 from ...models.lateral import STATE_NAMES, plant_scales
-
+from ..cosim.fmu import FMU
+from ..cosim.master import Loop
 from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line
 from .compare import compare_runs
-from .timing import timing_params
 from .results import RESULT_COLUMNS
 from .system import SystemRef, close_systems, open_system, run_system_case
-
+from .timing import timing_params
 
 __all__ = ["ChunkInterrupted", "FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk",
            "warm"]
@@ -57,14 +64,10 @@ _TMP: list[str] = []
 
 
 def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
-    from ..cosim.fmu import FMU
-
     with _LOCK:
         if ref.digest not in _FMUS:
             path = ref.path
             if data is not None and not (os.path.isfile(path) and FmuRef.of(path) == ref):
-                import tempfile  # a remote worker without the file: materialise the bytes
-
                 d = tempfile.mkdtemp(prefix="dronefly_sweep_")
                 _TMP.append(d)
                 path = os.path.join(d, os.path.basename(ref.path))
@@ -75,7 +78,6 @@ def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
 
 def loop_for(refs: tuple[FmuRef, FmuRef], data: tuple[bytes | None, bytes | None]) -> tuple:
     """(Loop, plant instance, controller instance, x+ scale) of this thread, made once."""
-    from ..cosim.master import Loop
 
     key = (threading.get_ident(), refs[0].digest, refs[1].digest)
     if key not in _LOOPS:
@@ -97,7 +99,6 @@ def warm(refs: tuple) -> None:
 
 def close_all() -> None:
     """Free every cached instance and delete every extraction (worker exit)."""
-    import shutil
 
     close_systems()
 
@@ -130,12 +131,11 @@ def blas_single_thread(required: bool = False) -> Any:
         threadpoolctl is not installed and ``required``.
     """
     try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
+        threadpool_limits = optional("threadpoolctl", "threadpool_limits",
+                                     alternative="pass --workers 1")
+    except MissingExtra:
         if required:
-            from ...core.extras import require
-
-            require("threadpoolctl", "pass --workers 1")
+            raise
         return _NoLimit()
     return threadpool_limits(limits=1, user_api="blas")
 
@@ -149,9 +149,6 @@ class _NoLimit:
 
 def init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
     """Process-pool initializer: ignore Ctrl-C (the parent handles it), open the FMUs once."""
-    import atexit
-    import signal
-    from multiprocessing import util
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _LOOPS.clear()  # forked: these belong to the parent (which also deletes its extractions)
@@ -211,7 +208,6 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     wall_s : float
         Wall time of the whole chunk in the worker, s.
     """
-    from ...models.feedback import gain_name
 
     t_chunk = time.perf_counter()
     loop_s, out = 0.0, []

@@ -1,0 +1,27 @@
+"""``dronefly analyze``: the reproduction table of the paper's printed numbers."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ...core.errors import DroneflyError
+from ...core.files import write_text_atomic
+from ...harness.paper.report import render
+from ...harness.paper.reproduction import analyze
+from . import EXIT_OK
+
+__all__ = ["run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``dronefly analyze`` with the parsed arguments; returns the exit code."""
+    if args.out and Path(args.out).is_dir():
+        raise DroneflyError(f"--out {args.out!r} is a folder; give the file to write")
+    result = analyze(targets=args.targets, design_input=args.input)
+    text = render(result, "json" if args.json else "markdown" if args.markdown else "text")
+    if args.out:
+        print(write_text_atomic(args.out, text))
+    else:
+        print(text, end="" if text.endswith("\n") else "\n")
+    return EXIT_OK

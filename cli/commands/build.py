@@ -1,0 +1,19 @@
+"""``dronefly build``: every FMU of the project, FMI 2.0 and 3.0, and its systems."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ...builder.build import build_all
+from ...builder.build3 import FMI3_OUT, build_all3
+from . import EXIT_OK
+
+__all__ = ["run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``dronefly build`` with the parsed arguments; returns the exit code."""
+    for path in [*build_all(args.out), *build_all3(Path(args.out) / FMI3_OUT)]:
+        print(path)
+    return EXIT_OK

@@ -1,0 +1,25 @@
+"""``dronefly demo``: open loop and the paper's gains, co-simulated, in one table."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ...core.extras import require
+from ...harness.stability.demo import demo_runs, format_table
+from . import EXIT_FAILED, EXIT_OK
+
+__all__ = ["run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``dronefly demo`` with the parsed arguments; returns the exit code."""
+    if not args.no_plot:
+        require("matplotlib", "pass --no-plot")
+    results = demo_runs(out_dir=args.out, plot=not args.no_plot,
+                        set_values=dict(args.set_values), build_dir=args.build)
+    print(format_table(results))
+    failed = [(g, f) for g, r in zip(("open", "paper"), results) for f in r.check_failures]
+    for gains, failure in failed:
+        print(f"dronefly demo: error: cross-check failed ({gains}): {failure}", file=sys.stderr)
+    return EXIT_FAILED if failed else EXIT_OK

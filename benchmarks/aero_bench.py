@@ -1,12 +1,12 @@
-"""Benchmark of the quasi-steady wing model (issue 29): the derivative table, and one
+"""Benchmark of the quasi-steady wing model: the derivative table, and one
 cycle-averaged force evaluation against one step of the linear plant pair it would replace.
 
 - ``table``: ``parity_report`` of the default model from a fresh model (trim, every derivative
   with its per-term split, eigenvalues, controller), wall time; target 10 s.
 - ``force``: one ``QuasiSteadyModel.forces_vector`` at a disturbed state (kinematics cached, as
   in a state-only step) and at a new control (kinematics recomputed), on the default grid
-  (8 elements, 100 samples, the smallest accurate to 0.1 % in the derivatives), on the former
-  default (20 x 200) and on a coarse one (8 x 40), against one ``step_list`` of the lateral and one of
+  (8 elements, 100 samples, the smallest accurate to 0.1 % in the derivatives), on the fine
+  grid (20 x 200) and on a coarse one (8 x 40), against one ``step_list`` of the lateral and one of
   the longitudinal linear model (``LateralModel``, ``LongitudinalModel``) at a step of one wing
   beat: the in-process cost of the linear pair's doStep. Target: the quasi-steady doStep at
   most 20 times the pair; a doStep needs at least one force evaluation, so the ratio of one

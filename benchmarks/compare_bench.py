@@ -8,7 +8,7 @@ process to its exit: building, the 1995 cases of the default (three slices of 25
 3 times the box, ten directions of 12 amplitudes; each through the linear and the nonlinear
 closed loop, 100 wing beats in steps of 1), the CSV, the JSON and the six maps. Reports the
 wall time, the sweep's own timing line (cases, workers, seconds), the CPU time of the child
-processes, the cores and the load average before and after. The target (issue 13): within
+processes, the cores and the load average before and after. The target: within
 5 minutes on 2 cores; exits 1 when a run takes longer.
 Usage: python benchmarks/compare_bench.py [--repeats R]
 """

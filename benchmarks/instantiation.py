@@ -1,8 +1,8 @@
 """Benchmark: what an FMU's instantiation costs, first in a process and again.
 
 The first ``fmi2Instantiate`` of an FMU in a process imports the FMU's Python side (its
-content-addressed package, pythonfmu's facade, and whatever they import: before issue 28 numpy
-and scipy); a second instance of the same FMU reuses the imported modules. Each FMU that
+content-addressed package, pythonfmu's facade, and whatever they import: the standard library
+only); a second instance of the same FMU reuses the imported modules. Each FMU that
 ``dronefly build`` writes (FMI 2.0) is instantiated in fresh processes (fmpy's FMU2Slave, this
 interpreter), each reporting, in CPU time of the process (``time.process_time``: the machine is
 shared) and in wall time:

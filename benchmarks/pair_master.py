@@ -1,13 +1,13 @@
-"""The pair master as it was before issue 12 (commit c53815e), kept only as the benchmark's
-baseline: ``benchmarks/run.py`` compares the system master, which now runs every pair
-(``harness.cosim.master.Loop`` is a thin adapter onto it), with this in the same run.
+"""A dedicated pair master, kept only as the benchmark's baseline: ``benchmarks/run.py``
+compares the system master, which runs every pair (``harness.cosim.master.Loop`` is a thin
+adapter onto it), with this in the same run.
 
 Fresh instances per run, a failed call raises. Gauss-Seidel (the benchmark's baseline): the
-per-step work is the former ``Loop._run``'s, line for line (the Ctrl-C check, the bookkeeping
-of which instance and call run, plant outputs -> controller inputs -> controller outputs ->
-plant inputs, then both step, through the same preallocated ctypes buffers). Jacobi (an
-oracle of tests/test_system.py, not timed): the former ordering of ``master="jacobi"``, the
-controller's outputs read before its inputs are set (u_k = K x_(k-1)), its inputs at
+per-step work is that of a master written for exactly one plant and one controller (the
+Ctrl-C check, the bookkeeping of which instance and call run, plant outputs -> controller
+inputs -> controller outputs -> plant inputs, then both step, through the same preallocated
+ctypes buffers). Jacobi (an oracle of tests/test_system.py, not timed): the controller's
+outputs read before its inputs are set (u_k = K x_(k-1)), its inputs at
 initialization the plant's initial outputs or ``u_source0``.
 """
 
@@ -26,7 +26,7 @@ __all__ = ["PairMaster"]
 
 
 class PairMaster:
-    """The former pair master.
+    """The dedicated pair master (one plant, one controller).
 
     Parameters
     ----------
@@ -82,7 +82,7 @@ class PairMaster:
                           p.slave.component)
         cg, cs, cd, cc = (c.slave.fmi2GetReal, c.slave.fmi2SetReal, c.slave.fmi2DoStep,
                           c.slave.component)
-        if self.ordering == "jacobi":  # decided once per run: the Gauss-Seidel loop is as it was
+        if self.ordering == "jacobi":  # decided once per run: the Gauss-Seidel loop stays minimal
             for k in range(n_steps + 1):
                 t = k * step
                 if interrupt.count:

@@ -1,8 +1,8 @@
 """Benchmark part: the cost of a plant step, the nonlinear 6-DOF plant against the linear ones.
 
 The nonlinear plant DroneFlyHover6DOF replaces two linear plants, DroneFlyLateral and
-DroneFlyLongitudinal: in a closed loop one doStep of it replaces two doSteps. Its target (issue
-13: "the nonlinear plant's doStep should cost no more than 5x the linear plant's") is therefore
+DroneFlyLongitudinal: in a closed loop one doStep of it replaces two doSteps. Its target ("the
+nonlinear plant's doStep should cost no more than 5x the linear plant's") is therefore
 checked against the pair it replaces, at both steps timed. DroneFlyLateral alone is reported
 beside it (the linear plant of the paper's lateral loop), for the reader who reads "the linear
 plant" as one FMU; it is not the target's baseline. Timed:

@@ -3,11 +3,11 @@
 Measures, in one run, interleaved repeat by repeat (so that the machine's noise hits all
 alike):
   ours    DroneFlyLateral + StateFeedback through the harness's pair API (harness.cosim.master.
-          Loop, instances reused: the system master since issue 12)
+          Loop, instances reused: an adapter onto the system master)
   master  do-nothing pythonfmu FMUs with the same interface through the same master
   floor   the same six FMI calls per step on the do-nothing FMUs, no master, no recording
-  pair    the lateral pair through the former pair master (benchmarks/pair_master.py: the
-          pre-issue-12 Loop, kept as the baseline) and through the system master
+  pair    the lateral pair through the dedicated pair master (benchmarks/pair_master.py,
+          kept as the baseline) and through the system master
           (harness.system.master.SystemMaster), Gauss-Seidel, fresh instances in both
   systems 2, 3 and 4 FMUs through the system master: the lateral pair; the pair and the
           longitudinal plant in open loop; the hover system (both axes with their controllers)
@@ -17,7 +17,7 @@ alike):
           beat (benchmarks/plants.py)
 Prints medians and the ratios ours/floor (target <= 1.5: everything we add, FMU code and
 master, over the unavoidable FMI calls), master/floor (what the master alone adds),
-SystemMaster/former pair master (target <= 1.05), and per system the cost per step (a run of
+SystemMaster/dedicated pair master (target <= 1.05), and per system the cost per step (a run of
 N steps less a run of 1 step, over N - 1: without instantiation), the FMI calls per step
 (counted) and the cost per FMI call; the plants' costs and the ratios 6-DOF/pair through
 FMI at 0.1 and at 1 wing beat (target < 5 at each: one doStep of the 6-DOF plant replaces
@@ -25,7 +25,7 @@ the pair's two).
 Timed in CPU time of this thread (``time.thread_time``; the FMUs run in it): on a shared
 machine the wall time also counts the other users' load, and the process's CPU time BLAS
 threads spinning after numpy calls.
-``--clock wall`` times in wall time (``time.perf_counter``), as before issue 28.
+``--clock wall`` times in wall time (``time.perf_counter``).
 Usage: python benchmarks/run.py [--steps N] [--repeats R] [--clock cpu|wall]
 """
 
@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         x0 = systems[2].parameters["lateral"]
         # the pair master and the system master: whole runs with fresh instances (both
         # instantiate their FMUs), of N steps and of 1 step (the difference has no set-up).
-        # The former pair master gets FMUs of its own so that, as for the system master, no
+        # The dedicated pair master gets FMUs of its own so that, as for the system master, no
         # live instance keeps their libraries loaded between runs (p and c do for P and C).
         pair = PairMaster(*(stack.enter_context(FMU(fmus[m])) for m in ("DroneFlyLateral",
                                                                          "StateFeedback")))

@@ -1,4 +1,4 @@
-"""Sensing delay, sampling and the integral state of the controller FMUs (issue 14).
+"""Sensing delay, sampling and the integral state of the controller FMUs.
 
 The controller samples the measured state at its sample instants
 

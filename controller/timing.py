@@ -1,4 +1,4 @@
-"""When the controller FMUs sample and how late their samples take effect (issue 14).
+"""When the controller FMUs sample and how late their samples take effect.
 
 :class:`Timing` holds ``sensing_delay`` and ``sample_period`` and their checks; the delay
 line itself is :class:`controller.delay.Sensor`. Pure Python (shipped inside the controller

@@ -124,7 +124,8 @@ def controller_variables(axis: Axis, K: Gains, sources: tuple[str, ...],
                    "actuator limit, used if limit_enabled; the linear range of the control "
                    "derivatives ends at 0.4 rad (Sect. 3.1)", "rad", "deg",
                    start=U_MAX_LINEAR_RANGE))
-    # appended after the variables of the FMUs before issue 14: their value references stay
+    # appended after the proportional law's variables, whose value references are therefore
+    # those of a controller without integral gains and timing parameters
     for i, control in enumerate(axis.control_names):
         for j, state in enumerate(states):
             out.append(Var(integral_gain_name(i, j), "parameter", "tunable",

@@ -11,7 +11,7 @@ non-dimensionalisation of Sect. 2.1:
 
 K is 3x4 and non-dimensional (rad per unit of x+). Eq. (22) is its first row. KI
 (same shape, default 0) weighs the integral state z = integral of x+ over the
-non-dimensional time t+ = t n (issue 14: a proportional-integral law); with KI = 0
+non-dimensional time t+ = t n (a proportional-integral law); with KI = 0
 the law is u = K x+, bit for bit.
 The same law serves the longitudinal axis (:data:`dronefly.models.longitudinal.LONGITUDINAL`,
 x+ = (delta_u/U, delta_w/U, delta_q t_w, delta_theta), four controls, K 4x4).

@@ -164,7 +164,7 @@ def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) 
     """``(rhs(x, bl, bn) -> dx/dt+, substeps(y, n, h, bl, bn) -> y after n sub-steps of h)``
     compiled from :data:`_RHS` and :data:`_STAGES` into straight-line arithmetic on locals: no
     lists and no calls inside a sub-step, nothing computed that the result does not use, 0.6
-    times the cost of the former loop over lists (equal to it within 1.2e-16 relative: the
+    times the cost of a loop over lists (equal to it within 1.2e-16 relative: the
     gyroscopic terms as a quadratic form). The coefficients are closure variables (exact
     floats, never printed as text)."""
     names = [f"{a}{i}{j}" for a in "ln" for i in range(3) for j in range(3)]

@@ -1,4 +1,4 @@
-"""Tests of the analysis of Zhang & Sun (issue 5): the table's coverage, the API, the CLI, the designs.
+"""Tests of the analysis of Zhang & Sun: the table's coverage, the API, the CLI, the designs.
 
 Every printed value comes from ``dronefly.harness.paper.values`` (one place). The rows themselves
 (match, reason, errata, rounding) are checked in ``test_reproduction_rows.py``.

@@ -1,9 +1,9 @@
-"""The container FMU after a refused component step (issue 17, point 6).
+"""The container FMU after a refused component step.
 
-One refused step (K[1,1] = NaN) stopped FMPy's container for good: pythonfmu answers
-fmi2Terminated with true after any fmi2Discard, and the container keeps that answer through
-fmi2Reset ("Expected currentCommunicationPoint=0 but was 0.00061"). The build puts a shim in
-front of the nested FMUs' Linux library (``dronefly.builder.nestedshim``); fmi2Reset and a
+Without a shim one refused step (K[1,1] = NaN) stops FMPy's container for good: pythonfmu
+answers fmi2Terminated with true after any fmi2Discard, and the container keeps that answer
+through fmi2Reset ("Expected currentCommunicationPoint=0 but was 0.00061"). The build puts a
+shim in front of the nested FMUs' Linux library (``dronefly.builder.nestedshim``); fmi2Reset and a
 new initialization then give a container that runs exactly like a new instance. Each case runs in
 a child process (FMPy's container can take the host down).
 """
@@ -94,7 +94,7 @@ def test_reset_after_a_refused_step_gives_a_usable_container(built_fmus, shim, l
     assert 4 not in got["refused"]
     assert got["reset"] == 0
     steps, rows = got["again"]
-    assert steps == [0] * N_STEPS, steps  # before the fix: [0, 3, 3, 3, 3] (clock stuck at 0)
+    assert steps == [0] * N_STEPS, steps  # without the shim: [0, 3, 3, 3, 3] (clock stuck at 0)
     assert [row[0] for row in rows] == pytest.approx([(k + 1) * h for k in range(N_STEPS)])
     assert got["again"] == got["fresh"]
 
@@ -139,13 +139,12 @@ _EXIT_CHILD = textwrap.dedent("""
 
 
 def test_the_exit_handler_reaches_pythonfmu_behind_an_unloaded_shim(built_fmus, shim):
-    """CI, 2026-11-22: a process that freed the container aborted at exit now and then
-    (valgrind: invalid read in pythonfmu's finalizePythonInterpreter, from _dl_fini). The
-    container unloads the shim when it frees its components, pythonfmu's library stays loaded,
-    and the FMUs' exit handler looked only for ``<model>.so`` (the shim): the guard was never
-    released and the double free of issue 17 point 5 came back. The handler now releases it
+    """The container unloads the shim when it frees its components while pythonfmu's library
+    stays loaded. An exit handler that looks only for ``<model>.so`` (the shim) misses the
+    guard, and the process aborts at exit now and then (valgrind: invalid read in pythonfmu's
+    finalizePythonInterpreter, from _dl_fini: a double free). The handler releases the guard
     through ``<model>.pythonfmu.so``: every nested pythonfmu library still loaded after the free
-    (the plant's, here) has its guard released; one that was unloaded with the shim ran its
+    (the plant's, here) has its guard released; one that is unloaded with the shim runs its
     destructors then (valgrind: clean)."""
     r = subprocess.run([sys.executable, "-c", _EXIT_CHILD, str(built_fmus["DroneFlyClosedLoop"])],
                        capture_output=True, text=True, timeout=120)
@@ -153,7 +152,7 @@ def test_the_exit_handler_reaches_pythonfmu_behind_an_unloaded_shim(built_fmus, 
     rows = json.loads(r.stdout.strip().splitlines()[-1])
     assert len(rows) == 2  # plant and controller
     assert any(loaded for loaded, _, _ in rows)  # the bug's precondition: one stays loaded
-    for loaded, released, real in rows:  # before: "None" for the loaded one as well
+    for loaded, released, real in rows:  # the loaded one's guard released, by its real path
         assert released == (real if loaded else "None"), rows
 
 
@@ -173,16 +172,15 @@ _DELETED_CHILD = textwrap.dedent("""
 
 
 def test_the_exit_handler_finds_a_deleted_library_spelled_with_two_slashes(built_fmus):
-    """CI, 2026-11-22 (late): Ecos' child aborted at exit in about one run in ten ("corrupted
-    double-linked list" after its last run had ended). Ecos unpacks each SSP run into a
-    temporary folder, deletes it after the run, and one DroneFlyLateral.so stays mapped;
-    pythonfmu gives the FMU its resources folder as ``//tmp/...``, so the handler asked the
-    loader for ``//tmp/.../DroneFlyLateral.so``. ``dlopen(RTLD_NOLOAD)`` matches a name that
-    is not the loader's own by opening the file, which is gone: the guard was never released.
-    The handler now looks the library up among the loaded objects by its normalised path."""
+    """Ecos unpacks each SSP run into a temporary folder, deletes it after the run, and one
+    DroneFlyLateral.so stays mapped; pythonfmu gives the FMU its resources folder as
+    ``//tmp/...``. ``dlopen(RTLD_NOLOAD)`` matches a name that is not the loader's own by
+    opening the file, which is gone, so asking the loader for ``//tmp/.../DroneFlyLateral.so``
+    leaves the guard unreleased and the process aborts at exit ("corrupted double-linked
+    list"). The handler looks the library up among the loaded objects by its normalised path."""
     r = subprocess.run([sys.executable, "-c", _DELETED_CHILD, str(built_fmus["DroneFlyLateral"])],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-800:]
     lib, released, not_loaded = json.loads(r.stdout.strip().splitlines()[-1])
-    assert released == lib  # before: None
+    assert released == lib  # not None: found although the file is gone
     assert not_loaded is None

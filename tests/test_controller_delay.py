@@ -1,4 +1,4 @@
-"""Sensing delay, sampling and integral action of the controller FMUs (issue 14).
+"""Sensing delay, sampling and integral action of the controller FMUs.
 
 The oracle of the timing is exact: times in wing beats as Fractions. The delayed output at a
 communication point t must be, bit for bit, what the undelayed controller output for the input
@@ -136,8 +136,8 @@ def test_a_long_run_on_the_grid_stays_on_it(h_wb):
     """12000 steps, the time added up step by step as masters do (it drifts by more than
     1e-9 of a step after about 2000): delay and period 1 wing beat stay on the grid, so every
     output is the control of the input set one wing beat earlier and nothing is logged.
-    (With the tolerance 1e-9 h alone, before the audit, a sample fell into the step before
-    its own: the output was wrong from step 6855 on steps of 1 wing beat and 10029 on 0.1.)"""
+    (With the tolerance 1e-9 h alone a sample would fall into the step before its own: the
+    output would be wrong from step 6855 on steps of 1 wing beat and 10029 on 0.1.)"""
     h = h_wb * WB
     cross = next(m for m in range(1, 10**4) if T.tolerance(0.0, m * h, h) > 2 * T.TOLERANCE * h)
     assert 2000 < cross < 2200  # docs: the drift passes 1e-9 of a step after about 2000 steps
@@ -182,8 +182,8 @@ def test_summed_steps_stay_within_the_drift_cap_for_a_million_steps(h_wb):
 def test_an_effect_just_off_the_grid_stays_off_it_after_a_million_steps(m):
     """An effect 1e-4 step after a communication point is inside the next step, the same at
     step 1 and step 1e6 (t = k h computed directly, as fmpy's master does): in effect from the
-    point after, the latency unchanged mid-run. (Without the drift cap the drift term reached
-    2.2e-4 of a step by 1e6 steps and snapped the effect onto the point before.)"""
+    point after, the latency unchanged mid-run. (Without the drift cap the drift term would reach
+    2.2e-4 of a step by 1e6 steps and snap the effect onto the point before.)"""
     h, d = WB, WB * (1.0 + 1e-4)
     timing, x, scale = T.Timing(sensing_delay=d), (0.1, 5.0, 3.0, 0.1), (1.0,) * 4
     s = D.Sensor(4, 0.0)
@@ -198,8 +198,8 @@ def test_an_effect_just_off_the_grid_stays_off_it_after_a_million_steps(m):
 def test_the_off_grid_warning_cannot_fail_the_committed_step(monkeypatch):
     """The warning is formed after the step's state moved on. Steps of 1e306 s with samples
     every 0.7e306 s: an instant inside the first step, and a latency grid that leaves float
-    range (its instant index was math.ceil(inf): OverflowError, the step refused after the
-    sensor had advanced). The step is OK, its result kept, and the warning logged; if the
+    range (its instant index would be math.ceil(inf): OverflowError after the sensor has
+    advanced). The step is OK, its result kept, and the warning logged; if the
     warning still cannot be formed, a plain one is logged and the step is OK as well."""
     h = 1e306
     for broken in (False, True):
@@ -263,8 +263,8 @@ def test_integral_follows_the_held_sensed_state_exactly(h, delay, period):
     shorter than the step, so several instants fall in one step and take effect one by one):
     the control is computed when a sample takes effect and held, so z is the exact integral of
     the held sensed signal (Fractions) up to the instant the sample in effect took effect, to
-    rounding. (Before the fix of the audit, the instants after the first of a step did not
-    count: at delay 0.4, period 0.3, step 1 the control at t = 1 was KI z(0.4), not KI z(1.0).)"""
+    rounding: every instant of a step counts, not only the first (at delay 0.4, period 0.3,
+    step 1 the control at t = 1 is KI z(1.0), not KI z(0.4))."""
     n = 40
     xs = _inputs(n + 1, seed=2)
     ki = np.random.default_rng(4).normal(0.0, 1.0, (3, 4))

@@ -1,4 +1,4 @@
-"""No silent wrong answers (issue 25): every verdict is that of the loop the FMUs run, and a
+"""No silent wrong answers: every verdict is that of the loop the FMUs run, and a
 verdict that the run's own cross-check contradicts is an error.
 
 Oracles: model (b) of docs/latency.md (the exact delayed sampled-data loop, itself checked
@@ -55,8 +55,8 @@ def test_cosim_flips_the_verdict_at_the_sampled_margin(fmus, name):
     (sampled once per wing beat, step 1 wing beat): the verdict identified from the runs is
     model (b)'s at both (kept at d, lost at d + 1), its dominant rate model (b)'s within
     RATE_TOL_PER_WINGBEAT (a simple eigenvalue of a fit with residual ~1e-15), and the run's
-    cross-checks pass. Before issue 25 cosim fitted a 4-state map to the 4 (d + 1)-state
-    loop (stabilising at d = 6: 'unstable', +0.01085)."""
+    cross-checks pass. (A 4-state map fitted to the 4 (d + 1)-state loop would give the wrong
+    verdict: stabilising at d = 6: 'unstable', +0.01085.)"""
     loop = design(name)
     m = sampled_margin(loop)
     verdicts = []

@@ -1,4 +1,4 @@
-"""FMI 3.0 builds (issue 15): the same model and controller code behind pythonfmu3.
+"""FMI 3.0 builds: the same model and controller code behind pythonfmu3.
 
 Every FMU of the project as an FMI 3.0 Co-Simulation FMU: fmpy validate clean; arrays, the
 independent variable, units and dependencies in the model description; the slave's FMI 3.0

@@ -1,7 +1,7 @@
 """The FMUs in a virtual environment that has only fmpy (which brings numpy, not scipy), as a new
 user runs them: ``fmpy.simulate_fmu`` of every FMU that ``dronefly build`` writes, FMI 2.0 and
 3.0 (and the FMI 2.0 container FMU holding two of them), reproduces the reference results in
-fmu_*/, controller/ and harness/interop/ (issue 28).
+fmu_*/, controller/ and harness/interop/.
 
 The environment is created once per test session in a temporary folder (``pip install
 fmpy==<this environment's version>`` by this environment's pip, from PyPI or the configured

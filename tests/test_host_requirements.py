@@ -1,4 +1,4 @@
-"""What a host needs to run the FMUs: a CPython 3 interpreter, no packages (issue 28).
+"""What a host needs to run the FMUs: a CPython 3 interpreter, no packages.
 
 Every FMU that ``dronefly build`` writes (FMI 2.0 and 3.0) is run by a small ctypes host
 (tests/c_host/ctypes_host.py, standard library only) in an interpreter started without

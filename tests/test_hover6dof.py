@@ -1,4 +1,4 @@
-"""DroneFlyHover6DOF, the nonlinear six-degree-of-freedom plant: is its physics right? (issue 13)
+"""DroneFlyHover6DOF, the nonlinear six-degree-of-freedom plant: is its physics right?
 
 Oracles, none of them our own output:
 

@@ -1,4 +1,4 @@
-"""Interoperability (issue 7): a second importer (libcosim), the SSP, the container FMU, a C host.
+"""Interoperability: a second importer (libcosim), the SSP, the container FMU, a C host.
 
 Every run here gives a trajectory that is compared with ``harness.cosim.master.Loop`` under the
 same master algorithm, and a verdict classified by ``harness.cosim.stability.identify``.
@@ -347,7 +347,7 @@ def test_container_declares_only_platforms_all_its_fmus_have(container, fmus):
 
 
 # -----------------------------------------------------------------------------
-# a verdict the identification's own fit contradicts is an error (issue 25)
+# a verdict the identification's own fit contradicts is an error
 @pytest.fixture(scope="module")
 def delayed_pair(built_fmus, tmp_path_factory):
     """The plant with StateFeedbackDelayed (one wing beat of sensing delay, ten steps of 0.1):

@@ -1,4 +1,4 @@
-"""The third importer (issue 15): the closed-loop SSP co-simulated by Ecos (ecospy 0.7.2).
+"""The third importer: the closed-loop SSP co-simulated by Ecos (ecospy 0.7.2).
 
 Ecos runs in a child process (:mod:`dronefly.harness.interop.ecos`). Its fixed-step master is
 Jacobi with the controller fed x_0 before the first step, so its trajectory must equal
@@ -145,11 +145,11 @@ def test_ecos_verdicts(ecos, ssp):
 
 
 def test_ecos_runs_the_fmus_where_the_host_cannot_import_numpy_or_scipy(ecos, ssp, tmp_path):
-    """The crash of issue 15 is gone with its cause (issue 28): pythonfmu runs the FMU's code in
-    the host's interpreter, and where numpy could not be imported there (a fresh venv with only
-    ecospy and tbb; here: numpy and scipy hidden on PYTHONPATH) fmi2Instantiate returned NULL,
-    which fmi4c wraps in a non-NULL handle and passes to fmi2SetupExperiment: SIGSEGV. The FMUs
-    now need only the standard library, and the closed loop runs."""
+    """pythonfmu runs the FMU's code in the host's interpreter; an FMU that imported numpy
+    would fail to instantiate where numpy cannot be imported (a fresh venv with only ecospy and
+    tbb; here: numpy and scipy hidden on PYTHONPATH), and fmi4c wraps the NULL in a non-NULL
+    handle and passes it to fmi2SetupExperiment: SIGSEGV. The FMUs need only the standard
+    library, and the closed loop runs."""
     for name in ("numpy", "scipy"):
         hide = tmp_path / "hide" / name
         hide.mkdir(parents=True)
@@ -333,7 +333,7 @@ def test_ecos_takes_an_fmi3_array_for_a_scalar(ecos, built_fmus3, bound, loop, t
 def test_ecos_verdict_of_a_loop_it_does_not_model_is_refused(ecos, built_fmus, tmp_path):
     """The closed-loop SSP with StateFeedbackDelayed (one wing beat of sensing delay): the
     8-state Jacobi map has no state for the delay line; its fit's residual is far above
-    rounding, so ecos_verdict raises CrossCheckError instead of giving a verdict (issue 25)."""
+    rounding, so ecos_verdict raises CrossCheckError instead of giving a verdict."""
     from dronefly.core.errors import CrossCheckError
     from dronefly.builder.closedloop import write_ssp
 

@@ -1,4 +1,4 @@
-"""Sensing latency and sampling (issue 14, the analysis): harness/latency against oracles.
+"""Sensing latency and sampling (the analysis): harness/latency against oracles.
 
 Oracles: the characteristic quasi-polynomial itself at each crossing (its smallest singular
 value), Chebyshev collocation of the delay equation (an independent method), the loop gain
@@ -278,7 +278,7 @@ def test_identification_from_cosimulation(plant, controller, loops, name, tau, s
     wing beats (PI, P), and by 1.5 (PI; communication step half a wing beat, so the control
     switches mid-period as model (b)'s two-segment hold has it, and the controller is stepped
     between its samples: its control, integral term included, is held, as model (b) has it;
-    before the fix of 2026-11-22 the FMU's integral term moved between samples: 0.048 off)."""
+    an integral term that moved between samples would be 0.048 off)."""
     from dronefly.harness.latency.identify import cosimulate_runs
 
     loop = loops[name]
@@ -452,7 +452,7 @@ def test_doc_tables_and_numbers_are_the_code_s(margin_data):
 def test_final_offset_is_where_the_neutral_loop_goes(delay_ms):
     """The offset a neutral loop settles at equals the limit of the run itself: M^k x0 with the
     other modes (|mu| <= 0.915) decayed below 1e-100 after 3000 samples. This is the oracle
-    for the spectral projection the code uses; the former inverse eigenvector basis gave 0.3558
+    for the spectral projection the code uses; an inverse eigenvector basis gives 0.3558
     or 0.3549 at 20 ms depending on the BLAS kernel (the delay line's mu = 0 is defective)."""
     from dronefly.harness.latency.report import ROLL
     from dronefly.harness.latency.sampled import sampled_matrix

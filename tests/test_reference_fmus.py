@@ -1,7 +1,7 @@
 """`dronefly check` on FMUs we did not write: the Modelica Reference-FMUs (v0.0.41, in
 ``../shared/reference-fmus``). They are correct FMUs (``fmpy validate`` finds no problem): a
-check that fails one must cite the rule of the standard it breaks. Each of the false
-positives A-K of issue 27 has an assertion here on the FMU that showed it; seeded defects
+check that fails one must cite the rule of the standard it breaks. Each known false positive
+of a check on them has an assertion here on the FMU that shows it; seeded defects
 are copies of Reference-FMUs with an edited modelDescription.xml, each failing exactly the
 check that names its rule."""
 
@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 REF = ROOT.parent / "shared" / "reference-fmus"
 FMUS = sorted(str(p.relative_to(REF)) for p in REF.glob("fmi[23]/*.fmu")) if REF.is_dir() else []
 
-#: Roberts' default experiment runs to 1e8 s (issue 27, K): 1 s is 100 steps
+#: Roberts' default experiment runs to 1e8 s: 1 s is 100 steps
 STOP = {"fmi3/Roberts.fmu": 1.0}
 
 

@@ -25,7 +25,7 @@ BUILT = [*FMUS, "DroneFlyClosedLoop"]
 #: FMUs whose slave class another FMU shares (LinearPlantSlave, the feedback law's slave):
 #: the shared code is fuzzed in full on the lateral ones; these get the same groups with fewer
 #: random calls and instances (their variable tables still get every value and sequence case)
-#: the delayed controllers (issue 14): that slave code again, with another variable table and
+#: the delayed controllers: that slave code again, with another variable table and
 #: ModelStructure; logging on only (logging off is the same code, fuzzed on the others)
 _VARIANTS = {"StateFeedbackDelayed", "StateFeedbackLongitudinalDelayed"}
 _SHARED = {"DroneFlyLongitudinal", "StateFeedbackLongitudinal", *_VARIANTS}

@@ -1,6 +1,6 @@
-"""``dronefly sweep --delays/--sample-periods`` (issue 14): the delay axes against oracles.
+"""``dronefly sweep --delays/--sample-periods``: the delay axes against oracles.
 
-Oracles: the case key as it was computed before the axes existed (the formula, written here);
+Oracles: the case key of a case without delay axes (the formula, written here);
 the sweep without the options (byte for byte); the controller parameters a case sets; model (b)
 of :mod:`dronefly.harness.latency.sampled` (``verdict_map``) for the loop's verdict with the
 delay states, for the paper's gains, the stabilising design and an LQR design; the real
@@ -52,7 +52,7 @@ def _cli(fmus: dict[str, Path], *args: str) -> int:
 
 
 def test_default_axes_are_today_s_sweep_bit_for_bit(fmus, tmp_path, capsys):
-    for c in TODAY.cases():  # the key formula before issue 14
+    for c in TODAY.cases():  # the key formula of a case without delay axes
         ident = repr((tuple(map(float, c.x0)), tuple(tuple(map(float, r)) for r in c.K),
                       float(c.step_wb), float(c.scale), c.n_steps, c.master))
         assert c.key == hashlib.sha1(ident.encode()).hexdigest()[:16]

@@ -81,8 +81,8 @@ def _x0(plant_fmu) -> dict[str, float]:
 
 
 def _former_pair_master():
-    """benchmarks/pair_master.py: the pair master as it was before issue 12 (its
-    Gauss-Seidel and Jacobi orderings)."""
+    """benchmarks/pair_master.py: the dedicated pair master kept as the benchmark's baseline
+    (its Gauss-Seidel and Jacobi orderings)."""
     import importlib.util
 
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "pair_master.py"
@@ -93,8 +93,8 @@ def _former_pair_master():
 
 
 class _GainsFirst:
-    """The controller FMU, its instances given ``gains`` before initialization (the former
-    master set no controller parameter; the FMU reads them when it computes)."""
+    """The controller FMU, its instances given ``gains`` before initialization (the dedicated
+    pair master sets no controller parameter; the FMU reads them when it computes)."""
 
     def __init__(self, fmu, gains: dict[str, float]) -> None:
         self.fmu, self.gains = fmu, gains

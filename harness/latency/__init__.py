@@ -1,4 +1,4 @@
-"""Sensing latency and sampling of the feedback loops (issue 14, the analysis).
+"""Sensing latency and sampling of the feedback loops: the analysis.
 
 - :mod:`.loop`: :class:`~.loop.FeedbackLoop`, a plant closed by u = K x_s + KI z;
 - :mod:`.continuous`: model (a), a continuous pure delay: crossing frequencies and delay

@@ -14,9 +14,9 @@ gain set
     ``STABILISING_LAMBDA1`` with delta_Phi_a alone), ``open`` (no control).
 communication step
     How often the insect senses and acts, in wing beats (meaningful: 0.1 to 3).
-sensing delay and sample period (issue 14)
+sensing delay and sample period
     The controller's ``sensing_delay`` and ``sample_period``, in wing beats (0 and 0, the
-    default, set nothing: today's sweep); see :mod:`harness.sweep.delays`.
+    default, set nothing: the controller's defaults); see :mod:`harness.sweep.delays`.
 bound scale
     A factor on the bounds checked; the initial disturbances stay in the nominal box.
 

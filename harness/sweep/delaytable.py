@@ -1,4 +1,4 @@
-"""The numbers of docs/latency.md's sweep over sensing delay x sample period (issue 14).
+"""The numbers of docs/latency.md's sweep over sensing delay x sample period.
 
 ``docs/latency_map.png`` is the ``map_delay_period.png`` of :data:`MAP_COMMAND`: the paper's
 gains (Eq. 27) and the stabilising design, communication step half a wing beat, the delays

@@ -1,4 +1,4 @@
-"""The controller's sensing delay and sampling on a sweep case's communication grid (issue 14).
+"""The controller's sensing delay and sampling on a sweep case's communication grid.
 
 The controller FMU (``controller/README.md``) samples its inputs at t_k = k T (T =
 ``sample_period``; T = 0: at every communication point) and the control of the sample at t_k
@@ -45,7 +45,7 @@ MAX_PERIOD_STEPS = 1000
 
 def timing_params(case: Any, n_hz: float) -> dict[str, float]:
     """``sensing_delay`` and ``sample_period`` [s] of a case (wing beats / ``n_hz`` [Hz]); empty
-    when both are 0, so that a case without them sets exactly what it set before issue 14."""
+    when both are 0, so that a case without them sets no timing parameter at all."""
     if not (case.delay_wb or case.sample_period_wb):
         return {}
     return {"sensing_delay": case.delay_wb / n_hz, "sample_period": case.sample_period_wb / n_hz}

@@ -32,16 +32,40 @@ Pure Python (shipped inside the controller FMUs); imports only :mod:`.timing`.
 from __future__ import annotations
 
 import math
+import operator
 from collections import deque
+from dataclasses import dataclass, fields
 from typing import Any, Sequence, Tuple
 
 from .timing import DRIFT, DRIFT_CAP, MAX_SAMPLES, TOLERANCE, SensingError, Timing
 
-__all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing"]
+__all__ = ["MAX_SAMPLES", "TOLERANCE", "Sensor", "SensingError", "Timing", "Undo"]
 
 State = Tuple[float, ...]  # (typing.Tuple: Python 3.8 hosts)
 
 
+@dataclass
+class Undo:
+    """What :meth:`Sensor.undo` restores after a :meth:`Sensor.advance`.
+
+    Attributes
+    ----------
+    saved : tuple
+        The sensor's fields before the step, in the order of ``dataclasses.fields(Sensor)``
+        (``line`` is the sensor's own deque, its content restored from the two below).
+    length : int
+        The length of the delay line before the step.
+    popped : list of tuple
+        The entries the step took from the front of the line, oldest first.
+    """
+
+    saved: tuple[Any, ...]
+    length: int
+    popped: list[tuple[Any, ...]]
+    __slots__ = tuple(__annotations__)  # the fields above (slots=True needs Python 3.10)
+
+
+@dataclass(init=False, eq=False)
 class Sensor:
     """The delay line and the integral state of one controller instance.
 
@@ -54,12 +78,13 @@ class Sensor:
 
     Attributes
     ----------
+    t0 : float
+        Start time [s], origin of the sample instants.
     line : deque of tuple
         Samples taken and not yet in effect, oldest first: (instant [s], dimensional state),
         or (first instant, state, last instant, period) [s] for several in one step.
-    current, held : tuple or None, tuple
-        The line entry in effect (None: the equilibrium, or a sample without delay; its
-        instants after the first take effect one by one) and its state (zeros: equilibrium).
+    held : tuple
+        The state of the sample in effect (zeros: the equilibrium).
     z0, t_base : tuple, float
         The integral state (non-dimensional) at ``t_base`` [s], the last change of ``held``.
     x_plus, scale, n : tuple, tuple, float
@@ -72,27 +97,46 @@ class Sensor:
         The last communication step [s] (0 before the first) and its tolerance's drift term.
     t_effect : float
         The instant [s] the sample in effect took effect (``t0`` before the first).
+    current : tuple or None
+        The line entry in effect (None: the equilibrium, or a sample without delay; its
+        instants after the first take effect one by one).
     off_grid : tuple or None or False
         None until a sample or effect instant falls strictly inside a communication step, then
         (what, instant [s], step start [s], step [s]) until reported; False once reported.
     """
 
-    __slots__ = ("t0", "line", "held", "z0", "t_base", "x_plus", "scale", "n", "integrating",
-                 "last_k", "last_period", "h", "drift", "t_effect", "current", "off_grid")
+    t0: float
+    line: deque[tuple[Any, ...]]
+    held: State
+    z0: State
+    t_base: float
+    x_plus: State
+    scale: State
+    n: float
+    integrating: bool
+    last_k: int | None
+    last_period: float
+    h: float
+    drift: float
+    t_effect: float
+    current: tuple[Any, ...] | None
+    off_grid: tuple[str, float, float, float] | None | bool
+    __slots__ = tuple(__annotations__)  # the fields above (slots=True needs Python 3.10)
 
     def __init__(self, size: int, t0: float = 0.0) -> None:
         zero = (0.0,) * size
         self.t0 = float(t0)
-        self.line: deque[tuple[Any, ...]] = deque()
+        self.line = deque()
         self.held, self.z0, self.x_plus = zero, zero, zero
         self.t_base = self.t0
-        self.scale: State = ()
+        self.scale = ()
         self.n = 0.0
-        self.integrating, self.last_k, self.last_period, self.h, self.drift = (False, None, 0.0,
-                                                                              0.0, 0.0)
+        self.integrating = False
+        self.last_k, self.last_period = None, 0.0
+        self.h, self.drift = 0.0, 0.0
         self.t_effect = self.t0
-        self.current: tuple[Any, ...] | None = None
-        self.off_grid: tuple[str, float, float, float] | None | bool = None
+        self.current = None
+        self.off_grid = None
 
     def integral(self, t: float) -> State:
         """z(t) [non-dimensional] for t >= t_base (exact for the held sample)."""
@@ -108,7 +152,7 @@ class Sensor:
             return
         z = self.integral(t)
         for j, v in enumerate(z):
-            if v - v != 0.0:
+            if not math.isfinite(v):
                 raise SensingError(f"the integral state z{j + 1} = {v!r} (of x+{j + 1}) "
                                    f"overflows at t = {t!r} s: the sensed state is far outside "
                                    "the linear range")
@@ -152,11 +196,17 @@ class Sensor:
         return ts
 
     def advance(self, t: float, h: float, x: State, scale: State, n: float,
-                timing: Timing, integrate: bool) -> tuple[Any, ...]:
-        """One communication step [t, t + h) [s] with the input ``x`` (dimensional) held:
-        takes the sample (if an instant falls in the step) and puts into effect every sample
-        due by t + h; z integrates over the step if ``integrate`` (integral action on).
-        Returns a token for :meth:`undo`; on an exception nothing is changed.
+                timing: Timing, integrate: bool) -> Undo:
+        """One communication step [t, t + h) [s] with the input ``x`` (dimensional) held.
+
+        Takes the sample (if an instant falls in the step) and puts into effect every sample
+        due by t + h; z integrates over the step if ``integrate`` (integral action on). On an
+        exception nothing is changed.
+
+        Returns
+        -------
+        Undo
+            The token for :meth:`undo`.
 
         Raises
         ------
@@ -165,10 +215,7 @@ class Sensor:
         """
         line = self.line
         popped: list[tuple[Any, ...]] = []
-        token = (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n,
-                 self.integrating, self.last_k, self.last_period, self.h, self.drift,
-                 self.t_effect,
-                 self.current, self.off_grid, len(line), popped)
+        token = Undo(_fields_of(self), len(line), popped)
         try:
             # tolerance(t0, t, h) inline: t >= t0 (the base class checks h > 0)
             drift = min(DRIFT * (t if t > 0.0 else -t) * (t - self.t0) / h, DRIFT_CAP * h)
@@ -214,16 +261,14 @@ class Sensor:
             raise
         return token
 
-    def undo(self, token: tuple[Any, ...]) -> None:
+    def undo(self, token: Undo) -> None:
         """Return to the state before the :meth:`advance` that gave ``token``."""
-        (self.held, self.z0, self.t_base, self.x_plus, self.scale, self.n, self.integrating,
-         self.last_k, self.last_period, self.h, self.drift, self.t_effect, self.current,
-         self.off_grid,
-         length, popped) = token
-        for item in reversed(popped):
-            self.line.appendleft(item)
-        while len(self.line) > length:
-            self.line.pop()
+        for name, value in zip(_FIELD_NAMES, token.saved):
+            setattr(self, name, value)
+        line = self.line
+        line.extendleft(reversed(token.popped))
+        while len(line) > token.length:
+            line.pop()
 
     def is_instant(self, t: float, period: float) -> bool:
         """Whether the communication point ``t`` [s] is a sample instant."""
@@ -298,3 +343,7 @@ class Sensor:
         s.t_effect = float(d["t_effect"])
         s.current = None if d["current"] is None else entry(d["current"])
         return s
+
+
+_FIELD_NAMES = tuple(f.name for f in fields(Sensor))
+_fields_of = operator.attrgetter(*_FIELD_NAMES)  # a sensor's fields, as a tuple (fast: per step)

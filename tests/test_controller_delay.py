@@ -195,6 +195,24 @@ def test_an_effect_just_off_the_grid_stays_off_it_after_a_million_steps(m):
     assert T.tolerance(0.0, m * h, h) <= (T.TOLERANCE + T.DRIFT_CAP) * h < 1e-4 * h
 
 
+def test_undo_restores_every_field_and_the_line():
+    """After steps that append to the line, put samples into effect and switch integral action
+    on, undo gives back the sensor as it was before each step: every field, the line's
+    entries (popped ones back at its front, appended ones gone) and the deque itself."""
+    timing, scale = T.Timing(sensing_delay=2 * WB, sample_period=0.5 * WB), (1.0, 2.0, 3.0, 4.0)
+    s = D.Sensor(4, 0.0)
+    line = s.line
+    for k in range(8):
+        x = (0.1 * k, 0.2, -0.3 * k, 0.4)
+        before = (repr(s), list(s.line))
+        token = s.advance(k * WB, WB, x, scale, N_HZ, timing, k >= 3)
+        assert repr(s) != before[0]
+        s.undo(token)
+        assert (repr(s), list(s.line)) == before and s.line is line
+        s.advance(k * WB, WB, x, scale, N_HZ, timing, k >= 3)
+    assert s.integrating and any(s.z0) and s.current is not None and s.line
+
+
 def test_the_off_grid_warning_cannot_fail_the_committed_step(monkeypatch):
     """The warning is formed after the step's state moved on. Steps of 1e306 s with samples
     every 0.7e306 s: an instant inside the first step, and a latency grid that leaves float

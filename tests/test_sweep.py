@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronefly.harness.sweep.run import COLUMNS, read_rows, run_sweep
+from dronefly.harness.sweep.run import COLUMNS, SweepSettings, read_rows, run_sweep
 from dronefly.harness.sweep.cases import (STATE_BOUNDS_SECT36, Case, SweepInputError, SweepSpec,
     gain_matrix)
 
@@ -128,6 +128,19 @@ def test_interrupted_sweep_resumes_to_the_same_csv(fmus, reference, tmp_path: Pa
     again = run_sweep(SMALL, tmp_path, workers=1, plot=False, progress_bar=False, **fmus)
     assert again.summary["computed_cases"] == 0  # nothing redone
     assert again.csv.read_text() == reference.csv.read_text()
+
+
+def test_settings_object_and_keywords_give_the_same_rows(fmus, reference, tmp_path: Path) -> None:
+    """``run_sweep(spec, out, settings, **options)``: the options replace the settings' fields;
+    an option that is not a field is a TypeError, before anything is written."""
+    settings = SweepSettings(workers=2, plot=True, progress_bar=False, **fmus)
+    r = run_sweep(SMALL, tmp_path / "a", settings, workers=1, plot=False)
+    assert r.rows == reference.rows and r.summary["workers"] == 1 and r.maps == []
+    with pytest.raises(SweepInputError, match="--compare needs --system"):
+        run_sweep(SMALL, tmp_path / "b", settings, compare="other.ssp")
+    with pytest.raises(TypeError, match="worker"):
+        run_sweep(SMALL, tmp_path / "c", worker=1)
+    assert not (tmp_path / "b").exists() and not (tmp_path / "c").exists()
 
 
 def test_failed_case_is_recorded_and_the_sweep_goes_on(fmus, tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ import json
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -45,7 +45,8 @@ from .results import (COLUMNS, load_done, read_rows, result_row, summarize, writ
 from .system import SystemRef, check_system
 from .worker import FmuRef
 
-__all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "read_rows", "run_sweep"]
+__all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "SweepSettings", "read_rows",
+           "run_sweep"]
 
 
 @dataclass
@@ -105,7 +106,8 @@ def _system_refs(system: str | Path, plant: Any, controller: Any,
             raise SweepInputError(f"{option} {str(given)!r} " + (
                 "is a folder, not an SSP file" if path.is_dir() else "does not exist"))
         ref = SystemRef(**vars(FmuRef.of(path)))
-        loop, values = check_system(ref, _values_for(ref, set_values), (spec or SweepSpec()).master)
+        master = (spec or SweepSpec()).master
+        loop, values = check_system(ref, _values_for(ref, set_values), master)
         for key, value in values.items():  # a case's --set value serves both systems
             if (type(typed.setdefault(key, value)), typed[key]) != (type(value), value):
                 raise SweepInputError(f"--set {key}={set_values[key]!r} is {typed[key]!r} in "
@@ -146,24 +148,12 @@ def _fmu_paths(plant: str | Path | None, controller: str | Path | None) -> tuple
     return FmuRef.of(plant), FmuRef.of(controller)
 
 
-def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep", *,
-              plant: str | Path | None = None, controller: str | Path | None = None,
-              workers: int | None = None, scheduler: str | None = None,
-              connect_timeout_s: float = 10.0, cases: Sequence[Case] | None = None,
-              fresh: bool = False, plot: bool = True, progress_bar: bool | None = None,
-              on_chunk: Callable[[int, int], None] | None = None, chunk_steps: int | None = None,
-              flush_s: float = 5.0,
-              set_values: Mapping[str, float | bool] | None = None,
-              system: str | Path | None = None,
-              compare: str | Path | None = None) -> SweepResult:
-    """Run (or resume) a sweep and write ``sweep.csv``, ``sweep.json`` and ``map_*.png``.
+@dataclass(frozen=True)
+class SweepSettings:
+    """How :func:`run_sweep` runs a sweep: every option but the spec and the output folder.
 
     Parameters
     ----------
-    spec : SweepSpec, optional
-        What to sweep (default: ``SweepSpec()``); ignored if ``cases`` is given.
-    out_dir : path
-        Output folder; results already there (same cases, matched by key) are kept.
     plant, controller : path, optional
         FMUs (default: the project's, built into ``build/``).
     workers : int, optional
@@ -175,7 +165,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     cases : sequence of Case, optional
         Explicit cases instead of ``spec.cases()``.
     fresh : bool
-        Discard the results in ``out_dir`` instead of resuming.
+        Discard the results in the output folder instead of resuming.
     plot : bool
         Write the PNG maps.
     progress_bar : bool, optional
@@ -198,107 +188,225 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
         A second SSP: every case also runs on it, and the rows get the comparison
         columns of :mod:`dronefly.harness.sweep.compare` (needs ``system``).
 
+    Notes
+    -----
+    Nothing is checked on construction; :func:`run_sweep` checks the values (raising
+    :class:`SweepInputError`) before it writes anything.
+    """
+
+    plant: str | Path | None = None
+    controller: str | Path | None = None
+    workers: int | None = None
+    scheduler: str | None = None
+    connect_timeout_s: float = 10.0
+    cases: Sequence[Case] | None = None
+    fresh: bool = False
+    plot: bool = True
+    progress_bar: bool | None = None
+    on_chunk: Callable[[int, int], None] | None = None
+    chunk_steps: int | None = None
+    flush_s: float = 5.0
+    set_values: Mapping[str, float | bool] | None = None
+    system: str | Path | None = None
+    compare: str | Path | None = None
+
+
+def _inputs(spec: SweepSpec | None, s: SweepSettings) -> tuple[tuple, list[Case], Any]:
+    """(FMU or system references, cases, the system's LateralLoop or None), all checked."""
+    if s.compare is not None and s.system is None:
+        raise SweepInputError("--compare needs --system (the reference system)")
+    if s.system is not None:
+        refs, values, lateral = _system_refs(s.system, s.plant, s.controller, s.set_values,
+                                             spec, s.compare)
+    else:
+        refs = _fmu_paths(s.plant, s.controller)
+        _check_pair(refs)
+        values, lateral = _resolve_values(refs, s.set_values), None
+    cases = list(s.cases) if s.cases is not None else (spec or SweepSpec()).cases(values)
+    if not cases:
+        raise SweepInputError("the sweep has no cases")
+    if lateral is not None:
+        _check_gains_reach(cases, lateral)
+    return refs, cases, lateral
+
+
+def _local_workers(s: SweepSettings) -> int:
+    """The local worker count (``workers`` or all cores), after checking the backend options."""
+    workers = s.workers if s.workers is not None else os.cpu_count() or 1
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise SweepInputError(f"workers = {workers!r} must be an integer >= 1")
+    timeout = s.connect_timeout_s
+    if not (math.isfinite(timeout) and timeout > 0):
+        raise SweepInputError(f"connect timeout = {timeout!r} s must be finite and > 0")
+    if s.scheduler is not None and not s.scheduler.strip():
+        raise SweepInputError("scheduler address is empty")
+    return workers
+
+
+class _Results:
+    """The results of a sweep's cases, kept and written to ``sweep.csv`` as chunks finish.
+
+    Parameters
+    ----------
+    cases : list of Case
+        All cases of the sweep, in order (duplicates share a key and a result).
+    refs : tuple
+        The FMU or system references (for the loop's verdicts per delay).
+    csv : Path
+        The results file; its finished cases are kept unless ``s.fresh``.
+    s : SweepSettings
+        The options (``fresh``, ``compare``, ``flush_s``, ``on_chunk``).
+
+    Attributes
+    ----------
+    done : dict
+        Result per case key: loaded from ``csv`` and then computed.
+    todo : list of Case
+        The cases to compute, one per key, in order.
+    resumed : int
+        How many keys were done before this run.
+    computed, loop_s, wall_s : int, float, float
+        Cases computed in this run, and their loop and worker times summed [s].
+    """
+
+    def __init__(self, cases: list[Case], refs: tuple, csv: Path, s: SweepSettings) -> None:
+        self.cases, self.csv, self.settings = cases, csv, s
+        self.compare = s.compare is not None
+        self.timed = delay_results(cases, refs)  # the loop's verdict per delay, sample period
+        keys = {c.key for c in cases}
+        self.done = {} if s.fresh else load_done(csv, keys, self.compare)
+        self.resumed = len(keys & self.done.keys())
+        self.todo = list({c.key: c for c in reversed(cases) if c.key not in self.done}
+                         .values())[::-1]
+        self.computed, self.loop_s, self.wall_s = 0, 0.0, 0.0
+        self.bar: Any = None
+        self.last_flush = time.perf_counter()
+
+    def row(self, case: Case) -> dict[str, str]:
+        """The CSV row of a done case."""
+        return result_row(case, {**self.done[case.key], **self.timed.get(case.key, {})},
+                          self.compare)
+
+    def flush(self) -> None:
+        """Rewrite ``sweep.csv`` with the rows of the cases done so far."""
+        write_results(self.csv, [self.row(c) for c in self.cases if c.key in self.done])
+        self.last_flush = time.perf_counter()
+
+    def collect(self, res: tuple[list, float, float]) -> None:
+        """Take one finished chunk's (results, loop time, worker time) from a backend."""
+        results, loop_s, wall_s = res
+        self.done.update(results)
+        self.loop_s += loop_s
+        self.wall_s += wall_s
+        self.computed += len(results)
+        self.bar.update(len(results))
+        if self.settings.on_chunk is not None:
+            self.settings.on_chunk(self.computed, len(self.todo))
+        if time.perf_counter() - self.last_flush >= self.settings.flush_s:
+            self.flush()
+
+    def run(self, refs: tuple, client: Any, n_workers: int) -> None:
+        """Compute the cases to do on the backend, writing ``sweep.csv`` also on an error.
+
+        Parameters
+        ----------
+        refs : tuple
+            The FMU or system references.
+        client : distributed.Client or None
+            The Dask client (closed here), or None for local workers.
+        n_workers : int
+            Workers: 1 runs in this process.
+        """
+        s = self.settings
+        chunks = chunk_cases(self.todo, n_workers, s.chunk_steps)
+        self.csv.parent.mkdir(parents=True, exist_ok=True)
+        disable = (not stderr_is_tty()) if s.progress_bar is None else not s.progress_bar
+        self.bar = make_progress_bar(total=len(self.todo), unit="case", desc="sweep",
+                                     dynamic_ncols=True, disable=disable)
+        self.last_flush = time.perf_counter()
+        try:
+            if client is not None:
+                run_dask(client, refs, chunks, self.collect)
+            elif n_workers == 1:
+                run_here(refs, chunks, self.collect)
+            else:
+                run_pool(refs, chunks, n_workers, self.collect)
+        finally:
+            self.bar.close()
+            if client is not None:
+                client.close()
+            if self.computed or s.fresh or not self.csv.exists():
+                self.flush()
+
+
+def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep",
+              settings: SweepSettings | None = None, **options: Any) -> SweepResult:
+    """Run (or resume) a sweep and write ``sweep.csv``, ``sweep.json`` and ``map_*.png``.
+
+    Parameters
+    ----------
+    spec : SweepSpec, optional
+        What to sweep (default: ``SweepSpec()``); ignored if ``cases`` is given.
+    out_dir : path
+        Output folder; results already there (same cases, matched by key) are kept.
+    settings : SweepSettings, optional
+        How to run it (default: ``SweepSettings()``).
+    **options
+        Fields of :class:`SweepSettings` (``workers=1``, ``plot=False``, ...), replacing
+        those of ``settings``.
+
+    Returns
+    -------
+    SweepResult
+        The rows of all cases, the summary (also in ``sweep.json``) and the files written.
+
     Raises
     ------
     SweepInputError
         Empty or bad input, missing FMU, unreachable scheduler, or an output folder
         holding another sweep; nothing is written then.
+    TypeError
+        An option that is not a field of :class:`SweepSettings`.
     KeyboardInterrupt
         After the finished cases have been written (rerun to resume).
     """
     t_start = time.perf_counter()
-    if compare is not None and system is None:
-        raise SweepInputError("--compare needs --system (the reference system)")
-    if system is not None:
-        refs, values, lateral = _system_refs(system, plant, controller, set_values, spec,
-                                             compare)
-    else:
-        refs = _fmu_paths(plant, controller)
-        _check_pair(refs)
-        values, lateral = _resolve_values(refs, set_values), None
-    all_cases = list(cases) if cases is not None else (spec or SweepSpec()).cases(values)
-    if not all_cases:
-        raise SweepInputError("the sweep has no cases")
-    if lateral is not None:
-        _check_gains_reach(all_cases, lateral)
-    if workers is None:
-        workers = os.cpu_count() or 1
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise SweepInputError(f"workers = {workers!r} must be an integer >= 1")
-    if not (math.isfinite(connect_timeout_s) and connect_timeout_s > 0):
-        raise SweepInputError(f"connect timeout = {connect_timeout_s!r} s must be finite and > 0")
-    if scheduler is not None and not scheduler.strip():
-        raise SweepInputError("scheduler address is empty")
+    s = replace(settings, **options) if settings is not None else SweepSettings(**options)
+    refs, cases, lateral = _inputs(spec, s)
+    workers = _local_workers(s)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SweepInputError(f"output folder {str(out)!r} is a file")
-    timed = delay_results(all_cases, refs)  # the loop's verdict per delay and sample period
-    csv_path, json_path = out / "sweep.csv", out / "sweep.json"
-    keys = {c.key for c in all_cases}
-    cmp = compare is not None
-    done = {} if fresh else load_done(csv_path, keys, cmp)
-    resumed = len(keys & done.keys())
-    client = connect_scheduler(scheduler, connect_timeout_s) if scheduler is not None else None
-    todo = list({c.key: c for c in reversed(all_cases) if c.key not in done}.values())[::-1]
-    n_workers = len(client.scheduler_info()["workers"]) if client else min(workers, max(1, len(todo)))
-    chunks = chunk_cases(todo, n_workers, chunk_steps)
-    stats = {"loop_s": 0.0, "wall_s": 0.0, "computed": 0}
-    out.mkdir(parents=True, exist_ok=True)
-    bar = make_progress_bar(total=len(todo), unit="case", desc="sweep", dynamic_ncols=True,
-                            disable=(not stderr_is_tty()) if progress_bar is None else not progress_bar)
-    last_flush = [time.perf_counter()]
+    results = _Results(cases, refs, out / "sweep.csv", s)
+    client = (connect_scheduler(s.scheduler, s.connect_timeout_s) if s.scheduler is not None
+              else None)
+    n_workers = (len(client.scheduler_info()["workers"]) if client
+                 else min(workers, max(1, len(results.todo))))
+    results.run(refs, client, n_workers)
+    rows = [results.row(c) for c in cases]
+    maps = write_maps(rows, out) if s.plot else []
+    summary = summarize(rows, cases) | (delay_summary(rows) if results.timed else {})
+    if results.compare:
 
-    def flush() -> None:
-        write_results(csv_path, [result_row(c, {**done[c.key], **timed.get(c.key, {})}, cmp)
-                                 for c in all_cases if c.key in done])
-        last_flush[0] = time.perf_counter()
-
-    def collect(res: tuple[list, float, float]) -> None:
-        results, loop_s, wall_s = res
-        done.update(results)
-        stats["loop_s"] += loop_s
-        stats["wall_s"] += wall_s
-        stats["computed"] += len(results)
-        bar.update(len(results))
-        if on_chunk is not None:
-            on_chunk(stats["computed"], len(todo))
-        if time.perf_counter() - last_flush[0] >= flush_s:
-            flush()
-
-    try:
-        if client is not None:
-            run_dask(client, refs, chunks, collect)
-        elif n_workers == 1:
-            run_here(refs, chunks, collect)
-        else:
-            run_pool(refs, chunks, n_workers, collect)
-    finally:
-        bar.close()
-        if client is not None:
-            client.close()
-        if stats["computed"] or fresh or not csv_path.exists():
-            flush()
-    rows = [result_row(c, {**done[c.key], **timed.get(c.key, {})}, cmp) for c in all_cases]
-    maps = write_maps(rows, out) if plot else []
-    summary = summarize(rows, all_cases) | (delay_summary(rows) if timed else {})
-    if cmp:
         summary["comparison"] = compare_summary(rows)
         summary["compare"] = refs[1].path
-        maps += write_compare_maps(rows, out) if plot else []
+        maps += write_compare_maps(rows, out) if s.plot else []
     summary.update(elapsed_s=time.perf_counter() - t_start, workers=n_workers,
                    backend="dask" if client else ("in-process" if n_workers == 1 else "processes"),
-                   scheduler=scheduler, computed_cases=stats["computed"], resumed_cases=resumed,
+                   scheduler=s.scheduler, computed_cases=results.computed,
+                   resumed_cases=results.resumed,
                    # cases identical to an earlier one (same initial state, gains, step, stop,
                    # bounds, master: e.g. a direction case that is also a grid point) run once
-                   duplicate_cases=len(all_cases) - len(keys),
-                   loop_run_s=stats["loop_s"], worker_case_s=stats["wall_s"],
-                   per_case_overhead=(stats["wall_s"] / stats["loop_s"] - 1.0
-                                      if stats["loop_s"] > 0 else None),
+                   duplicate_cases=len(cases) - len({c.key for c in cases}),
+                   loop_run_s=results.loop_s, worker_case_s=results.wall_s,
+                   per_case_overhead=(results.wall_s / results.loop_s - 1.0
+                                      if results.loop_s > 0 else None),
                    **({"system": refs[0].path, "plant": lateral.plant,
                        "controller": lateral.controller} if lateral is not None else
                       {"plant": refs[0].path, "controller": refs[1].path}),
-                   csv=str(csv_path),
+                   csv=str(results.csv),
                    maps=[str(m) for m in maps])
 
+    json_path = out / "sweep.json"
     write_text_atomic(json_path, json.dumps(summary, indent=2, allow_nan=False) + "\n")
-    return SweepResult(rows, summary, csv_path, json_path, maps)
+    return SweepResult(rows, summary, results.csv, json_path, maps)

@@ -123,7 +123,7 @@ def test_grid_timing_is_the_fmus_and_model_b_where_it_applies(fmus, tmp_path):
     from dronefly.harness.latency.loop import FeedbackLoop
     from dronefly.harness.latency.sampled import sampled_rates
     from dronefly.harness.paper.analysis import lateral_system
-    from dronefly.harness.sweep.timing import Timing, grid_monodromy, grid_simulate
+    from dronefly.harness.latency.grid import GridTiming, grid_monodromy, grid_simulate
 
     A, B = lateral_system()
     K = gain_matrix("stabilising")
@@ -133,7 +133,7 @@ def test_grid_timing_is_the_fmus_and_model_b_where_it_applies(fmus, tmp_path):
                          delays_wb=(0.0, 1.5), sample_periods_wb=(0.0, 1.5), master=master)
         r = run_sweep(spec, tmp_path / master, workers=1, plot=False, progress_bar=False, **fmus)
         for row, case in zip(read_rows(r.csv), spec.cases()):
-            timing = Timing(1.0, case.delay_wb, case.sample_period_wb, master == "jacobi")
+            timing = GridTiming(1.0, case.delay_wb, case.sample_period_wb, master == "jacobi")
             x, u = grid_simulate(A, B, K, timing, np.array([case.x0]), 12)
             final = [float(row[f"final_{a}"]) for a in ("dv", "dp", "dr", "dgamma")]
             assert np.max(np.abs(np.array(final) - x[-1, 0])) < 1e-14
@@ -141,7 +141,7 @@ def test_grid_timing_is_the_fmus_and_model_b_where_it_applies(fmus, tmp_path):
             assert row["stability"] in ("stable", "neutral", "unstable")
     for h, tau, T, jac in ((0.5, 1.7, 1.0, False), (0.5, 0.0, 0.0, True), (1.0, 3.0, 2.0, True),
                            (0.25, 2.0, 0.75, False)):
-        timing = Timing(h, tau, T, jac)
+        timing = GridTiming(h, tau, T, jac)
         grid = rates_from_transition(*grid_monodromy(A, B, K, timing))
         b = sampled_rates(FeedbackLoop(A, B, K), *timing.model_b())
         assert abs(np.max(grid.real) - np.max(b.real)) < 1e-12, (h, tau, T, jac)

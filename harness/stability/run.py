@@ -27,11 +27,11 @@ from ..cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_
                                TRAJECTORY_TOL, Identification, classify, cross_check_failures,
                                identify, rates_from_transition, relative_deviation,
                                sort_eigenvalues)
+from ..latency.grid import GridTiming
 from ..latency.identify import identify_delayed
 from ..latency.loop import FeedbackLoop, LatencyInputError
 from ..latency.sampled import delay_split
 from ..paper.gains import as_gain_matrix
-from ..sweep.timing import Timing
 from .plot import plot_loop
 
 __all__ = ["DEFAULT_X0", "FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TRAJECTORY_TOL", "CosimResult",
@@ -333,7 +333,7 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
         Km, KI = K * ratio, KI * ratio / ratio[1]
     timing = None
     if tau_wb or period_wb or KI.any():
-        timing = Timing(step_wb, tau_wb, period_wb, jacobi)
+        timing = GridTiming(step_wb, tau_wb, period_wb, jacobi)
         if jacobi and timing.tau_eff == 0.0 and (KI.any() or timing.model_b() is None):
             # the master's one-step lag delays the sensed state but not the integral of it:
             # not model (b), whose delay delays both

@@ -8,7 +8,7 @@ verdict is computed once, with the delay states in it:
 ``stability``, ``stability_rate``
     Model (b) (:func:`dronefly.harness.latency.sampled.sampled_rates`) for the plant FMU's A and
     B (its calculated parameters with the case's values set), the gains and the FMU's timing,
-    where the sample instants lie on the communication grid (:meth:`.timing.Timing.model_b`);
+    where the sample instants lie on the communication grid (:meth:`dronefly.harness.latency.grid.GridTiming.model_b`);
     otherwise the exact periodic loop on the grid (:func:`.timing.grid_monodromy`, without
     integral action). ``stable``/``neutral``/``unstable`` with the harness's tolerance of 1e-3
     per wing beat on the dominant rate (per wing beat).
@@ -36,12 +36,12 @@ from ...models.feedback import gain_name, integral_gain_name
 from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
 from ..cosim.calculated import plant_matrices
 from ..cosim.stability import classify, rates_from_transition
+from ..latency.grid import GridTiming, grid_monodromy, timing_params
 from ..latency.identify import identify_delayed
 from ..latency.loop import FeedbackLoop, LatencyInputError
 from ..latency.sampled import delay_split, sampled_rates
 from .cases import Case, SweepInputError
 from .results import DELAY_COLUMNS
-from .timing import Timing, grid_monodromy, timing_params
 from .worker import FmuRef, loop_for
 
 __all__ = ["DELAY_COLUMNS", "MAX_LAG", "delay_results", "delay_summary", "is_delay_sweep",
@@ -71,7 +71,7 @@ def _integral_gains(pair: Any, values: dict[str, Any]) -> np.ndarray:
                      for i in range(3)])
 
 
-def loop_verdict(loop: Any, timing: Timing) -> tuple[str, float]:
+def loop_verdict(loop: Any, timing: GridTiming) -> tuple[str, float]:
     """(verdict, dominant rate per wing beat) of a :class:`~dronefly.harness.latency.loop.
     FeedbackLoop` under ``timing``; ("", nan) where no model applies (see the module text)."""
 
@@ -91,7 +91,7 @@ def loop_verdict(loop: Any, timing: Timing) -> tuple[str, float]:
     return classify(rates), float(np.max(rates.real))
 
 
-def _identify(pair: Any, insts: tuple, case: Case, loop: Any, timing: Timing,
+def _identify(pair: Any, insts: tuple, case: Case, loop: Any, timing: GridTiming,
               scale: np.ndarray) -> tuple[str, float]:
     """Verdict and dominant rate (its deviation from model (b)'s, per wing beat) identified
     from four co-simulated runs."""
@@ -170,7 +170,7 @@ def delay_results(cases: Sequence[Case], refs: tuple) -> dict[str, dict[str, Any
                                    "sample_period_ms": 1e3 * case.sample_period_wb / n,
                                    "stability": "", "stability_rate": math.nan,
                                    "stability_identified": "", "stability_deviation": math.nan}
-            timing = Timing(case.step_wb, case.delay_wb, case.sample_period_wb,
+            timing = GridTiming(case.step_wb, case.delay_wb, case.sample_period_wb,
                             case.master == "jacobi")
             if plants[case.plant_values] is not None:
                 A, B = plants[case.plant_values]

@@ -19,12 +19,12 @@ import numpy as np
 
 from ...models.lateral import N_HZ
 from ..cosim.stability import classify
+from ..latency.grid import GridTiming, grid_simulate
 from ..latency.loop import FeedbackLoop
 from ..latency.sampled import SampledMargin, sampled_margin, sampled_rates
 from ..paper.analysis import lateral_system
 from ..paper.gains import gain_matrix
 from .cases import CONTROL_BOUND, STATE_BOUNDS_SECT36, SweepSpec
-from .timing import Timing, grid_simulate
 
 __all__ = ["Cell", "MAP_COMMAND", "MAP_DELAYS_WB", "MAP_PERIODS_WB", "MAP_STEP_WB",
            "TABLE_DELAYS_WB", "cell", "cells", "map_spec", "margins", "table"]
@@ -87,7 +87,7 @@ def cell(K: np.ndarray, delay: float, period: float) -> Cell:
     """The map's cell of gains ``K`` at ``delay`` and ``period`` (wing beats; see the module)."""
 
     A, B = lateral_system()
-    timing = Timing(MAP_STEP_WB, delay, period)
+    timing = GridTiming(MAP_STEP_WB, delay, period)
     verdict = classify(sampled_rates(FeedbackLoop(A, B, K), *timing.model_b()))
     box = np.asarray(STATE_BOUNDS_SECT36)
     x0 = np.array([x for *_, x in map_spec().initial_states()])

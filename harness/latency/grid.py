@@ -18,7 +18,7 @@ Y_j = [x_j; x_(j-1); ...; x_(j-L)] gives its eigenvalues exactly (:func:`grid_mo
 Where the sample instants lie on the grid (T = 0, or T a whole number of steps), this is model
 (b) of :mod:`dronefly.harness.latency.sampled` with the sample period T (or h) and the
 effective delay ceil(tau / h) h, the first grid point at or after t_k + tau
-(:meth:`Timing.model_b`); with Jacobi and no effective delay only for T = h (then the delay is
+(:meth:`GridTiming.model_b`); with Jacobi and no effective delay only for T = h (then the delay is
 one step). All times in wing beats.
 """
 
@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from ...models.linear import discretize_zoh
 
-__all__ = ["MAX_PERIOD_STEPS", "TOL", "Timing", "grid_monodromy", "grid_simulate",
+__all__ = ["MAX_PERIOD_STEPS", "TOL", "GridTiming", "grid_monodromy", "grid_simulate",
            "timing_params"]
 
 #: Times closer than this fraction of the step count as equal (the controller FMU's rule).
@@ -52,7 +52,7 @@ def timing_params(case: Any, n_hz: float) -> dict[str, float]:
 
 
 @dataclass(frozen=True)
-class Timing:
+class GridTiming:
     """Communication step ``h``, sensing delay ``tau``, sample period ``T`` (0: every step),
     all in wing beats, and the master's ordering (``jacobi``)."""
 
@@ -114,7 +114,7 @@ class Timing:
 
 
 def grid_monodromy(A: NDArray, B: NDArray, K: NDArray,
-                   timing: Timing) -> tuple[NDArray[np.float64], float] | None:
+                   timing: GridTiming) -> tuple[NDArray[np.float64], float] | None:
     """The loop's transition over one period of the lag pattern, and that period [wing beats].
 
     Parameters
@@ -123,7 +123,7 @@ def grid_monodromy(A: NDArray, B: NDArray, K: NDArray,
         Plant per wing beat (x+' = A x+ + B u, u in rad).
     K : ndarray
         Gains, rad per unit of x+ (no integral action: the grid model has none).
-    timing : Timing
+    timing : GridTiming
 
     Returns
     -------
@@ -150,7 +150,7 @@ def grid_monodromy(A: NDArray, B: NDArray, K: NDArray,
     return M, p * timing.h
 
 
-def grid_simulate(A: NDArray, B: NDArray, K: NDArray, timing: Timing, x0: NDArray,
+def grid_simulate(A: NDArray, B: NDArray, K: NDArray, timing: GridTiming, x0: NDArray,
                   n_steps: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """States and controls at the communication points, simulated from the timing alone.
 
@@ -158,7 +158,7 @@ def grid_simulate(A: NDArray, B: NDArray, K: NDArray, timing: Timing, x0: NDArra
     ----------
     A, B, K : ndarray
         Plant per wing beat and gains (rad per unit of x+).
-    timing : Timing
+    timing : GridTiming
     x0 : (r, n) ndarray
         Initial states x+, one row per run (all simulated at once).
     n_steps : int

@@ -8,8 +8,9 @@ verdict is computed once, with the delay states in it:
 ``stability``, ``stability_rate``
     Model (b) (:func:`dronefly.harness.latency.sampled.sampled_rates`) for the plant FMU's A and
     B (its calculated parameters with the case's values set), the gains and the FMU's timing,
-    where the sample instants lie on the communication grid (:meth:`dronefly.harness.latency.grid.GridTiming.model_b`);
-    otherwise the exact periodic loop on the grid (:func:`.timing.grid_monodromy`, without
+    where the sample instants lie on the communication grid
+    (:meth:`dronefly.harness.latency.grid.GridTiming.model_b`); otherwise the exact periodic
+    loop on the grid (:func:`dronefly.harness.latency.grid.grid_monodromy`, without
     integral action). ``stable``/``neutral``/``unstable`` with the harness's tolerance of 1e-3
     per wing beat on the dominant rate (per wing beat).
 ``stability_identified``, ``stability_deviation``

@@ -6,7 +6,7 @@ alike):
           Loop, instances reused: an adapter onto the system master)
   master  do-nothing pythonfmu FMUs with the same interface through the same master
   floor   the same six FMI calls per step on the do-nothing FMUs, no master, no recording
-  pair    the lateral pair through the dedicated pair master (benchmarks/pair_master.py,
+  pair    the lateral pair through the dedicated pair master (tests/pair_master.py,
           kept as the baseline) and through the system master
           (harness.system.master.SystemMaster), Gauss-Seidel, fresh instances in both
   systems 2, 3 and 4 FMUs through the system master: the lateral pair; the pair and the
@@ -47,6 +47,7 @@ HERE = Path(__file__).resolve().parent
 #: (``--clock wall``)
 CLOCK = [time.thread_time]
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))  # the dedicated pair master: the tests' oracle
 from pair_master import PairMaster  # noqa: E402
 from plants import TARGET_RATIO, PlantBench, report as plants_report, steps_for  # noqa: E402
 

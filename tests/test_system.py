@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pair_master import PairMaster
 
 from dronefly.cli.app import main
 from dronefly.harness.cosim.master import Loop
@@ -80,18 +81,6 @@ def _x0(plant_fmu) -> dict[str, float]:
     return {f"{s}_start": float(v) for s, v in zip(STATE_NAMES, np.array([0, 0, 0, 0.1]) * scale)}
 
 
-def _former_pair_master():
-    """benchmarks/pair_master.py: the dedicated pair master kept as the benchmark's baseline
-    (its Gauss-Seidel and Jacobi orderings)."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "pair_master.py"
-    spec = importlib.util.spec_from_file_location("former_pair_master", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.PairMaster
-
-
 class _GainsFirst:
     """The controller FMU, its instances given ``gains`` before initialization (the dedicated
     pair master sets no controller parameter; the FMU reads them when it computes)."""
@@ -125,7 +114,7 @@ def test_pair_through_the_system_master_equals_the_former_pair_master(built_fmus
     through Loop (the pair's order, reused instances, Jacobi's u_source0)."""
     from dronefly.models.feedback import gain_name
 
-    former = _former_pair_master()
+    former = PairMaster
     system = System.by_name({"plant": built_fmus["DroneFlyLateral"],
                              "controller": built_fmus["StateFeedback"]})
     names = [f"plant.{s}" for s in STATE_NAMES] + [f"controller.{c}" for c in CONTROL_NAMES]

@@ -1,6 +1,6 @@
-"""A dedicated pair master, kept only as the benchmark's baseline: ``benchmarks/run.py``
-compares the system master, which runs every pair (``harness.cosim.master.Loop`` is a thin
-adapter onto it), with this in the same run.
+"""A dedicated pair master: an oracle of tests/test_system.py and the baseline of
+``benchmarks/run.py``, which compares the system master (``harness.cosim.master.Loop`` is a
+thin adapter onto it) with this in the same run.
 
 Fresh instances per run, a failed call raises. Gauss-Seidel (the benchmark's baseline): the
 per-step work is that of a master written for exactly one plant and one controller (the

@@ -5,7 +5,7 @@ the sweep without the options (byte for byte); the controller parameters a case 
 of :mod:`dronefly.harness.latency.sampled` (``verdict_map``) for the loop's verdict with the
 delay states, for the paper's gains, the stabilising design and an LQR design; the real
 co-simulated trajectories for the timing model on the communication grid (which the doc's
-numbers come from). docs/latency.md and the README quote :mod:`harness.sweep.delaytable`.
+numbers come from). docs/latency.md quotes :mod:`harness.sweep.delaytable`.
 """
 
 from __future__ import annotations
@@ -187,9 +187,10 @@ def _flat(path: Path) -> NumericText:
 
 
 def test_doc_and_readme_numbers_are_the_code_s():
-    """docs/latency.md's table verbatim, its command, and the numbers of its text and of the
-    README recomputed: the verdicts over the whole map by model (b), the rest by
-    :mod:`harness.sweep.delaytable` (which the other tests tie to the co-simulation)."""
+    """docs/latency.md's table verbatim, its command, and the numbers of its text recomputed
+    (its summary of the sweep included, which the README quoted before issue 26): the verdicts
+    over the whole map by model (b), the rest by :mod:`harness.sweep.delaytable` (which the
+    other tests tie to the co-simulation)."""
     import math
 
     from dronefly.harness.paper.gains import gain_matrix
@@ -203,7 +204,7 @@ def test_doc_and_readme_numbers_are_the_code_s():
     found = re.search(r"<!-- table: delay-period -->\n(.*?)\n<!-- end table -->", raw, re.S)
     assert found
     assert_same_numbers("\n".join(dt.table(m, c)), found.group(1))
-    doc, readme = _flat(ROOT / "docs" / "latency.md"), _flat(ROOT / "README.md")
+    doc = _flat(ROOT / "docs" / "latency.md")
     assert dt.MAP_COMMAND in " ".join(raw.replace("\\\n", " ").split())
     assert (ROOT / "docs" / "latency_map.png").is_file()
     A, B = lateral_system()
@@ -224,22 +225,22 @@ def test_doc_and_readme_numbers_are_the_code_s():
     assert (f"from {pct[P, 0]} (Eq. 27) and {pct[S, 0]} (stabilising) without delay to "
             f"{pct[P, 1]} and {pct[S, 1]} at one wing beat of delay (6.1 ms, the roll reflex), "
             f"{pct[P, 2]} and {pct[S, 2]} at two (pitch) and {pct[P, 5]} and {pct[S, 5]} at five "
-            "(vision)") in readme
+            "(vision)") in doc
     assert (f"falls from {m[(P, 0)].tau:.2f} to {m[(P, 4)].tau:.2f} wing beats, that of the "
             f"stabilising design from {m[(S, 0)].tau:.2f} to {m[(S, 4)].tau:.2f}") in doc
     pu = {(g, k): f"{c[(g, 1, k)].peak_control:.2f}" for g in (P, S) for k in (0, 5)}
     assert (f"from {pu[P, 0]} to {pu[P, 5]} rad for Eq. (27) and from {pu[S, 0]} to {pu[S, 5]} "
             "rad for the stabilising design at 5 wing beats") in doc
     top = max(x.peak_control for k, x in c.items() if k[2] <= 5)
-    assert f"within {top:.2f} rad (the limit is 0.4 rad)" in readme and f"{top:.2f}" == pu[S, 5]
+    assert f"within {top:.2f} rad (the limit is 0.4 rad)" in doc and f"{top:.2f}" == pu[S, 5]
     rec = {(T, k): c[(S, T, k)].recovery for T in dt.MAP_PERIODS_WB for k in (0, 1, 2, 5)}
     assert all(abs(rec[1, k] - rec[1, 0]) <= 3 for k in (1, 2)) and math.isinf(rec[4, 5])
     assert (f"recovers a roll in {rec[1, 0]:.0f} wing beats without delay and about as fast up "
             f"to 2 wing beats of delay, but in {rec[1, 5]:.0f} wing beats at 5 sampled once per "
             f"wing beat, {rec[2, 5]:.0f} and {rec[3, 5]:.0f} when sampled every 2 and 3") in doc
     assert (f"recovers a roll in {rec[1, 0]:.0f} wing beats without delay and in {rec[1, 5]:.0f} "
-            "at five, and Eq. (27) never returns to hover") in readme
+            "at five, and Eq. (27) never returns to hover") in doc
     left = [x.settles for k, x in c.items() if k[0] == P]
     assert all(math.isinf(x.recovery) for k, x in c.items() if k[0] == P)
     assert f"({100 * min(left):.0f} % to {100 * max(left):.0f} % of the roll remain)" in doc
-    assert f"up to 5 wing beats, {1e3 * 5 / 164:.1f} ms" in readme
+    assert f"up to 5 wing beats, {1e3 * 5 / 164:.1f} ms" in doc

@@ -8,7 +8,7 @@ alike):
   floor   the same six FMI calls per step on the do-nothing FMUs, no master, no recording
   pair    the lateral pair through the dedicated pair master (tests/pair_master.py,
           kept as the baseline) and through the system master
-          (harness.system.master.SystemMaster), Gauss-Seidel, fresh instances in both
+          (harness.cosim.system_master.SystemMaster), Gauss-Seidel, fresh instances in both
   systems 2, 3 and 4 FMUs through the system master: the lateral pair; the pair and the
           longitudinal plant in open loop; the hover system (both axes with their controllers)
   plants  one plant step: the nonlinear DroneFlyHover6DOF against the linear pair it replaces
@@ -210,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
     ratio_pair = whole["sys2"] / whole["loop"]
     print(f"\nlateral pair, Gauss-Seidel, fresh instances per run, {N} steps [us/step]")
     for key, label in (("loop", "former pair master (pair_master.py): "),
-                       ("sys2", "SystemMaster (harness.system.master):")):
+                       ("sys2", "SystemMaster (harness.cosim.system_master):")):
         print(f"  {label} {whole[key]:8.2f} whole run, {step[key]:8.2f} per step without set-up")
     print(f"ratio SystemMaster/former pair master = {ratio_pair:.3f} (target <= 1.05); per step "
           f"without set-up {step['sys2'] / step['loop']:.3f}")

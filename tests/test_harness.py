@@ -332,12 +332,11 @@ def test_fmi3_adapter_sets_and_gets_integer_enumeration_and_string_values(monkey
     from ctypes import c_int, c_uint
     from types import SimpleNamespace as NS
 
-    import fmpy.fmi3
-
+    from dronefly.harness.cosim import fmi3
     from dronefly.harness.cosim.fmi3 import FMU3Adapter
     from dronefly.harness.cosim.values import SETTER, typed_value
 
-    monkeypatch.setattr(fmpy.fmi3, "FMU3Slave", _FakeSlave3)
+    monkeypatch.setattr(fmi3, "FMU3Slave", _FakeSlave3)  # the adapter's base, where it looks
     kinds = ["String", "Enumeration", "Int8", "UInt16", "Int32", "UInt64", "Boolean"]
     variables = [NS(valueReference=vr, type=t) for vr, t in enumerate(kinds, start=1)]
     md = NS(guid="g", coSimulation=NS(modelIdentifier="m"), modelVariables=variables)

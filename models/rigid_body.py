@@ -115,8 +115,8 @@ def _equations(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tu
     Returns
     -------
     rhs : callable
-        ``rhs(x, bl, bn, positions=True)``: dx/dt+ of the state ``x`` (its first 10 values
-        read) with the control forces ``bl`` (B_lat c_lat, rows v, p, r) and ``bn`` (B_lon c_lon,
+        ``rhs(x, bl, bn, positions=True)``: dx/dt+ of the first 10 state values ``x`` (u .. e3)
+        with the control forces ``bl`` (B_lat c_lat, rows v, p, r) and ``bn`` (B_lon c_lon,
         rows u, w, q); the 13 derivatives, or the first 10 if not ``positions``.
     substeps : callable
         ``substeps(y, n, h, bl, bn)``: the 13-value state after ``n`` sub-steps of ``h`` from
@@ -131,7 +131,7 @@ def _equations(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tu
 
     def rhs(x: Sequence[float], bl: Sequence[float], bn: Sequence[float],
             positions: bool = True) -> list[float]:
-        u, v, w, p, q, r, e0, e1, e2, e3 = x[:10]
+        u, v, w, p, q, r, e0, e1, e2, e3 = x
         # the aerodynamic accelerations: the linear models' rows (v, p, r) and (u, w, q)
         a_v = l00 * v + l01 * p + l02 * r + bl[0]
         a_p = l10 * v + l11 * p + l12 * r + bl[1]
@@ -171,23 +171,25 @@ def _equations(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tu
     def substeps(y: Sequence[float], n: int, h: float, bl: Sequence[float],
                  bn: Sequence[float]) -> list[float]:
         # Butcher's (1964) order 6, c = 0, 1/3, 2/3, 1/3, 1/2, 1/2, 1. A stage reads only the
-        # first 10 values of its input, so the inputs are built from those (zip stops at the
-        # shortest list); K2 enters no position, so its positions are not computed.
+        # first 10 values of its input (the positions never enter the right-hand side), so the
+        # inputs are built from those: zip stops at the shortest list, y10. K2 enters no
+        # position, so its positions are not computed.
         h3, h8, h12, h16, h44, h120 = h / 3, h / 8, h / 12, h / 16, h / 44, h / 120
         h23 = 2.0 * h3
         y = list(y)
         for _ in range(n):
-            k1 = rhs(y, bl, bn)
-            k2 = rhs([a + h3 * b1 for a, b1 in zip(y, k1)], bl, bn, positions=False)
-            k3 = rhs([a + h23 * b2 for a, b2 in zip(y, k2)], bl, bn)
-            k4 = rhs([a + h12 * (b1 - b3) + h3 * b2 for a, b1, b2, b3 in zip(y, k1, k2, k3)],
+            y10 = y[:10]
+            k1 = rhs(y10, bl, bn)
+            k2 = rhs([a + h3 * b1 for a, b1 in zip(y10, k1)], bl, bn, positions=False)
+            k3 = rhs([a + h23 * b2 for a, b2 in zip(y10, k2)], bl, bn)
+            k4 = rhs([a + h12 * (b1 - b3) + h3 * b2 for a, b1, b2, b3 in zip(y10, k1, k2, k3)],
                      bl, bn)
             k5 = rhs([a + h16 * (18.0 * b2 - b1 - 3.0 * b3 - 6.0 * b4)
-                      for a, b1, b2, b3, b4 in zip(y, k1, k2, k3, k4)], bl, bn)
+                      for a, b1, b2, b3, b4 in zip(y10, k1, k2, k3, k4)], bl, bn)
             k6 = rhs([a + h8 * (9.0 * b2 - 3.0 * b3 - 6.0 * b4 + 4.0 * b5)
-                      for a, b2, b3, b4, b5 in zip(y, k2, k3, k4, k5)], bl, bn)
+                      for a, b2, b3, b4, b5 in zip(y10, k2, k3, k4, k5)], bl, bn)
             k7 = rhs([a + h44 * (9.0 * b1 - 36.0 * b2 + 63.0 * b3 + 72.0 * b4 - 64.0 * b6)
-                      for a, b1, b2, b3, b4, b6 in zip(y, k1, k2, k3, k4, k6)], bl, bn)
+                      for a, b1, b2, b3, b4, b6 in zip(y10, k1, k2, k3, k4, k6)], bl, bn)
             y = [a + h120 * (11.0 * (b1 + b7) + 81.0 * (b3 + b4) - 32.0 * (b5 + b6))
                  for a, b1, b3, b4, b5, b6, b7 in zip(y, k1, k3, k4, k5, k6, k7)]
         return y
@@ -234,7 +236,7 @@ class Hover6DOF:
         """dx/dt+ of the 13-value state with the lateral (3) and longitudinal (4) controls."""
         bl = [sum(k * c for k, c in zip(row, c_lat)) for row in self._lat[1]]
         bn = [sum(k * c for k, c in zip(row, c_lon)) for row in self._lon[1]]
-        return self._rhs(x, bl, bn)
+        return self._rhs(x[:10], bl, bn)
 
     def step(self, x: Sequence[float], c_lat: Sequence[float], c_lon: Sequence[float],
              h_wb: float) -> list[float]:

@@ -13,23 +13,29 @@ gimbal lock at any attitude).
 Axes (body axes at the centre of mass, x forward, y right, z down; earth axes north-east-down),
 the non-dimensional 13-value state (V+ = (u, v, w), omega+ = (p, q, r), the unit quaternion e
 body -> earth, the earth-axis position P+) and the equations: fmu_src/hover6dof/README.md,
-"Equations"; in code they are the right-hand side of :func:`_equations`, line by line, with
-a_aero = the rows (v, u, w) of the linear models' A and B without their gravity column and
-J+^-1 M_aero = their rows (p, r, q). Linearised about hover this is exactly the two linear
-models (tests check the Jacobian).
+"Equations"; in code they are :data:`_RHS`, line by line, with a_aero = the rows (v, u, w) of
+the linear models' A and B without their gravity column and J+^-1 M_aero = their rows (p, r, q).
+Linearised about hover this is exactly the two linear models (tests check the Jacobian).
 
-Integration: Butcher's Runge-Kutta method of order 6 (7 stages, :func:`_equations`) on
-sub-steps of at most :data:`MAX_SUBSTEP_WB` wing beats (shorter where the body turns fast); the
-quaternion is normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost:
-the README and docs/benchmarks.md.
+Integration: Butcher's Runge-Kutta method of order 6 (7 stages, :data:`_STAGES`) on sub-steps
+of at most :data:`MAX_SUBSTEP_WB` wing beats (shorter where the body turns fast), compiled with
+the right-hand side into straight-line Python (:func:`_make_functions`); the quaternion is
+normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost: the README and
+docs/benchmarks.md.
+
+:func:`_make_functions` is the package's one execution of generated code (issue 26): the same
+equations as plain Python functions cost 1.4 to 1.6 times as much per step and take the
+6-DOF/pair cost ratio through FMI over its target of 5 (docs/benchmarks.md, "Generated code").
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
+from functools import lru_cache
 from operator import mul
-from typing import Sequence
+from typing import Callable, Sequence
 
 from ..core.errors import DroneflyError
 from . import lateral_dynamics as lateral
@@ -89,6 +95,61 @@ def _aero_rows(A: object, B: object, rows: Sequence[int], gravity_column: int) -
     return a, b
 
 
+#: dx/dt+ of (u, v, w, p, q, r, e0, e1, e2, e3) as statements assigning a_u .. a_r, d6 .. d12;
+#: lines tagged [term] are kept with that term, [-term] without it, [position] where dP+/dt+ is
+#: needed (t = 2 e, s_ij = 2 e_i e_j: exact doublings, 2 (e1 e3 - e0 e2) = s13 - s02 exactly)
+_RHS = """\
+a_v = l00 * v + l01 * p + l02 * r + bl0
+a_p = l10 * v + l11 * p + l12 * r + bl1
+a_r = l20 * v + l21 * p + l22 * r + bl2
+a_u = n00 * u + n01 * w + n02 * q + bn0
+a_w = n10 * u + n11 * w + n12 * q + bn1
+a_q = n20 * u + n21 * w + n22 * q + bn2
+t0, t1, t2 = e0 + e0, e1 + e1, e2 + e2
+s13, s02, s23, s01, s11, s22 = t1 * e3, t0 * e2, t2 * e3, t0 * e1, t1 * e1, t2 * e2
+R20, R21, R22 = s13 - s02, s23 + s01, 1.0 - (s11 + s22)
+a_u, a_v, a_w = a_u + g * R20, a_v + g * R21, a_w + g * (R22 - 1.0)  [gravity] g (R^T e_z - e_z)
+a_u -= g * asin(max(-1.0, min(1.0, -R20)))  [-gravity] linear: g (-theta, gamma, 0)
+a_v += g * asin(max(-1.0, min(1.0, R21)))  [-gravity]
+a_u, a_v, a_w = a_u - (q * w - r * v), a_v - (r * u - p * w), a_w - (p * v - q * u)  [transport]
+pq, qr = p * q, q * r  [gyroscopic] - J^-1 (omega x J omega), see _gyroscopic
+a_p -= G0 * qr + G1 * pq  [gyroscopic]
+a_q -= G2 * (p * r) + G3 * (p * p - r * r)  [gyroscopic]
+a_r -= G4 * qr + G5 * pq  [gyroscopic]
+d6 = 0.5 * (-e1 * p - e2 * q - e3 * r)
+d7 = 0.5 * (e0 * p + e2 * r - e3 * q)
+d8 = 0.5 * (e0 * q - e1 * r + e3 * p)
+d9 = 0.5 * (e0 * r + e1 * q - e2 * p)
+s33, s12, s03 = (e3 + e3) * e3, t1 * e2, t0 * e3  [position]
+d10 = (1.0 - (s22 + s33)) * u + (s12 - s03) * v + (s13 + s02) * w  [position] R V
+d11 = (s12 + s03) * u + (1.0 - (s11 + s33)) * v + (s23 - s01) * w  [position]
+d12 = R20 * u + R21 * v + R22 * w  [position]
+"""
+_STATE = ("u", "v", "w", "p", "q", "r", "e0", "e1", "e2", "e3")
+_OUT = re.compile(r"\b(?:a_([uvwpqr])|d(\d+))\b")
+#: Butcher's (1964) order 6, c = 0, 1/3, 2/3, 1/3, 1/2, 1/2, 1: each stage's input (y the start
+#: of the sub-step, K<s> the derivative of stage s), then the sub-step's result
+_STAGES = ("y", "y + h3 * K1", "y + h23 * K2", "y + h12 * (K1 - K3) + h3 * K2",
+           "y + h16 * (18.0 * K2 - K1 - 3.0 * K3 - 6.0 * K4)",
+           "y + h8 * (9.0 * K2 - 3.0 * K3 - 6.0 * K4 + 4.0 * K5)",
+           "y + h44 * (9.0 * K1 - 36.0 * K2 + 63.0 * K3 + 72.0 * K4 - 64.0 * K6)")
+_RESULT = "y + h120 * (11.0 * (K1 + K7) + 81.0 * (K3 + K4) - 32.0 * (K5 + K6))"
+
+
+def _rhs_source(terms: frozenset, out: str, indent: str, positions: bool = True) -> list[str]:
+    """The statements of :data:`_RHS` for ``terms``, writing derivative j to ``out.format(j)``
+    (the positions' only if ``positions``)."""
+    lines = []
+    for line in _RHS.splitlines():
+        code, _, tag = line.partition("  [")
+        term = tag.split("]")[0]
+        if (positions if term == "position" else not term or (
+                term.lstrip("-") in terms) != term.startswith("-")):
+            lines.append(indent + _OUT.sub(lambda m: out.format(
+                "uvwpqr".index(m[1]) if m[1] else m[2]), code))
+    return lines
+
+
 def _gyroscopic(Ix: float, Iy: float, Iz: float, Ixz: float) -> tuple[float, ...]:
     """G0 .. G5 of J^-1 (omega x J omega) = (G0 qr + G1 pq, G2 pr + G3 (p^2 - r^2), G4 qr +
     G5 pq), J = [[Ix, 0, -Ixz], [0, Iy, 0], [-Ixz, 0, Iz]]."""
@@ -97,104 +158,37 @@ def _gyroscopic(Ix: float, Iy: float, Iz: float, Ixz: float) -> tuple[float, ...
             Ixz / Iy, Ixz * (Iz - Iy + Ix) / det, (Ix * (Iy - Ix) - Ixz * Ixz) / det)
 
 
-def _equations(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tuple:
-    """The right-hand side and the Runge-Kutta sub-steps of the model's equations.
+def _value(formula: str, j: int) -> str:
+    """``formula`` (of :data:`_STAGES`) for state value j: y -> y<j>, K<s> -> k<s>_<j>."""
+    return re.sub(r"K(\d)", rf"k\g<1>_{j}", formula.replace("y", f"y{j}"))
 
-    Parameters
-    ----------
-    la, na : 3 rows of 3 floats
-        The lateral rows (v, p, r) and the longitudinal rows (u, w, q) of the linear models' A,
-        each on the columns (v, p, r) and (u, w, q) (:func:`_aero_rows`).
-    G : 6 floats
-        The gyroscopic coefficients (:func:`_gyroscopic`).
-    g : float
-        g+, the non-dimensional gravity.
-    terms : frozenset of str
-        The restored rigid-body terms (:data:`TERMS`).
 
-    Returns
-    -------
-    rhs : callable
-        ``rhs(x, bl, bn, positions=True)``: dx/dt+ of the first 10 state values ``x`` (u .. e3)
-        with the control forces ``bl`` (B_lat c_lat, rows v, p, r) and ``bn`` (B_lon c_lon,
-        rows u, w, q); the 13 derivatives, or the first 10 if not ``positions``.
-    substeps : callable
-        ``substeps(y, n, h, bl, bn)``: the 13-value state after ``n`` sub-steps of ``h`` from
-        ``y`` (Butcher's order 6), the quaternion not normalised.
-    """
-    (l00, l01, l02), (l10, l11, l12), (l20, l21, l22) = la
-    (n00, n01, n02), (n10, n11, n12), (n20, n21, n22) = na
-    G0, G1, G2, G3, G4, G5 = G
-    gravity, transport, gyroscopic = (name in terms for name in
-                                      ("gravity", "transport", "gyroscopic"))
-    asin = math.asin
-
-    def rhs(x: Sequence[float], bl: Sequence[float], bn: Sequence[float],
-            positions: bool = True) -> list[float]:
-        u, v, w, p, q, r, e0, e1, e2, e3 = x
-        # the aerodynamic accelerations: the linear models' rows (v, p, r) and (u, w, q)
-        a_v = l00 * v + l01 * p + l02 * r + bl[0]
-        a_p = l10 * v + l11 * p + l12 * r + bl[1]
-        a_r = l20 * v + l21 * p + l22 * r + bl[2]
-        a_u = n00 * u + n01 * w + n02 * q + bn[0]
-        a_w = n10 * u + n11 * w + n12 * q + bn[1]
-        a_q = n20 * u + n21 * w + n22 * q + bn[2]
-        # the bottom row of R (body -> earth), R^T e_z; t = 2 e and s_ij = 2 e_i e_j are exact
-        # doublings, so 2 (e1 e3 - e0 e2) = s13 - s02 exactly
-        t0, t1, t2 = e0 + e0, e1 + e1, e2 + e2
-        s13, s02, s23, s01, s11, s22 = t1 * e3, t0 * e2, t2 * e3, t0 * e1, t1 * e1, t2 * e2
-        R20, R21, R22 = s13 - s02, s23 + s01, 1.0 - (s11 + s22)
-        if gravity:  # g (R^T e_z - e_z): the weight less the mean force balancing it at hover
-            a_u, a_v, a_w = a_u + g * R20, a_v + g * R21, a_w + g * (R22 - 1.0)
-        else:  # the linear projection g (-theta, gamma, 0)
-            a_u -= g * asin(max(-1.0, min(1.0, -R20)))
-            a_v += g * asin(max(-1.0, min(1.0, R21)))
-        if transport:  # - omega x V
-            a_u, a_v, a_w = a_u - (q * w - r * v), a_v - (r * u - p * w), a_w - (p * v - q * u)
-        if gyroscopic:  # - J^-1 (omega x J omega)
-            pq, qr = p * q, q * r
-            a_p -= G0 * qr + G1 * pq
-            a_q -= G2 * (p * r) + G3 * (p * p - r * r)
-            a_r -= G4 * qr + G5 * pq
-        dx = [a_u, a_v, a_w, a_p, a_q, a_r,  # then e' = e (0, omega) / 2
-              0.5 * (-e1 * p - e2 * q - e3 * r),
-              0.5 * (e0 * p + e2 * r - e3 * q),
-              0.5 * (e0 * q - e1 * r + e3 * p),
-              0.5 * (e0 * r + e1 * q - e2 * p)]
-        if positions:  # P' = R V
-            s33, s12, s03 = (e3 + e3) * e3, t1 * e2, t0 * e3
-            dx += [(1.0 - (s22 + s33)) * u + (s12 - s03) * v + (s13 + s02) * w,
-                   (s12 + s03) * u + (1.0 - (s11 + s33)) * v + (s23 - s01) * w,
-                   R20 * u + R21 * v + R22 * w]
-        return dx
-
-    def substeps(y: Sequence[float], n: int, h: float, bl: Sequence[float],
-                 bn: Sequence[float]) -> list[float]:
-        # Butcher's (1964) order 6, c = 0, 1/3, 2/3, 1/3, 1/2, 1/2, 1. A stage reads only the
-        # first 10 values of its input (the positions never enter the right-hand side), so the
-        # inputs are built from those: zip stops at the shortest list, y10. K2 enters no
-        # position, so its positions are not computed.
-        h3, h8, h12, h16, h44, h120 = h / 3, h / 8, h / 12, h / 16, h / 44, h / 120
-        h23 = 2.0 * h3
-        y = list(y)
-        for _ in range(n):
-            y10 = y[:10]
-            k1 = rhs(y10, bl, bn)
-            k2 = rhs([a + h3 * b1 for a, b1 in zip(y10, k1)], bl, bn, positions=False)
-            k3 = rhs([a + h23 * b2 for a, b2 in zip(y10, k2)], bl, bn)
-            k4 = rhs([a + h12 * (b1 - b3) + h3 * b2 for a, b1, b2, b3 in zip(y10, k1, k2, k3)],
-                     bl, bn)
-            k5 = rhs([a + h16 * (18.0 * b2 - b1 - 3.0 * b3 - 6.0 * b4)
-                      for a, b1, b2, b3, b4 in zip(y10, k1, k2, k3, k4)], bl, bn)
-            k6 = rhs([a + h8 * (9.0 * b2 - 3.0 * b3 - 6.0 * b4 + 4.0 * b5)
-                      for a, b2, b3, b4, b5 in zip(y10, k2, k3, k4, k5)], bl, bn)
-            k7 = rhs([a + h44 * (9.0 * b1 - 36.0 * b2 + 63.0 * b3 + 72.0 * b4 - 64.0 * b6)
-                      for a, b1, b2, b3, b4, b6 in zip(y10, k1, k2, k3, k4, k6)], bl, bn)
-            y = [a + h120 * (11.0 * (b1 + b7) + 81.0 * (b3 + b4) - 32.0 * (b5 + b6))
-                 for a, b1, b3, b4, b5, b6, b7 in zip(y, k1, k3, k4, k5, k6, k7)]
-        return y
-
-    return rhs, substeps
+@lru_cache(maxsize=16)  # a bounded cache: instances with equal parameters share one compile
+def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tuple:
+    """``(rhs(x, bl, bn) -> dx/dt+, substeps(y, n, h, bl, bn) -> y after n sub-steps of h)``
+    compiled from :data:`_RHS` and :data:`_STAGES` into straight-line arithmetic on locals: no
+    lists and no calls inside a sub-step, nothing computed that the result does not use. The
+    coefficients are closure variables (exact floats, never printed as text); the source is
+    built from the constant text of this module only."""
+    names = [f"{a}{i}{j}" for a in "ln" for i in range(3) for j in range(3)]
+    values = [c for rows in (la, na) for row in rows for c in row]
+    head = ["        bl0, bl1, bl2 = bl", "        bn0, bn1, bn2 = bn"]
+    src = [f"def bind({', '.join(names)}, G0, G1, G2, G3, G4, G5, g, asin):",
+           "    def rhs(x, bl, bn):", *head, f"        {', '.join(_STATE)} = x[:10]",
+           *_rhs_source(terms, "x{}", "        "),
+           f"        return [{', '.join(f'x{j}' for j in range(13))}]",
+           "    def substeps(y, n, h, bl, bn):", *head,
+           "        h3, h8, h12, h16, h44, h120 = h / 3, h / 8, h / 12, h / 16, h / 44, h / 120",
+           "        h23 = 2.0 * h3",
+           f"        {', '.join(f'y{j}' for j in range(13))}, = y", "        for _ in range(n):"]
+    for s, stage in enumerate(_STAGES, start=1):  # the positions (10-12) never enter the rhs
+        src += [f"            {name} = {_value(stage, j)}" for j, name in enumerate(_STATE)]
+        src += _rhs_source(terms, f"k{s}_{{}}", " " * 12, positions=s != 2)  # K2: not in _RESULT
+    src += [f"            y{j} = {_value(_RESULT, j)}" for j in range(13)]
+    src += [f"        return [{', '.join(f'y{j}' for j in range(13))}]", "    return rhs, substeps"]
+    namespace: dict[str, Callable[..., tuple]] = {}
+    exec(compile("\n".join(src) + "\n", "<dronefly.fmu_src.hover6dof equations>", "exec"), namespace)
+    return namespace["bind"](*values, *G, g, math.asin)
 
 
 @dataclass(frozen=True)
@@ -227,7 +221,7 @@ class Hover6DOF:
         for name, axis, params in (("_lat", lateral, lp), ("_lon", longitudinal, np_)):
             object.__setattr__(self, name, _aero_rows(*axis.system_rows(params), (0, 1, 2), 3))
         G = _gyroscopic(lp.Ix_plus, np_.Iy_plus, lp.Iz_plus, lp.Ixz_plus)
-        for name, f in zip(("_rhs", "_substeps"), _equations(
+        for name, f in zip(("_rhs", "_substeps"), _make_functions(
                 self._lat[0], self._lon[0], G, lp.g_plus, frozenset(self.terms))):
             object.__setattr__(self, name, f)
 
@@ -236,7 +230,7 @@ class Hover6DOF:
         """dx/dt+ of the 13-value state with the lateral (3) and longitudinal (4) controls."""
         bl = [sum(k * c for k, c in zip(row, c_lat)) for row in self._lat[1]]
         bn = [sum(k * c for k, c in zip(row, c_lon)) for row in self._lon[1]]
-        return self._rhs(x[:10], bl, bn)
+        return self._rhs(x, bl, bn)
 
     def step(self, x: Sequence[float], c_lat: Sequence[float], c_lon: Sequence[float],
              h_wb: float) -> list[float]:
@@ -258,7 +252,7 @@ class Hover6DOF:
             raise Hover6DOFError(f"a step of {h_wb!r} wing beats at a rate of {rate!r} rad per "
                                  f"wing beat needs {n} sub-steps; take shorter steps")
         h = h_wb / n
-        y = self._substeps(x, n, h, bl, bn)  # Butcher's order 6 (see _equations)
+        y = self._substeps(x, n, h, bl, bn)  # Butcher's order 6 (see _STAGES)
         norm = math.sqrt(sum(c * c for c in y[6:10]))  # finiteness on the sum: faster
         if not (math.isfinite(sum(y)) or all(math.isfinite(a) for a in y)) or not norm > 0.0:
             raise Hover6DOFError(f"the state is not finite after a step of {h_wb!r} wing beats "

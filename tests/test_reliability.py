@@ -118,7 +118,8 @@ _HYGIENE = textwrap.dedent("""
             s.freeFMUstate(st)
 
     with FMU(sys.argv[1]) as f:
-        # warm-up: fills the bounded cache of 256 freed-state tombstones
+        # warm-up: fills the bounded caches (256 freed-state tombstones; the 6-DOF model's
+        # compiled equations per parameter set, made at initialization)
         for _ in range(260):
             with f.instantiate("x", logging=False) as inst:
                 inst.slave.freeFMUstate(inst.slave.getFMUstate())

@@ -24,7 +24,7 @@ normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost: th
 docs/benchmarks.md.
 
 :func:`_make_functions` is the package's one execution of generated code (issue 26): the same
-equations as plain Python functions cost 1.4 to 1.6 times as much per step and take the
+equations as plain Python functions cost 1.2 to 1.8 times as much per step and take the
 6-DOF/pair cost ratio through FMI over its target of 5 (docs/benchmarks.md, "Generated code").
 """
 

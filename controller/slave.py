@@ -99,7 +99,7 @@ class _Feedback(SlaveBase):
         if law.has_integral:
             z = sensor.integral_in_effect(t, timing, self.DIRECT_FEEDTHROUGH)
             u, saturated = law.evaluate(sensed, z)
-        else:  # K x+ compiled (the same floats); None: evaluate checks the values, raising
+        else:  # K x+ on the hot path (the same floats); None: evaluate checks the values, raising
             out = law.evaluate_proportional(sensed)
             u, saturated = law.evaluate(sensed) if out is None else out
         r[self._outputs] = u

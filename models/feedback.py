@@ -166,46 +166,37 @@ class FeedbackLaw:
     @cached_property
     def evaluate_proportional(self) -> Callable[[Sequence[float]],
                                                 "tuple[list[float], bool] | None"]:
-        """:meth:`evaluate` without integral action (``z`` = None), compiled into straight-line
-        Python for the FMUs' hot path.
+        """:meth:`evaluate` without integral action (``z`` = None), for the FMUs' hot path.
 
         Returns
         -------
         callable
             ``f(x)``: ``(u, saturated)`` with the same floats as ``evaluate(x)`` (each control
-            the same sum of products: ``0.0 + k0 x0 + k1 x1 + ...``, what ``dot`` computes
-            before Python 3.12, or ``math.sumprod`` where ``dot`` is that); or None where
-            ``evaluate`` would check the values (a non-finite state or control, or a sum of
-            them that overflows): call it then.
+            ``dot`` of its row and ``x``, 0.0 for a row of zeros); or None where ``evaluate``
+            would check the values (a non-finite state or control, or a sum of them that
+            overflows): call it then.
         """
-        c = len(self.axis.state_names)
-        xs = [f"x{j}" for j in range(c)]
         rows = self._rows
-        names: dict[str, object] = {"sumprod": dot}
-        lines = [f"    {', '.join(xs)}, = x", f"    t = {' + '.join(xs)}",
-                 "    if t - t != 0.0:", "        return None"]
-        for i, row in enumerate(rows):
-            if row is None:
-                lines.append(f"    u{i} = 0.0")
-            elif hasattr(math, "sumprod"):  # dot is math.sumprod (Python 3.12+)
-                names[f"k{i}"] = row
-                lines.append(f"    u{i} = sumprod(k{i}, x)")
-            else:
-                names.update({f"k{i}_{j}": k for j, k in enumerate(row)})
-                lines.append(f"    u{i} = " + " + ".join(
-                    ["0.0", *(f"k{i}_{j} * x{j}" for j in range(c))]))
-        us = [f"u{i}" for i in range(len(rows))]
-        lines += [f"    t = {' + '.join(us)}", "    if t - t != 0.0:", "        return None",
-                  "    saturated = False"]
-        if self.limit_enabled:
-            names["lim"] = self.u_max
-            for u in us:
-                lines += [f"    if {u} > lim:", f"        {u}, saturated = lim, True",
-                          f"    elif {u} < -lim:", f"        {u}, saturated = -lim, True"]
-        lines.append(f"    return [{', '.join(us)}], saturated")
-        source = "def evaluate_proportional(x):\n" + "\n".join(lines) + "\n"
-        exec(compile(source, "<dronefly.models.feedback>", "exec"), names)
-        return names["evaluate_proportional"]  # type: ignore[return-value]
+        lim = self.u_max if self.limit_enabled else None
+
+        def evaluate_proportional(x: Sequence[float]) -> "tuple[list[float], bool] | None":
+            total = sum(x)
+            if total - total != 0.0:
+                return None
+            u = [0.0 if row is None else dot(row, x) for row in rows]
+            total = sum(u)
+            if total - total != 0.0:
+                return None
+            saturated = False
+            if lim is not None:
+                for i, value in enumerate(u):
+                    if value > lim:
+                        u[i], saturated = lim, True
+                    elif value < -lim:
+                        u[i], saturated = -lim, True
+            return u, saturated
+
+        return evaluate_proportional
 
     def evaluate(self, x: Sequence[float], z: Sequence[float] | None = None
                  ) -> tuple[tuple[float, ...], bool]:

@@ -14,8 +14,10 @@ and imports numpy (and scipy) only when called; an FMU never calls it.
 from __future__ import annotations
 
 import math
+from operator import mul
 from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple
 
+from .axes import dot
 from .lateral import sort_eigenvalues
 from .linear_algebra import expm, norm1
 
@@ -41,80 +43,63 @@ def _rows(M: Any) -> Rows:
     return tuple(tuple(float(x) for x in row) for row in M)
 
 
-def _straight_line_product(rows: tuple[tuple[float, ...], ...], n_states: int) -> Product:
-    """The function ``(x, u) -> [row . (x; u) for row in rows]`` as straight-line arithmetic.
+def _product_of(rows: Rows) -> Product:
+    """The function ``(x, u) -> [row . (x; u) for row in rows]``.
 
     Parameters
     ----------
     rows : nested tuple of float
-        The rows of [Phi, Gamma]; each holds ``n_states`` state and then the control columns.
-    n_states : int
-        Length of ``x``.
+        The rows of [Phi, Gamma]; each holds the state and then the control columns.
 
     Returns
     -------
     callable
-        ``product(x, u)``: a list of one float per row.
-
-    Notes
-    -----
-    Each row is one expression ``0.0 + c0 * x0 + c1 * x1 + ...``: the same products, added
-    in the same order from the same start as ``sum(map(operator.mul, row, x + u))``
-    (:func:`dronefly.models.axes.dot` before Python 3.12), so bit-identical to it, at about a
-    third of its cost for the plants' 4 x 7 and 4 x 8 (no loop, no call per row). The
-    coefficients are closure variables of the generated function (never printed into its
-    source, so any float is exact, inf and nan too).
+        ``product(x, u)``: a list of one float per row, each :func:`dronefly.models.axes.dot`
+        of the row and the concatenation of ``x`` and ``u``.
     """
-    width = len(rows[0])
-    xs = [f"x{j}" for j in range(width)]
-    coefficients = [f"c{i}_{j}" for i in range(len(rows)) for j in range(width)]
-    terms = [" + ".join(["0.0", *(f"c{i}_{j} * {xs[j]}" for j in range(width))])
-             for i in range(len(rows))]
-    source = (f"def bind({', '.join(coefficients)}):\n"
-              f"    def product(x, u):\n"
-              f"        {', '.join(xs[:n_states])}, = x\n"
-              f"        {', '.join(xs[n_states:])}, = u\n"
-              f"        return [{', '.join(terms)}]\n"
-              f"    return product\n")
-    namespace: dict[str, Callable[..., Product]] = {}
-    exec(compile(source, "<dronefly.models.linear product>", "exec"), namespace)
-    return namespace["bind"](*(c for row in rows for c in row))
+    def product(x: Sequence[float], u: Sequence[float]) -> List[float]:
+        xu = [*x, *u]
+        return [dot(row, xu) for row in rows]
+
+    return product
 
 
-def _straight_line_stepper(rows: Rows, n_states: int, scale: Sequence[float],
-                           inputs: Sequence[int], outputs: Sequence[int]) -> Stepper:
-    """:func:`_straight_line_product` fused with reading the controls from and writing the scaled
-    state to a value table, with a finiteness check.
+def _stepper(rows: Rows, scale: Sequence[float], inputs: range, outputs: range) -> Stepper:
+    """:func:`_product_of` fused with reading the controls from and writing the scaled state to a
+    value table, with a finiteness check.
+
+    Parameters
+    ----------
+    rows : nested tuple of float
+        The rows of [Phi, Gamma].
+    scale : sequence of float
+        The output of each state per unit of state.
+    inputs, outputs : range
+        The rows of the value table holding the controls and receiving the outputs (step 1).
 
     Returns
     -------
     callable
-        ``stepper(x, r)``: the next state (the product's floats for ``u = [r[i] for i in
-        inputs]``), after setting ``r[outputs[i]] = x1[i] * scale[i]``; or None, changing
-        nothing, if any of ``u``, ``y`` is not finite (detected from their plain sum, so also if
-        that sum alone overflows: the caller then checks each value).
+        ``stepper(x, r)``: the next state (the product's floats for ``u = r[inputs]``), after
+        setting ``r[outputs] = [x1[i] * scale[i] for i ...]``; or None, changing nothing, if any
+        of ``u``, ``y`` is not finite (detected from their plain sum, so also if that sum alone
+        overflows: the caller then checks each value).
     """
-    width = len(rows[0])
-    xs = [f"x{j}" for j in range(width)]
-    coefficients = [f"c{i}_{j}" for i in range(len(rows)) for j in range(width)]
-    scales = [f"s{i}" for i in range(len(rows))]
-    n = len(rows)
-    lines = [f"        {', '.join(xs[:n_states])}, = x"]
-    lines += [f"        {xs[n_states + k]} = r[{int(i)}]" for k, i in enumerate(inputs)]
-    lines += [f"        n{i} = " + " + ".join(["0.0", *(f"c{i}_{j} * {xs[j]}" for j in range(width))])
-              for i in range(n)]
-    lines += [f"        y{i} = n{i} * s{i}" for i in range(n)]
-    total = " + ".join([*xs[n_states:], *(f"y{i}" for i in range(n))])
-    lines += [f"        total = {total}", "        if total - total != 0.0:",
-              "            return None"]
-    lines += [f"        r[{int(o)}] = y{i}" for i, o in enumerate(outputs)]
-    lines.append(f"        return [{', '.join(f'n{i}' for i in range(n))}]")
-    source = (f"def bind({', '.join(coefficients + scales)}):\n"
-              f"    def stepper(x, r):\n" + "\n".join(lines) + "\n"
-              f"    return stepper\n")
-    namespace: dict[str, Callable[..., Stepper]] = {}
-    exec(compile(source, "<dronefly.models.linear stepper>", "exec"), namespace)
-    return namespace["bind"](*(c for row in rows for c in row), *map(float, scale))
+    scale = tuple(map(float, scale))
+    controls, states = slice(inputs.start, inputs.stop), slice(outputs.start, outputs.stop)
+
+    def stepper(x: Sequence[float], r: List[float]) -> "List[float] | None":
+        u = r[controls]
+        xu = [*x, *u]
+        x1 = [dot(row, xu) for row in rows]
+        y = list(map(mul, x1, scale))
+        total = sum(u) + sum(y)
+        if total - total != 0.0:
+            return None
+        r[states] = y
+        return x1
+
+    return stepper
 
 
 def finite_rows(A: "list[list[float]]", B: "list[list[float]]", error: type,
@@ -248,8 +233,7 @@ class ZohModel:
     def step_list(self, x: list[float], u: list[float], h: float) -> list[float]:
         """:meth:`step` on plain lists, for the FMUs' doStep.
 
-        The rows of [Phi, Gamma] applied to (x; u), compiled once per step size into
-        straight-line Python (:func:`_straight_line_product`).
+        The rows of [Phi, Gamma] applied to (x; u) (:func:`_product_of`, kept per step size).
 
         Raises
         ------
@@ -270,17 +254,17 @@ class ZohModel:
                 f"most {math.log(1e300) / max(growth, 1e-300):.0f} wing beats")
         return product(x, u)
 
-    def stepper(self, h: float, scale: Sequence[float], inputs: Sequence[int],
-                outputs: Sequence[int]) -> "Stepper | None":
+    def stepper(self, h: float, scale: Sequence[float], inputs: range,
+                outputs: range) -> "Stepper | None":
         """The step of ``h`` for the FMUs' doStep, on a value table: the controls read from
         rows ``inputs``, the state times ``scale`` written to rows ``outputs``
-        (:func:`_straight_line_stepper`; the state as :meth:`step_list` gives it). None where
+        (:func:`_stepper`; the state as :meth:`step_list` gives it). None where
         exp(A h) overflows (then :meth:`step_list` decides). Not cached: the caller keeps it."""
         Phi, Gamma = self.transition_rows(h)
         M = tuple(p + g for p, g in zip(Phi, Gamma))
         if not all(math.isfinite(x) for row in M for x in row):
             return None
-        return _straight_line_stepper(M, len(Phi[0]), scale, inputs, outputs)
+        return _stepper(M, scale, inputs, outputs)
 
     def _growth_rate(self, h: float) -> float:
         """The fastest growth per unit of time of exp(A t), for the message of a step of ``h``
@@ -307,7 +291,7 @@ class ZohModel:
         if len(self._products) >= self._CACHE_SIZE:
             self._products.pop(next(iter(self._products)))
         finite = all(math.isfinite(x) for row in M for x in row)
-        product = _straight_line_product(M, len(Phi[0])) if finite else False
+        product = _product_of(M) if finite else False
         self._products[h] = product
         return product
 

@@ -22,6 +22,10 @@ of at most :data:`MAX_SUBSTEP_WB` wing beats (shorter where the body turns fast)
 the right-hand side into straight-line Python (:func:`_make_functions`); the quaternion is
 normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost: the README and
 docs/benchmarks.md.
+
+:func:`_make_functions` is the package's one execution of generated code (issue 26): the same
+equations as plain Python functions cost 1.2 to 1.8 times as much per step and take the
+6-DOF/pair cost ratio through FMI over its target of 5 (docs/benchmarks.md, "Generated code").
 """
 
 from __future__ import annotations
@@ -163,10 +167,9 @@ def _value(formula: str, j: int) -> str:
 def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tuple:
     """``(rhs(x, bl, bn) -> dx/dt+, substeps(y, n, h, bl, bn) -> y after n sub-steps of h)``
     compiled from :data:`_RHS` and :data:`_STAGES` into straight-line arithmetic on locals: no
-    lists and no calls inside a sub-step, nothing computed that the result does not use, 0.6
-    times the cost of a loop over lists (equal to it within 1.2e-16 relative: the
-    gyroscopic terms as a quadratic form). The coefficients are closure variables (exact
-    floats, never printed as text)."""
+    lists and no calls inside a sub-step, nothing computed that the result does not use. The
+    coefficients are closure variables (exact floats, never printed as text); the source is
+    built from the constant text of this module only."""
     names = [f"{a}{i}{j}" for a in "ln" for i in range(3) for j in range(3)]
     values = [c for rows in (la, na) for row in rows for c in row]
     head = ["        bl0, bl1, bl2 = bl", "        bn0, bn1, bn2 = bn"]
@@ -183,7 +186,7 @@ def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) 
         src += _rhs_source(terms, f"k{s}_{{}}", " " * 12, positions=s != 2)  # K2: not in _RESULT
     src += [f"            y{j} = {_value(_RESULT, j)}" for j in range(13)]
     src += [f"        return [{', '.join(f'y{j}' for j in range(13))}]", "    return rhs, substeps"]
-    namespace: dict[str, Callable[..., tuple]] = {}  # as dronefly.models.linear's products
+    namespace: dict[str, Callable[..., tuple]] = {}
     exec(compile("\n".join(src) + "\n", "<dronefly.fmu_src.hover6dof equations>", "exec"), namespace)
     return namespace["bind"](*values, *G, g, math.asin)
 

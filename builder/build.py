@@ -30,14 +30,21 @@ from pathlib import Path
 from ..core.errors import DroneflyError
 from ..core.files import write_zip
 from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
-from .closedloop import CLOSED_LOOP, ClosedLoopSpec, write_container, write_ssp
+from .closedloop import CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, write_container, write_ssp
 from .entry import entry2, entry3, host_documentation
 from .modeldescription import model_description_bytes
-from .package3 import FMI3_FILES, model_description3, wrapper3_binaries
+from .modeldescription3 import model_description3_bytes
 
-__all__ = ["FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
+__all__ = ["FMI3_FILES", "FMI3_OUT", "FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
            "fmu_sources", "project_fmus", "project_systems"]
 
+#: the pythonfmu versions the FMUs are built with (FMI 2.0: pythonfmu's binary; FMI 3.0:
+#: pythonfmu3's; both ship pythonfmu's Python facade)
+_WRAPPERS = {"pythonfmu": "0.7.0", "pythonfmu3": "0.3.4"}
+#: the sources an FMI 3.0 FMU ships besides its FMI 2.0 twin's
+FMI3_FILES = ("fmi/fmi3.py", "fmi/table3.py")
+#: where ``dronefly build`` writes the FMI 3.0 FMUs, below its output folder
+FMI3_OUT = "fmi3"
 _PKG_ROOT = Path(__file__).resolve().parents[1]  # the package root: builder/..
 _NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
 
@@ -98,39 +105,42 @@ def _source_path(rel: str) -> Path:
     return _PKG_ROOT / rel
 
 
-def _wrapper_files() -> dict[str, bytes]:
-    """pythonfmu's binaries and its Python package, as the FMU ships them."""
-
-    # the installed distribution, not sys.modules["pythonfmu"]: after an FMU built by
-    # pythonfmu ran in this process, that may be the FMU's own (since deleted) copy
+def _installed(dist: str) -> Path:
+    """The folder of an installed wrapper package: the installed distribution, not
+    ``sys.modules``, which after an FMU built by it ran in this process may be the FMU's own
+    (since deleted) copy."""
     try:
-        root = Path(str(distribution("pythonfmu").locate_file("pythonfmu"))).resolve()
+        return Path(str(distribution(dist).locate_file(dist))).resolve()
     except PackageNotFoundError as e:
-        raise BuildError("pythonfmu is not installed: pip install pythonfmu==0.7.0") from e
-    out: dict[str, bytes] = {}
-    for f in sorted(root.glob("*.py")):
-        out[f"resources/pythonfmu/{f.name}"] = f.read_bytes()
-    for f in sorted((root / "resources" / "binaries").rglob("*")):
-        if f.suffix in (".so", ".dll", ".dylib"):
-            out[f"binaries/{f.parent.name}/{{model}}{f.suffix}"] = f.read_bytes()
-    if not any(k.startswith("binaries/") for k in out):
-        raise BuildError(f"no pythonfmu binaries under {root}: reinstall pythonfmu")
-    return out
+        raise BuildError(f"{dist} is not installed: pip install {dist}=={_WRAPPERS[dist]}") from e
+
+
+def _wrapper_files(fmi: int) -> dict[str, bytes]:
+    """What the FMU ships of its wrapper: pythonfmu's Python facade (the base class of
+    :class:`dronefly.fmi.SlaveBase`, for both versions) and the binaries of the version's wrapper
+    (pythonfmu for FMI 2.0, pythonfmu3 for FMI 3.0); ``{model}`` stands for the model name."""
+    out = {f"resources/pythonfmu/{f.name}": f.read_bytes()
+           for f in sorted(_installed("pythonfmu").glob("*.py"))}
+    dist = "pythonfmu" if fmi == 2 else "pythonfmu3"
+    root = _installed(dist)
+    binaries = {f"binaries/{f.parent.name}/{{model}}{f.suffix}": f.read_bytes()
+                for f in sorted((root / "resources" / "binaries").rglob("*"))
+                if f.suffix in (".so", ".dll", ".dylib")}
+    if not binaries:
+        raise BuildError(f"no {dist} binaries under {root}: reinstall {dist}")
+    return {**out, **binaries}
 
 
 def fmu_sources(name: str, fmi: int = 2) -> tuple[str, dict[str, bytes]]:
     """Package name and ``{path in FMU: content}`` of one FMU (no model description), for
-    FMI 2.0 (pythonfmu) or FMI 3.0 (pythonfmu3, see :mod:`dronefly.builder.package3`)."""
-
+    FMI 2.0 (pythonfmu's binary) or FMI 3.0 (pythonfmu3's binary; the FMU ships the same model
+    code plus :data:`FMI3_FILES`, in its own package ``dronefly3_<name>_<hash>``)."""
     spec = FMUS[name]
     rels = spec.files if fmi == 2 else (*spec.files, *FMI3_FILES)
     sources = {rel: _source_path(rel).read_bytes() for rel in rels}
-    wrapper = _wrapper_files()
+    wrapper = _wrapper_files(fmi)
     entry = entry2 if fmi == 2 else entry3
     entry_text = entry("{pkg}", spec.module, spec.cls, name)  # hashed with the package unnamed
-    if fmi == 3:  # pythonfmu's Python facade (the base class), pythonfmu3's binaries
-        wrapper = {**{k: v for k, v in wrapper.items() if not k.startswith("binaries/")},
-                   **wrapper3_binaries()}
     h = hashlib.sha256(name.encode() + entry_text.encode())
     for rel, data in sorted({**sources, **wrapper}.items()):
         h.update(rel.encode() + b"\0" + hashlib.sha256(data).digest())
@@ -164,10 +174,10 @@ def _model_description(name: str, pkg: str, files: dict[str, bytes], guid: str,
         resources = str(Path(tmp, "resources"))
         sys.path.insert(0, resources)
         try:
-            if fmi == 3:
-                return model_description3(pkg, spec.module, spec.cls, guid)
-            module = importlib.import_module(f"{pkg}.{spec.module}")
-            cls = getattr(module, spec.cls)
+            cls = getattr(importlib.import_module(f"{pkg}.{spec.module}"), spec.cls)
+            if fmi == 3:  # the FMI 3.0 class the wrapper instantiates, from the shipped code
+                fmi3 = importlib.import_module(f"{pkg}.fmi.fmi3")
+                return model_description3_bytes(fmi3.fmi3_class(cls), guid)
             return model_description_bytes(cls, guid)
         finally:
             sys.path.remove(resources)
@@ -302,29 +312,47 @@ def project_systems(out_dir: str | Path = "build") -> tuple[Path, Path]:
     return paths
 
 
-def build_all(out_dir: str | Path = "build") -> list[Path]:
-    """Build every FMU of the project into ``out_dir``, then the closed-loop artefacts and the
-    hover system ``DroneFlyHover.ssp`` (both axes with their controllers, four FMUs)."""
+def build_all(out_dir: str | Path = "build", fmi: int = 2) -> list[Path]:
+    """Build every FMU of the project into ``out_dir`` as FMI ``fmi`` (2 or 3) Co-Simulation
+    FMUs, then the systems referencing them: ``DroneFlyClosedLoop.ssp`` (the lateral plant and
+    its controller), for FMI 2.0 also the container FMU ``DroneFlyClosedLoop.fmu`` (FMI 3.0:
+    none, docs/fmi-limits.md), and the hover systems ``DroneFlyHover.ssp`` (both axes with
+    their controllers, four FMUs) and ``DroneFlyHover6DOF.ssp``. ``dronefly build`` writes the
+    FMI 3.0 set in :data:`FMI3_OUT` below its folder.
 
+    Raises
+    ------
+    BuildError
+        As :func:`build_fmu`; a file at a target that the build did not write is left alone,
+        and nothing is written then.
+    """
     out = Path(out_dir)
     for name in FMUS:  # every target checked before anything is written
         target = out / f"{name}.fmu"
-        _refuse_foreign(target, f"the {name} FMU", _built_package(target, name, 2) is not None)
-    for target, member in ((out / f"{CLOSED_LOOP}.fmu", "resources/container.json"),
-                           *((out / f"{n}.ssp", "SystemStructure.ssd")
-                             for n in (CLOSED_LOOP, HOVER, HOVER_6DOF))):
+        _refuse_foreign(target, f"the {name} FMU", _built_package(target, name, fmi) is not None)
+    artefacts = [(out / f"{n}.ssp", "SystemStructure.ssd") for n in (CLOSED_LOOP, HOVER, HOVER_6DOF)]
+    if fmi == 2:
+        artefacts.append((out / f"{CLOSED_LOOP}.fmu", "resources/container.json"))
+    for target, member in artefacts:
         _refuse_foreign(target, f"the {target.name}", _has_member(target, member))
-    fmus = {name: build_fmu(name, out_dir) for name in FMUS}
-    loop = build_closed_loop(out_dir, fmus["DroneFlyLateral"], fmus["StateFeedback"])
+    fmus = {name: build_fmu(name, out_dir, fmi) for name in FMUS}
+    if fmi == 2:
+        loop = build_closed_loop(out_dir, fmus[PLANT], fmus[CONTROLLER])
+    else:
+        try:
+            loop = [write_ssp(fmus[PLANT], fmus[CONTROLLER], out_dir)]
+        except (OSError, ValueError) as e:
+            raise BuildError(f"cannot build the FMI 3.0 {CLOSED_LOOP}.ssp: {e}") from e
     systems = []
     for name, nonlinear, text in (
             (HOVER, False, "lateral plant with Eq. (27), longitudinal plant with design (b)"),
             (HOVER_6DOF, True, "the nonlinear six-degree-of-freedom plant with the controllers "
                                "of both axes (Eq. 27, design b)")):
+        description = (f"The hovering model drone fly (Zhang & Sun): {text}" if fmi == 2 else
+                       "The hovering model drone fly (Zhang & Sun), FMI 3.0 FMUs")
         try:
-            systems.append(write_system_ssp(
-                hover_system(fmus, nonlinear=nonlinear), Path(out_dir) / f"{name}.ssp",
-                description=f"The hovering model drone fly (Zhang & Sun): {text}"))
+            systems.append(write_system_ssp(hover_system(fmus, nonlinear=nonlinear),
+                                            out / f"{name}.ssp", description=description))
         except (OSError, ValueError) as e:
             raise BuildError(f"cannot build {name}.ssp: {e}") from e
     return [*fmus.values(), *loop, *systems]

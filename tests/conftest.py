@@ -71,10 +71,10 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def built_fmus3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The FMI 3.0 artefacts of ``dronefly build`` (``build/fmi3/``), freshly built: FMUs by
     model name, the hover system SSPs by file name."""
-    from dronefly.builder.build3 import build_all3
+    from dronefly.builder.build import build_all
 
     out = tmp_path_factory.mktemp("fmus3")
-    return {(p.stem if p.suffix == ".fmu" else p.name): p for p in build_all3(out)}
+    return {(p.stem if p.suffix == ".fmu" else p.name): p for p in build_all(out, fmi=3)}
 
 
 @pytest.fixture(scope="session")

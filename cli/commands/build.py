@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ...builder.build import build_all
-from ...builder.build3 import FMI3_OUT, build_all3
+from ...builder.build import FMI3_OUT, build_all
 from . import EXIT_OK
 
 __all__ = ["run"]
@@ -14,6 +13,6 @@ __all__ = ["run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly build`` with the parsed arguments; returns the exit code."""
-    for path in [*build_all(args.out), *build_all3(Path(args.out) / FMI3_OUT)]:
+    for path in [*build_all(args.out), *build_all(Path(args.out) / FMI3_OUT, fmi=3)]:
         print(path)
     return EXIT_OK

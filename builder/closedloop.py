@@ -59,7 +59,7 @@ from .nestedshim import install_shims
 
 __all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "CONTROLLER", "GUID_NAMESPACE", "PLANT",
            "ClosedLoopSpec", "container_configuration", "fix_connection_types",
-           "parameter_values", "reference_scales", "write_container", "write_ssp"]
+           "parameter_values", "plant_md_scales", "write_container", "write_ssp"]
 
 CLOSED_LOOP = "DroneFlyClosedLoop"
 PLANT, CONTROLLER = "DroneFlyLateral", "StateFeedback"
@@ -85,7 +85,7 @@ class ClosedLoopSpec:
                 raise CoSimError(f"{name} = {value!r} wing beats must be finite and > 0")
 
 
-def reference_scales(plant_md) -> tuple[float, np.ndarray]:
+def plant_md_scales(plant_md) -> tuple[float, np.ndarray]:
     """n [Hz] and the scale vector [U, n, n, 1] of a plant's model description."""
     scale = np.array(plant_scales(start_values(plant_md)))
     return float(scale[1]), scale
@@ -93,7 +93,7 @@ def reference_scales(plant_md) -> tuple[float, np.ndarray]:
 
 def parameter_values(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
     """Hierarchical name -> value: the plant's initial state and the controller's gains."""
-    _, scale = reference_scales(plant_md)
+    _, scale = plant_md_scales(plant_md)
     out = {f"plant.{s}_start": float(v) for s, v in zip(STATE_NAMES, np.array(spec.x0) * scale)}
     for i, row in enumerate(spec.gains):
         for j, k in enumerate(row):
@@ -116,7 +116,7 @@ def container_configuration(plant: str | Path, controller: str | Path,
                             spec: ClosedLoopSpec = ClosedLoopSpec()):
     """The container described with fmpy's own structures (``fmpy.container_fmu.config``)."""
     pmd, cmd = read_model_description(plant), read_model_description(controller)
-    n, scale = reference_scales(pmd)
+    n, scale = plant_md_scales(pmd)
     comps = {"plant": Component(name="plant", filename=Path(plant), modelDescription=pmd),
              "controller": Component(name="controller", filename=Path(controller),
                                      modelDescription=cmd)}
@@ -255,7 +255,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     elements ``K[i,j]``, as SSP 1.0 has no array values; see docs/fmi3.md).
     """
     pmd, cmd = read_view(plant), read_view(controller)
-    n, _ = reference_scales(pmd)
+    n, _ = plant_md_scales(pmd)
     params = parameter_values(pmd, spec)
     step = spec.step_wingbeats / n
     root = ET.Element(f"{{{SSD_NS}}}SystemStructureDescription",

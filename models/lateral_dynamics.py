@@ -24,30 +24,19 @@ from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, Any, Mapping
 
 from ..core.errors import DroneflyError
-from .linear import Rows, ZohModel, discretize_zoh, finite_rows
-from .lateral import (CONTROL_NAMES, FLIGHT_DATA, INERTIAS_SECT21, N_HZ, STATE_NAMES, U_M_PER_S,
-    reference_scales, to_dimensional, to_nondimensional)
+from .linear import Rows, ZohModel, finite_rows
+from .lateral import INERTIAS_SECT21
 
 __all__ = [
     "A1_EQ12",
     "CONTROL_DERIVATIVES_TABLE1",
-    "CONTROL_NAMES",
-    "FLIGHT_DATA",
-    "INERTIAS_SECT21",
     "LateralModel",
     "LateralParameters",
     "ModelParameterError",
-    "N_HZ",
-    "STATE_NAMES",
-    "U_M_PER_S",
     "default_parameters",
     "derive_stability_derivatives",
-    "discretize_zoh",
-    "reference_scales",
     "system_matrices",
     "system_rows",
-    "to_dimensional",
-    "to_nondimensional",
 ]
 
 if TYPE_CHECKING:

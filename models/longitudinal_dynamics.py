@@ -31,16 +31,14 @@ from typing import TYPE_CHECKING, Sequence
 from ..core.errors import DroneflyError
 from .lateral import INERTIAS_SECT21
 from .linear import Rows, ZohModel, finite_rows
-from .longitudinal import CONTROL_NAMES, IY_PLUS, STATE_NAMES
+from .longitudinal import CONTROL_NAMES, IY_PLUS
 
 __all__ = [
     "A_SECT35",
     "B_SECT35",
-    "CONTROL_NAMES",
     "LongitudinalModel",
     "LongitudinalParameters",
     "ModelParameterError",
-    "STATE_NAMES",
     "default_parameters",
     "derive_derivatives",
     "parameter_dependencies",

@@ -367,7 +367,8 @@ def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
     """Axes and signs as the paper's: Eq. (10) with the model's derivatives has +g+ in its first
     row and the sign of Eq. (12) in every aerodynamic entry the paper prints as nonzero."""
     from dronefly.harness.aero.compare import system_matrices
-    from dronefly.models.lateral_dynamics import A1_EQ12, INERTIAS_SECT21
+    from dronefly.models.lateral import INERTIAS_SECT21
+    from dronefly.models.lateral_dynamics import A1_EQ12
 
     values = {r.parameter: r.quasi_steady for r in reports[0].rows}
     (A1, B1), _ = system_matrices(values)

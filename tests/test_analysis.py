@@ -22,6 +22,7 @@ from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabili
 from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze, reproduction_table
 from dronefly.models import lateral_dynamics as model
+from dronefly.models import lateral as lateral_interface
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
@@ -102,18 +103,18 @@ def test_modal_form_and_controllability() -> None:
     A, B = an.lateral_system()
     mf = an.modal_decomposition(A, B)
     assert_allclose(mf.M @ mf.A_nn @ np.linalg.inv(mf.M), A, atol=1e-12)
-    ctl = an.controllability(A, B, model.CONTROL_NAMES, mf)
-    for name in (*model.CONTROL_NAMES, "all"):
+    ctl = an.controllability(A, B, lateral_interface.CONTROL_NAMES, mf)
+    for name in (*lateral_interface.CONTROL_NAMES, "all"):
         assert ctl[name]["kalman_rank"] == 4 and all(m["controllable"] for m in ctl[name]["modes"]), name
 
 
 def test_single_input_designs_stabilise() -> None:
     A, B = an.lateral_system()
-    for u in model.CONTROL_NAMES:
+    for u in lateral_interface.CONTROL_NAMES:
         k = move_lambda1_gains(A, B, u, -0.1)
-        ev = np.linalg.eigvals(an.closed_loop_matrix(A, B[:, model.CONTROL_NAMES.index(u)], k))
+        ev = np.linalg.eigvals(an.closed_loop_matrix(A, B[:, lateral_interface.CONTROL_NAMES.index(u)], k))
         assert np.min(np.abs(ev + 0.1)) < 1e-9 and ev.real.max() < 0, u
-        assert np.linalg.eigvals(an.closed_loop_matrix(A, B[:, model.CONTROL_NAMES.index(u)],
+        assert np.linalg.eigvals(an.closed_loop_matrix(A, B[:, lateral_interface.CONTROL_NAMES.index(u)],
                                                        lqr_gains(A, B, u))).real.max() < 0, u
     paper = [d for d in stabilising_designs(extra={"Eq. (27)": [float(g) for g in pv.EQ27_GAINS]})
              if d.method == "Eq. (27)"][0]

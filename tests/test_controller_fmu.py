@@ -13,6 +13,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.models import feedback as L
 from dronefly.models import lateral_dynamics as M
+from dronefly.models import lateral as lateral_interface
 
 from controller_common import (B1_COL1_EQ24, CONTROLS, EIG_EQ27, GAINS, H, STATES, dimensional,
                                expected_controls, random_gains)
@@ -252,9 +253,9 @@ def test_bad_value_in_initialization_mode(controller):
         start(inst, {"U": -1.0})
         assert "U = -1.0" in inst.messages[-1].message and inst.messages[-1].status == 3
         assert "U = -1.0" in _discarded(inst, 0.0, H)
-        set_values(inst, {"U": M.U_M_PER_S, "delta_v": 0.1})
+        set_values(inst, {"U": lateral_interface.U_M_PER_S, "delta_v": 0.1})
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
-        assert_allclose(_outputs(inst)[0][0], L.PAPER_GAINS_EQ27[0] * 0.1 / M.U_M_PER_S, rtol=1e-12)
+        assert_allclose(_outputs(inst)[0][0], L.PAPER_GAINS_EQ27[0] * 0.1 / lateral_interface.U_M_PER_S, rtol=1e-12)
 
 
 @pytest.mark.integration
@@ -323,7 +324,7 @@ def test_state_get_set_serialize_and_reset(controller):
 def test_closed_loop_cosimulation_with_the_plant(plant, controller):
     """Both FMUs in one process, connected by name: plant outputs at t_k -> controller ->
     plant inputs held over [t_k, t_k + h]. Equals x[k+1] = (Phi + Gamma K) x[k] exactly."""
-    steps, h = 50, 1.0 / M.N_HZ  # one wing beat per communication step
+    steps, h = 50, 1.0 / lateral_interface.N_HZ  # one wing beat per communication step
     x0 = [0.0, 0.0, 0.0, 0.1]
     with plant.instantiate("p") as p, controller.instantiate("c") as c:
         start(p, {f"{n}_start": v for n, v in zip(STATES, x0)})
@@ -331,7 +332,7 @@ def test_closed_loop_cosimulation_with_the_plant(plant, controller):
         xs = []
         for k in range(steps):
             y = p.slave.getReal(p.vrs(STATES))
-            xs.append(M.to_nondimensional(np.array(y), M.U_M_PER_S, M.N_HZ))
+            xs.append(lateral_interface.to_nondimensional(np.array(y), lateral_interface.U_M_PER_S, lateral_interface.N_HZ))
             c.slave.setReal(c.vrs(STATES), y)
             u = c.slave.getReal(c.vrs(CONTROLS))
             p.slave.setReal(p.vrs(CONTROLS), u)

@@ -11,6 +11,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
 from dronefly.models import lateral_dynamics as M
+from dronefly.models import lateral
 
 #: Eq. (24): first column of B1 as printed (the delta Phi_a column).
 B1_COL1_EQ24 = tuple(float(t) for t in pv.EQ24_B_COLUMN)
@@ -33,7 +34,7 @@ def test_derived_stability_derivatives_values():
     """Documented derivation: [L; N] = [[Ix, -Ixz], [-Ixz, Iz]] [A1 row 2; row 3], Y = m A1 row 1."""
     d = M.derive_stability_derivatives()
     a = np.array(M.A1_EQ12)
-    i = M.INERTIAS_SECT21
+    i = lateral.INERTIAS_SECT21
     # hand evaluation for the v column: Lv = Ix a21 - Ixz a31, Nv = -Ixz a21 + Iz a31
     assert_allclose(d["Lv_plus"], i["Ix_plus"] * a[1, 0] - i["Ixz_plus"] * a[2, 0], rtol=1e-14)
     assert_allclose(d["Nv_plus"], -i["Ixz_plus"] * a[1, 0] + i["Iz_plus"] * a[2, 0], rtol=1e-14)
@@ -57,7 +58,7 @@ def test_b1_first_column_agrees_with_eq24_within_rounding():
     _, B = M.system_matrices(M.default_parameters())
     assert_allclose(B[:, 0], B1_COL1_EQ24, atol=6e-4, rtol=0,
                     err_msg="Eq. (24) B column: same to 6e-4")
-    boxes = {k: _rounding_box(M.INERTIAS_SECT21[k], d) for k, d in pv.SECT21_DECIMALS.items()}
+    boxes = {k: _rounding_box(lateral.INERTIAS_SECT21[k], d) for k, d in pv.SECT21_DECIMALS.items()}
     boxes |= {k: _rounding_box(M.CONTROL_DERIVATIVES_TABLE1[k], pv.TABLE1_DECIMALS)
               for k in ("Y_Phi_a_plus", "L_Phi_a_plus", "N_Phi_a_plus")}
     base = M.default_parameters()
@@ -88,16 +89,16 @@ def test_eigenvalues_match_table2():
     ("g_plus", 0.00241),
 ])
 def test_sect24_data_reproduce_sect21_values(name, computed_rel_diff):
-    printed = M.INERTIAS_SECT21[name]
-    computed = M.reference_scales()[name]
+    printed = lateral.INERTIAS_SECT21[name]
+    computed = lateral.reference_scales()[name]
     assert_allclose(computed / printed - 1.0, computed_rel_diff, atol=1e-5,
                     err_msg=f"{name}: documented difference from Sect. 2.4 data")
 
 
 def test_g_plus_within_printed_rounding():
     """g+ is printed to 4 decimals (Sect. 2.1; the same digits are A1(1,4) of Eq. 12)."""
-    lo, hi = _rounding_box(M.INERTIAS_SECT21["g_plus"], pv.EQ12_DECIMALS)
-    assert lo <= M.reference_scales()["g_plus"] <= hi
+    lo, hi = _rounding_box(lateral.INERTIAS_SECT21["g_plus"], pv.EQ12_DECIMALS)
+    assert lo <= lateral.reference_scales()["g_plus"] <= hi
 
 
 @pytest.mark.parametrize("change, fragment", [
@@ -131,11 +132,11 @@ def test_zoh_against_eigendecomposition():
     m = M.LateralModel(M.default_parameters())
     x0_dim = np.array([0.1, 2.0, -1.0, 0.1])
     u = np.array([0.02, 0.0, -0.01])
-    scale = np.array([M.U_M_PER_S, M.N_HZ, M.N_HZ, 1.0])
+    scale = np.array([lateral.U_M_PER_S, lateral.N_HZ, lateral.N_HZ, 1.0])
     x = x0_dim / scale
     for _ in range(50):
         x = m.step(x, u, 0.2)
-    ref = exact_open_loop(x0_dim, np.array([10.0 / M.N_HZ]), u)[0]
+    ref = exact_open_loop(x0_dim, np.array([10.0 / lateral.N_HZ]), u)[0]
     assert_allclose(x * scale, ref, rtol=1e-11, err_msg="50 ZOH steps vs eigendecomposition")
 
 
@@ -150,4 +151,4 @@ def test_transition_cache_is_bounded_and_reused():
 
 def test_dimensional_round_trip():
     x = np.array([0.3, 5.0, -2.0, 0.1])
-    assert_allclose(M.to_dimensional(M.to_nondimensional(x, 3.7, 164.0), 3.7, 164.0), x, rtol=1e-15)
+    assert_allclose(lateral.to_dimensional(lateral.to_nondimensional(x, 3.7, 164.0), 3.7, 164.0), x, rtol=1e-15)

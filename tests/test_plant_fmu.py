@@ -11,15 +11,16 @@ from numpy.testing import assert_allclose
 
 from dronefly.harness.paper import values as pv
 from dronefly.models import lateral_dynamics as M
+from dronefly.models import lateral
 from dronefly.harness.stability.simulate import exact_open_loop
 from dronefly.harness.cosim.fmu import FMU
 from fmu_helpers import model_description, start
 
 pytestmark = pytest.mark.integration
 
-STATES = list(M.STATE_NAMES)
-CONTROLS = list(M.CONTROL_NAMES)
-DT_WB = 1.0 / M.N_HZ  # one wing beat in s
+STATES = list(lateral.STATE_NAMES)
+CONTROLS = list(lateral.CONTROL_NAMES)
+DT_WB = 1.0 / lateral.N_HZ  # one wing beat in s
 
 
 def _outputs(inst):
@@ -224,7 +225,7 @@ def test_state_get_set_and_serialize_continue_bit_for_bit(plant):
 
 def test_fmu_runs_the_code_it_ships(built_fmus, monkeypatch):
     """A host that imported (and changed) the project's model module does not affect the FMU."""
-    expected = [M.A1_EQ12[1][0], M.N_HZ]  # the printed A1(2,1) and n, before the host's change
+    expected = [M.A1_EQ12[1][0], lateral.N_HZ]  # the printed A1(2,1) and n, before the host's change
     monkeypatch.setattr(M, "A1_EQ12", tuple(tuple(2 * a for a in row) for row in M.A1_EQ12))
     monkeypatch.setattr(M, "N_HZ", 1.0)
     with FMU(built_fmus["DroneFlyLateral"]) as fmu, fmu.instantiate() as inst:

@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose
 
 from dronefly.fmi import UNITS
 from dronefly.models import lateral_dynamics as M
+from dronefly.models import lateral as lateral_interface
 from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
 
@@ -61,25 +62,25 @@ def test_declared_matrix_dependencies_match_perturbation(slave):
 def test_initial_outputs_are_the_start_values(slave):
     _set(slave, delta_v_start=0.1, delta_p_start=-2.0, delta_r_start=1.0, delta_gamma_start=0.2)
     slave.exit_initialization_mode()
-    assert _get(slave, *M.STATE_NAMES) == [0.1, -2.0, 1.0, 0.2]
+    assert _get(slave, *lateral_interface.STATE_NAMES) == [0.1, -2.0, 1.0, 0.2]
 
 
 def test_step_is_exact_and_independent_of_step_size(slave):
     _set(slave, delta_gamma_start=0.1, delta_Phi_a=0.01)
     slave.exit_initialization_mode()
-    h = 1.0 / M.N_HZ
+    h = 1.0 / lateral_interface.N_HZ
     t = 0.0
     for _ in range(10):
         assert slave.do_step(t, h / 10)
         t += h / 10
-    fine = np.array(_get(slave, *M.STATE_NAMES))
+    fine = np.array(_get(slave, *lateral_interface.STATE_NAMES))
     other = DroneFlyLateral(instance_name="coarse")
     other.setup_experiment(0.0)
     other.enter_initialization_mode()
     _set(other, delta_gamma_start=0.1, delta_Phi_a=0.01)
     other.exit_initialization_mode()
     assert other.do_step(0.0, h)
-    assert_allclose(fine, _get(other, *M.STATE_NAMES), rtol=1e-12)
+    assert_allclose(fine, _get(other, *lateral_interface.STATE_NAMES), rtol=1e-12)
 
 
 def test_refused_step_changes_nothing_and_never_raises(slave):
@@ -107,15 +108,15 @@ def test_state_serialization_round_trip(slave):
     slave.do_step(0.0, 0.001)
     blob = DroneFlyLateral._fmu_state_to_bytes(slave._get_fmu_state())
     slave.do_step(0.001, 0.001)
-    ref = _get(slave, *M.STATE_NAMES)
+    ref = _get(slave, *lateral_interface.STATE_NAMES)
     slave._set_fmu_state(DroneFlyLateral._fmu_state_from_bytes(blob))
     slave.do_step(0.001, 0.001)
-    assert _get(slave, *M.STATE_NAMES) == ref
+    assert _get(slave, *lateral_interface.STATE_NAMES) == ref
 
 
 def test_initial_unknowns_readable_in_initialization_mode(slave):
     """FMI 2.0: outputs and calculated parameters follow the start values before exit."""
-    _set(slave, delta_gamma_start=0.2, m_plus=2 * M.INERTIAS_SECT21["m_plus"])
+    _set(slave, delta_gamma_start=0.2, m_plus=2 * lateral_interface.INERTIAS_SECT21["m_plus"])
     assert _get(slave, "delta_gamma", "A[1,1]") == [0.2, M.A1_EQ12[0][0] / 2]
 
 
@@ -145,10 +146,10 @@ def test_long_step_is_exact_or_refused_with_the_reason(slave):
     any other state is refused with the reason and the largest step that works."""
     slave.exit_initialization_mode()
     assert slave.do_step(0.0, 100.0) is True
-    assert _get(slave, *M.STATE_NAMES) == [0.0, 0.0, 0.0, 0.0]
+    assert _get(slave, *lateral_interface.STATE_NAMES) == [0.0, 0.0, 0.0, 0.0]
     _set(slave, delta_Phi_a=0.01)
     assert slave.do_step(100.0, 100.0) is False
     text = " ".join(m.msg for m in slave.log_queue)
     assert "overflows exp(A1 h)" in text and "take steps of at most" in text
-    assert _get(slave, *M.STATE_NAMES) == [0.0, 0.0, 0.0, 0.0]  # refused: nothing changed
+    assert _get(slave, *lateral_interface.STATE_NAMES) == [0.0, 0.0, 0.0, 0.0]  # refused: nothing changed
     assert slave.do_step(100.0, 1.0) is True  # a shorter step works

@@ -22,7 +22,7 @@ from fmpy.util import read_csv, read_ref_opt_file, validate_result
 from ...core.files import write_csv_atomic, write_text_atomic
 from ...models import longitudinal as lon
 from ...models.hover6dof import OUTPUT_NAMES
-from ...models.lateral_dynamics import CONTROL_NAMES, N_HZ, STATE_NAMES
+from ...models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
            "write_reference"]

@@ -10,7 +10,7 @@ import fmpy
 import numpy as np
 from fmpy import read_model_description
 
-from ...builder.closedloop import reference_scales
+from ...builder.closedloop import plant_md_scales
 from ...models.lateral import STATE_NAMES
 from ..cosim.stability import Verdict, unit_start_values, verdict_of
 
@@ -46,7 +46,7 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     md = read_model_description(fmu)
-    n, scale = reference_scales(md)
+    n, scale = plant_md_scales(md)
     step = float(md.defaultExperiment.stepSize)
     runs = []
     for start in unit_start_values(scale):

@@ -48,7 +48,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ...builder.closedloop import reference_scales
+from ...builder.closedloop import plant_md_scales
 from ...models.lateral import STATE_NAMES
 from ..cosim.fmi3 import read_view
 from ..cosim.master import CoSimError
@@ -172,7 +172,7 @@ def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
     with zipfile.ZipFile(ssp) as z, tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:
         fmu = Path(tmp, "plant.fmu")
         fmu.write_bytes(z.read(source))
-        return reference_scales(read_view(fmu))
+        return plant_md_scales(read_view(fmu))
 
 
 def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],

@@ -45,7 +45,7 @@ from typing import Mapping, Sequence
 import fmpy
 import numpy as np
 
-from ...builder.closedloop import reference_scales
+from ...builder.closedloop import plant_md_scales
 from ...core.extras import optional
 from ...models.lateral import STATE_NAMES
 from ..cosim.master import CoSimError
@@ -224,7 +224,7 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     md = fmpy.read_model_description(str(plant))
-    n_hz, scale = reference_scales(md)
+    n_hz, scale = plant_md_scales(md)
     h = step_ns(step_wingbeats, n_hz)
     h_wb = h * 1e-9 * n_hz
     runs = []

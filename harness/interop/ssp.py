@@ -32,7 +32,7 @@ import numpy as np
 from fmpy.ssp.simulation import simulate_ssp
 from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
 
-from ...builder.closedloop import CLOSED_LOOP, PLANT, reference_scales
+from ...builder.closedloop import CLOSED_LOOP, PLANT, plant_md_scales
 from ...models.lateral import STATE_NAMES
 from ..cosim.fmi3 import read_view
 from ..cosim.master import CoSimError
@@ -64,7 +64,7 @@ def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
         root = ET.fromstring(z.read("SystemStructure.ssd"))
     stop = float(root.find(f"{{{SSD_NS}}}DefaultExperiment").get("stopTime"))
     with zipfile.ZipFile(ssp) as z:
-        n = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
+        n = plant_md_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
     return 0.1 / n, stop
 
 
@@ -138,7 +138,7 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
     """
     d_step, _ = _ssp_step_stop(ssp)
     with zipfile.ZipFile(ssp) as z:
-        n, scale = reference_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
+        n, scale = plant_md_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
     runs = []
     for start in unit_start_values(scale, prefix="plant."):
         res = run_ssp(ssp, stop_s=(n_steps + 0.5) * d_step, overrides=start)

@@ -17,6 +17,7 @@ from scipy.signal import place_poles
 
 from ...core.errors import DroneflyError
 from ...models import lateral_dynamics as model
+from ...models import lateral
 from ...models.longitudinal_dynamics import A_SECT35, B_SECT35
 
 from .modal import (LATERAL_CONVENTION, LONGITUDINAL_CONVENTION, ModalConvention, ModalForm,
@@ -52,7 +53,7 @@ def longitudinal_system() -> tuple[Array, Array]:
     return np.array(A_SECT35, dtype=float), np.array(B_SECT35, dtype=float)
 
 
-def input_index(name: str, names: Sequence[str] = model.CONTROL_NAMES) -> int:
+def input_index(name: str, names: Sequence[str] = lateral.CONTROL_NAMES) -> int:
     """Column of the control ``name`` in B (raises :class:`AnalysisInputError`)."""
     if name not in names:
         raise AnalysisInputError(f"input {name!r} is not one of {', '.join(names)}")

@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_continuous_are
 
 from ...models import lateral_dynamics as model
+from ...models import lateral as lateral_interface
 from ...models.lateral import sort_eigenvalues
 from . import values as pv
 from .analysis import (LONGITUDINAL_CONVENTION, AnalysisInputError, ModalConvention,
@@ -135,9 +136,9 @@ def stabilising_designs(lambda1: float = -0.1, gamma0: float = 0.5,
     eta1 = mag[:, 0] * np.cos(np.radians(ph[:, 0]))
     x_roll, x_mode = np.array([0.0, 0.0, 0.0, gamma0]), gamma0 * eta1
     todo = [(f"lambda1 -> {lambda1:g}", u, move_lambda1_gains(A, B, u, lambda1))
-            for u in model.CONTROL_NAMES]
-    todo += [("LQR Q=I, R=1", u, lqr_gains(A, B, u)) for u in model.CONTROL_NAMES]
-    todo += [(label, model.CONTROL_NAMES[0], np.asarray(k, float)) for label, k in (extra or {}).items()]
+            for u in lateral_interface.CONTROL_NAMES]
+    todo += [("LQR Q=I, R=1", u, lqr_gains(A, B, u)) for u in lateral_interface.CONTROL_NAMES]
+    todo += [(label, lateral_interface.CONTROL_NAMES[0], np.asarray(k, float)) for label, k in (extra or {}).items()]
     out = []
     for method, u, k in todo:
         b = B[:, input_index(u)]
@@ -161,7 +162,7 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
         Comma-separated closed-loop eigenvalues (per wing beat) for an extra design
         with ``design_input`` (see :func:`~dronefly.harness.paper.analysis.parse_targets`).
     design_input : str
-        Control input of that design (one of ``model.CONTROL_NAMES``).
+        Control input of that design (one of ``lateral_interface.CONTROL_NAMES``).
     lambda1, gamma0 : float
         Target of the lambda_1 designs (per wing beat) and the roll disturbance (rad).
 
@@ -188,7 +189,7 @@ def analysis_report(targets: str | None = None, design_input: str = "delta_Phi_a
                     "modal_eq20_convention": {"M1": mf.M.tolist(), "A_lnn": mf.A_nn.tolist(),
                                               "B_ln": mf.B_n.tolist()},
                     "modal_table3_convention": {"M1": m3.M.tolist(), "B_ln": m3.B_n.tolist()},
-                    "controllability": controllability(A, B, model.CONTROL_NAMES, mf),
+                    "controllability": controllability(A, B, lateral_interface.CONTROL_NAMES, mf),
                     "eq24_b": B[:, 0].tolist(),
                     "eq26": {"c0 (b, c, d, e at k = 0)": c0.tolist(), "G (d coeffs / d k_j)": G.tolist()}},
         "longitudinal": {"A": Al.tolist(), "B": Bl.tolist(), "eigenvalues": _cx(ordered_eigen(Al)[0]),

@@ -20,6 +20,7 @@ from typing import Callable
 import numpy as np
 
 from ...models import lateral_dynamics as model, longitudinal_dynamics as lon_model
+from ...models import lateral as lateral_interface
 from . import values as pv
 from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, characteristic_affine,
                        coefficient_matching_gains, eigenvector_table, longitudinal_system,
@@ -40,7 +41,7 @@ def lateral_inputs() -> list[tuple[str, float, float]]:
     """(name, printed value, half unit) of every rounded input of the lateral analysis."""
     out = [(f"A1({i + 1},{j + 1})", pv.EQ12_A1[i][j], 0.5 * 10.0 ** -pv.EQ12_DECIMALS)
            for i in range(4) for j in range(4) if (i, j) not in pv.EQ12_STRUCTURAL]
-    out += [(k, model.INERTIAS_SECT21[k], 0.5 * 10.0 ** -d) for k, d in pv.SECT21_DECIMALS.items()]
+    out += [(k, lateral_interface.INERTIAS_SECT21[k], 0.5 * 10.0 ** -d) for k, d in pv.SECT21_DECIMALS.items()]
     out += [(k, v, 0.5 * 10.0 ** -pv.TABLE1_DECIMALS) for k, v in model.CONTROL_DERIVATIVES_TABLE1.items()]
     out += [(f"Table 2 {k}", float(t), pv.half_unit(t)) for k, t in pv.TABLE2.items() if k != "lambda1"]
     return out
@@ -126,7 +127,7 @@ def _lateral_specs() -> list[tuple[str, str, str, int | None, Callable[[Ctx], fl
                       lambda c, s=s, m=m: c["ph"][s, m]))
     S += [("Eq. (19)", f"A_lnn({i + 1},{j + 1})", pv.EQ19_A_LNN[i][j], 4, lambda c, i=i, j=j: c["Ann"][i, j])
           for i in range(4) for j in range(4)]
-    S += [("Eq. (20)", f"B_ln({i + 1},{j + 1}) [{model.CONTROL_NAMES[j]}]", pv.EQ20_B_LN[i][j], 4,
+    S += [("Eq. (20)", f"B_ln({i + 1},{j + 1}) [{lateral_interface.CONTROL_NAMES[j]}]", pv.EQ20_B_LN[i][j], 4,
            lambda c, i=i, j=j: c["Bn"][i, j]) for i in range(4) for j in range(3)]
     S += [("Eq. (24)", f"b({i + 1}) [B1 column of delta_Phi_a]", pv.EQ24_B_COLUMN[i], 4,
            lambda c, i=i: c["B"][i, 0]) for i in range(4)]

@@ -17,8 +17,8 @@ import numpy as np
 from ...builder.build import project_fmus
 from ...core.files import write_run_files
 from ...models.feedback import default_gains, gain_name, integral_gain_name
-from ...models.lateral import plant_scales
-from ...models.lateral_dynamics import STATE_NAMES, discretize_zoh
+from ...models.lateral import STATE_NAMES, plant_scales
+from ...models.linear import discretize_zoh
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count

@@ -23,6 +23,7 @@ import numpy as np
 from ...models.feedback import LONGITUDINAL_GAINS_DESIGN_B, PAPER_GAINS_EQ27
 from ...models.linear import discretize_zoh
 from ...models import lateral_dynamics as lateral
+from ...models import lateral as lateral_interface
 from ...models.rigid_body import TERMS, Hover6DOF, gamma_from_quaternion
 from ...models import longitudinal_dynamics as longitudinal
 
@@ -118,7 +119,7 @@ def _errors(x0_lateral: Sequence[float], terms: frozenset = TERMS, step_wb: floa
         if k < n_steps:
             x = model.step(x, (Kl @ nl_lat).tolist(), (Kn @ nl_lon).tolist(), step_wb)
             lat, lon = F1 @ lat, F2 @ lon
-    return worst, sink * lateral.U_M_PER_S / lateral.N_HZ, peak
+    return worst, sink * lateral_interface.U_M_PER_S / lateral_interface.N_HZ, peak
 
 
 @dataclass(frozen=True)

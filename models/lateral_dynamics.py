@@ -20,19 +20,17 @@ Eq. (10) gives back Eq. (12) exactly, up to floating-point rounding.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping
 
-from ..core.errors import DroneflyError
-from .linear import Rows, ZohModel, finite_rows
 from .lateral import INERTIAS_SECT21
+from .linear import ModelParameterError, PlantParameters, Rows, ZohModel, as_arrays, finite_rows
 
 __all__ = [
     "A1_EQ12",
     "CONTROL_DERIVATIVES_TABLE1",
     "LateralModel",
     "LateralParameters",
-    "ModelParameterError",
     "default_parameters",
     "derive_stability_derivatives",
     "system_matrices",
@@ -65,10 +63,6 @@ CONTROL_DERIVATIVES_TABLE1: dict[str, float] = {
     "L_alpha_2a_plus": 0.014,
     "N_alpha_2a_plus": -4.922,
 }
-
-
-class ModelParameterError(DroneflyError):
-    """A model parameter is not finite or not physical."""
 
 
 def derive_stability_derivatives(
@@ -105,7 +99,7 @@ def _rows_of(M: Any) -> Rows:
 
 
 @dataclass(frozen=True)
-class LateralParameters:
+class LateralParameters(PlantParameters):
     """Non-dimensional parameters of Eq. (9) (all unit 1)."""
 
     m_plus: float
@@ -132,16 +126,8 @@ class LateralParameters:
     L_alpha_2a_plus: float
     N_alpha_2a_plus: float
 
-    @classmethod
-    def names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
-
-    def validate(self) -> None:
-        """Raise :class:`ModelParameterError` naming the first bad value."""
-        for name in self.names():
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise ModelParameterError(f"{name} = {value!r} is not finite")
+    def check_physical(self) -> None:
+        """Raise :class:`ModelParameterError` for finite values that are not physical."""
         if self.m_plus <= 0.0:
             raise ModelParameterError(f"m_plus = {self.m_plus!r} must be > 0")
         if self.Ix_plus <= 0.0 or self.Iz_plus <= 0.0:
@@ -158,9 +144,6 @@ class LateralParameters:
                 f"Ix_plus*Iz_plus = {self.Ix_plus * self.Iz_plus!r} must exceed "
                 f"Ixz_plus^2 = {self.Ixz_plus * self.Ixz_plus!r} (Ixz_plus = {self.Ixz_plus!r})"
             )
-
-    def with_values(self, **changes: float) -> "LateralParameters":
-        return replace(self, **changes)
 
 
 def default_parameters() -> LateralParameters:
@@ -220,10 +203,7 @@ def system_rows(p: LateralParameters) -> tuple[Rows, Rows]:
 def system_matrices(p: LateralParameters) -> "tuple[Array, Array]":
     """A1 (4 x 4, per wing beat) and B1 (4 x 3, per wing beat per rad) of :func:`system_rows`
     as numpy arrays, for the analyses (imports numpy)."""
-    import numpy as np
-
-    A, B = system_rows(p)
-    return np.array(A), np.array(B)
+    return as_arrays(*system_rows(p))
 
 
 class LateralModel(ZohModel):

@@ -14,9 +14,12 @@ and imports numpy (and scipy) only when called; an FMU never calls it.
 from __future__ import annotations
 
 import math
+from dataclasses import fields, replace
 from operator import mul
-from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple, TypeVar
 
+from ..core.errors import DroneflyError
 from .axes import dot
 from .lateral import sort_eigenvalues
 from .linear_algebra import expm, norm1
@@ -27,7 +30,8 @@ if TYPE_CHECKING:
 
     Array = NDArray[np.float64]
 
-__all__ = ["Rows", "Stepper", "ZohModel", "discretize_zoh", "finite_rows", "zoh_rows"]
+__all__ = ["ModelParameterError", "PlantParameters", "Rows", "Stepper", "ZohModel", "as_arrays",
+           "discretize_zoh", "finite_rows", "zoh_rows"]
 
 #: a matrix as a tuple of rows of floats
 Rows = Tuple[Tuple[float, ...], ...]  # (typing.Tuple: Python 3.8 hosts)
@@ -36,6 +40,49 @@ Product = Callable[[Sequence[float], Sequence[float]], List[float]]
 #: (x, value table) -> the next x (its scaled values written to the table), or None if a value
 #: is not finite
 Stepper = Callable[[Sequence[float], List[float]], "List[float] | None"]
+_P = TypeVar("_P", bound="PlantParameters")
+
+
+class ModelParameterError(DroneflyError):
+    """A model parameter is not finite or not physical."""
+
+
+class PlantParameters:
+    """What the linear plants' parameter sets (frozen dataclasses) share: their names, the
+    check that every value is finite (then :meth:`check_physical`), and a changed copy."""
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """The parameter names, in the order of the fields."""
+        return tuple(f.name for f in fields(cls))  # type: ignore[arg-type]
+
+    def validate(self) -> None:
+        """Raise :class:`ModelParameterError` naming the first bad value."""
+        for name in self.names():
+            value = getattr(self, name)
+            if not math.isfinite(value):
+                raise ModelParameterError(f"{name} = {value!r} is not finite")
+        self.check_physical()
+
+    def check_physical(self) -> None:
+        """Raise :class:`ModelParameterError` for finite values that are not physical."""
+
+    def with_values(self: _P, **changes: float) -> _P:
+        """A copy with ``changes`` (parameter name -> value); not validated."""
+        return replace(self, **changes)  # type: ignore[type-var]
+
+
+def _numpy() -> ModuleType:
+    """numpy, for the analyses' API only: what the FMUs run is standard-library Python."""
+    import numpy  # the FMU runtime needs no numpy: imported when an analysis asks for arrays
+
+    return numpy
+
+
+def as_arrays(*matrices: Any) -> "tuple[Array, ...]":
+    """Each matrix (rows of floats) as a float numpy array, for the analyses."""
+    np = _numpy()
+    return tuple(np.array(M, dtype=float) for M in matrices)
 
 
 def _rows(M: Any) -> Rows:
@@ -151,9 +198,9 @@ def discretize_zoh(A: "Array", B: "Array", h: float) -> "tuple[Array, Array]":
     Returns ``(Phi, Gamma)`` with x[k+1] = Phi x[k] + Gamma u[k], from the
     matrix exponential of the augmented matrix [[A, B], [0, 0]] h.
     """
-    import numpy as np
-    from scipy.linalg import expm as scipy_expm
+    from scipy.linalg import expm as scipy_expm  # the analyses' API only, as :func:`_numpy`
 
+    np = _numpy()
     n, m = B.shape
     aug = np.zeros((n + m, n + m))
     aug[:n, :n] = A * h
@@ -192,16 +239,12 @@ class ZohModel:
     @property
     def A(self) -> "Array":
         """The system matrix as a numpy array (a new array per access)."""
-        import numpy as np
-
-        return np.array(self.A_rows, dtype=float)
+        return as_arrays(self.A_rows)[0]
 
     @property
     def B(self) -> "Array":
         """The control matrix as a numpy array (a new array per access)."""
-        import numpy as np
-
-        return np.array(self.B_rows, dtype=float)
+        return as_arrays(self.B_rows)[0]
 
     def transition_rows(self, h: float) -> tuple[Rows, Rows]:
         """(Phi, Gamma) for a step of ``h`` as tuples of rows (cached; :func:`zoh_rows`)."""
@@ -217,12 +260,10 @@ class ZohModel:
         :meth:`transition_rows`)."""
         hit = self._cache.get(h)
         if hit is None:
-            import numpy as np
-
             if len(self._cache) >= self._CACHE_SIZE:
                 self._cache.pop(next(iter(self._cache)))
-            Phi, Gamma = self.transition_rows(h)
-            hit = self._cache[h] = (np.array(Phi), np.array(Gamma))
+            Phi, Gamma = as_arrays(*self.transition_rows(h))
+            hit = self._cache[h] = (Phi, Gamma)
         return hit
 
     def step(self, x: "Array", u: "Array", h: float) -> "Array":
@@ -297,6 +338,5 @@ class ZohModel:
 
     def eigenvalues(self) -> "Array":
         """Eigenvalues of A, sorted by descending real part, then imaginary part (numpy)."""
-        import numpy as np
-
+        np = _numpy()
         return np.array(sort_eigenvalues(np.linalg.eigvals(self.A)))

@@ -24,13 +24,11 @@ pitch from a horizontal x-axis.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Sequence
 
-from ..core.errors import DroneflyError
 from .lateral import INERTIAS_SECT21
-from .linear import Rows, ZohModel, finite_rows
+from .linear import ModelParameterError, PlantParameters, Rows, ZohModel, as_arrays, finite_rows
 from .longitudinal import CONTROL_NAMES, IY_PLUS
 
 __all__ = [
@@ -38,7 +36,6 @@ __all__ = [
     "B_SECT35",
     "LongitudinalModel",
     "LongitudinalParameters",
-    "ModelParameterError",
     "default_parameters",
     "derive_derivatives",
     "parameter_dependencies",
@@ -78,12 +75,8 @@ _A_NAMES = tuple(tuple(f"{F}{s}_plus" for s in _STATES) for F in _FORCES)
 _B_NAMES = tuple(tuple(f"{F}_{c}_plus" for c in _CONTROLS) for F in _FORCES)
 
 
-class ModelParameterError(DroneflyError):
-    """A longitudinal model parameter is not finite or not physical."""
-
-
 @dataclass(frozen=True)
-class LongitudinalParameters:
+class LongitudinalParameters(PlantParameters):
     """Non-dimensional parameters of the longitudinal equations (all unit 1)."""
 
     m_plus: float
@@ -111,22 +104,11 @@ class LongitudinalParameters:
     Z_alpha_2_plus: float
     M_alpha_2_plus: float
 
-    @classmethod
-    def names(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(cls))
-
-    def validate(self) -> None:
-        """Raise :class:`ModelParameterError` naming the first bad value."""
-        for name in self.names():
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise ModelParameterError(f"{name} = {value!r} is not finite")
+    def check_physical(self) -> None:
+        """Raise :class:`ModelParameterError` for finite values that are not physical."""
         for name in ("m_plus", "Iy_plus"):
             if getattr(self, name) <= 0.0:
                 raise ModelParameterError(f"{name} = {getattr(self, name)!r} must be > 0")
-
-    def with_values(self, **changes: float) -> "LongitudinalParameters":
-        return replace(self, **changes)
 
 
 def derive_derivatives(A: Sequence[Sequence[float]] = A_SECT35,
@@ -183,10 +165,7 @@ def system_rows(p: LongitudinalParameters) -> tuple[Rows, Rows]:
 
 def system_matrices(p: LongitudinalParameters) -> "tuple[Array, Array]":
     """A and B of :func:`system_rows` as numpy arrays, for the analyses (imports numpy)."""
-    import numpy as np
-
-    A, B = system_rows(p)
-    return np.array(A), np.array(B)
+    return as_arrays(*system_rows(p))
 
 
 class LongitudinalModel(ZohModel):

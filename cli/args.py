@@ -14,7 +14,7 @@ import re
 from typing import Any, Callable
 
 from ..core.errors import DroneflyError
-from ..harness.sweep.cases import parse_floats, parse_int
+from ..harness.sweep.parse import parse_floats, parse_int
 
 __all__ = ["converter", "finite", "floats_arg", "int_arg", "parse_gains",
            "parse_names", "parse_setting", "parse_x0", "positive"]

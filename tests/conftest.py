@@ -7,12 +7,13 @@ the first would prove nothing).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 from pathlib import Path
+from typing import Any, Callable, Iterator
 
 import pytest
-from fmu_helpers import opened
 
 
 def _blas_kernels() -> list[str]:
@@ -78,12 +79,28 @@ def built_fmus3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 @pytest.fixture(scope="session")
-def plant(built_fmus):
-    """The built DroneFlyLateral, read and extracted once."""
-    yield from opened(built_fmus["DroneFlyLateral"])
+def opened_fmus(built_fmus) -> Iterator[Callable[[str], Any]]:
+    """The built FMUs by model name, each read and extracted once, on first use."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    with contextlib.ExitStack() as stack:
+        cache: dict[str, Any] = {}
+
+        def get(name: str) -> Any:
+            if name not in cache:
+                cache[name] = stack.enter_context(FMU(built_fmus[name]))
+            return cache[name]
+
+        yield get
 
 
 @pytest.fixture(scope="session")
-def controller(built_fmus):
+def plant(opened_fmus):
+    """The built DroneFlyLateral, read and extracted once."""
+    return opened_fmus("DroneFlyLateral")
+
+
+@pytest.fixture(scope="session")
+def controller(opened_fmus):
     """The built StateFeedback, read and extracted once."""
-    yield from opened(built_fmus["StateFeedback"])
+    return opened_fmus("StateFeedback")

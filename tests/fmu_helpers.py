@@ -4,18 +4,11 @@ from __future__ import annotations
 
 import zipfile
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 from xml.etree import ElementTree as ET
 
-from dronefly.harness.cosim.fmu import FMU
 
-__all__ = ["build_crashing_fmu", "model_description", "opened", "set_values", "start"]
-
-
-def opened(path: Path) -> Iterator[FMU]:
-    """A fixture body: the FMU at ``path`` read and extracted, deleted after the last test."""
-    with FMU(path) as fmu:
-        yield fmu
+__all__ = ["build_crashing_fmu", "model_description", "set_values", "start"]
 
 
 def model_description(path: Path) -> ET.Element:

@@ -24,7 +24,7 @@ from dronefly.harness.paper import longitudinal as lon
 from dronefly.models.longitudinal import CONTROL_NAMES, IY_PLUS, LONGITUDINAL, STATE_NAMES
 from dronefly.models import longitudinal_dynamics as M
 
-from fmu_helpers import model_description, opened, set_values, start
+from fmu_helpers import model_description, set_values, start
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
@@ -187,13 +187,13 @@ def test_eigenvalues_against_eq31(printed, AB):
 
 # --- the plant FMU ---------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def plant_fmu(built_fmus):
-    yield from opened(built_fmus["DroneFlyLongitudinal"])
+def plant_fmu(opened_fmus):
+    return opened_fmus("DroneFlyLongitudinal")
 
 
 @pytest.fixture(scope="module")
-def controller_fmu(built_fmus):
-    yield from opened(built_fmus["StateFeedbackLongitudinal"])
+def controller_fmu(opened_fmus):
+    return opened_fmus("StateFeedbackLongitudinal")
 
 
 def _reference_U() -> float:

@@ -13,7 +13,6 @@ from typing import Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import place_poles
 
 from ...core.errors import DroneflyError
 from ...models import lateral_dynamics as model
@@ -197,6 +196,8 @@ def ackermann_gains(A: ArrayLike, B: ArrayLike, targets: Iterable[complex], u: i
 
 def place_poles_gains(A: ArrayLike, B: ArrayLike, targets: Iterable[complex], u: int | str = 0) -> Array:
     """:func:`scipy.signal.place_poles` cross-check, returned as k for u = k x."""
+    from scipy.signal import place_poles  # 0.8 s to import: only for this cross-check
+
     b = _column(B, u)
     t = validate_targets(targets, len(b))
     _check_controllable(A, b, repr(u))

@@ -29,7 +29,6 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import eig
-from scipy.optimize import brentq
 
 from ..cosim.stability import classify, rates_from_transition
 from .loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
@@ -182,6 +181,8 @@ def sampled_margin(loop: FeedbackLoop, Ts: float = 1.0, tau_limit: float = 40.0,
     while whole * Ts < tau_limit and excess_rate(loop, Ts, (whole + 1) * Ts)[0] <= 0.0:
         whole += 1
     grid = np.linspace(0.0, tau_limit, int(math.ceil(tau_limit / Ts * per_sample)) + 1)
+    from scipy.optimize import brentq  # 0.2 s to import: for margins, not for a loop's matrix
+
     prev = excess_rate(loop, Ts, 0.0)[0]
     if prev > 0.0:
         return SampledMargin(Ts, whole, 0.0, excess_rate(loop, Ts, 0.0)[1])

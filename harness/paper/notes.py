@@ -75,11 +75,11 @@ class Notes:
     def _convention(self, src: str, qty: str, x: float) -> str:
         a = self.alt
         if src in ("Eq. (12)", "Eq. (24)") and qty.startswith("A1"):
-            return ("Round trip: model.py recovers the stability derivatives from Eq. (12) and the Sect. 2.1 "
+            return ("Round trip: lateral_dynamics.py recovers the stability derivatives from Eq. (12) and the Sect. 2.1 "
                     "inertias and rebuilds A1 by Eq. (10); this checks that inversion, not an independent "
                     "source." + (" Eq. (24) reprints Eq. (12)." if src == "Eq. (24)" else ""))
         if src == "Sect. 3.5":
-            return ("Round trip: plant_longitudinal/model.py recovers the derivatives from the printed A and "
+            return ("Round trip: models/longitudinal_dynamics.py recovers the derivatives from the printed A and "
                     "B with m+ (Sect. 2.1) and Iy+ (Sect. 2.4's Iy scaled as the printed Ix+), g+ = -A(1,4), "
                     "and rebuilds A and B; this checks that inversion, not an independent source.")
         if src == "Eq. (31)" and qty.startswith("eigenvalue"):
@@ -126,7 +126,7 @@ class Notes:
                     "values, b from Eq. (24). All four Eqs. (26a)-(26d) are solved; the text's '(i.e. Eqs. "
                     "(26a) and (26b))' is a typo, since four gains need four equations. place_poles and "
                     f"Ackermann agree to {format_bound(dev)} (round-off). Exact gains for the exact eigenvalues of Eq. (12): "
-                    f"{format_vector(a['k_exact'], 6)} with model.py's b, {format_vector(a['k_exact_b24'], 6)} with Eq. (24)'s b.")
+                    f"{format_vector(a['k_exact'], 6)} with lateral_dynamics.py's b, {format_vector(a['k_exact_b24'], 6)} with Eq. (24)'s b.")
         return ""
 
     def _special(self, src: str, qty: str, text: str, x: float, iv) -> tuple[str, str] | None:
@@ -141,7 +141,7 @@ class Notes:
             g24 = a["G24"][r, j - 1]
             return ("error in print", f"Error in print (exponent): the k4 coefficient of d equals the k2 "
                     f"coefficient of c (dgamma' = dp+), printed {pv.EQ26['c'][2]} in (26b); the exponent "
-                    f"should be one higher. Computed {x:.5g} (model.py b), {g24:.5g} with Eq. (24)'s b, which matches "
+                    f"should be one higher. Computed {x:.5g} (lateral_dynamics.py b), {g24:.5g} with Eq. (24)'s b, which matches "
                     f"{10 * p:.4g} after the correction; the remaining difference is b's rounding (Eq. 24 rows).")
         if src.startswith("Eq. (26") and not qty.endswith("constant"):
             r, j = "bcde".index(qty[0]), int(qty.split("k")[-1][0])

@@ -25,7 +25,7 @@ def _findings(rows: Sequence[Row]) -> list[str]:
     out += [f"{r.source} {r.quantity}: printed {r.printed}, computed {format_number(r.computed)}. {r.note}"
             for r in rows if r.reason not in ("", "rounding")]
     out.append("Eq. (27) is reproduced to its four decimals only with the paper's own inputs (Eq. 19's "
-               "four-decimal eigenvalues as targets, Eq. 24's b); from model.py's b (Table 1 and the rounded "
+               "four-decimal eigenvalues as targets, Eq. 24's b); from lateral_dynamics.py's b (Table 1 and the rounded "
                "inertias) every gain differs in the 3rd-4th decimal, within the propagated rounding.")
     return out
 
@@ -93,7 +93,7 @@ def render_markdown(rows: Sequence[Row], report: dict, gains: dict) -> str:
                      f"{'yes' if r.match else 'no: ' + r.reason} | {note} |")
     lat, lon = report["lateral"], report["longitudinal"]
     lines += ["", "## Computed matrices", ""]
-    lines += _mat("A1 (model.py)", lat["A1"]) + _mat("B1 (Table 1, Sect. 2.1 inertias)", lat["B1"])
+    lines += _mat("A1 (lateral_dynamics.py)", lat["A1"]) + _mat("B1 (Table 1, Sect. 2.1 inertias)", lat["B1"])
     lines += _mat("M1 (Eq. 20 convention)", lat["modal_eq20_convention"]["M1"])
     lines += _mat("B_ln (Eq. 20 convention)", lat["modal_eq20_convention"]["B_ln"])
     lines += _mat("B_ln (Table 3 scaling, dgamma = 1)", lat["modal_table3_convention"]["B_ln"])

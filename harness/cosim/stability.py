@@ -22,11 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...models import lateral
+from ...models.linear import discretize_zoh
 from ...core.errors import CrossCheckError
 
 __all__ = ["FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TOL_PER_WINGBEAT", "TRAJECTORY_TOL",
            "Identification", "Verdict", "checked", "classify", "cross_check_failures", "identify",
-           "rates_from_transition", "relative_deviation", "sort_eigenvalues", "unit_start_values",
+           "rates_from_transition", "relative_deviation", "sampled_closed_loop", "sort_eigenvalues",
+           "unit_start_values",
            "verdict_of"]
 
 TOL_PER_WINGBEAT = 1e-3
@@ -126,6 +128,18 @@ class Verdict:
     def verdict(self) -> str:
         """``unstable``, ``neutral`` or ``stable`` (:func:`classify`)."""
         return self.identification.verdict
+
+
+def sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, step_wb: float,
+                        jacobi: bool) -> np.ndarray:
+    """The exact transition of the sampled-data loop over one step (zero-order hold,
+    u_k = K x_k): Phi + Gamma K on x (Gauss-Seidel), or on z = (x_k, x_(k-1)) with the control
+    of the previous point (Jacobi: [[Phi, Gamma K], [I, 0]])."""
+    Phi, Gamma = discretize_zoh(A, B, step_wb)
+    if not jacobi:
+        return Phi + Gamma @ K
+    n = len(A)
+    return np.block([[Phi, Gamma @ K], [np.eye(n), np.zeros((n, n))]])
 
 
 def unit_start_values(scale: np.ndarray, prefix: str = "") -> list[dict[str, float]]:

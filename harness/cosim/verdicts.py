@@ -28,10 +28,10 @@ from typing import Any
 import numpy as np
 
 from .calculated import calculated_matrix
-from .stability import Identification, identify, rates_from_transition, sort_eigenvalues
+from .stability import (Identification, identify, rates_from_transition, sampled_closed_loop,
+                        sort_eigenvalues)
 from .master import CoSimError
 from .system_master import SystemMaster
-from ...models.linear import discretize_zoh
 
 __all__ = ["AxisVerdict", "NotIdentified", "PlantInfo", "axis_verdicts", "find_plants",
            "open_loop_verdicts"]
@@ -235,9 +235,5 @@ def _verdict(master: SystemMaster, p: PlantInfo, plants: list[PlantInfo], step_w
         k = len(p.A)
         B = np.zeros((k, 0)) if p.B is None else p.B
         cont = sort_eigenvalues(np.linalg.eigvals(p.A + B @ K))
-        Phi, Gamma = discretize_zoh(p.A, B, step_wb)
-        F = Phi + Gamma @ K
-        if jacobi:
-            F = np.block([[Phi, Gamma @ K], [np.eye(k), np.zeros((k, k))]])
-        sampled = rates_from_transition(F, step_wb)
+        sampled = rates_from_transition(sampled_closed_loop(p.A, B, K, step_wb, jacobi), step_wb)
     return AxisVerdict(p, ident, cont, sampled)

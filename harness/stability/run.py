@@ -18,7 +18,6 @@ from ...builder.build import project_fmus
 from ...core.files import write_run_files
 from ...models.feedback import default_gains, gain_name, integral_gain_name
 from ...models.lateral import STATE_NAMES, plant_scales
-from ...models.linear import discretize_zoh
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
@@ -26,7 +25,7 @@ from ..cosim.params import resolve_assignments, scale_ratios
 from ..cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
                                TRAJECTORY_TOL, Identification, classify, cross_check_failures,
                                identify, rates_from_transition, relative_deviation,
-                               sort_eigenvalues)
+                               sampled_closed_loop, sort_eigenvalues)
 from ..latency.grid import GridTiming
 from ..latency.identify import identify_delayed
 from ..latency.loop import FeedbackLoop, LatencyInputError
@@ -183,17 +182,6 @@ def _read_plant_matrices(loop: Loop, values: Mapping[str, Any]) -> tuple[np.ndar
         raise CoSimError(f"the plant FMU {str(loop.plant.path)!r} does not expose its A and B "
                          "as calculated parameters A[i,j], B[i,j]")
     return matrices
-
-
-def _sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, h: float,
-                         jacobi: bool) -> np.ndarray:
-    Phi, Gamma = discretize_zoh(A, B, h)
-    if not jacobi:
-        return Phi + Gamma @ K
-    n = len(A)
-    F = np.zeros((2 * n, 2 * n))
-    F[:n, :n], F[:n, n:], F[n:, :n] = Phi, Gamma @ K, np.eye(n)
-    return F
 
 
 def cosimulate(plant: str | Path | None = None, controller: str | Path | None = None, *,
@@ -423,7 +411,7 @@ def _identify_plain(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str, 
         xs = np.column_stack([r.column(s) for s in STATE_NAMES]) / scale
         id_runs.append(np.vstack([x_prev, xs]) if jacobi else xs)
     ident = identify(id_runs, step_wb, delay=jacobi)
-    F = _sampled_closed_loop(A, B, K, step_wb, jacobi)
+    F = sampled_closed_loop(A, B, K, step_wb, jacobi)
     return ident, F, rates_from_transition(F, step_wb)
 
 

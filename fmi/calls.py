@@ -4,9 +4,11 @@ Functions of the slave (``self``), bound as methods in ``SlaveBase``: the call-s
 table, experiment setup, initialization, termination and the communication step. The FMI
 version only changes names and one status: the slave class says which through
 ``FMI`` (``"fmi2"`` or ``"fmi3"``: the prefix of the call names in messages), ``FMI_TEXT``
-(``"FMI 2.0"``) and ``ILLEGAL_STATUS``, the status of a step refused for an illegal call
-(pythonfmu 0.7.0 can only return fmi2Discard from doStep; FMI 3.0 asks for fmi3Error, which
-pythonfmu3 can return). A step refused for a bad value is always Discard.
+(``"FMI 2.0"``) and ``ILLEGAL_STATUS``, the status of a step refused for an illegal call or an
+illegal argument (a step size that is not > 0, a communication point that is not finite or
+does not continue, a step past the stop time): FMI 3.0 2.2.4 asks for fmi3Error, which
+pythonfmu3 can return; pythonfmu 0.7.0 can only return fmi2Discard from doStep. Either way
+the instance is unchanged. A step refused for a bad value (a NaN input) is always Discard.
 
 Shipped inside every FMU with the rest of :mod:`dronefly.fmi`; imports only the standard library
 and pythonfmu.
@@ -117,9 +119,10 @@ def do_step_status(self: Any, current_time: float, step_size: float) -> int:
                 and step_size > 0.0):
             if not math.isfinite(current_time):
                 return self._refuse(f"currentCommunicationPoint = {current_time!r} s must be "
-                                    "finite")
+                                    "finite", self.ILLEGAL_STATUS)
             return self._refuse(f"communicationStepSize = {step_size!r} s must be finite and "
-                                f"> 0, with a finite end (from {current_time!r} s)")
+                                f"> 0, with a finite end (from {current_time!r} s)",
+                                self.ILLEGAL_STATUS)
         # float accumulation of the master's time: relative to the times, never to the step
         last, stop = self._time, self._stop_time
         if current_time != last or stop is not None:  # (else both checks pass)
@@ -127,10 +130,11 @@ def do_step_status(self: Any, current_time: float, step_size: float) -> int:
             if not (abs(current_time - last) <= tol):
                 return self._refuse(
                     f"currentCommunicationPoint = {current_time!r} s does not continue "
-                    f"from the last communication point {self._time!r} s")
+                    f"from the last communication point {self._time!r} s", self.ILLEGAL_STATUS)
             if stop is not None and end > stop + tol:
                 return self._refuse(f"a step of {step_size!r} s from {current_time!r} s goes "
-                                    f"past stopTime = {stop!r} s ({self.FMI}SetupExperiment)")
+                                    f"past stopTime = {stop!r} s ({self.FMI}SetupExperiment)",
+                                    self.ILLEGAL_STATUS)
         if not self._initialized:
             self._initialize()
             self._initialized = True

@@ -409,18 +409,21 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     assert sorted(accounted) == sorted(order), out
 
 
-def test_our_fmi3_fmus_under_the_standard_profile(built_fmus3):
-    """A finding of the standard profile on our own FMI 3.0 FMUs: a step size of 0 is refused
-    with fmi3Discard (our promise: a bad value is Discard), where FMI 3.0 2.2.4 says an FMU
-    that detects an illegal argument must return fmi3Error. The dronefly profile, which our
-    tests and `dronefly check` use on them, asks for Discard and passes."""
+@pytest.mark.parametrize("name", ["StateFeedback", "DroneFlyLateral"])
+def test_our_fmi3_fmus_pass_the_standard_profile(built_fmus3, name):
+    """Our FMI 3.0 FMUs under the standard's profile as well as ours: an illegal step size (0,
+    < 0) is fmi3Error with a logged message (FMI 3.0 2.2.4), and fmi3Reset recovers the
+    instance. The first step after initialization may start anywhere: pythonfmu3 does not pass
+    the start time to the slave (docs/fmi3.md), so that case is OK, a warning of the check."""
     from dronefly.harness.compliance.checker import CheckOptions
     from dronefly.harness.compliance.suite import check_fmu
 
-    fmu = built_fmus3["StateFeedback"]
-    std = check_fmu(fmu, fuzz=False, isolate=False,
-                    options=CheckOptions(profile="standard", only=("bad-input",)))
-    (c,) = std.checks
-    assert not c.passed and "returned fmi3Discard; FMI 3.0 2.2.4 requires fmi3Error" in c.detail
-    ours = check_fmu(fmu, fuzz=False, isolate=False, options=CheckOptions(only=("bad-input",)))
+    std = check_fmu(built_fmus3[name], fuzz=False, isolate=False,
+                    options=CheckOptions(profile="standard"))
+    assert std.profile == "standard" and std.passed, std.checks
+    (bad,) = [c for c in std.checks if c.name == "bad-input"]
+    assert bad.detail.count(": Error") == 2 and "communicationStepSize = 0.0: Error" in bad.detail
+    assert "currentCommunicationPoint" in bad.warning and "returned OK" in bad.warning
+    ours = check_fmu(built_fmus3[name], fuzz=False, isolate=False,
+                     options=CheckOptions(only=("bad-input",)))
     assert ours.profile == "dronefly" and ours.passed

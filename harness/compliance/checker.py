@@ -10,9 +10,7 @@ its section of FMI 2.0 and of FMI 3.0). A check is run under a *profile*:
   Discard and a logged message naming the value; every refusal logged in our wording; the
   instance continues after a refused step; corrupt states refused; outputs that respond to
   the inputs; the fuzz), with the standard's other checks. Chosen automatically for FMUs
-  whose ``generationTool`` is dronefly's. Where our promise differs from FMI 3.0 (a
-  non-positive step size answered fmi3Discard, not fmi3Error), ``bad-input`` holds our FMUs
-  to the promise; ``--profile standard`` shows the difference.
+  whose ``generationTool`` is dronefly's.
 
 Checks (FMI 3.0 FMUs run the same ones through fmpy's FMU3Slave, plus those of
 :mod:`.fmi3checks`):

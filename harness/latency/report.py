@@ -22,6 +22,7 @@ from .sampled import Response, SampledMargin, excess_rate, response, sampled_mar
 from ..cosim.stability import classify
 from ..paper.analysis import lateral_system
 from ..paper.design import lqr_gains
+from ..paper.rows import markdown_table
 from ...models.lateral import CONTROL_NAMES, N_HZ
 
 __all__ = ["COST_DELAYS_MS", "MarginRow", "ROLL", "Redesign", "TARGETS_MS", "cost", "cost_table",
@@ -157,45 +158,43 @@ _HOW = {"hopf": "pair at +/- i {w} /wb", "origin": "real root through s = 0",
 
 
 def margin_table(rows: list[MarginRow]) -> list[str]:
-    out = ["| design | k (dv+, dp+, dr+, dgamma) | kI | (a) wb | (a) ms | (a) lost by | "
-           "(b) whole wb | (b) wb | (b) ms |", "|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
+    def cells(r: MarginRow) -> list[str]:
         k = ", ".join(f"{v:.4f}" for v in r.loop.K[0])
         ki = f"{r.loop.KI[0, 3]:.4f}" if r.loop.integrated else "-"
         w = r.continuous.crossing.omega if r.continuous.crossing else 0.0
         how = _HOW[r.continuous.kind].format(w=f"{w:.4f}")
-        out.append(f"| {r.loop.name} | {k} | {ki} | {_f(r.continuous.tau, 3)} | "
-                   f"{_f(r.continuous.ms(N_HZ), 1)} | {how} | {r.sampled.whole} | "
-                   f"{_f(r.sampled.tau, 3)} | {_f(r.sampled.ms(N_HZ), 1)} |")
-    return out
+        return [r.loop.name, k, ki, _f(r.continuous.tau, 3), _f(r.continuous.ms(N_HZ), 1), how,
+                str(r.sampled.whole), _f(r.sampled.tau, 3), _f(r.sampled.ms(N_HZ), 1)]
+
+    return markdown_table(["design", "k (dv+, dp+, dr+, dgamma)", "kI", "(a) wb", "(a) ms",
+                           "(a) lost by", "(b) whole wb", "(b) wb", "(b) ms"], map(cells, rows))
 
 
 def cost_table() -> list[str]:
-    head = " | ".join(f"{d:g} ms ({ms_to_wb(d):.2f} wb)" for d in COST_DELAYS_MS)
-    out = [f"| design | {head} |", "|---" * (len(COST_DELAYS_MS) + 1) + "|"]
-    for name in DESIGNS:
-        loop = design(name)
-        cells = []
+    def cells(loop: FeedbackLoop) -> list[str]:
+        out = [loop.name]
         for d in COST_DELAYS_MS:
             verdict, r = cost(loop, d)
-            cells.append("unstable" if r is None else
-                         f"{verdict}: {r.peak_control:.3f} rad, {_rec(r)}")
-        out.append(f"| {loop.name} | " + " | ".join(cells) + " |")
-    return out
+            out.append("unstable" if r is None else
+                       f"{verdict}: {r.peak_control:.3f} rad, {_rec(r)}")
+        return out
+
+    head = [f"{d:g} ms ({ms_to_wb(d):.2f} wb)" for d in COST_DELAYS_MS]
+    return markdown_table(["design", *head], (cells(design(name)) for name in DESIGNS))
 
 
 def redesign_table(rows: list[Redesign]) -> list[str]:
-    out = ["| family | margin (b) | factor | k (dv+, dp+, dr+, dgamma) | no delay: peak, recovery | "
-           "half that delay: peak, recovery |", "|---|---|---|---|---|---|"]
-    for r in rows:
+    def cells(r: Redesign) -> list[str]:
         if math.isnan(r.factor):
-            out.append(f"| {r.family} | {r.target_ms:g} ms | not in the bracket | - | - | - |")
-            continue
-        k = ", ".join(f"{v:.3f}" for v in r.gains)
-        out.append(f"| {r.family} | {r.target_ms:g} ms | {r.factor:.4g} | {k} | "
-                   f"{r.undelayed.peak_control:.3f} rad, {_rec(r.undelayed)} | "
-                   f"{r.half.peak_control:.3f} rad, {_rec(r.half)} |")
-    return out
+            return [r.family, f"{r.target_ms:g} ms", "not in the bracket", "-", "-", "-"]
+        return [r.family, f"{r.target_ms:g} ms", f"{r.factor:.4g}",
+                ", ".join(f"{v:.3f}" for v in r.gains),
+                f"{r.undelayed.peak_control:.3f} rad, {_rec(r.undelayed)}",
+                f"{r.half.peak_control:.3f} rad, {_rec(r.half)}"]
+
+    return markdown_table(["family", "margin (b)", "factor", "k (dv+, dp+, dr+, dgamma)",
+                           "no delay: peak, recovery", "half that delay: peak, recovery"],
+                          map(cells, rows))
 
 
 def markdown() -> dict[str, str]:

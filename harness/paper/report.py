@@ -8,7 +8,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .rows import Row, format_number, format_vector, summary
+from .rows import Row, format_number, format_vector, markdown_table, summary
 
 __all__ = ["render", "render_markdown", "render_text"]
 
@@ -82,15 +82,15 @@ def render_markdown(rows: Sequence[Row], report: dict, gains: dict) -> str:
     if "custom_design" in report:  # what --targets asked for, first
         lines[-2:-2] = ["## Design for the given targets", "", *_custom_design(report)]
     lines += [f"- {f}" for f in _findings(rows)]
-    lines += ["", "## Table", "", "| source | quantity | printed | computed | match | note |",
-              "|---|---|---|---|---|---|"]
-    last = ""
+    table, last = [], ""
     for r in rows:
         note = "as above" if r.note and r.note == last else r.note
         last = r.note
         q, note = (t.replace("|", "\\|") for t in (r.quantity, note))
-        lines.append(f"| {r.source} | {q} | {r.printed} | {format_number(r.computed)} | "
-                     f"{'yes' if r.match else 'no: ' + r.reason} | {note} |")
+        table.append([r.source, q, r.printed, format_number(r.computed),
+                      "yes" if r.match else "no: " + r.reason, note])
+    lines += ["", "## Table", "", *markdown_table(
+        ["source", "quantity", "printed", "computed", "match", "note"], table)]
     lat, lon = report["lateral"], report["longitudinal"]
     lines += ["", "## Computed matrices", ""]
     lines += _mat("A1 (lateral_dynamics.py)", lat["A1"]) + _mat("B1 (Table 1, Sect. 2.1 inertias)", lat["B1"])
@@ -101,14 +101,17 @@ def render_markdown(rows: Sequence[Row], report: dict, gains: dict) -> str:
     lines += _mat("Longitudinal A_nn", lon["A_nn"]) + _mat("Longitudinal B_n", lon["B_n"])
     lines += ["## Gains", ""] + [f"- {k}: `{format_vector(np.array(v), 6)}`" for k, v in gains.items()]
     lines += ["", "## Single-input designs", "", "Peak |u| after a pure 0.5 rad roll and after 0.5 x the "
-              "mode-1 eigenvector (the Sect. 3.4 argument), 100 wing beats.", "",
-              "| input | method | k | closed-loop eigenvalues | peak roll (deg) | peak mode 1 (deg) |",
-              "|---|---|---|---|---|---|"]
+              "mode-1 eigenvector (the Sect. 3.4 argument), 100 wing beats.", ""]
+    designs = []
     for d in report["designs"]:
-        ev = ", ".join(f"{re:.4f}{im:+.4f}i" if im else f"{re:.4f}" for re, im in d["closed_loop_eigenvalues"])
+        ev = ", ".join(f"{re:.4f}{im:+.4f}i" if im else f"{re:.4f}"
+                       for re, im in d["closed_loop_eigenvalues"])
         r = d["response"]
-        lines.append(f"| {d['input']} | {d['method']} | {format_vector(np.array(d['gains']))} | {ev} | "
-                     f"{r['roll']['peak_control_deg']:.2f} | {r['mode1']['peak_control_deg']:.2f} |")
+        designs.append([d["input"], d["method"], format_vector(np.array(d["gains"])), ev,
+                        f"{r['roll']['peak_control_deg']:.2f}",
+                        f"{r['mode1']['peak_control_deg']:.2f}"])
+    lines += markdown_table(["input", "method", "k", "closed-loop eigenvalues", "peak roll (deg)",
+                             "peak mode 1 (deg)"], designs)
     ctl = ", ".join(f"{k}: rank {v['kalman_rank']}" for k, v in lat["controllability"].items())
     return "\n".join(lines + ["", f"Kalman rank (lateral): {ctl}.", ""])
 

@@ -7,11 +7,12 @@ renderings (:mod:`.report`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["NOISE", "Row", "format_bound", "format_number", "format_vector", "summary"]
+__all__ = ["NOISE", "Row", "format_bound", "format_number", "format_vector", "markdown_table",
+           "summary"]
 
 #: Computed values below this magnitude are floating-point noise of structurally zero entries
 #: (their last bits differ between BLAS builds): shown as 0.
@@ -32,6 +33,15 @@ def format_bound(x: float, bound: float = NOISE) -> str:
     it is computed from, and only its size below ``bound`` is the same on every machine.
     """
     return f"< {bound:.0e}" if abs(x) < bound else f"{x:.1e}"
+
+
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
+    """A Markdown table as the documents print it: ``| a | b |`` lines, the header first,
+    then ``|---|---|``, then one line per row (cells as given: escape a ``|`` in them)."""
+    def line(cells: Sequence[str]) -> str:
+        return "| " + " | ".join(cells) + " |"
+
+    return [line(header), "|" + "---|" * len(header), *(line(r) for r in rows)]
 
 
 def format_vector(x: np.ndarray, d: int = 4) -> str:

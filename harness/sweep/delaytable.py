@@ -24,6 +24,7 @@ from ..latency.loop import FeedbackLoop
 from ..latency.sampled import SampledMargin, sampled_margin, sampled_rates
 from ..paper.analysis import lateral_system
 from ..paper.gains import gain_matrix
+from ..paper.rows import markdown_table
 from .cases import CONTROL_BOUND, STATE_BOUNDS_SECT36, SweepSpec
 
 __all__ = ["Cell", "MAP_COMMAND", "MAP_DELAYS_WB", "MAP_PERIODS_WB", "MAP_STEP_WB",
@@ -130,14 +131,12 @@ def table(m: dict | None = None, c: dict | None = None) -> list[str]:
     :data:`TABLE_DELAYS_WB` (verdict; share within the bounds; peak control; roll recovery).
     ``m``, ``c``: :func:`margins` and :func:`cells`, if computed already."""
     m, c = m or margins(), c or cells()
-    head = " | ".join(f"{d:g} wb ({1e3 * d / N_HZ:.1f} ms)" for d in TABLE_DELAYS_WB)
-    out = [f"| gains | sample period | margin (b) | {head} |",
-           "|---" * (3 + len(TABLE_DELAYS_WB)) + "|"]
+    rows = []
     for g in _GAINS:
         for T in MAP_PERIODS_WB:
-            row = " | ".join(_text(c[(g, T, d)]) for d in TABLE_DELAYS_WB)
             period = (f"{T:g} wb ({1e3 * T / N_HZ:.1f} ms)" if T
                       else f"every step ({MAP_STEP_WB:g} wb)")
-            out.append(f"| {g} | {period} | {m[(g, T)].tau:.2f} wb ({m[(g, T)].ms(N_HZ):.1f} ms) "
-                       f"| {row} |")
-    return out
+            rows.append([g, period, f"{m[(g, T)].tau:.2f} wb ({m[(g, T)].ms(N_HZ):.1f} ms)",
+                         *(_text(c[(g, T, d)]) for d in TABLE_DELAYS_WB)])
+    head = [f"{d:g} wb ({1e3 * d / N_HZ:.1f} ms)" for d in TABLE_DELAYS_WB]
+    return markdown_table(["gains", "sample period", "margin (b)", *head], rows)

@@ -94,13 +94,18 @@ def opened_fmus(built_fmus) -> Iterator[Callable[[str], Any]]:
         yield get
 
 
-@pytest.fixture(scope="session")
-def plant(opened_fmus):
-    """The built DroneFlyLateral, read and extracted once."""
-    return opened_fmus("DroneFlyLateral")
+def _opened(model: str) -> Any:
+    """A session fixture: the built FMU ``model``, read and extracted once."""
+
+    @pytest.fixture(scope="session")
+    def fixture(opened_fmus):
+        return opened_fmus(model)
+
+    fixture.__doc__ = f"The built {model}, read and extracted once."
+    return fixture
 
 
-@pytest.fixture(scope="session")
-def controller(opened_fmus):
-    """The built StateFeedback, read and extracted once."""
-    return opened_fmus("StateFeedback")
+plant = _opened("DroneFlyLateral")
+controller = _opened("StateFeedback")
+longitudinal_plant = _opened("DroneFlyLongitudinal")
+longitudinal_controller = _opened("StateFeedbackLongitudinal")

@@ -186,16 +186,6 @@ def test_eigenvalues_against_eq31(printed, AB):
 
 
 # --- the plant FMU ---------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def plant_fmu(opened_fmus):
-    return opened_fmus("DroneFlyLongitudinal")
-
-
-@pytest.fixture(scope="module")
-def controller_fmu(opened_fmus):
-    return opened_fmus("StateFeedbackLongitudinal")
-
-
 def _reference_U() -> float:
     """U = 2 Phi n r2 from Sect. 2.4's data (Phi = 107.1 deg, n = 164 Hz, r2 = 0.55 R, R = 11.2 mm)."""
     return 2 * math.radians(107.1) * 164.0 * 0.55 * 11.2e-3
@@ -214,8 +204,8 @@ def test_fmpy_validate_reports_no_problems(built_fmus, name):
 
 
 @pytest.mark.integration
-def test_fmu_matrices_and_scales(plant_fmu, AB):
-    with plant_fmu.instantiate() as inst:
+def test_fmu_matrices_and_scales(longitudinal_plant, AB):
+    with longitudinal_plant.instantiate() as inst:
         start(inst)
         A = _get(inst, [f"A[{i},{j}]" for i in range(1, 5) for j in range(1, 5)]).reshape(4, 4)
         B = _get(inst, [f"B[{i},{j}]" for i in range(1, 5) for j in range(1, 5)]).reshape(4, 4)
@@ -226,7 +216,7 @@ def test_fmu_matrices_and_scales(plant_fmu, AB):
 
 
 @pytest.mark.integration
-def test_fmu_trajectory_against_solve_ivp(plant_fmu, AB):
+def test_fmu_trajectory_against_solve_ivp(longitudinal_plant, AB):
     """Non-zero initial state, inputs held piecewise constant over the communication steps
     (changed three times): the FMU's outputs against DOP853 (rtol 1e-12) on the dimensional
     equations dx/dt = n S A S^-1 x + n S B u, S = diag(U, U, n, 1), with A, B from the paper."""
@@ -244,7 +234,7 @@ def test_fmu_trajectory_against_solve_ivp(plant_fmu, AB):
         (15.0, [0.0, 0.0, 0.0, 0.0])]
     h_wb = 0.5
     times, fmu_x, ref_x = [0.0], [x0], [x0]
-    with plant_fmu.instantiate() as inst:
+    with longitudinal_plant.instantiate() as inst:
         start(inst, {f"{s}_start": v for s, v in zip(STATES, x0)})
         assert_allclose(_get(inst, STATES), x0, rtol=0, atol=0)
         t, x = 0.0, x0
@@ -270,9 +260,9 @@ def test_fmu_trajectory_against_solve_ivp(plant_fmu, AB):
 
 
 @pytest.mark.integration
-def test_plant_outputs_do_not_depend_on_inputs(plant_fmu):
+def test_plant_outputs_do_not_depend_on_inputs(longitudinal_plant):
     """ModelStructure says no direct feedthrough: setting an input changes no output until doStep."""
-    with plant_fmu.instantiate() as inst:
+    with longitudinal_plant.instantiate() as inst:
         start(inst, {"delta_theta_start": 0.1})
         before = _get(inst, STATES)
         inst.slave.setReal(inst.vrs(CONTROLS), [0.1, -0.1, 0.2, -0.2])
@@ -341,7 +331,7 @@ def _observed_dependencies(fmu, knowns, unknowns, base, delta):
 
 
 @pytest.mark.integration
-def test_plant_model_structure_is_truthful(built_fmus, plant_fmu):
+def test_plant_model_structure_is_truthful(built_fmus, longitudinal_plant):
     """Outputs: no dependencies (no feedthrough). InitialUnknowns: the outputs and the calculated
     A, B; each declared dependency set is exactly what changes the value (perturbation)."""
     root = model_description(built_fmus["DroneFlyLongitudinal"])
@@ -357,7 +347,7 @@ def test_plant_model_structure_is_truthful(built_fmus, plant_fmu):
     unknowns = STATES + calculated
     base = {f"{s}_start": 0.1 for s in STATES} | {  # the two derivatives printed as 0
         "X_Phi_plus": 0.3, "Z_phibar_plus": -0.2}
-    seen = _observed_dependencies(plant_fmu, knowns, unknowns, base,
+    seen = _observed_dependencies(longitudinal_plant, knowns, unknowns, base,
                                   lambda k, v: 1.5 * v if v else 0.37)
     for u in unknowns:
         declared = {name[i] for i in initial[idx[u]]}
@@ -365,7 +355,7 @@ def test_plant_model_structure_is_truthful(built_fmus, plant_fmu):
 
 
 @pytest.mark.integration
-def test_controller_model_structure_is_truthful(built_fmus, controller_fmu):
+def test_controller_model_structure_is_truthful(built_fmus, longitudinal_controller):
     """Outputs u depend on the state inputs x (direct feedthrough); InitialUnknowns also on the
     gains of their row, n, U and the limit: exactly what changes them (perturbation, with and
     without an active limit)."""
@@ -384,10 +374,10 @@ def test_controller_model_structure_is_truthful(built_fmus, controller_fmu):
     u = K @ np.array([0.03, -0.02, 0.04, 0.05])
     knowns = [n for n in idx if n not in CONTROLS + ["saturated", "limit_enabled"]]
     # a zero known (KI[i,j], sensing_delay, sample_period) is set to 0.01 instead
-    free = _observed_dependencies(controller_fmu, knowns, CONTROLS, base,
+    free = _observed_dependencies(longitudinal_controller, knowns, CONTROLS, base,
                                   lambda k, v: 1.25 * v if v else 0.01)
     limited = _observed_dependencies(
-        controller_fmu, ["u_max"], CONTROLS,
+        longitudinal_controller, ["u_max"], CONTROLS,
         base | {"limit_enabled": True, "u_max": 0.5 * np.abs(u).min()}, lambda k, v: 1.25 * v)
     for i, c in enumerate(CONTROLS):
         declared = {name[j] for j in initial[idx[c]]}
@@ -396,7 +386,7 @@ def test_controller_model_structure_is_truthful(built_fmus, controller_fmu):
         assert {L.gain_name(i, j) for j in range(4)} | set(STATES) | {"n", "U",
                                                                      "sensing_delay"} == free[c]
         assert "limit_enabled" in declared
-    with controller_fmu.instantiate() as inst:  # outputs follow the inputs without doStep
+    with longitudinal_controller.instantiate() as inst:  # outputs follow the inputs without doStep
         start(inst, {k: v for k, v in base.items() if k in GAINS})
         for xp in rng.normal(0.0, 0.1, (3, 4)):
             inst.slave.setReal(inst.vrs(STATES), list(LONGITUDINAL.to_dimensional(
@@ -405,13 +395,13 @@ def test_controller_model_structure_is_truthful(built_fmus, controller_fmu):
 
 
 @pytest.mark.integration
-def test_controller_computes_K_x_plus_in_si(controller_fmu):
+def test_controller_computes_K_x_plus_in_si(longitudinal_controller):
     """Default gains = design (b) in the delta_phibar row; u = K x+ with x+ = (du/U, dw/U, dq/n,
     dtheta) computed here, and equal to the FeedbackLaw on the same numbers."""
     U, n = _reference_U(), 164.0
     rng = np.random.default_rng(3)
     xs = rng.normal(0.0, 1.0, (6, 4)) * [0.1 * U, 0.1 * U, 0.1 * n, 0.1]
-    with controller_fmu.instantiate() as inst:
+    with longitudinal_controller.instantiate() as inst:
         start(inst)
         K0 = _get(inst, GAINS).reshape(4, 4)
         assert_allclose(K0, np.array(L.default_longitudinal_gains()), rtol=0, atol=0)
@@ -451,12 +441,12 @@ H = 0.1 / 164.0
     ({"M_phibar_plus": math.inf}, "M_phibar_plus = inf"),
     ({"m_plus": 5e-324}, "is not finite"),  # A = X / m+ overflows
 ])
-def test_plant_bad_value_is_discarded_and_the_instance_recovers(plant_fmu, bad, fragment):
-    with plant_fmu.instantiate() as inst:
+def test_plant_bad_value_is_discarded_and_the_instance_recovers(longitudinal_plant, bad, fragment):
+    with longitudinal_plant.instantiate() as inst:
         start(inst, {"delta_theta_start": 0.1})
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         before = _get(inst, STATES)
-        good = {k: inst.slave.getReal([plant_fmu.vr(k)])[0] for k in bad}
+        good = {k: inst.slave.getReal([longitudinal_plant.vr(k)])[0] for k in bad}
         set_values(inst, bad)
         msg = _discarded(inst, H, H)
         assert fragment in msg, msg
@@ -473,16 +463,17 @@ def test_plant_bad_value_is_discarded_and_the_instance_recovers(plant_fmu, bad, 
     ({"K[3,2]": math.nan}, "K[3,2] = nan"),
     ({"U": 0.0}, "U = 0.0"),
 ])
-def test_controller_bad_value_is_discarded_and_the_instance_recovers(controller_fmu, bad, fragment):
+def test_controller_bad_value_is_discarded_and_the_instance_recovers(longitudinal_controller, bad,
+                                                                    fragment):
     x = [0.01, -0.02, 0.5, 0.05]
     U = _reference_U()
     want = np.array(L.default_longitudinal_gains()) @ (np.array(x) / [U, U, 164.0, 1.0])
-    with controller_fmu.instantiate() as inst:
+    with longitudinal_controller.instantiate() as inst:
         start(inst, dict(zip(STATES, x)))
         inst.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=H)
         before = _get(inst, CONTROLS)
         assert_allclose(before, want, rtol=1e-12)
-        good = {k: inst.slave.getReal([controller_fmu.vr(k)])[0] for k in bad}
+        good = {k: inst.slave.getReal([longitudinal_controller.vr(k)])[0] for k in bad}
         set_values(inst, bad)
         msg = _discarded(inst, H, H)
         assert fragment in msg, msg

@@ -23,9 +23,9 @@ the connections of the configuration fmpy wrote, and nothing else; the JSON is o
 fmpy's own. ``tests/test_interop.py`` checks both that fmpy's output still needs it and that
 the fixed container runs.
 
-pythonfmu 0.7.0 and the container together also stopped the container for good after one
-refused component step, fmi2Reset included: on Linux the nested FMUs' library is pythonfmu's
-behind a small forwarding shim that answers ``fmi2Terminated`` truthfully (see
+pythonfmu 0.7.0 in fmpy's container stops the container for good after one refused component
+step, fmi2Reset included, so on Linux the nested FMUs' library is pythonfmu's behind a small
+forwarding shim that answers ``fmi2Terminated`` truthfully (see
 :mod:`dronefly.builder.nestedshim`; ``shim=False`` builds without it).
 """
 

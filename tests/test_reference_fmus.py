@@ -2,15 +2,20 @@
 ``../shared/reference-fmus``). They are correct FMUs (``fmpy validate`` finds no problem): a
 check that fails one must cite the rule of the standard it breaks. Each known false positive
 of a check on them has an assertion here on the FMU that shows it; seeded defects
-are copies of Reference-FMUs with an edited modelDescription.xml, each failing exactly the
-check that names its rule."""
+are copies of Reference-FMUs with an edited modelDescription.xml or rebuilt from their shipped
+sources with one edit, each failing exactly the check that names its rule."""
 
 from __future__ import annotations
 
 import json
+import shutil
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
+
+import fmpy
 
 import pytest
 
@@ -216,6 +221,47 @@ def test_seeded_defect_fails_only_its_check(ref, tmp_path, defect):
     assert set(failed) == {check}, report.checks
     assert failed[check].detail.startswith(detail)
     assert f"[FAIL] {check:<14} {detail}" in format_reports([report])
+
+
+def _rebuilt(src: Path, dst: Path, work: Path, source: str, old: str, new: str) -> Path:
+    """A copy of a Reference-FMU (FMI 2.0, linux64) whose binary is rebuilt with gcc from its
+    own ``sources/`` after one edit of ``source`` (the FMI headers are fmpy's)."""
+    with zipfile.ZipFile(src) as z:
+        z.extractall(work)
+    path = work / "sources" / source
+    text = path.read_text()
+    assert text.count(old) == 1
+    path.write_text(text.replace(old, new))
+    (lib,) = (work / "binaries" / "linux64").glob("*.so")
+    headers = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run(["gcc", "-shared", "-fPIC", "-O1", f"-I{work / 'sources'}", f"-I{headers}",
+                    "-o", str(lib), str(work / "sources" / "all.c"), "-lm"], check=True,
+                   capture_output=True, timeout=120)
+    with zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(work.rglob("*")):
+            if f.is_file():
+                z.write(f, f.relative_to(work).as_posix())
+    return dst
+
+
+@pytest.mark.skipif(sys.platform != "linux" or shutil.which("gcc") is None,
+                    reason="rebuilding a Reference-FMU (binaries/linux64) needs gcc on Linux")
+def test_a_reset_that_does_nothing_fails_reset_only(ref, tmp_path):
+    """Dahlquist whose fmi2Reset keeps the state (its start values are not set again): the run
+    after the reset continues from the first run's end. Only ``reset`` fails (FMI 2.0 2.1.6);
+    ``bad-input``, which resets after each refused call, still recovers the instance."""
+    reset = ("    comp->status = OK;\n    setStartValues(comp);\n    comp->isDirtyValues = true;\n",
+             "    comp->status = OK;\n")
+    fmu = _rebuilt(ref / "fmi2/Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+                   "cosimulation.c", *reset)
+    report = check_fmu(fmu, fuzz=False, isolate=False)
+    failed = {c.name: c for c in report.checks if not c.passed}
+    assert set(failed) == {"reset"}, report.checks
+    assert failed["reset"].detail == "the run after fmi2Reset differs from the first"
+    # the same sources rebuilt without the edit pass: the defect is the edit, not the build
+    good = _rebuilt(ref / "fmi2/Dahlquist.fmu", tmp_path / "good.fmu", tmp_path / "src2",
+                    "cosimulation.c", reset[0], reset[0])
+    assert check_fmu(good, fuzz=False, isolate=False).passed
 
 
 def test_docs_table_names_every_check():

@@ -20,8 +20,6 @@ __all__ = ["run"]
 #: the sweep's defaults, and those of a comparison (a wider box, one gain set and step)
 _SWEEP_DEFAULTS = {"grid": 21, "amplitudes": 10, "gains": "paper,stabilising",
                    "steps": "0.1,1,3", "stop": "200", "extent": 1.0}
-
-
 _SWEEP_COMPARE_DEFAULTS = {"grid": 25, "amplitudes": 12, "gains": "paper", "steps": "1",
                            "stop": "100", "extent": 3.0}
 

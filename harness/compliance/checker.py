@@ -280,10 +280,13 @@ class _Context:
 
     def log_tail(self, k: int = 3) -> str:
         """The last ``k`` messages the FMU logged (those above OK first)."""
-        msgs = [m for i in self.instances for m in i.messages]
-        # a status that is not an int: a message delivered by an FMU that corrupted its host
-        bad = [m for m in msgs if not isinstance(m.status, int) or m.status > 0] or msgs
-        return "; ".join(f"{m.category or 'log'}: {m.message.strip()}" for m in bad[-k:])
+        msgs = [m for i in self.instances for m in getattr(i, "messages", ())]
+        # after a Fatal the FMU may have corrupted what it delivered (pythonfmu frees its
+        # objects and goes on using them): each message is read on its own, none hides the rest
+        status = [getattr(m, "status", None) for m in msgs]
+        bad = [m for m, st in zip(msgs, status) if not isinstance(st, int) or st > 0] or msgs
+        return "; ".join(f"{getattr(m, 'category', '') or 'log'}: "
+                         f"{str(getattr(m, 'message', '')).strip()}" for m in bad[-k:])
 
 
 class _Tee(list):

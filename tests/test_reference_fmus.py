@@ -264,6 +264,20 @@ def test_a_reset_that_does_nothing_fails_reset_only(ref, tmp_path):
     assert check_fmu(good, fuzz=False, isolate=False).passed
 
 
+@pytest.mark.skipif(sys.platform != "linux" or shutil.which("gcc") is None,
+                    reason="rebuilding a Reference-FMU (binaries/linux64) needs gcc on Linux")
+def test_stair_with_its_reset_mended_passes_every_check(ref, tmp_path):
+    """Stair's one failed check is its reset (above): its sources set terminateSimulation to
+    false when instantiated (cosimulation.c) and never in reset(). Rebuilt with that one line
+    in reset(), Stair passes every check at its default experiment, reset included."""
+    fmu = _rebuilt(ref / "fmi2/Stair.fmu", tmp_path / "Stair.fmu", tmp_path / "src",
+                   "cosimulation.c", "    comp->nSteps = 0;\n",
+                   "    comp->nSteps = 0;\n    comp->terminateSimulation = false;\n")
+    report = check_fmu(fmu, fuzz=False, isolate=False)
+    assert report.passed, report.checks
+    assert "the FMU ended the run at t = 9 s" in _by_name(report)["call-sequence"].detail
+
+
 def test_docs_table_names_every_check():
     """docs/compliance.md has a row per check (the code's names)."""
     from dronefly.harness.compliance.checker import CHECK_NAMES

@@ -355,6 +355,25 @@ def test_setuptools_builds_apart_from_the_fmus():
         assert not d.is_relative_to(ROOT / "build"), d
 
 
+def test_the_installed_package_holds_every_module_of_the_checkout():
+    """A wheel installs the packages pyproject.toml lists (the root folder is ``dronefly``):
+    every folder of the package that holds an ``__init__.py`` is listed, so what an editable
+    install finds by path a plain ``pip install`` installs too (and the data files beside
+    the FMUs' slaves)."""
+    import tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert config["package-dir"] == {"dronefly": "."}
+    skip = ("tests", "docs", "benchmarks", "build")
+    folders = {p.parent.relative_to(ROOT) for p in ROOT.rglob("__init__.py")
+               if not p.relative_to(ROOT).parts[0].startswith(".")
+               and p.relative_to(ROOT).parts[0] not in skip}
+    assert set(config["packages"]) == {".".join(("dronefly", *f.parts)) for f in folders}
+    for pkg in config["package-data"]:  # the README and reference files of each FMU folder
+        assert (ROOT / Path(*pkg.split(".")[1:]) / "README.md").is_file() or \
+            list((ROOT / Path(*pkg.split(".")[1:])).glob("*_ref.csv")), pkg
+
+
 def test_a_checkout_named_dronefly_is_the_package(tmp_path):
     """Python started in the folder that holds a checkout named dronefly imports the checkout
     as the package: the checkout's root folder is the package, so that is the same code (no

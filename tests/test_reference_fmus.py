@@ -258,10 +258,7 @@ def test_a_reset_that_does_nothing_fails_reset_only(ref, tmp_path):
     failed = {c.name: c for c in report.checks if not c.passed}
     assert set(failed) == {"reset"}, report.checks
     assert failed["reset"].detail == "the run after fmi2Reset differs from the first"
-    # the same sources rebuilt without the edit pass: the defect is the edit, not the build
-    good = _rebuilt(ref / "fmi2/Dahlquist.fmu", tmp_path / "good.fmu", tmp_path / "src2",
-                    "cosimulation.c", reset[0], reset[0])
-    assert check_fmu(good, fuzz=False, isolate=False).passed
+    # that a rebuild alone breaks nothing: the mended Stair below passes every check
 
 
 @pytest.mark.skipif(sys.platform != "linux" or shutil.which("gcc") is None,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -142,11 +143,13 @@ def sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, step_wb: fl
     return np.block([[Phi, Gamma @ K], [np.eye(n), np.zeros((n, n))]])
 
 
-def unit_start_values(scale: np.ndarray, prefix: str = "") -> list[dict[str, float]]:
+def unit_start_values(scale: np.ndarray, prefix: str = "",
+                      states: Sequence[str] = lateral.STATE_NAMES) -> list[dict[str, float]]:
     """The start values of the runs an identification needs: one per unit initial state
-    x+_0 = e_i, dimensional (times ``scale``, [U, n, n, 1]), named ``<prefix><state>_start``."""
-    return [{f"{prefix}{s}_start": float(v) for s, v in zip(lateral.STATE_NAMES, e * scale)}
-            for e in np.eye(len(lateral.STATE_NAMES))]
+    x+_0 = e_i, dimensional (times ``scale``, e.g. [U, n, n, 1] for the lateral ``states``),
+    named ``<prefix><state>_start``."""
+    return [{f"{prefix}{s}_start": float(v) for s, v in zip(states, e * scale)}
+            for e in np.eye(len(states))]
 
 
 def verdict_of(runs: list[np.ndarray], step_wb: float, *, delay: bool, where: str) -> Verdict:

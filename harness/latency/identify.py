@@ -31,6 +31,7 @@ from ...models.feedback import gain_name, integral_gain_name
 from ...models.lateral import plant_scales
 from ..cosim.fmu import FMU
 from ..cosim.master import Loop
+from ..cosim.stability import unit_start_values
 from .loop import FeedbackLoop, LatencyInputError
 from .sampled import delay_split, sampled_matrix
 
@@ -173,9 +174,7 @@ def _runs(p: Any, c: Any, loop: FeedbackLoop, Ts: float, tau: float, n_steps: in
     params |= {"sample_period": Ts / n_hz, "sensing_delay": tau / n_hz}
     runs = []
     with p.instantiate() as pi, c.instantiate() as ci:
-        for j in range(loop.n):
-            x0 = np.eye(loop.n)[j] * scale
-            start = {f"{s}_start": float(v) for s, v in zip(pair.states, x0)}
+        for j, start in enumerate(unit_start_values(scale, states=pair.states)):
             r = pair.run(Ts / substeps / n_hz, n_steps * substeps, plant_start=start,
                          controller_params=params, instances=(pi, ci))
             if r.failure is not None or len(r.signals) != n_steps * substeps + 1:

@@ -36,7 +36,7 @@ import numpy as np
 from ...models.feedback import gain_name, integral_gain_name
 from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
 from ..cosim.calculated import plant_matrices
-from ..cosim.stability import classify, rates_from_transition
+from ..cosim.stability import classify, rates_from_transition, unit_start_values
 from ..latency.grid import GridTiming, grid_monodromy, timing_params
 from ..latency.identify import identify_delayed
 from ..latency.loop import FeedbackLoop, LatencyInputError
@@ -106,9 +106,8 @@ def _identify(pair: Any, insts: tuple, case: Case, loop: Any, timing: GridTiming
     params |= {integral_gain_name(i, j): float(loop.KI[i, j]) for i in range(3) for j in range(4)
                if loop.KI[i, j] != 0.0}
     runs = []
-    for e in np.eye(4):
-        start = {**dict(case.plant_values),
-                 **{f"{s}_start": float(v) for s, v in zip(STATE_NAMES, e * scale)}}
+    for unit in unit_start_values(scale):
+        start = {**dict(case.plant_values), **unit}
         r = pair.run(case.step_wb / scale[1], samples * m, master=case.master, plant_start=start,
                      controller_params=params, instances=insts,
                      u_source0=[0.0] * 4 if timing.jacobi else None)

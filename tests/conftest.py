@@ -7,13 +7,26 @@ the first would prove nothing).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
+import shutil
 import signal
+import tempfile
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import pytest
+
+# The suite starts hundreds of Python processes (the CLI of the documents' blocks, the checking
+# and fuzz children, sweep workers) that import the package: they share one bytecode cache for
+# the session, outside the checkout, also where the machine sets PYTHONDONTWRITEBYTECODE (the
+# pytest-xdist workers inherit it from the first process that loads this file).
+if "PYTHONPYCACHEPREFIX" not in os.environ:
+    _PYCACHE = tempfile.mkdtemp(prefix="dronefly_pycache_")
+    os.environ["PYTHONPYCACHEPREFIX"] = _PYCACHE
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+    atexit.register(shutil.rmtree, _PYCACHE, True)
 
 
 def _blas_kernels() -> list[str]:

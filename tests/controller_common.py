@@ -8,7 +8,6 @@ import numpy as np
 
 from dronefly.harness.paper import values as pv
 from dronefly.models import feedback as L
-from dronefly.models import lateral_dynamics as M
 from dronefly.models import lateral
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -20,7 +20,6 @@ from ...models import lateral_dynamics as model
 from ...models.feedback import default_gains
 from ...models.lateral import CONTROL_NAMES, STATE_NAMES
 from ..cosim.params import ParameterError
-from .design import move_lambda1_gains
 
 __all__ = ["GAIN_SETS", "STABILISING_LAMBDA1", "as_gain_matrix", "gain_matrix", "parse_gains"]
 
@@ -38,6 +37,10 @@ def gain_matrix(name: str) -> np.ndarray:
     if name == "open":
         return np.zeros(_SHAPE)
     if name == "stabilising":
+        # the design pulls in scipy (0.25 s): imported for this set only, so that what reads
+        # gains (the CLI's converters, the sweep's cases and workers) starts without it
+        from .design import move_lambda1_gains
+
         A, B = model.system_matrices(model.default_parameters())
         K = np.zeros(_SHAPE)
         K[0] = move_lambda1_gains(A, B, CONTROL_NAMES[0], STABILISING_LAMBDA1)

@@ -22,6 +22,8 @@ __all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_run_files",
            "write_text_atomic", "write_zip"]
 
 #: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
+#: the signature of a zip archive's first local file header
+_ZIP_MAGIC = b"PK\x03\x04"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
@@ -120,13 +122,19 @@ def write_run_files(result: Any, out_dir: str | Path, name: str,
 
 
 def write_zip(target: str | Path, files: Mapping[str, bytes]) -> Path:
-    """Write a reproducible archive (sorted entries, fixed timestamps) atomically."""
+    """Write a reproducible archive (sorted entries, fixed timestamps) atomically.
+
+    Members are deflated, except members that are themselves zip archives (the FMUs of an SSP
+    or of a container FMU): their data is compressed already, so they are stored.
+    """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
         for rel in sorted(files):
+            data = files[rel]
             info = zipfile.ZipInfo(rel, date_time=_ZIP_DATE)
             info.external_attr = 0o644 << 16
-            info.compress_type = zipfile.ZIP_DEFLATED
-            z.writestr(info, files[rel], compresslevel=1)  # fast: builds are many in tests
+            info.compress_type = (zipfile.ZIP_STORED if data[:4] == _ZIP_MAGIC
+                                  else zipfile.ZIP_DEFLATED)
+            z.writestr(info, data, compresslevel=1)  # fast: builds are many in tests
     return target

@@ -8,6 +8,7 @@ machine has; a broken import is refused at instantiation with one line naming th
 
 from __future__ import annotations
 
+import ast
 import glob
 import os
 import shutil
@@ -20,6 +21,7 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
+from dronefly.builder.build import FMUS, fmu_sources
 from dronefly.builder.entry import HOST_REQUIREMENT, NEWEST_TESTED_PYTHON, OLDEST_PYTHON
 from dronefly.models.lateral import N_HZ
 
@@ -286,3 +288,38 @@ def test_fmus_run_on_every_cpython(extracted, reference_outputs, version):
             assert r.instance == "NULL", (fmu.model, fmu.fmi)
             assert any(f"cannot start in Python {version}:" in ln
                        for ln in r.stderr.splitlines()), r.stderr
+
+
+def _relative_imports(source: bytes, package: tuple[str, ...]) -> set[tuple[str, ...]]:
+    """The modules (paths below the package root) that ``source``, a module of ``package``,
+    needs by its relative imports, resolved as the import system does: ``from .x import y``
+    needs ``x``; ``from . import y`` needs ``y`` unless the package itself defines it, which
+    the caller decides."""
+    out: set[tuple[str, ...]] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            base = package[:len(package) - (node.level - 1)]
+            if node.module:
+                out.add((*base, *node.module.split(".")))
+            else:
+                out.update((*base, alias.name) for alias in node.names)
+    return out
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_every_module_an_fmu_imports_is_shipped(fmi):
+    """The build describes the package's own classes and ships their modules byte for byte;
+    this is what makes that sound: every relative import of a shipped module resolves to a
+    shipped module, so the FMU's copy imports exactly the code that was described."""
+    for name in FMUS:
+        pkg, files = fmu_sources(name, fmi)
+        prefix = f"resources/{pkg}/"
+        modules = {tuple(rel[len(prefix):-3].split("/")) for rel in files
+                   if rel.startswith(prefix) and rel.endswith(".py")}
+        known = modules | {m[:-1] for m in modules if m[-1] == "__init__"}
+        assert ("fmi", "base") in modules and len(modules) > 10  # the test sees the package
+        for module in sorted(modules):
+            package = module[:-1]
+            for target in _relative_imports(files[prefix + "/".join(module) + ".py"], package):
+                assert target in known, (f"{name} (FMI {fmi}): {'/'.join(module)}.py imports "
+                                         f"{'.'.join(target)}, which the FMU does not ship")

@@ -9,6 +9,7 @@ machine has; a broken import is refused at instantiation with one line naming th
 from __future__ import annotations
 
 import ast
+import functools
 import glob
 import os
 import shutil
@@ -290,7 +291,8 @@ def test_fmus_run_on_every_cpython(extracted, reference_outputs, version):
                        for ln in r.stderr.splitlines()), r.stderr
 
 
-def _relative_imports(source: bytes, package: tuple[str, ...]) -> set[tuple[str, ...]]:
+@functools.lru_cache(maxsize=None)  # the FMUs ship mostly the same modules: parse each once
+def _relative_imports(source: bytes, package: tuple[str, ...]) -> frozenset[tuple[str, ...]]:
     """The modules (paths below the package root) that ``source``, a module of ``package``,
     needs by its relative imports, resolved as the import system does: ``from .x import y``
     needs ``x``; ``from . import y`` needs ``y`` unless the package itself defines it, which
@@ -303,7 +305,7 @@ def _relative_imports(source: bytes, package: tuple[str, ...]) -> set[tuple[str,
                 out.add((*base, *node.module.split(".")))
             else:
                 out.update((*base, alias.name) for alias in node.names)
-    return out
+    return frozenset(out)
 
 
 @pytest.mark.parametrize("fmi", [2, 3])

@@ -8,18 +8,24 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import shutil
 import subprocess
 import sys
 import textwrap
+import zipfile
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 
 from dronefly.builder.build import FMUS
 from dronefly.harness.compliance.fuzz import fuzz_fmu
-from fmu_helpers import build_crashing_fmu
+from fmu_helpers import build_crashing_fmu, model_description
 
 pytestmark = pytest.mark.integration
+
+HOST = Path(__file__).parent / "c_host" / "ctypes_host.py"
 
 BUILT = [*FMUS, "DroneFlyClosedLoop"]
 #: FMUs whose slave class another FMU shares (LinearPlantSlave, the feedback law's slave):
@@ -72,15 +78,9 @@ _CHILD = textwrap.dedent("""
 """)
 
 
-#: processes that must all exit 0. Without the exit handler of docs/fmi-limits.md, 6 of 30
-#: processes aborted at exit (a rate of about 0.2); 30 processes then miss that regression with
-#: probability 0.8**30 < 0.2 %, each process loading three FMUs
-_EXIT_RUNS = 30
-
-
 def test_processes_using_the_fmus_exit_cleanly(built_fmus):
-    """Plant, controller, plant again in one process, with and without errors: exit code 0,
-    every time (no abort in pythonfmu's finalizePythonInterpreter at exit)."""
+    """Plant, controller, plant again in one process through fmpy, with and without errors:
+    exit code 0 (a smoke test; the exit handler itself is checked under valgrind below)."""
     paths = [str(built_fmus[n]) for n in ("DroneFlyLateral", "StateFeedback", "DroneFlyLateral")]
 
     def run(k: int) -> subprocess.CompletedProcess:
@@ -88,9 +88,42 @@ def test_processes_using_the_fmus_exit_cleanly(built_fmus):
                               capture_output=True, text=True, timeout=120)
 
     with ThreadPoolExecutor(max_workers=2) as pool:
-        results = list(pool.map(run, range(_EXIT_RUNS)))
+        results = list(pool.map(run, range(4)))
     bad = [(r.returncode, r.stderr[-300:]) for r in results if r.returncode != 0]
-    assert not bad, f"{len(bad)} of {_EXIT_RUNS} processes failed: {bad[:3]}"
+    assert not bad, f"{len(bad)} of 4 processes failed: {bad[:3]}"
+
+
+def _host_args(fmu: Path, folder: Path) -> list[str]:
+    """The ctypes host's arguments for ``fmu`` unpacked into ``folder``: 3 steps, logging on,
+    its first input set to NaN (a refused step: the error paths run too)."""
+    with zipfile.ZipFile(fmu) as z:
+        z.extractall(folder)
+    root = model_description(fmu)
+    first_input = next(v for v in root.iter("ScalarVariable") if v.get("causality") == "input")
+    return [str(folder), root.find("CoSimulation").get("modelIdentifier"), root.get("guid"),
+            "2", "3", "--set", f"{first_input.get('valueReference')}=nan"]
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+def test_no_invalid_read_at_exit_under_valgrind(built_fmus, tmp_path):
+    """pythonfmu's exit double free (docs/fmi-limits.md, "Process exit") is deterministic under
+    valgrind: a host that keeps plant and controller loaded until it exits (the ctypes host,
+    standard library only) shows "Invalid read ... in finalizePythonInterpreter" without the
+    FMUs' exit handler (measured: error exit 99, one invalid read per library), and nothing
+    with it. Aborts by glibc are only occasional (0 of 150 plain runs without the handler, on
+    this project's machine), so counting exit codes would miss the regression."""
+    # addressability checks only (--undef-value-errors=no): an invalid read is still reported,
+    # at half the run time
+    cmd = ["valgrind", "--error-exitcode=99", "-q", "--undef-value-errors=no",
+           sys.executable, "-I", "-S", str(HOST)]
+    for k, name in enumerate(("DroneFlyLateral", "StateFeedback")):
+        cmd += (["+"] if k else []) + _host_args(built_fmus[name], tmp_path / name)
+    # the system allocator, so that valgrind sees every block (pymalloc's arenas hide them)
+    env = {"PATH": os.environ.get("PATH", ""), "PYTHONMALLOC": "malloc"}
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
+    invalid = [ln for ln in r.stderr.splitlines() if "Invalid" in ln or " at 0x" in ln]
+    assert r.returncode == 0 and not invalid, (r.returncode, invalid[:6])
+    assert r.stdout.count("instance: ok") == 2, r.stdout[-800:]
 
 
 def test_the_fuzz_survives_and_counts_a_crashing_fmu(tmp_path):

@@ -59,7 +59,9 @@ class _Feedback(SlaveBase):
         self._timing: Timing | None = None
         self._sensor = Sensor(len(axis.state_names))
         self._outputs_valid = False  # the last output computation succeeded
-        self._proportional: FeedbackLaw | None = None  # see _update_outputs
+        #: the current law's u = K x+ on the value table (FeedbackLaw.on_table) while the
+        #: outputs are K x+ of the inputs at once (no delay, sampling, integral); else None
+        self._proportional: Any = None
 
     def _current_law(self) -> FeedbackLaw:
         """The law of the current parameters, validated (rebuilt only when they changed)."""
@@ -72,7 +74,7 @@ class _Feedback(SlaveBase):
             n, U, enabled, u_max = key[2 * m * c:]
             law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS, KI)
             law.validate()  # raises naming the bad value; nothing is cached then
-            self._law, self._law_key = law, key
+            self._law, self._law_key, self._proportional = law, key, None
         return self._law
 
     def _current_timing(self) -> Timing:
@@ -82,7 +84,7 @@ class _Feedback(SlaveBase):
         if timing is None or (d, period) != (timing.sensing_delay, timing.sample_period):
             timing = Timing(d, period, delay_required=not self.DIRECT_FEEDTHROUGH)
             timing.validate()  # raises naming the bad value; nothing is cached then
-            self._timing = timing
+            self._timing, self._proportional = timing, None
         return timing
 
     def _refresh(self) -> None:
@@ -105,16 +107,21 @@ class _Feedback(SlaveBase):
         r[self._outputs] = u
         r[self._sat_vr] = saturated
 
+    def _update_if_stale(self) -> None:
+        # the hot path of a get after a set: u = K x+ of the inputs now, on the value table
+        # (False: a value is not finite, which the general path names)
+        proportional = self._proportional
+        if proportional is not None and not self._dirty and proportional(self._real):
+            self._stale = False
+            self._outputs_valid = True
+            return
+        SlaveBase._update_if_stale(self)
+
     def _update_outputs(self) -> None:
-        law = self._law
-        if (law is not None and self._proportional is law and not self._dirty
-                and self._timing is not None):  # the hot path: u = K x+ of the inputs now
-            out = law.evaluate_proportional(self._inputs(self._real))
-            if out is not None:  # (None: the general path below names a bad value)
-                r = self._real
-                r[self._outputs], r[self._sat_vr] = out
-                self._outputs_valid = True
-                return
+        proportional = self._proportional
+        if proportional is not None and not self._dirty and proportional(self._real):
+            self._outputs_valid = True  # (as _update_if_stale, for a caller of this hook)
+            return
         self._outputs_valid = False
         # parameters are re-read only after one was set (the base class's dirty flag)
         fresh = self._dirty or self._law is None or self._timing is None
@@ -123,8 +130,12 @@ class _Feedback(SlaveBase):
         self._outputs_at(self._time, law, timing)  # type: ignore[arg-type]
         self._outputs_valid = True
         # the law whose outputs are K x+ of the inputs at once (no delay, sampling, integral)
-        self._proportional = (law if timing.immediate and self.DIRECT_FEEDTHROUGH  # type: ignore[union-attr]
-                              and not law.has_integral else None)  # type: ignore[union-attr]
+        if timing.immediate and self.DIRECT_FEEDTHROUGH and not law.has_integral:  # type: ignore[union-attr]
+            self._proportional = law.on_table(self._in_vr, range(self._outputs.start,  # type: ignore[union-attr]
+                                                                  self._outputs.stop),
+                                              self._sat_vr)
+        else:
+            self._proportional = None
 
     def _initialize(self) -> None:
         warned = self._sensor.off_grid is False

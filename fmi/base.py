@@ -112,6 +112,13 @@ class SlaveBase(Fmi2Slave):
         self._input_rows = {mode: frozenset(i for i in self._settable[mode, "Real"]
                                             if vars_[i].causality == "input") for mode in MODES}
         self._n_vars = len(vars_)
+        # the value references of the last fmi2GetReal of consecutive Real rows and those rows,
+        # and of the last fmi2SetReal of consecutive inputs, its state and rows (.values)
+        self._get_vrs: list[int] | None = None
+        self._get_rows = slice(0, 0)
+        self._set_vrs: list[int] | None = None
+        self._set_mode = ""
+        self._set_rows = slice(0, 0)
         self._fmu_id = self._class_fmu_id()
         # The wrapper puts the resources folder at the front of sys.path on every
         # instantiation; the FMU's package is imported by then, so take it out again.

@@ -166,11 +166,17 @@ class _Feedback(SlaveBase):
 
     def _advance(self, t: float, h: float) -> None:
         # the base class has called _initialize or _refresh after any parameter was set
+        sensor = self._sensor
+        if (self._proportional is not None and not self._stale and self._outputs_valid
+                and not sensor.integrating and not sensor.line):
+            # the hot path: the current law is K x+ at once (as below) and the outputs of the
+            # inputs, valid at t, hold at t + h as well
+            sensor.held, sensor.h, sensor.last_k = self._inputs(self._real), h, None
+            return
         law, timing = self._law, self._timing
         if law is None or timing is None:  # pragma: no cover - the base class prevents it
             law, timing = self._current_law(), self._current_timing()
         x = self._inputs(self._real)
-        sensor = self._sensor
         if (timing.immediate and not law.has_integral and not sensor.integrating
                 and not sensor.line):  # the sample at t in effect at once: u = K x+ (Eq. 22)
             if self._stale or not self._outputs_valid:  # (else the outputs of x, valid at t,

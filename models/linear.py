@@ -163,7 +163,11 @@ def _unrolled(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], int, i
     """The product and a maker of the fused stepper of :func:`_stepper` for the plants' shapes,
     [Phi, Gamma] of 4 states and 3 or 4 controls, written out as straight-line arithmetic on
     locals (no list, no call inside a step: a third of the cost of the general product); None
-    for any other shape."""
+    for any other shape.
+
+    The stepper detects a value that is not finite from the sum of the outputs alone: every
+    control enters every row (with a coefficient 0.0 too, as 0 * inf and 0 * nan are nan), so a
+    control that is not finite makes every output so."""
     if len(rows) != 4 or len({len(row) for row in rows}) != 1:
         return None
     if len(rows[0]) == 7:
@@ -204,7 +208,7 @@ def _unrolled_4x3(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], in
             y1 = n1 * s1
             y2 = n2 * s2
             y3 = n3 * s3
-            total = u0 + u1 + u2 + y0 + y1 + y2 + y3
+            total = y0 + y1 + y2 + y3  # (a control that is not finite makes every y so)
             if total - total != 0.0:
                 return None
             r[o0] = y0
@@ -258,7 +262,7 @@ def _unrolled_4x4(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], in
             y1 = n1 * s1
             y2 = n2 * s2
             y3 = n3 * s3
-            total = u0 + u1 + u2 + u3 + y0 + y1 + y2 + y3
+            total = y0 + y1 + y2 + y3  # (a control that is not finite makes every y so)
             if total - total != 0.0:
                 return None
             r[o0] = y0

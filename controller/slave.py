@@ -24,8 +24,11 @@ from .delay import Sensor, Timing
 from ..models.feedback import FeedbackLaw, default_gains, default_longitudinal_gains
 from .variables import LAW_PARAMETERS, TIMING, all_gains, all_integral_gains, controller_variables
 
-__all__ = ["StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
+__all__ = ["LAWS", "StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
            "StateFeedbackLongitudinalDelayed"]
+
+#: parameter sets whose validated laws a controller class keeps for its instances
+LAWS = 16
 
 
 def _block(vrs: tuple[int, ...]) -> slice:
@@ -46,34 +49,54 @@ class _Feedback(SlaveBase):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        vr, axis = self._vr, self.AXIS
-        self._in_vr = tuple(vr[n] for n in axis.state_names)
-        self._outputs = _block(tuple(vr[n] for n in axis.control_names))
-        self._sat_vr = vr["saturated"]
-        self._law_vr = tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
-                                             *LAW_PARAMETERS))
-        self._timing_vr = tuple(vr[n] for n in TIMING)
-        self._inputs = itemgetter(*self._in_vr)  # r -> the input tuple
+        (self._in_vr, self._outputs, self._sat_vr, self._law_vr, self._timing_vr,
+         self._inputs) = self._rows_of_class()
         self._law_key: tuple[Any, ...] | None = None
         self._law: FeedbackLaw | None = None
         self._timing: Timing | None = None
-        self._sensor = Sensor(len(axis.state_names))
+        self._sensor = Sensor(len(self._in_vr))
         self._outputs_valid = False  # the last output computation succeeded
         #: the current law's u = K x+ on the value table (FeedbackLaw.on_table) while the
         #: outputs are K x+ of the inputs at once (no delay, sampling, integral); else None
         self._proportional: Any = None
+
+    @classmethod
+    def _rows_of_class(cls) -> tuple[Any, ...]:
+        """The rows of the value table the law reads and writes, made once per class: the
+        inputs, the controls (a slice), ``saturated``, the law's parameters, the timing's, and
+        ``r -> the input tuple``."""
+        rows = cls.__dict__.get("_ROWS")
+        if rows is None:
+            vr, axis = cls._class_tables()[0], cls.AXIS
+            in_vr = tuple(vr[n] for n in axis.state_names)
+            rows = cls._ROWS = (
+                in_vr, _block(tuple(vr[n] for n in axis.control_names)), vr["saturated"],
+                tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
+                                      *LAW_PARAMETERS)),
+                tuple(vr[n] for n in TIMING), itemgetter(*in_vr))
+        return rows
 
     def _current_law(self) -> FeedbackLaw:
         """The law of the current parameters, validated (rebuilt only when they changed)."""
         r = self._real
         key = tuple(r[i] for i in self._law_vr)
         if self._law is None or key != self._law_key:
-            m, c = len(self.AXIS.control_names), len(self.AXIS.state_names)
-            K = tuple(tuple(float(key[i * c + j]) for j in range(c)) for i in range(m))
-            KI = tuple(tuple(float(key[m * c + i * c + j]) for j in range(c)) for i in range(m))
-            n, U, enabled, u_max = key[2 * m * c:]
-            law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS, KI)
-            law.validate()  # raises naming the bad value; nothing is cached then
+            laws = type(self).__dict__.get("_LAWS")
+            if laws is None:
+                laws = type(self)._LAWS = {}
+            law = laws.get(key)  # a law of these parameters another instance made (immutable)
+            if law is None:
+                m, c = len(self.AXIS.control_names), len(self.AXIS.state_names)
+                K = tuple(tuple(float(key[i * c + j]) for j in range(c)) for i in range(m))
+                KI = tuple(tuple(float(key[m * c + i * c + j]) for j in range(c))
+                           for i in range(m))
+                n, U, enabled, u_max = key[2 * m * c:]
+                law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS,
+                                  KI)
+                law.validate()  # raises naming the bad value; nothing is cached then
+                if len(laws) >= LAWS:
+                    laws.pop(next(iter(laws)))
+                laws[key] = law
             self._law, self._law_key, self._proportional = law, key, None
         return self._law
 

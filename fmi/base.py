@@ -91,9 +91,10 @@ class SlaveBase(Fmi2Slave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.modelName = self.MODEL_NAME
-        vars_ = self.VARIABLES
-        self._vr = {v.name: i for i, v in enumerate(vars_)}
-        self._real: list[Any] = [v.start if v.start is not None else 0.0 for v in vars_]
+        # the variable table's lookups, made once per class and shared by its instances
+        (self._vr, start, self._types, self._settable, self._param_vrs, self._input_rows,
+         self._n_vars) = self._class_tables()
+        self._real: list[Any] = list(start)
         self._mode = "instantiated"
         self._time = 0.0
         self._stop_time: float | None = None
@@ -101,17 +102,6 @@ class SlaveBase(Fmi2Slave):
         self._dirty = True
         self._stale = True  # a value was set since the last _update_outputs
         self._initialized = False
-        self._types = tuple(v.type for v in vars_)
-        self._settable = {
-            (mode, kind): frozenset(i for i, v in enumerate(vars_)
-                                    if v.type == kind and self._may_set(v, mode))
-            for mode in MODES for kind in ("Real", "Boolean")
-        }
-        self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
-        #: per state, the Real inputs that may be set (no parameter: a set changes no model)
-        self._input_rows = {mode: frozenset(i for i in self._settable[mode, "Real"]
-                                            if vars_[i].causality == "input") for mode in MODES}
-        self._n_vars = len(vars_)
         # the value references of the last fmi2GetReal of consecutive Real rows and those rows,
         # and of the last fmi2SetReal of consecutive inputs, its state and rows (.values)
         self._get_vrs: list[int] | None = None
@@ -241,6 +231,33 @@ class SlaveBase(Fmi2Slave):
     _get_fmu_state = get_fmu_state
     _set_fmu_state = set_fmu_state
     _snapshot = snapshot
+
+    @classmethod
+    def _class_tables(cls) -> tuple[Any, ...]:
+        """What every instance looks up in ``VARIABLES``, made once per class (an instance
+        never changes them): name -> value reference, the start values, the types, per state
+        and type the rows that may be set, the parameters' rows, per state the Real inputs
+        that may be set (no parameter: a set changes no model), and the number of variables."""
+        tables = cls.__dict__.get("_TABLES")
+        if tables is None:
+            vars_ = cls.VARIABLES
+            settable = {
+                (mode, kind): frozenset(i for i, v in enumerate(vars_)
+                                        if v.type == kind and cls._may_set(v, mode))
+                for mode in MODES for kind in ("Real", "Boolean")
+            }
+            tables = (
+                {v.name: i for i, v in enumerate(vars_)},
+                tuple(v.start if v.start is not None else 0.0 for v in vars_),
+                tuple(v.type for v in vars_),
+                settable,
+                frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter"),
+                {mode: frozenset(i for i in settable[mode, "Real"]
+                                 if vars_[i].causality == "input") for mode in MODES},
+                len(vars_),
+            )
+            cls._TABLES = tables
+        return tables
 
     @classmethod
     def _class_fmu_id(cls) -> str:

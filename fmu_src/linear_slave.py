@@ -21,7 +21,10 @@ from ..models.axes import Axis
 from ..fmi import SlaveBase, Var
 from ..models.linear import ZohModel
 
-__all__ = ["LinearPlantSlave", "plant_variables"]
+__all__ = ["MODELS", "LinearPlantSlave", "plant_variables"]
+
+#: parameter sets whose models (with their step matrices) a plant class keeps
+MODELS = 16
 
 
 def _block(vrs: tuple[int, ...]) -> slice:
@@ -117,7 +120,7 @@ class LinearPlantSlave(SlaveBase):
     def _refresh(self) -> None:
         params = self.PARAMETERS(*self._values(self._params))
         if self._model is None or self._model.params != params:
-            self._model = self.MODEL(params)  # validates
+            self._model = self._shared_model(params)  # validates
         n, U = self._values(("n", "U"))
         for name, value in (("n", n), ("U", U)):
             if not (math.isfinite(value) and value > 0.0):
@@ -129,6 +132,23 @@ class LinearPlantSlave(SlaveBase):
         self._n, self._scale, self._stepper_model = n, scale, self._model
         self._set_values(self._matrix,
                          [x for M in (self._model.A_rows, self._model.B_rows) for row in M for x in row])
+
+    @classmethod
+    def _shared_model(cls, params: Any) -> ZohModel:
+        """The model of ``params`` (validated by ``MODEL``), shared by the class's instances:
+        its (Phi, Gamma) per step size, a matrix exponential each, outlive an instance (a host
+        that resets or re-instantiates the FMU computes them once per process). At most
+        :data:`MODELS` parameter sets are kept, the oldest dropped first."""
+        models = cls.__dict__.get("_MODELS")
+        if models is None:
+            models = cls._MODELS = {}
+        model = models.get(params)
+        if model is None:
+            model = cls.MODEL(params)  # raises for parameters that are not valid: not kept
+            if len(models) >= MODELS:
+                models.pop(next(iter(models)))
+            models[params] = model
+        return model
 
     def _update_outputs(self) -> None:
         # Before initialization ends, the initial unknowns already follow the start values and

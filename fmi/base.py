@@ -106,6 +106,8 @@ class SlaveBase(Fmi2Slave):
         # and of the last fmi2SetReal of consecutive inputs, its state and rows (.values)
         self._get_vrs: list[int] | None = None
         self._get_rows = slice(0, 0)
+        self._get_bool_vrs: list[int] | None = None  # the same for fmi2GetBoolean
+        self._get_bool_rows = slice(0, 0)
         self._set_vrs: list[int] | None = None
         self._set_mode = ""
         self._set_rows = slice(0, 0)
@@ -202,13 +204,14 @@ class SlaveBase(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         # the hot path: every check of do_step_status passes (stepping, nothing pending,
-        # initialized, no parameter set, the clock continued exactly, no stop time, a finite
-        # step > 0); anything else takes do_step_status, which says why it refuses
+        # initialized, no parameter set, the clock continued exactly, a finite step > 0 that
+        # ends at the stop time at the latest); anything else takes do_step_status, which
+        # says why it refuses (or accepts a step past the stop time within its tolerance)
         if (self._mode == "stepping" and not self._pending and not self._dirty
-                and current_time == self._time and self._stop_time is None
-                and self._initialized):
+                and current_time == self._time and self._initialized):
             end = current_time + step_size
-            if step_size > 0.0 and end - end == 0.0:
+            stop = self._stop_time
+            if step_size > 0.0 and end - end == 0.0 and (stop is None or end <= stop):
                 try:
                     self._advance(current_time, step_size)
                 except BaseException as e:  # never let an exception reach the wrapper

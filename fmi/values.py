@@ -72,15 +72,36 @@ def get_real(self: Any, vrs: list[int]) -> list[float]:
 
 def _real_block(self: Any, vrs: list[int]) -> slice | None:
     """``vrs`` as one slice of the value table if they are consecutive Real rows, in order."""
+    return _block_of(self, vrs, "Real")
+
+
+def _block_of(self: Any, vrs: list[int], kind: str) -> slice | None:
+    """``vrs`` as one slice of the value table if they are consecutive rows of type ``kind``,
+    in order."""
     first, n = vrs[0], len(vrs)
-    if vrs != list(range(first, first + n)) or not all(
-            kind == "Real" for kind in self._types[first:first + n]):
+    if first < 0 or vrs != list(range(first, first + n)) or not all(
+            t == kind for t in self._types[first:first + n]) or first + n > self._n_vars:
         return None
     return slice(first, first + n)
 
 
 def get_boolean(self: Any, vrs: list[int]) -> list[bool]:
-    return _read(self, vrs, "Boolean", bool, False)
+    try:  # the hot path: the consecutive Boolean rows of the last such read, as fmi2GetReal
+        if vrs == self._get_bool_vrs and self._mode != "instantiated":
+            if self._stale:
+                self._update_if_stale()
+            return list(map(bool, self._real[self._get_bool_rows]))
+    except BaseException:  # (answered and logged by _read)
+        pass
+    out = _read(self, vrs, "Boolean", bool, False)
+    try:
+        if vrs and self._mode != "instantiated":
+            rows = _block_of(self, vrs, "Boolean")
+            if rows is not None:
+                self._get_bool_vrs, self._get_bool_rows = list(vrs), rows
+    except BaseException:  # (a getter cannot fail)
+        pass
+    return out
 
 
 def get_integer(self: Any, vrs: list[int]) -> list[int]:

@@ -106,14 +106,8 @@ class LinearPlantSlave(SlaveBase):
         self._stepper_model: Any = None
         self._scale = [1.0] * len(axis.state_names)
         self._n = 1.0
-        vr = self._vr
-        # the controls' and the states' rows of the value table
-        self._inputs = _block(tuple(vr[n] for n in axis.control_names))
-        self._outputs = _block(tuple(vr[n] for n in axis.state_names))
-        self._params = self.PARAMETERS.names()
-        self._starts = tuple(f"{s}_start" for s in axis.state_names)
-        self._matrix = tuple(v.name for v in self.VARIABLES
-                             if v.causality == "calculatedParameter")
+        (self._inputs, self._outputs, self._params, self._starts,
+         self._matrix) = self._names_of_class()
         #: step size [s] -> the model's fused step for the current model and scales
         self._steppers: dict[float, Any] = {}
 
@@ -132,6 +126,21 @@ class LinearPlantSlave(SlaveBase):
         self._n, self._scale, self._stepper_model = n, scale, self._model
         self._set_values(self._matrix,
                          [x for M in (self._model.A_rows, self._model.B_rows) for row in M for x in row])
+
+    @classmethod
+    def _names_of_class(cls) -> tuple[Any, ...]:
+        """Made once per class: the controls' and the states' rows of the value table (slices),
+        the parameters' names, the start values' and the calculated matrices'."""
+        names = cls.__dict__.get("_NAMES")
+        if names is None:
+            vr, axis = cls._class_tables()[0], cls.AXIS
+            names = cls._NAMES = (
+                _block(tuple(vr[n] for n in axis.control_names)),
+                _block(tuple(vr[n] for n in axis.state_names)),
+                cls.PARAMETERS.names(),
+                tuple(f"{s}_start" for s in axis.state_names),
+                tuple(v.name for v in cls.VARIABLES if v.causality == "calculatedParameter"))
+        return names
 
     @classmethod
     def _shared_model(cls, params: Any) -> ZohModel:

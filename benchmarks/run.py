@@ -15,8 +15,8 @@ alike):
           (DroneFlyLateral + DroneFlyLongitudinal) and against DroneFlyLateral alone, through
           FMI, and against the pair in-process (model classes), at steps of 0.1 and 1 wing
           beat (benchmarks/plants.py)
-Prints medians and the ratios ours/floor (target <= 1.5: everything we add, FMU code and
-master, over the unavoidable FMI calls), master/floor (what the master alone adds),
+Prints medians and the ratios ours/floor (target <= 1.2, issue 28: everything we add, FMU
+code and master, over the unavoidable FMI calls), master/floor (what the master alone adds),
 SystemMaster/dedicated pair master (target <= 1.05), and per system the cost per step (a run of
 N steps less a run of 1 step, over N - 1: without instantiation), the FMI calls per step
 (counted) and the cost per FMI call; the plants' costs and the ratios 6-DOF/pair through
@@ -46,6 +46,8 @@ HERE = Path(__file__).resolve().parent
 #: process's CPU time BLAS threads spinning after the analyses' numpy calls), or the wall time
 #: (``--clock wall``)
 CLOCK = [time.thread_time]
+#: the closed-loop step's target: ours/floor at most this (issue 28)
+TARGET_OURS = 1.2
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))  # the dedicated pair master: the tests' oracle
 from pair_master import PairMaster  # noqa: E402
@@ -204,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  master (do-nothing pythonfmu FMUs, harness master):       {med['master']:8.2f}")
     print(f"  floor  (do-nothing FMUs, the six FMI calls, no master):   {med['floor']:8.2f}")
     ratio = med["ours"] / med["floor"]
-    print(f"ratio ours/floor = {ratio:.2f} (target <= 1.5); "
+    print(f"ratio ours/floor = {ratio:.2f} (target <= {TARGET_OURS}); "
           f"master alone: master/floor = {med['master'] / med['floor']:.2f}")
     # us per step: of a whole run (/ N), and without set-up ((N steps - 1 step) / (N - 1))
     whole = {k: med[f"{k}/{N}"] / N * 1e6 for k in runs}
@@ -226,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
     lines, ratios_6dof = plants_report(med)
     print("\n".join(lines))
     plants_ok = all(r < TARGET_RATIO for r in ratios_6dof.values())
-    return 0 if ratio <= 1.5 and ratio_pair <= 1.05 and plants_ok else 1
+    return 0 if ratio <= TARGET_OURS and ratio_pair <= 1.05 and plants_ok else 1
 
 
 if __name__ == "__main__":

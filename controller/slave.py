@@ -24,8 +24,11 @@ from .delay import Sensor, Timing
 from ..models.feedback import FeedbackLaw, default_gains, default_longitudinal_gains
 from .variables import LAW_PARAMETERS, TIMING, all_gains, all_integral_gains, controller_variables
 
-__all__ = ["StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
+__all__ = ["LAWS", "StateFeedback", "StateFeedbackDelayed", "StateFeedbackLongitudinal",
            "StateFeedbackLongitudinalDelayed"]
+
+#: parameter sets whose validated laws a controller class keeps for its instances
+LAWS = 16
 
 
 def _block(vrs: tuple[int, ...]) -> slice:
@@ -46,33 +49,55 @@ class _Feedback(SlaveBase):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        vr, axis = self._vr, self.AXIS
-        self._in_vr = tuple(vr[n] for n in axis.state_names)
-        self._outputs = _block(tuple(vr[n] for n in axis.control_names))
-        self._sat_vr = vr["saturated"]
-        self._law_vr = tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
-                                             *LAW_PARAMETERS))
-        self._timing_vr = tuple(vr[n] for n in TIMING)
-        self._inputs = itemgetter(*self._in_vr)  # r -> the input tuple
+        (self._in_vr, self._outputs, self._sat_vr, self._law_vr, self._timing_vr,
+         self._inputs) = self._rows_of_class()
         self._law_key: tuple[Any, ...] | None = None
         self._law: FeedbackLaw | None = None
         self._timing: Timing | None = None
-        self._sensor = Sensor(len(axis.state_names))
+        self._sensor = Sensor(len(self._in_vr))
         self._outputs_valid = False  # the last output computation succeeded
-        self._proportional: FeedbackLaw | None = None  # see _update_outputs
+        #: the current law's u = K x+ on the value table (FeedbackLaw.on_table) while the
+        #: outputs are K x+ of the inputs at once (no delay, sampling, integral); else None
+        self._proportional: Any = None
+
+    @classmethod
+    def _rows_of_class(cls) -> tuple[Any, ...]:
+        """The rows of the value table the law reads and writes, made once per class: the
+        inputs, the controls (a slice), ``saturated``, the law's parameters, the timing's, and
+        ``r -> the input tuple``."""
+        rows = cls.__dict__.get("_ROWS")
+        if rows is None:
+            vr, axis = cls._class_tables()[0], cls.AXIS
+            in_vr = tuple(vr[n] for n in axis.state_names)
+            rows = cls._ROWS = (
+                in_vr, _block(tuple(vr[n] for n in axis.control_names)), vr["saturated"],
+                tuple(vr[n] for n in (*all_gains(axis), *all_integral_gains(axis),
+                                      *LAW_PARAMETERS)),
+                tuple(vr[n] for n in TIMING), itemgetter(*in_vr))
+        return rows
 
     def _current_law(self) -> FeedbackLaw:
         """The law of the current parameters, validated (rebuilt only when they changed)."""
         r = self._real
         key = tuple(r[i] for i in self._law_vr)
         if self._law is None or key != self._law_key:
-            m, c = len(self.AXIS.control_names), len(self.AXIS.state_names)
-            K = tuple(tuple(float(key[i * c + j]) for j in range(c)) for i in range(m))
-            KI = tuple(tuple(float(key[m * c + i * c + j]) for j in range(c)) for i in range(m))
-            n, U, enabled, u_max = key[2 * m * c:]
-            law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS, KI)
-            law.validate()  # raises naming the bad value; nothing is cached then
-            self._law, self._law_key = law, key
+            laws = type(self).__dict__.get("_LAWS")
+            if laws is None:
+                laws = type(self)._LAWS = {}
+            law = laws.get(key)  # a law of these parameters another instance made (immutable)
+            if law is None:
+                m, c = len(self.AXIS.control_names), len(self.AXIS.state_names)
+                K = tuple(tuple(float(key[i * c + j]) for j in range(c)) for i in range(m))
+                KI = tuple(tuple(float(key[m * c + i * c + j]) for j in range(c))
+                           for i in range(m))
+                n, U, enabled, u_max = key[2 * m * c:]
+                law = FeedbackLaw(K, float(n), float(U), float(u_max), bool(enabled), self.AXIS,
+                                  KI)
+                law.validate()  # raises naming the bad value; nothing is cached then
+                if len(laws) >= LAWS:
+                    laws.pop(next(iter(laws)))
+                laws[key] = law
+            self._law, self._law_key, self._proportional = law, key, None
         return self._law
 
     def _current_timing(self) -> Timing:
@@ -82,7 +107,7 @@ class _Feedback(SlaveBase):
         if timing is None or (d, period) != (timing.sensing_delay, timing.sample_period):
             timing = Timing(d, period, delay_required=not self.DIRECT_FEEDTHROUGH)
             timing.validate()  # raises naming the bad value; nothing is cached then
-            self._timing = timing
+            self._timing, self._proportional = timing, None
         return timing
 
     def _refresh(self) -> None:
@@ -105,16 +130,21 @@ class _Feedback(SlaveBase):
         r[self._outputs] = u
         r[self._sat_vr] = saturated
 
+    def _update_if_stale(self) -> None:
+        # the hot path of a get after a set: u = K x+ of the inputs now, on the value table
+        # (False: a value is not finite, which the general path names)
+        proportional = self._proportional
+        if proportional is not None and not self._dirty and proportional(self._real):
+            self._stale = False
+            self._outputs_valid = True
+            return
+        SlaveBase._update_if_stale(self)
+
     def _update_outputs(self) -> None:
-        law = self._law
-        if (law is not None and self._proportional is law and not self._dirty
-                and self._timing is not None):  # the hot path: u = K x+ of the inputs now
-            out = law.evaluate_proportional(self._inputs(self._real))
-            if out is not None:  # (None: the general path below names a bad value)
-                r = self._real
-                r[self._outputs], r[self._sat_vr] = out
-                self._outputs_valid = True
-                return
+        proportional = self._proportional
+        if proportional is not None and not self._dirty and proportional(self._real):
+            self._outputs_valid = True  # (as _update_if_stale, for a caller of this hook)
+            return
         self._outputs_valid = False
         # parameters are re-read only after one was set (the base class's dirty flag)
         fresh = self._dirty or self._law is None or self._timing is None
@@ -123,8 +153,12 @@ class _Feedback(SlaveBase):
         self._outputs_at(self._time, law, timing)  # type: ignore[arg-type]
         self._outputs_valid = True
         # the law whose outputs are K x+ of the inputs at once (no delay, sampling, integral)
-        self._proportional = (law if timing.immediate and self.DIRECT_FEEDTHROUGH  # type: ignore[union-attr]
-                              and not law.has_integral else None)  # type: ignore[union-attr]
+        if timing.immediate and self.DIRECT_FEEDTHROUGH and not law.has_integral:  # type: ignore[union-attr]
+            self._proportional = law.on_table(self._in_vr, range(self._outputs.start,  # type: ignore[union-attr]
+                                                                  self._outputs.stop),
+                                              self._sat_vr)
+        else:
+            self._proportional = None
 
     def _initialize(self) -> None:
         warned = self._sensor.off_grid is False
@@ -155,11 +189,17 @@ class _Feedback(SlaveBase):
 
     def _advance(self, t: float, h: float) -> None:
         # the base class has called _initialize or _refresh after any parameter was set
+        sensor = self._sensor
+        if (self._proportional is not None and not self._stale and self._outputs_valid
+                and not sensor.integrating and not sensor.line):
+            # the hot path: the current law is K x+ at once (as below) and the outputs of the
+            # inputs, valid at t, hold at t + h as well
+            sensor.held, sensor.h, sensor.last_k = self._inputs(self._real), h, None
+            return
         law, timing = self._law, self._timing
         if law is None or timing is None:  # pragma: no cover - the base class prevents it
             law, timing = self._current_law(), self._current_timing()
         x = self._inputs(self._real)
-        sensor = self._sensor
         if (timing.immediate and not law.has_integral and not sensor.integrating
                 and not sensor.line):  # the sample at t in effect at once: u = K x+ (Eq. 22)
             if self._stale or not self._outputs_valid:  # (else the outputs of x, valid at t,

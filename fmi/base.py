@@ -91,9 +91,10 @@ class SlaveBase(Fmi2Slave):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.modelName = self.MODEL_NAME
-        vars_ = self.VARIABLES
-        self._vr = {v.name: i for i, v in enumerate(vars_)}
-        self._real: list[Any] = [v.start if v.start is not None else 0.0 for v in vars_]
+        # the variable table's lookups, made once per class and shared by its instances
+        (self._vr, start, self._types, self._settable, self._param_vrs, self._input_rows,
+         self._n_vars) = self._class_tables()
+        self._real: list[Any] = list(start)
         self._mode = "instantiated"
         self._time = 0.0
         self._stop_time: float | None = None
@@ -101,17 +102,15 @@ class SlaveBase(Fmi2Slave):
         self._dirty = True
         self._stale = True  # a value was set since the last _update_outputs
         self._initialized = False
-        self._types = tuple(v.type for v in vars_)
-        self._settable = {
-            (mode, kind): frozenset(i for i, v in enumerate(vars_)
-                                    if v.type == kind and self._may_set(v, mode))
-            for mode in MODES for kind in ("Real", "Boolean")
-        }
-        self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
-        #: per state, the Real inputs that may be set (no parameter: a set changes no model)
-        self._input_rows = {mode: frozenset(i for i in self._settable[mode, "Real"]
-                                            if vars_[i].causality == "input") for mode in MODES}
-        self._n_vars = len(vars_)
+        # the value references of the last fmi2GetReal of consecutive Real rows and those rows,
+        # and of the last fmi2SetReal of consecutive inputs, its state and rows (.values)
+        self._get_vrs: list[int] | None = None
+        self._get_rows = slice(0, 0)
+        self._get_bool_vrs: list[int] | None = None  # the same for fmi2GetBoolean
+        self._get_bool_rows = slice(0, 0)
+        self._set_vrs: list[int] | None = None
+        self._set_mode = ""
+        self._set_rows = slice(0, 0)
         self._fmu_id = self._class_fmu_id()
         # The wrapper puts the resources folder at the front of sys.path on every
         # instantiation; the FMU's package is imported by then, so take it out again.
@@ -205,13 +204,14 @@ class SlaveBase(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         # the hot path: every check of do_step_status passes (stepping, nothing pending,
-        # initialized, no parameter set, the clock continued exactly, no stop time, a finite
-        # step > 0); anything else takes do_step_status, which says why it refuses
+        # initialized, no parameter set, the clock continued exactly, a finite step > 0 that
+        # ends at the stop time at the latest); anything else takes do_step_status, which
+        # says why it refuses (or accepts a step past the stop time within its tolerance)
         if (self._mode == "stepping" and not self._pending and not self._dirty
-                and current_time == self._time and self._stop_time is None
-                and self._initialized):
+                and current_time == self._time and self._initialized):
             end = current_time + step_size
-            if step_size > 0.0 and end - end == 0.0:
+            stop = self._stop_time
+            if step_size > 0.0 and end - end == 0.0 and (stop is None or end <= stop):
                 try:
                     self._advance(current_time, step_size)
                 except BaseException as e:  # never let an exception reach the wrapper
@@ -234,6 +234,33 @@ class SlaveBase(Fmi2Slave):
     _get_fmu_state = get_fmu_state
     _set_fmu_state = set_fmu_state
     _snapshot = snapshot
+
+    @classmethod
+    def _class_tables(cls) -> tuple[Any, ...]:
+        """What every instance looks up in ``VARIABLES``, made once per class (an instance
+        never changes them): name -> value reference, the start values, the types, per state
+        and type the rows that may be set, the parameters' rows, per state the Real inputs
+        that may be set (no parameter: a set changes no model), and the number of variables."""
+        tables = cls.__dict__.get("_TABLES")
+        if tables is None:
+            vars_ = cls.VARIABLES
+            settable = {
+                (mode, kind): frozenset(i for i, v in enumerate(vars_)
+                                        if v.type == kind and cls._may_set(v, mode))
+                for mode in MODES for kind in ("Real", "Boolean")
+            }
+            tables = (
+                {v.name: i for i, v in enumerate(vars_)},
+                tuple(v.start if v.start is not None else 0.0 for v in vars_),
+                tuple(v.type for v in vars_),
+                settable,
+                frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter"),
+                {mode: frozenset(i for i in settable[mode, "Real"]
+                                 if vars_[i].causality == "input") for mode in MODES},
+                len(vars_),
+            )
+            cls._TABLES = tables
+        return tables
 
     @classmethod
     def _class_fmu_id(cls) -> str:

@@ -33,6 +33,7 @@ def leave_sys_path(resources: str | None) -> None:
 
 
 _FINALIZE: set[str] = set()
+_FINALIZE_ASKED: set[tuple[str, str, str]] = set()
 
 
 def finalize_at_exit(resources: str | None, model: str, folder: str = "linux64") -> None:
@@ -61,6 +62,10 @@ def finalize_at_exit(resources: str | None, model: str, folder: str = "linux64")
 
     if not resources or not sys.platform.startswith("linux"):
         return
+    key = (resources, model, folder)
+    if key in _FINALIZE_ASKED:  # (every instantiation asks again: answered once)
+        return
+    _FINALIZE_ASKED.add(key)
     lib = os.path.join(os.path.dirname(os.path.abspath(resources)), "binaries", folder,
                        f"{model}.so")
     if lib in _FINALIZE:
@@ -220,7 +225,12 @@ def inside_fmpy_container(resources: str | None) -> bool:
     """
     if not resources:
         return False
+    nested = _NESTED.get(resources)
+    if nested is None:  # once per resources folder and process (a container does not move)
+        outer = os.path.dirname(os.path.dirname(os.path.abspath(resources)))
+        nested = _NESTED[resources] = (os.path.basename(outer) == "resources" and os.path.isfile(
+            os.path.join(outer, "container.json")))
+    return nested
 
-    outer = os.path.dirname(os.path.dirname(os.path.abspath(resources)))
-    return (os.path.basename(outer) == "resources"
-            and os.path.isfile(os.path.join(outer, "container.json")))
+
+_NESTED: dict[str, bool] = {}

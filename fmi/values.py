@@ -56,16 +56,52 @@ def get_real(self: Any, vrs: list[int]) -> list[float]:
     try:  # the hot path of every co-simulation step: no per-element checks
         if self._stale:  # a direct-feedthrough FMU after a set: recompute the outputs once
             self._update_if_stale()
+        if vrs == self._get_vrs and self._mode != "instantiated":
+            return self._real[self._get_rows]  # the rows of the last such read: one slice
         r = self._real
         if self._mode == "instantiated" or min(vrs) < 0:
             raise IndexError  # (a reference >= 2**31 arrives negative and would wrap around)
-        return [r[i] for i in vrs]  # an index past the end raises; PyFloat_AsDouble converts
+        out = [r[i] for i in vrs]  # an index past the end raises; PyFloat_AsDouble converts
+        rows = _real_block(self, vrs)
+        if rows is not None:  # consecutive Real rows: the next read of them is a slice
+            self._get_vrs, self._get_rows = list(vrs), rows
+        return out
     except BaseException:  # also min() of no references: answered (empty) by _read
         return _read(self, vrs, "Real", float, math.nan)
 
 
+def _real_block(self: Any, vrs: list[int]) -> slice | None:
+    """``vrs`` as one slice of the value table if they are consecutive Real rows, in order."""
+    return _block_of(self, vrs, "Real")
+
+
+def _block_of(self: Any, vrs: list[int], kind: str) -> slice | None:
+    """``vrs`` as one slice of the value table if they are consecutive rows of type ``kind``,
+    in order."""
+    first, n = vrs[0], len(vrs)
+    if first < 0 or vrs != list(range(first, first + n)) or not all(
+            t == kind for t in self._types[first:first + n]) or first + n > self._n_vars:
+        return None
+    return slice(first, first + n)
+
+
 def get_boolean(self: Any, vrs: list[int]) -> list[bool]:
-    return _read(self, vrs, "Boolean", bool, False)
+    try:  # the hot path: the consecutive Boolean rows of the last such read, as fmi2GetReal
+        if vrs == self._get_bool_vrs and self._mode != "instantiated":
+            if self._stale:
+                self._update_if_stale()
+            return list(map(bool, self._real[self._get_bool_rows]))
+    except BaseException:  # (answered and logged by _read)
+        pass
+    out = _read(self, vrs, "Boolean", bool, False)
+    try:
+        if vrs and self._mode != "instantiated":
+            rows = _block_of(self, vrs, "Boolean")
+            if rows is not None:
+                self._get_bool_vrs, self._get_bool_rows = list(vrs), rows
+    except BaseException:  # (a getter cannot fail)
+        pass
+    return out
 
 
 def get_integer(self: Any, vrs: list[int]) -> list[int]:
@@ -78,12 +114,22 @@ def get_string(self: Any, vrs: list[int]) -> list[str]:
 
 def set_real(self: Any, vrs: list[int], values: list[float]) -> None:
     try:  # the hot path of every co-simulation step: inputs only, each settable now
-        if self._input_rows[self._mode].issuperset(vrs):
+        if vrs == self._set_vrs and self._mode == self._set_mode and len(values) == len(vrs):
+            self._real[self._set_rows] = values  # the inputs of the last such set: one slice
+            if self.DIRECT_FEEDTHROUGH or not self._initialized:
+                self._stale = True
+            return
+        mode = self._mode
+        if self._input_rows[mode].issuperset(vrs):
             r = self._real
             for i, x in zip(vrs, values):
                 r[i] = x
             if self.DIRECT_FEEDTHROUGH or not self._initialized:
                 self._stale = True
+            if len(values) == len(vrs):  # consecutive inputs: the next set of them in this
+                rows = _real_block(self, vrs)  # state is a slice
+                if rows is not None:
+                    self._set_vrs, self._set_mode, self._set_rows = list(vrs), mode, rows
             return
     except BaseException:  # (the general path below says what is wrong)
         pass

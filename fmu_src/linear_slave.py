@@ -21,7 +21,10 @@ from ..models.axes import Axis
 from ..fmi import SlaveBase, Var
 from ..models.linear import ZohModel
 
-__all__ = ["LinearPlantSlave", "plant_variables"]
+__all__ = ["MODELS", "LinearPlantSlave", "plant_variables"]
+
+#: parameter sets whose models (with their step matrices) a plant class keeps
+MODELS = 16
 
 
 def _block(vrs: tuple[int, ...]) -> slice:
@@ -103,21 +106,15 @@ class LinearPlantSlave(SlaveBase):
         self._stepper_model: Any = None
         self._scale = [1.0] * len(axis.state_names)
         self._n = 1.0
-        vr = self._vr
-        # the controls' and the states' rows of the value table
-        self._inputs = _block(tuple(vr[n] for n in axis.control_names))
-        self._outputs = _block(tuple(vr[n] for n in axis.state_names))
-        self._params = self.PARAMETERS.names()
-        self._starts = tuple(f"{s}_start" for s in axis.state_names)
-        self._matrix = tuple(v.name for v in self.VARIABLES
-                             if v.causality == "calculatedParameter")
+        (self._inputs, self._outputs, self._params, self._starts,
+         self._matrix) = self._names_of_class()
         #: step size [s] -> the model's fused step for the current model and scales
         self._steppers: dict[float, Any] = {}
 
     def _refresh(self) -> None:
         params = self.PARAMETERS(*self._values(self._params))
         if self._model is None or self._model.params != params:
-            self._model = self.MODEL(params)  # validates
+            self._model = self._shared_model(params)  # validates
         n, U = self._values(("n", "U"))
         for name, value in (("n", n), ("U", U)):
             if not (math.isfinite(value) and value > 0.0):
@@ -129,6 +126,38 @@ class LinearPlantSlave(SlaveBase):
         self._n, self._scale, self._stepper_model = n, scale, self._model
         self._set_values(self._matrix,
                          [x for M in (self._model.A_rows, self._model.B_rows) for row in M for x in row])
+
+    @classmethod
+    def _names_of_class(cls) -> tuple[Any, ...]:
+        """Made once per class: the controls' and the states' rows of the value table (slices),
+        the parameters' names, the start values' and the calculated matrices'."""
+        names = cls.__dict__.get("_NAMES")
+        if names is None:
+            vr, axis = cls._class_tables()[0], cls.AXIS
+            names = cls._NAMES = (
+                _block(tuple(vr[n] for n in axis.control_names)),
+                _block(tuple(vr[n] for n in axis.state_names)),
+                cls.PARAMETERS.names(),
+                tuple(f"{s}_start" for s in axis.state_names),
+                tuple(v.name for v in cls.VARIABLES if v.causality == "calculatedParameter"))
+        return names
+
+    @classmethod
+    def _shared_model(cls, params: Any) -> ZohModel:
+        """The model of ``params`` (validated by ``MODEL``), shared by the class's instances:
+        its (Phi, Gamma) per step size, a matrix exponential each, outlive an instance (a host
+        that resets or re-instantiates the FMU computes them once per process). At most
+        :data:`MODELS` parameter sets are kept, the oldest dropped first."""
+        models = cls.__dict__.get("_MODELS")
+        if models is None:
+            models = cls._MODELS = {}
+        model = models.get(params)
+        if model is None:
+            model = cls.MODEL(params)  # raises for parameters that are not valid: not kept
+            if len(models) >= MODELS:
+                models.pop(next(iter(models)))
+            models[params] = model
+        return model
 
     def _update_outputs(self) -> None:
         # Before initialization ends, the initial unknowns already follow the start values and

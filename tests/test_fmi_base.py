@@ -140,6 +140,38 @@ def test_out_of_range_value_references_are_logged():
     assert any("valueReference 1000000" in t for t in texts), texts
 
 
+def test_repeated_reads_and_sets_keep_every_check():
+    """The second fmi2GetReal/fmi2SetReal of the same value references (a slice of the value
+    table) answers and refuses exactly as the first: in the wrong state, for values that may not
+    be set, for a different number of values."""
+    s = _new()
+    states = [_vr(s, n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+    controls = [_vr(s, n) for n in ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")]
+    for _ in range(2):  # instantiated: logged every time, however often read
+        s.get_real(list(states))
+        assert any(status == 3 and "fmi2GetReal" in text for status, text in _messages(s))
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    for k in range(3):
+        s.set_real(list(controls), [0.01 * k, 0.0, -0.02])
+        assert s.get_real(list(controls)) == [0.01 * k, 0.0, -0.02]
+        assert s.get_real(list(states)) == [s._real[i] for i in states]
+    assert _messages(s) == []
+    s.set_real(list(controls), [1.0, 2.0])  # fewer values than references: no slice
+    assert len(s._real) == len(s.VARIABLES)
+    s.set_real(list(states), [0.0] * 4)  # outputs: rejected each time
+    s.set_real(list(states), [0.0] * 4)
+    assert sum("rejected" in text for _, text in _messages(s)) == 8
+    assert s.do_step(0.0, H) is False
+    s.terminate()
+    _messages(s)
+    s.set_real(list(controls), [0.0, 0.0, 0.0])  # settable in stepping, not in terminated
+    assert any(status == 3 and "'terminated'" in text for status, text in _messages(s))
+    s.set_real(list(controls), [0.0, 0.0, 0.0])
+    assert any(status == 3 and "'terminated'" in text for status, text in _messages(s))
+
+
 @pytest.mark.parametrize("call,args,fragment", [
     ("get_string", ([0],), "fmi2GetString"), ("get_integer", ([0],), "fmi2GetInteger"),
     ("set_string", ([0], ["x"]), "fmi2SetString"), ("set_integer", ([0], [1]), "fmi2SetInteger"),

@@ -105,7 +105,7 @@ class SlaveBase(Fmi2Slave):
         self._settable = {
             (mode, kind): frozenset(i for i, v in enumerate(vars_)
                                     if v.type == kind and self._may_set(v, mode))
-            for mode in MODES for kind in ("Real", "Boolean")
+            for mode in MODES for kind in ("Real", "Boolean", "Integer")
         }
         self._param_vrs = frozenset(i for i, v in enumerate(vars_) if v.causality == "parameter")
         #: per state, the Real inputs that may be set (no parameter: a set changes no model)

@@ -79,7 +79,6 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import roots_jacobi
 
 from ..core.errors import DroneflyError
 from .lateral import FLIGHT_DATA, reference_scales
@@ -95,6 +94,7 @@ __all__ = [
     "Terms",
     "Trim",
     "WingGeometry",
+    "gauss_jacobi",
     "weight_plus",
 ]
 
@@ -262,6 +262,24 @@ def _cross(a: Array, b: Array) -> Array:
     return out
 
 
+def gauss_jacobi(n: int, a: float, b: float) -> tuple[Array, Array]:
+    """Nodes and weights of the n-point Gauss-Jacobi rule on [-1, 1], weight
+    (1 - x)^a (1 + x)^b (a, b > -1): the eigenvalues of the Jacobi matrix of the orthonormal
+    Jacobi polynomials and the squared first components of its eigenvectors (Golub & Welsch
+    1969), in numpy alone (no scipy: the 6-DOF FMU's quasi-steady aerodynamics run on this
+    module; tests/test_aero.py checks it against ``scipy.special.roots_jacobi``)."""
+    k = np.arange(n, dtype=float)
+    s = 2.0 * k + a + b
+    diag = np.where(k == 0, (b - a) / (a + b + 2.0),
+                    (b * b - a * a) / np.where(k == 0, 1.0, s * (s + 2.0)))
+    k1, s1 = k[1:], s[1:]
+    off = np.sqrt(4.0 * k1 * (k1 + a) * (k1 + b) * (k1 + a + b)
+                  / (s1 * s1 * (s1 + 1.0) * (s1 - 1.0)))
+    x, v = np.linalg.eigh(np.diag(diag) + np.diag(off, 1) + np.diag(off, -1))
+    mu0 = 2.0 ** (a + b + 1.0) * math.gamma(a + 1.0) * math.gamma(b + 1.0) / math.gamma(a + b + 2.0)
+    return x, mu0 * v[0] ** 2
+
+
 def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
     """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
     tau = np.mod(t - start, 1.0) / duration
@@ -314,7 +332,7 @@ class QuasiSteadyModel:
 
         g = self.geometry
         # nodes x in [-1, 1] with weight (1-x)^(q-1) (1+x)^(p-1); r_hat = (1+x)/2
-        x, w = roots_jacobi(n_span, g.q - 1.0, g.p - 1.0)
+        x, w = gauss_jacobi(n_span, g.q - 1.0, g.p - 1.0)
         r_hat = 0.5 * (1.0 + x)
         # chord c(r) = C r^(p-1) (1-r)^(q-1) with the integral of c over the span = S_wing
         beta = math.gamma(g.p) * math.gamma(g.q) / math.gamma(g.p + g.q)
@@ -572,7 +590,10 @@ class QuasiSteadyModel:
         element, the added mass integrated by parts over the periodic cycle, which removes the
         O(dt^2) error of the central differences.
         """
-        mp = self._maps(Phi, phibar, alpha_d, alpha_u)
+        return self._mean_of(self._maps(Phi, phibar, alpha_d, alpha_u), state)
+
+    def _mean_of(self, mp: dict[str, Array], state: Sequence[float] | Array) -> Array:
+        """:meth:`_mean` through the maps ``mp`` of the wing motion (the state's part only)."""
         terms = self.terms
         x = np.asarray(state, dtype=float)
         x1 = np.concatenate([[1.0], x])
@@ -610,6 +631,36 @@ class QuasiSteadyModel:
             else:
                 out += s
         return out / (2.0 * self.geometry.S_wing * self.n_time)
+
+    def state_function(self, controls: Sequence[float] = (0.0,) * 7,
+                       trim: Trim | None = None) -> Callable[[Sequence[float]], Array]:
+        """The cycle-averaged forces as a function of the body state, the controls held.
+
+        What the 6-DOF plant's quasi-steady aerodynamics call at every Runge-Kutta stage
+        (:class:`dronefly.models.rigid_body.Hover6DOF`): the wing motion of ``controls`` is
+        mapped once, each call computes only what depends on the state.
+
+        Parameters
+        ----------
+        controls : sequence of 7 floats
+            The control increments [rad] in the order of :data:`CONTROLS` (lateral, then
+            longitudinal).
+        trim : Trim, optional
+            The reference (default: the trimmed hover).
+
+        Returns
+        -------
+        callable
+            (du+, dv+, dw+, dp+, dq+, dr+) -> array (X+, Y+, Z+, L+, M+, N+), non-dimensional
+            as :meth:`forces_vector` (no check of the state: the caller's).
+        """
+        if len(controls) != len(CONTROLS):
+            raise DroneflyError(f"controls = {controls!r}: expected {len(CONTROLS)} values "
+                                f"({', '.join(CONTROLS)})")
+        kin = self.wing_kinematics(dict(zip(CONTROLS, controls)), trim)
+        mp = self._maps(kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"])
+        mean = self._mean_of
+        return lambda state: mean(mp, state)
 
     def forces_over_cycle(self, state: Sequence[float] | Array = (0.0,) * 6,
                           control: Mapping[str, float] | None = None,

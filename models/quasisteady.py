@@ -517,7 +517,10 @@ class QuasiSteadyModel:
         along e_c and n; their six sums (force, moment about the centre of mass) are linear in
         the span sums of the forces and of r times the forces, ``M``; ``am0``, ``am1`` do the
         same for the added mass's mid-chord normal velocity (the derivative in time moved, by
-        parts over the periodic cycle, onto the wing's own motion, analytic).
+        parts over the periodic cycle, onto the wing's own motion, analytic). Stored for
+        :meth:`_mean_of`: ``rows`` (7, 4 T2 S), what x1 turns into V_n, V_c, the rotational
+        factor and the added-mass velocity of every element; ``Mt`` and ``amt``, ``M`` and
+        the added mass's maps ordered (sample, sum); ``R`` the span sums.
         """
         key = (Phi.tobytes(), phibar.tobytes(), alpha_d.tobytes(), alpha_u.tobytes())
         if self._map_key == key:
@@ -570,13 +573,24 @@ class QuasiSteadyModel:
             am1 = np.hstack([z3, etxn + _cross(e_r, dn)])
         c_rot = np.pi * (0.75 - g.x0_hat)
         chord, cw, r = self._chord, self._cw, self._r
+        rot = (2.0 * c_rot * k * side.repeat(self.n_time, 1).reshape(T2, 1) * s_or) \
+            * (chord * cw)[None, :]
+        mid, m_a = k * (0.5 - g.x0_hat) * chord, 0.5 * np.pi * k * chord * cw
+        # per wing-sample and element, the rows that x1 turns into V_n, V_c, the rotational
+        # force factor f = rot omega_p and the added mass's m_a (V_n - mid omega_p): one
+        # product per state, x1 @ (7, 4 T2 S) (long rows: a fast product; (4, T2, S, 7) @ x1
+        # costs five times as much)
+        Vn = A[0][:, None, :] + r[None, :, None] * B[0][:, None, :]
+        Vc = A[1][:, None, :] + r[None, :, None] * B[1][:, None, :]
+        om = A[2][:, None, :]
+        rows = np.stack([Vn, Vc, rot[:, :, None] * om, m_a[None, :, None] * (Vn - mid[None, :, None] * om)])
         self._map = {
-            "A": A, "B": B, "M": M.reshape(4 * T2, 6),
-            "am": np.stack([am0, am1]).reshape(2 * T2, -1),
-            "rot": (2.0 * c_rot * k * side.repeat(self.n_time, 1).reshape(T2, 1) * s_or)
-            * (chord * cw)[None, :],
+            "rows": np.ascontiguousarray(np.moveaxis(rows, -1, 0).reshape(7, -1)),
+            "shape": rows.shape[:-1],
+            # the sums' maps ordered (sample, sum): the span sums come out (T2, 4) and (T2, 2)
+            "Mt": np.ascontiguousarray(M.transpose(1, 0, 2).reshape(T2 * 4, 6)),
+            "amt": np.ascontiguousarray(np.stack([am0, am1]).transpose(1, 0, 2).reshape(T2 * 2, -1)),
             "R": np.stack([np.ones_like(r), r], axis=1),  # (S, 2): span sums of f and r f
-            "mid": k * (0.5 - g.x0_hat) * chord, "m_a": 0.5 * np.pi * k * chord * cw,
         }
         self._map_key = key
         return self._map
@@ -593,40 +607,41 @@ class QuasiSteadyModel:
         return self._mean_of(self._maps(Phi, phibar, alpha_d, alpha_u), state)
 
     def _mean_of(self, mp: dict[str, Array], state: Sequence[float] | Array) -> Array:
-        """:meth:`_mean` through the maps ``mp`` of the wing motion (the state's part only)."""
+        """:meth:`_mean` through the maps ``mp`` of the wing motion (the state's part only).
+
+        One product gives every element's V_n, V_c, rotational factor and added-mass velocity
+        (:meth:`_maps`, ``rows``); the rest is elementwise, then two products with the maps of
+        the sums (the fewest numpy calls: each costs about a microsecond)."""
         terms = self.terms
         x = np.asarray(state, dtype=float)
-        x1 = np.concatenate([[1.0], x])
-        r = self._r
-        a, b = mp["A"] @ x1, mp["B"] @ x1  # (3, T2)
-        Vn = a[0][:, None] + b[0][:, None] * r
-        Vc = a[1][:, None] + b[1][:, None] * r
-        om = a[2][:, None]
-        Fc = np.zeros_like(Vn)
-        Fn = np.zeros_like(Vn)
-        if terms.translational:
-            aVn, aVc = np.abs(Vn), np.abs(Vc)
-            speed = np.sqrt(Vn * Vn + Vc * Vc)
-            alpha = np.arctan2(aVn, aVc)
-            cl = self.coefficients.lift(alpha)
-            cd = self.coefficients.drag(alpha)
-            q = self._cw * speed
-            # lift normal to V away from the side the flow meets, drag against V
-            Fc = q * (cl * np.copysign(aVn, Vc) - cd * Vc)
-            Fn = q * (-cl * np.copysign(aVc, Vn) - cd * Vn)
-        if terms.rotational:
-            f = mp["rot"] * om
-            Fc = Fc - f * Vn
-            Fn = Fn + f * Vc
+        x1 = np.empty(7)
+        x1[0] = 1.0
+        x1[1:] = x
+        Vn, Vc, f, v = (x1 @ mp["rows"]).reshape(mp["shape"])  # each (T2, S)
         R = mp["R"]
-        out = np.concatenate([(Fc @ R).T, (Fn @ R).T], axis=0).reshape(-1) @ mp["M"]
+        if terms.translational:
+            speed = np.sqrt(Vn * Vn + Vc * Vc)
+            alpha = np.arctan2(np.abs(Vn), np.abs(Vc))
+            q = self._cw * speed
+            cl = q * self.coefficients.lift(alpha)
+            cd = q * self.coefficients.drag(alpha)
+            # lift normal to V away from the side the flow meets, drag against V
+            Fc = cl * np.copysign(Vn, Vc) - cd * Vc
+            Fn = -(cl * np.copysign(Vc, Vn) + cd * Vn)
+            if terms.rotational:
+                Fc -= f * Vn
+                Fn += f * Vc
+        elif terms.rotational:
+            Fc, Fn = -f * Vn, f * Vc
+        else:
+            Fc = Fn = np.zeros_like(Vn)
+        out = np.hstack([Fc @ R, Fn @ R]).reshape(-1) @ mp["Mt"]
         if terms.added_mass:
-            v = (Vn - mp["mid"] * om) * mp["m_a"]
-            s = (v @ R).T.reshape(-1) @ mp["am"]
+            s = (v @ R).reshape(-1) @ mp["amt"]
             if terms.added_mass_form == "impulse":
-                p, q, rr = x[3:]
+                p, q_, rr = x[3:]
                 J, K, s1, Q = s[:3], s[3:6], s[6], s[7:].reshape(3, 3)
-                out[:3] -= (q * J[2] - rr * J[1], rr * J[0] - p * J[2], p * J[1] - q * J[0])
+                out[:3] -= (q_ * J[2] - rr * J[1], rr * J[0] - p * J[2], p * J[1] - q_ * J[0])
                 out[3:] += K - x[3:] * s1 + Q @ x[3:]
             else:
                 out += s

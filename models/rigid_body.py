@@ -47,7 +47,7 @@ from . import lateral_dynamics as lateral
 from . import longitudinal_dynamics as longitudinal
 
 __all__ = ["CycleAveragedForces", "MAX_SUBSTEP_QS_WB", "MAX_SUBSTEP_WB",
-           "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF", "Hover6DOFError",
+           "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF", "Hover6DOFError", "quasi_steady_rates",
            "STATE_SIZE", "TERMS", "euler_from_quaternion", "gamma_from_quaternion",
            "initial_state", "outputs", "quaternion_from_euler"]
 
@@ -115,7 +115,7 @@ a_r = l20 * v + l21 * p + l22 * r + bl2  [linear]
 a_u = n00 * u + n01 * w + n02 * q + bn0  [linear]
 a_w = n10 * u + n11 * w + n12 * q + bn1  [linear]
 a_q = n20 * u + n21 * w + n22 * q + bn2  [linear]
-a_v, a_p, a_r, a_u, a_w, a_q = acc(u, v, w, p, q, r)  [quasi_steady] see _quasi_steady_rates
+a_v, a_p, a_r, a_u, a_w, a_q = acc(u, v, w, p, q, r)  [quasi_steady] see quasi_steady_rates
 t0, t1, t2 = e0 + e0, e1 + e1, e2 + e2
 s13, s02, s23, s01, s11, s22 = t1 * e3, t0 * e2, t2 * e3, t0 * e1, t1 * e1, t2 * e2
 R20, R21, R22 = s13 - s02, s23 + s01, 1.0 - (s11 + s22)
@@ -183,7 +183,7 @@ def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset,
     the result does not use. The coefficients are closure variables (exact floats, never
     printed as text); the source is built from the constant text of this module only. With
     ``quasi_steady`` the aerodynamic lines are one call per stage, ``acc(u, v, w, p, q, r)``
-    (:func:`_quasi_steady_rates`), and the functions are ``rhs(x, acc)`` and
+    (:func:`quasi_steady_rates`), and the functions are ``rhs(x, acc)`` and
     ``substeps(y, n, h, acc)``."""
     names = [f"{a}{i}{j}" for a in "ln" for i in range(3) for j in range(3)]
     values = [c for rows in (la, na) for row in rows for c in row]
@@ -220,7 +220,7 @@ class CycleAveragedForces(Protocol):
         body axes (a sequence, or an array with ``tolist``)."""
 
 
-def _quasi_steady_rates(f: Callable[[Sequence[float]], Any], F0: Sequence[float], m: float,
+def quasi_steady_rates(f: Callable[[Sequence[float]], Any], F0: Sequence[float], m: float,
                         Ix: float, Iy: float, Iz: float, Ixz: float) -> Callable[..., tuple]:
     """``acc(u, v, w, p, q, r)`` of the [quasi_steady] line of :data:`_RHS`: (a_v, a_p, a_r,
     a_u, a_w, a_q), the force F = f(state) - F0 over m+ and J+^-1 times the moment, F0 the
@@ -294,7 +294,7 @@ class Hover6DOF:
     def _acc(self, c_lat: Sequence[float], c_lon: Sequence[float]) -> Callable[..., tuple]:
         """The quasi-steady aerodynamics' ``acc`` for the controls held over a step."""
         f = self.aerodynamics.state_function((*c_lat, *c_lon))  # type: ignore[union-attr]
-        return _quasi_steady_rates(f, self._F0, *self._inertia)  # type: ignore[attr-defined]
+        return quasi_steady_rates(f, self._F0, *self._inertia)  # type: ignore[attr-defined]
 
     def derivative(self, x: Sequence[float], c_lat: Sequence[float],
                    c_lon: Sequence[float]) -> list[float]:

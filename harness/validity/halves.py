@@ -69,7 +69,7 @@ __all__ = ["HALF_LABELS", "HALVES", "LinearRigidBody", "QuasiSteadyLoops", "form
 #: the three measurements, in the order they are reported
 HALVES: tuple[str, ...] = ("rigid_body", "aerodynamics", "both", "rigid_body_qs")
 #: largest sub-step of :class:`LinearRigidBody` (classical Runge-Kutta), wing beats
-_RK4_SUBSTEP_WB = 0.5
+_RK4_SUBSTEP_WB = 0.25
 
 
 class LinearRigidBody:
@@ -81,7 +81,7 @@ class LinearRigidBody:
     accelerations a of :func:`dronefly.models.rigid_body.quasi_steady_rates` (the forces less
     those at hover, over m+ and through J+^-1). With a force model linear in the state this is
     exactly the linear models (a test checks it against their zero-order hold). Integrated by
-    the classical Runge-Kutta method on sub-steps of at most 0.5 wing beat.
+    the classical Runge-Kutta method on sub-steps of at most 0.25 wing beat.
 
     Parameters
     ----------

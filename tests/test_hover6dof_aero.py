@@ -145,17 +145,19 @@ def test_small_disturbance_follows_the_quasi_steady_linear_model(plant, tangent)
 
 
 def test_sub_steps_are_accurate(plant, monkeypatch):
-    """A step of one wing beat on sub-steps of at most MAX_SUBSTEP_QS_WB = 0.5 against
-    sub-steps of 0.05 wing beat (order 6: 10^6 times more accurate), from a disturbance of
-    the box size with controls held: within 1e-5 of the disturbance. The quasi-steady forces
-    are only piecewise smooth (their samples have kinks where an element's velocity crosses
-    zero), which lowers the order of the Runge-Kutta method; measured 2e-6 (the rigid body
-    with the linear aerodynamics: 1e-10 with its 0.2 wing beat)."""
+    """A step of one wing beat on sub-steps of at most MAX_SUBSTEP_QS_WB = 0.5 wing beat and
+    MAX_TURN_PER_SUBSTEP_QS_RAD = 0.1 rad against sub-steps of 0.02 wing beat and 0.01 rad,
+    from a disturbance of the box size (rates of 0.21 rad per wing beat) with controls held:
+    within 1e-5 of the disturbance. The quasi-steady forces are only piecewise smooth (their
+    samples have kinks where an element's velocity crosses zero), which lowers the order of
+    the Runge-Kutta method: measured 4.2e-6 (1.8e-6 with turns of 0.05 rad, 6.3e-6 with 0.2;
+    the rigid body with the linear aerodynamics: 1e-10 with its 0.2 wing beat)."""
     x0 = list(HOVER)
     x0[1], x0[3], x0[5], x0[0] = 0.15, 0.15, -0.15, 0.1
     c_lat, c_lon = [0.1, 0.0, -0.05], [0.0, 0.05, 0.0, 0.0]
     coarse = plant.step(x0, c_lat, c_lon, 1.0)
-    monkeypatch.setattr(rigid_body, "MAX_SUBSTEP_QS_WB", 0.05)
+    monkeypatch.setattr(rigid_body, "MAX_SUBSTEP_QS_WB", 0.02)
+    monkeypatch.setattr(rigid_body, "MAX_TURN_PER_SUBSTEP_QS_RAD", 0.01)
     fine = plant.step(x0, c_lat, c_lon, 1.0)
     assert max(abs(a - b) for a, b in zip(coarse[:10], fine[:10])) <= 1e-5 * 0.15
 

@@ -153,3 +153,14 @@ def test_cli_compare_nonlinear_reports_the_halves(built_fmus, tmp_path, capsys, 
     assert set(HALVES) <= {k.split("_largest")[0] for k in halves[0] if "largest" in k}
     assert app.main(["sweep", "--halves", "--out", str(tmp_path / "w")]) == 2
     assert "--halves needs --compare nonlinear" in capsys.readouterr().err
+
+
+def test_readme_quotes_the_halves_table():
+    """Every per-cent figure of the README's both-halves line is a cell value of
+    docs/validity.md's halves table (which test_docs_halves_table recomputes)."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    line = next(ln for ln in readme.splitlines() if ln.startswith("- Both halves together"))
+    table = re.search(r"<!-- validity:halves -->\n(.*?)\n\n", DOC, re.S).group(1)
+    cells = set(re.findall(r"\d+\.\d+ %", table))
+    quoted = re.findall(r"\d+\.\d+ %", line)
+    assert len(quoted) >= 7 and set(quoted) <= cells, set(quoted) - cells

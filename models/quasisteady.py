@@ -583,13 +583,15 @@ class QuasiSteadyModel:
         Vn = A[0][:, None, :] + r[None, :, None] * B[0][:, None, :]
         Vc = A[1][:, None, :] + r[None, :, None] * B[1][:, None, :]
         om = A[2][:, None, :]
-        rows = np.stack([Vn, Vc, rot[:, :, None] * om, m_a[None, :, None] * (Vn - mid[None, :, None] * om)])
+        rows = np.stack([Vn, Vc, rot[:, :, None] * om,
+                         m_a[None, :, None] * (Vn - mid[None, :, None] * om)])
         self._map = {
             "rows": np.ascontiguousarray(np.moveaxis(rows, -1, 0).reshape(7, -1)),
             "shape": rows.shape[:-1],
             # the sums' maps ordered (sample, sum): the span sums come out (T2, 4) and (T2, 2)
             "Mt": np.ascontiguousarray(M.transpose(1, 0, 2).reshape(T2 * 4, 6)),
-            "amt": np.ascontiguousarray(np.stack([am0, am1]).transpose(1, 0, 2).reshape(T2 * 2, -1)),
+            "amt": np.ascontiguousarray(
+                np.stack([am0, am1]).transpose(1, 0, 2).reshape(T2 * 2, -1)),
             "R": np.stack([np.ones_like(r), r], axis=1),  # (S, 2): span sums of f and r f
         }
         self._map_key = key

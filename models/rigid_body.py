@@ -9,9 +9,9 @@ Table 1; :mod:`dronefly.models.lateral_dynamics`) and longitudinal (Sect. 3.5;
 :class:`dronefly.models.quasisteady.QuasiSteadyModel`) the derivative terms are replaced by its
 cycle-averaged forces as functions of the state, less their value at the trimmed hover (the
 force that balances the weight, as in the linear case): both halves of Sect. 3.6 together.
-This module imports no numpy; the quasi-steady model does, and only whoever chooses it. What the linearisation of
-Sect. 3.6 drops in the rigid body is restored: the transport terms omega x V (dr du, dp dw,
-...), the gyroscopic terms omega x J omega with the full inertia tensor (dp dq, dq dr, ...),
+This module imports no numpy; the quasi-steady model does, and only whoever chooses it.
+What the linearisation of Sect. 3.6 drops in the rigid body is restored: the transport
+terms omega x V (dr du, dp dw, ...), the gyroscopic terms omega x J omega with the full inertia tensor (dp dq, dq dr, ...),
 the exact projection of gravity and the exact attitude kinematics (a unit quaternion: no
 gimbal lock at any attitude).
 
@@ -47,7 +47,8 @@ from . import lateral_dynamics as lateral
 from . import longitudinal_dynamics as longitudinal
 
 __all__ = ["CycleAveragedForces", "MAX_SUBSTEP_QS_WB", "MAX_SUBSTEP_WB",
-           "MAX_TURN_PER_SUBSTEP_QS_RAD", "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF", "Hover6DOFError", "quasi_steady_rates",
+           "MAX_TURN_PER_SUBSTEP_QS_RAD", "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF",
+           "Hover6DOFError", "quasi_steady_rates",
            "STATE_SIZE", "TERMS", "euler_from_quaternion", "gamma_from_quaternion",
            "initial_state", "outputs", "quaternion_from_euler"]
 
@@ -110,7 +111,8 @@ def _aero_rows(A: object, B: object, rows: Sequence[int], gravity_column: int) -
 
 #: dx/dt+ of (u, v, w, p, q, r, e0, e1, e2, e3) as statements assigning a_u .. a_r, d6 .. d12;
 #: lines tagged [term] are kept with that term, [-term] without it, [position] where dP+/dt+ is
-#: needed, [linear] / [quasi_steady] with that aerodynamics (t = 2 e, s_ij = 2 e_i e_j: exact doublings, 2 (e1 e3 - e0 e2) = s13 - s02 exactly)
+#: needed, [linear] / [quasi_steady] with that aerodynamics (t = 2 e, s_ij = 2 e_i e_j: exact
+#: doublings, 2 (e1 e3 - e0 e2) = s13 - s02 exactly)
 _RHS = """\
 a_v = l00 * v + l01 * p + l02 * r + bl0  [linear] the paper's derivatives
 a_p = l10 * v + l11 * p + l12 * r + bl1  [linear]

@@ -42,9 +42,9 @@ _VELOCITY = ("delta_u_start", "delta_v_start", "delta_w_start")
 #: the values of the parameter ``aerodynamics``
 AERODYNAMICS = {1: "linear", 2: "quasi_steady"}
 _AERO_TEXT = ("aerodynamics: 1 = linear (the paper's stability and control derivatives, the "
-              "derivative parameters), 2 = quasi_steady (the cycle-averaged forces of a quasi-steady "
-              "blade-element model of the wings, dickinson1999, as functions of the state; the "
-              "derivative parameters unused; needs numpy)")
+              "derivative parameters), 2 = quasi_steady (the cycle-averaged forces of a "
+              "quasi-steady blade-element model of the wings, dickinson1999, as functions of "
+              "the state; the derivative parameters unused; needs numpy)")
 
 
 def _quasi_steady_model(resources: str | None) -> Any:

@@ -85,7 +85,8 @@ class LinearRigidBody:
 
     Parameters
     ----------
-    aerodynamics : QuasiSteadyModel (or any :class:`~dronefly.models.rigid_body.CycleAveragedForces`)
+    aerodynamics : QuasiSteadyModel
+        Or any :class:`~dronefly.models.rigid_body.CycleAveragedForces`.
     lateral_params, longitudinal_params : the paper's by default (m+, g+ and the inertias)
     """
 

@@ -95,7 +95,8 @@ FMUS: dict[str, _Spec] = {
     "DroneFlyHover6DOF": _plant(
         "hover6dof", "DroneFlyHover6DOF", *_FMI, "models/linear.py", "models/linear_algebra.py",
         "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
-        "models/longitudinal_dynamics.py", "models/rigid_body.py"),
+        "models/longitudinal_dynamics.py", "models/rigid_body.py",
+        "models/quasisteady.py"),  # imported (with numpy) only with aerodynamics = 2
 }
 
 

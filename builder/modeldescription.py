@@ -19,10 +19,13 @@ __all__ = ["add_units_and_log_categories", "format_value", "model_description",
            "model_description_bytes"]
 
 
-def format_value(value: float | bool) -> str:
-    """A start value as the model description writes it (repr-exact floats, true/false)."""
+def format_value(value: float | bool | int) -> str:
+    """A start value as the model description writes it (repr-exact floats, true/false,
+    integers as integers)."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
     return repr(float(value))
 
 

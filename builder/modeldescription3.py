@@ -20,7 +20,7 @@ from .modeldescription import add_units_and_log_categories, format_value
 
 __all__ = ["model_description3", "model_description3_bytes"]
 
-_TYPES = {"Real": "Float64", "Boolean": "Boolean"}
+_TYPES = {"Real": "Float64", "Boolean": "Boolean", "Integer": "Int32"}
 
 
 def _deps(cls: Any, entry: Var3, initial: bool) -> tuple[int, ...] | None:

@@ -234,6 +234,11 @@ def _parser() -> argparse.ArgumentParser:
                         "(build/DroneFlyHover6DOF.ssp) against the linear plants "
                         "(build/DroneFlyHover.ssp), built on demand. Defaults then: --gains "
                         "paper, --steps 1, --stop 100, --grid 25, --amplitudes 12, --extent 3")
+    w.add_argument("--halves", action="store_true",
+                   help="with --compare nonlinear: also the error of each half of Sect. 3.6 "
+                        "(the rigid body, the quasi-steady aerodynamics, both) over the "
+                        "direction cases, on the model classes (docs/validity.md; about 1 s "
+                        "per case, so not by default)")
     w.add_argument("--extent", type=positive, default=None, metavar="X",
                    help="the disturbances cover X times the Sect. 3.6 box (default 1; 3 with "
                         "--compare)")

@@ -247,7 +247,7 @@ class SlaveBase(Fmi2Slave):
             settable = {
                 (mode, kind): frozenset(i for i, v in enumerate(vars_)
                                         if v.type == kind and cls._may_set(v, mode))
-                for mode in MODES for kind in ("Real", "Boolean")
+                for mode in MODES for kind in ("Real", "Boolean", "Integer")
             }
             tables = (
                 {v.name: i for i, v in enumerate(vars_)},

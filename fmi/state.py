@@ -207,7 +207,7 @@ def _check_payload(self: Any, p: Any) -> str | None:
 
 
 def _restore(self: Any, p: dict[str, Any]) -> None:
-    self._real = [bool(x) if kind == "Boolean" else float(x)
+    self._real = [bool(x) if kind == "Boolean" else int(x) if kind == "Integer" else float(x)
                   for x, kind in zip(p["real"], self._types)]
     self._mode = p["mode"]
     self._time = float(p["time"])

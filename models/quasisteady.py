@@ -79,7 +79,6 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import roots_jacobi
 
 from ..core.errors import DroneflyError
 from .lateral import FLIGHT_DATA, reference_scales
@@ -95,6 +94,7 @@ __all__ = [
     "Terms",
     "Trim",
     "WingGeometry",
+    "gauss_jacobi",
     "weight_plus",
 ]
 
@@ -262,6 +262,24 @@ def _cross(a: Array, b: Array) -> Array:
     return out
 
 
+def gauss_jacobi(n: int, a: float, b: float) -> tuple[Array, Array]:
+    """Nodes and weights of the n-point Gauss-Jacobi rule on [-1, 1], weight
+    (1 - x)^a (1 + x)^b (a, b > -1): the eigenvalues of the Jacobi matrix of the orthonormal
+    Jacobi polynomials and the squared first components of its eigenvectors (Golub & Welsch
+    1969), in numpy alone (no scipy: the 6-DOF FMU's quasi-steady aerodynamics run on this
+    module; tests/test_aero.py checks it against ``scipy.special.roots_jacobi``)."""
+    k = np.arange(n, dtype=float)
+    s = 2.0 * k + a + b
+    diag = np.where(k == 0, (b - a) / (a + b + 2.0),
+                    (b * b - a * a) / np.where(k == 0, 1.0, s * (s + 2.0)))
+    k1, s1 = k[1:], s[1:]
+    off = np.sqrt(4.0 * k1 * (k1 + a) * (k1 + b) * (k1 + a + b)
+                  / (s1 * s1 * (s1 + 1.0) * (s1 - 1.0)))
+    x, v = np.linalg.eigh(np.diag(diag) + np.diag(off, 1) + np.diag(off, -1))
+    mu0 = 2.0 ** (a + b + 1.0) * math.gamma(a + 1.0) * math.gamma(b + 1.0) / math.gamma(a + b + 2.0)
+    return x, mu0 * v[0] ** 2
+
+
 def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
     """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
     tau = np.mod(t - start, 1.0) / duration
@@ -314,7 +332,7 @@ class QuasiSteadyModel:
 
         g = self.geometry
         # nodes x in [-1, 1] with weight (1-x)^(q-1) (1+x)^(p-1); r_hat = (1+x)/2
-        x, w = roots_jacobi(n_span, g.q - 1.0, g.p - 1.0)
+        x, w = gauss_jacobi(n_span, g.q - 1.0, g.p - 1.0)
         r_hat = 0.5 * (1.0 + x)
         # chord c(r) = C r^(p-1) (1-r)^(q-1) with the integral of c over the span = S_wing
         beta = math.gamma(g.p) * math.gamma(g.q) / math.gamma(g.p + g.q)
@@ -499,7 +517,10 @@ class QuasiSteadyModel:
         along e_c and n; their six sums (force, moment about the centre of mass) are linear in
         the span sums of the forces and of r times the forces, ``M``; ``am0``, ``am1`` do the
         same for the added mass's mid-chord normal velocity (the derivative in time moved, by
-        parts over the periodic cycle, onto the wing's own motion, analytic).
+        parts over the periodic cycle, onto the wing's own motion, analytic). Stored for
+        :meth:`_mean_of`: ``rows`` (7, 4 T2 S), what x1 turns into V_n, V_c, the rotational
+        factor and the added-mass velocity of every element; ``Mt`` and ``amt``, ``M`` and
+        the added mass's maps ordered (sample, sum); ``R`` the span sums.
         """
         key = (Phi.tobytes(), phibar.tobytes(), alpha_d.tobytes(), alpha_u.tobytes())
         if self._map_key == key:
@@ -552,13 +573,26 @@ class QuasiSteadyModel:
             am1 = np.hstack([z3, etxn + _cross(e_r, dn)])
         c_rot = np.pi * (0.75 - g.x0_hat)
         chord, cw, r = self._chord, self._cw, self._r
+        rot = (2.0 * c_rot * k * side.repeat(self.n_time, 1).reshape(T2, 1) * s_or) \
+            * (chord * cw)[None, :]
+        mid, m_a = k * (0.5 - g.x0_hat) * chord, 0.5 * np.pi * k * chord * cw
+        # per wing-sample and element, the rows that x1 turns into V_n, V_c, the rotational
+        # force factor f = rot omega_p and the added mass's m_a (V_n - mid omega_p): one
+        # product per state, x1 @ (7, 4 T2 S) (long rows: a fast product; (4, T2, S, 7) @ x1
+        # costs five times as much)
+        Vn = A[0][:, None, :] + r[None, :, None] * B[0][:, None, :]
+        Vc = A[1][:, None, :] + r[None, :, None] * B[1][:, None, :]
+        om = A[2][:, None, :]
+        rows = np.stack([Vn, Vc, rot[:, :, None] * om,
+                         m_a[None, :, None] * (Vn - mid[None, :, None] * om)])
         self._map = {
-            "A": A, "B": B, "M": M.reshape(4 * T2, 6),
-            "am": np.stack([am0, am1]).reshape(2 * T2, -1),
-            "rot": (2.0 * c_rot * k * side.repeat(self.n_time, 1).reshape(T2, 1) * s_or)
-            * (chord * cw)[None, :],
+            "rows": np.ascontiguousarray(np.moveaxis(rows, -1, 0).reshape(7, -1)),
+            "shape": rows.shape[:-1],
+            # the sums' maps ordered (sample, sum): the span sums come out (T2, 4) and (T2, 2)
+            "Mt": np.ascontiguousarray(M.transpose(1, 0, 2).reshape(T2 * 4, 6)),
+            "amt": np.ascontiguousarray(
+                np.stack([am0, am1]).transpose(1, 0, 2).reshape(T2 * 2, -1)),
             "R": np.stack([np.ones_like(r), r], axis=1),  # (S, 2): span sums of f and r f
-            "mid": k * (0.5 - g.x0_hat) * chord, "m_a": 0.5 * np.pi * k * chord * cw,
         }
         self._map_key = key
         return self._map
@@ -572,44 +606,78 @@ class QuasiSteadyModel:
         element, the added mass integrated by parts over the periodic cycle, which removes the
         O(dt^2) error of the central differences.
         """
-        mp = self._maps(Phi, phibar, alpha_d, alpha_u)
+        return self._mean_of(self._maps(Phi, phibar, alpha_d, alpha_u), state)
+
+    def _mean_of(self, mp: dict[str, Array], state: Sequence[float] | Array) -> Array:
+        """:meth:`_mean` through the maps ``mp`` of the wing motion (the state's part only).
+
+        One product gives every element's V_n, V_c, rotational factor and added-mass velocity
+        (:meth:`_maps`, ``rows``); the rest is elementwise, then two products with the maps of
+        the sums (the fewest numpy calls: each costs about a microsecond)."""
         terms = self.terms
         x = np.asarray(state, dtype=float)
-        x1 = np.concatenate([[1.0], x])
-        r = self._r
-        a, b = mp["A"] @ x1, mp["B"] @ x1  # (3, T2)
-        Vn = a[0][:, None] + b[0][:, None] * r
-        Vc = a[1][:, None] + b[1][:, None] * r
-        om = a[2][:, None]
-        Fc = np.zeros_like(Vn)
-        Fn = np.zeros_like(Vn)
-        if terms.translational:
-            aVn, aVc = np.abs(Vn), np.abs(Vc)
-            speed = np.sqrt(Vn * Vn + Vc * Vc)
-            alpha = np.arctan2(aVn, aVc)
-            cl = self.coefficients.lift(alpha)
-            cd = self.coefficients.drag(alpha)
-            q = self._cw * speed
-            # lift normal to V away from the side the flow meets, drag against V
-            Fc = q * (cl * np.copysign(aVn, Vc) - cd * Vc)
-            Fn = q * (-cl * np.copysign(aVc, Vn) - cd * Vn)
-        if terms.rotational:
-            f = mp["rot"] * om
-            Fc = Fc - f * Vn
-            Fn = Fn + f * Vc
+        x1 = np.empty(7)
+        x1[0] = 1.0
+        x1[1:] = x
+        Vn, Vc, f, v = (x1 @ mp["rows"]).reshape(mp["shape"])  # each (T2, S)
         R = mp["R"]
-        out = np.concatenate([(Fc @ R).T, (Fn @ R).T], axis=0).reshape(-1) @ mp["M"]
+        if terms.translational:
+            speed = np.sqrt(Vn * Vn + Vc * Vc)
+            alpha = np.arctan2(np.abs(Vn), np.abs(Vc))
+            q = self._cw * speed
+            cl = q * self.coefficients.lift(alpha)
+            cd = q * self.coefficients.drag(alpha)
+            # lift normal to V away from the side the flow meets, drag against V
+            Fc = cl * np.copysign(Vn, Vc) - cd * Vc
+            Fn = -(cl * np.copysign(Vc, Vn) + cd * Vn)
+            if terms.rotational:
+                Fc -= f * Vn
+                Fn += f * Vc
+        elif terms.rotational:
+            Fc, Fn = -f * Vn, f * Vc
+        else:
+            Fc = Fn = np.zeros_like(Vn)
+        out = np.hstack([Fc @ R, Fn @ R]).reshape(-1) @ mp["Mt"]
         if terms.added_mass:
-            v = (Vn - mp["mid"] * om) * mp["m_a"]
-            s = (v @ R).T.reshape(-1) @ mp["am"]
+            s = (v @ R).reshape(-1) @ mp["amt"]
             if terms.added_mass_form == "impulse":
-                p, q, rr = x[3:]
+                p, q_, rr = x[3:]
                 J, K, s1, Q = s[:3], s[3:6], s[6], s[7:].reshape(3, 3)
-                out[:3] -= (q * J[2] - rr * J[1], rr * J[0] - p * J[2], p * J[1] - q * J[0])
+                out[:3] -= (q_ * J[2] - rr * J[1], rr * J[0] - p * J[2], p * J[1] - q_ * J[0])
                 out[3:] += K - x[3:] * s1 + Q @ x[3:]
             else:
                 out += s
         return out / (2.0 * self.geometry.S_wing * self.n_time)
+
+    def state_function(self, controls: Sequence[float] = (0.0,) * 7,
+                       trim: Trim | None = None) -> Callable[[Sequence[float]], Array]:
+        """The cycle-averaged forces as a function of the body state, the controls held.
+
+        What the 6-DOF plant's quasi-steady aerodynamics call at every Runge-Kutta stage
+        (:class:`dronefly.models.rigid_body.Hover6DOF`): the wing motion of ``controls`` is
+        mapped once, each call computes only what depends on the state.
+
+        Parameters
+        ----------
+        controls : sequence of 7 floats
+            The control increments [rad] in the order of :data:`CONTROLS` (lateral, then
+            longitudinal).
+        trim : Trim, optional
+            The reference (default: the trimmed hover).
+
+        Returns
+        -------
+        callable
+            (du+, dv+, dw+, dp+, dq+, dr+) -> array (X+, Y+, Z+, L+, M+, N+), non-dimensional
+            as :meth:`forces_vector` (no check of the state: the caller's).
+        """
+        if len(controls) != len(CONTROLS):
+            raise DroneflyError(f"controls = {controls!r}: expected {len(CONTROLS)} values "
+                                f"({', '.join(CONTROLS)})")
+        kin = self.wing_kinematics(dict(zip(CONTROLS, controls)), trim)
+        mp = self._maps(kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"])
+        mean = self._mean_of
+        return lambda state: mean(mp, state)
 
     def forces_over_cycle(self, state: Sequence[float] | Array = (0.0,) * 6,
                           control: Mapping[str, float] | None = None,

@@ -1,12 +1,17 @@
 """The hovering model drone fly as a rigid body in six degrees of freedom (not linearised).
 
 The single home of the nonlinear equations; the FMU ``DroneFlyHover6DOF`` and the analysis
-import it. The aerodynamics are the paper's, the mean force at equilibrium (balancing the
-weight, fixed in the body) plus the linear derivatives of the lateral (Eq. 12, Table 1;
-:mod:`dronefly.models.lateral_dynamics`) and longitudinal (Sect. 3.5; :mod:`dronefly.fmu_src.longitudinal.
-model`) models: that linearity is the paper's assumption and stays. What the linearisation of
-Sect. 3.6 drops in the rigid body is restored: the transport terms omega x V (dr du, dp dw,
-...), the gyroscopic terms omega x J omega with the full inertia tensor (dp dq, dq dr, ...),
+import it. The aerodynamics are, by default, the paper's: the mean force at equilibrium
+(balancing the weight, fixed in the body) plus the linear derivatives of the lateral (Eq. 12,
+Table 1; :mod:`dronefly.models.lateral_dynamics`) and longitudinal (Sect. 3.5;
+:mod:`dronefly.models.longitudinal_dynamics`) models, the paper's assumption. With
+``aerodynamics`` a model of the wings (:class:`CycleAveragedForces`, the quasi-steady
+:class:`dronefly.models.quasisteady.QuasiSteadyModel`) the derivative terms are replaced by its
+cycle-averaged forces as functions of the state, less their value at the trimmed hover (the
+force that balances the weight, as in the linear case): both halves of Sect. 3.6 together.
+This module imports no numpy; the quasi-steady model does, and only whoever chooses it.
+What the linearisation of Sect. 3.6 drops in the rigid body is restored: the transport
+terms omega x V (dr du, dp dw, ...), the gyroscopic terms omega x J omega with the full inertia tensor (dp dq, dq dr, ...),
 the exact projection of gravity and the exact attitude kinematics (a unit quaternion: no
 gimbal lock at any attitude).
 
@@ -35,18 +40,27 @@ import re
 from dataclasses import dataclass
 from functools import lru_cache
 from operator import mul
-from typing import Callable, Sequence
+from typing import Any, Callable, Protocol, Sequence
 
 from ..core.errors import DroneflyError
 from . import lateral_dynamics as lateral
 from . import longitudinal_dynamics as longitudinal
 
-__all__ = ["MAX_SUBSTEP_WB", "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF", "Hover6DOFError",
+__all__ = ["CycleAveragedForces", "MAX_SUBSTEP_QS_WB", "MAX_SUBSTEP_WB",
+           "MAX_TURN_PER_SUBSTEP_QS_RAD", "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF",
+           "Hover6DOFError", "quasi_steady_rates",
            "STATE_SIZE", "TERMS", "euler_from_quaternion", "gamma_from_quaternion",
            "initial_state", "outputs", "quaternion_from_euler"]
 
 #: largest Runge-Kutta sub-step, wing beats (the accuracy this gives: tests/test_hover6dof.py)
 MAX_SUBSTEP_WB = 0.2
+#: largest Runge-Kutta sub-step with the quasi-steady aerodynamics, wing beats: each stage
+#: costs a cycle-averaged force evaluation; the accuracy (within 1e-5 of the disturbance of
+#: sub-steps of 0.02 wing beat): tests/test_hover6dof_aero.py
+MAX_SUBSTEP_QS_WB = 0.5
+#: largest turn per sub-step with the quasi-steady aerodynamics, rad: the forces' kinks (an
+#: element's velocity through zero) bound the accuracy first (tests/test_hover6dof_aero.py)
+MAX_TURN_PER_SUBSTEP_QS_RAD = 0.1
 #: largest turn per sub-step, rad (shorter sub-steps above 0.5 rad per wing beat, the fastest
 #: rate of the linear dynamics)
 MAX_TURN_PER_SUBSTEP_RAD = 0.05
@@ -97,14 +111,16 @@ def _aero_rows(A: object, B: object, rows: Sequence[int], gravity_column: int) -
 
 #: dx/dt+ of (u, v, w, p, q, r, e0, e1, e2, e3) as statements assigning a_u .. a_r, d6 .. d12;
 #: lines tagged [term] are kept with that term, [-term] without it, [position] where dP+/dt+ is
-#: needed (t = 2 e, s_ij = 2 e_i e_j: exact doublings, 2 (e1 e3 - e0 e2) = s13 - s02 exactly)
+#: needed, [linear] / [quasi_steady] with that aerodynamics (t = 2 e, s_ij = 2 e_i e_j: exact
+#: doublings, 2 (e1 e3 - e0 e2) = s13 - s02 exactly)
 _RHS = """\
-a_v = l00 * v + l01 * p + l02 * r + bl0
-a_p = l10 * v + l11 * p + l12 * r + bl1
-a_r = l20 * v + l21 * p + l22 * r + bl2
-a_u = n00 * u + n01 * w + n02 * q + bn0
-a_w = n10 * u + n11 * w + n12 * q + bn1
-a_q = n20 * u + n21 * w + n22 * q + bn2
+a_v = l00 * v + l01 * p + l02 * r + bl0  [linear] the paper's derivatives
+a_p = l10 * v + l11 * p + l12 * r + bl1  [linear]
+a_r = l20 * v + l21 * p + l22 * r + bl2  [linear]
+a_u = n00 * u + n01 * w + n02 * q + bn0  [linear]
+a_w = n10 * u + n11 * w + n12 * q + bn1  [linear]
+a_q = n20 * u + n21 * w + n22 * q + bn2  [linear]
+a_v, a_p, a_r, a_u, a_w, a_q = acc(u, v, w, p, q, r)  [quasi_steady] see quasi_steady_rates
 t0, t1, t2 = e0 + e0, e1 + e1, e2 + e2
 s13, s02, s23, s01, s11, s22 = t1 * e3, t0 * e2, t2 * e3, t0 * e1, t1 * e1, t2 * e2
 R20, R21, R22 = s13 - s02, s23 + s01, 1.0 - (s11 + s22)
@@ -164,20 +180,26 @@ def _value(formula: str, j: int) -> str:
 
 
 @lru_cache(maxsize=16)  # a bounded cache: instances with equal parameters share one compile
-def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) -> tuple:
+def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset,
+                    quasi_steady: bool = False) -> tuple:
     """``(rhs(x, bl, bn) -> dx/dt+, substeps(y, n, h, bl, bn) -> y after n sub-steps of h)``
     compiled from :data:`_RHS` and :data:`_STAGES` into straight-line arithmetic on locals: no
-    lists and no calls inside a sub-step, nothing computed that the result does not use. The
-    coefficients are closure variables (exact floats, never printed as text); the source is
-    built from the constant text of this module only."""
+    lists and no calls inside a sub-step (with the linear aerodynamics), nothing computed that
+    the result does not use. The coefficients are closure variables (exact floats, never
+    printed as text); the source is built from the constant text of this module only. With
+    ``quasi_steady`` the aerodynamic lines are one call per stage, ``acc(u, v, w, p, q, r)``
+    (:func:`quasi_steady_rates`), and the functions are ``rhs(x, acc)`` and
+    ``substeps(y, n, h, acc)``."""
     names = [f"{a}{i}{j}" for a in "ln" for i in range(3) for j in range(3)]
     values = [c for rows in (la, na) for row in rows for c in row]
-    head = ["        bl0, bl1, bl2 = bl", "        bn0, bn1, bn2 = bn"]
+    head = [] if quasi_steady else ["        bl0, bl1, bl2 = bl", "        bn0, bn1, bn2 = bn"]
+    args = "acc" if quasi_steady else "bl, bn"
+    terms = terms | {"quasi_steady" if quasi_steady else "linear"}
     src = [f"def bind({', '.join(names)}, G0, G1, G2, G3, G4, G5, g, asin):",
-           "    def rhs(x, bl, bn):", *head, f"        {', '.join(_STATE)} = x[:10]",
+           f"    def rhs(x, {args}):", *head, f"        {', '.join(_STATE)} = x[:10]",
            *_rhs_source(terms, "x{}", "        "),
            f"        return [{', '.join(f'x{j}' for j in range(13))}]",
-           "    def substeps(y, n, h, bl, bn):", *head,
+           f"    def substeps(y, n, h, {args}):", *head,
            "        h3, h8, h12, h16, h44, h120 = h / 3, h / 8, h / 12, h / 16, h / 44, h / 120",
            "        h23 = 2.0 * h3",
            f"        {', '.join(f'y{j}' for j in range(13))}, = y", "        for _ in range(n):"]
@@ -189,6 +211,37 @@ def _make_functions(la: tuple, na: tuple, G: tuple, g: float, terms: frozenset) 
     namespace: dict[str, Callable[..., tuple]] = {}
     exec(compile("\n".join(src) + "\n", "<dronefly.fmu_src.hover6dof equations>", "exec"), namespace)
     return namespace["bind"](*values, *G, g, math.asin)
+
+
+class CycleAveragedForces(Protocol):
+    """Aerodynamics as functions of the state: what :class:`Hover6DOF` needs of a model of
+    the flapping wings (:class:`dronefly.models.quasisteady.QuasiSteadyModel` is one)."""
+
+    def state_function(self, controls: Sequence[float]) -> Callable[[Sequence[float]], Any]:
+        """For the 7 controls [rad] held (lateral ``delta_Phi_a``, ``delta_alpha_1a``,
+        ``delta_alpha_2a``, then longitudinal ``delta_Phi``, ``delta_alpha_1``,
+        ``delta_phibar``, ``delta_alpha_2``): (du+, dv+, dw+, dp+, dq+, dr+) -> the cycle-averaged
+        (X+, Y+, Z+, L+, M+, N+), forces over 0.5 rho U^2 S_t, moments over 0.5 rho U^2 S_t c,
+        body axes (a sequence, or an array with ``tolist``)."""
+
+
+def quasi_steady_rates(f: Callable[[Sequence[float]], Any], F0: Sequence[float], m: float,
+                        Ix: float, Iy: float, Iz: float, Ixz: float) -> Callable[..., tuple]:
+    """``acc(u, v, w, p, q, r)`` of the [quasi_steady] line of :data:`_RHS`: (a_v, a_p, a_r,
+    a_u, a_w, a_q), the force F = f(state) - F0 over m+ and J+^-1 times the moment, F0 the
+    forces at the trimmed hover (which balance the weight: the gravity lines of :data:`_RHS`
+    hold the rest, as with the linear aerodynamics)."""
+    X0, Y0, Z0, L0, M0, N0 = F0
+    det = Ix * Iz - Ixz * Ixz
+    im, iy, a, b, c = 1.0 / m, 1.0 / Iy, Iz / det, Ixz / det, Ix / det
+
+    def acc(u: float, v: float, w: float, p: float, q: float, r: float) -> tuple:
+        X, Y, Z, L, M, N = _as_list(f((u, v, w, p, q, r)))
+        dL, dN = L - L0, N - N0
+        return ((Y - Y0) * im, a * dL + b * dN, b * dL + c * dN, (X - X0) * im,
+                (Z - Z0) * im, (M - M0) * iy)
+
+    return acc
 
 
 @dataclass(frozen=True)
@@ -203,11 +256,20 @@ class Hover6DOF:
     terms : frozenset of str
         Restored rigid-body terms (default all of :data:`TERMS`); without ``gravity`` the
         gravity projection is the linear one, g+ (-theta, gamma, 0).
+    aerodynamics : CycleAveragedForces, optional
+        None (the default): the paper's linear derivatives of the two parameter sets.
+        Otherwise the cycle-averaged forces of that model as functions of the state
+        (:class:`dronefly.models.quasisteady.QuasiSteadyModel`), less their value at hover
+        with no control (the trim force, which balances the weight), in place of the
+        derivative terms; the parameters then give only m+, g+ and the inertias, and the
+        sub-steps are at most :data:`MAX_SUBSTEP_QS_WB` and turn at most
+        :data:`MAX_TURN_PER_SUBSTEP_QS_RAD`.
     """
 
     lateral_params: lateral.LateralParameters
     longitudinal_params: longitudinal.LongitudinalParameters
     terms: frozenset = TERMS
+    aerodynamics: CycleAveragedForces | None = None
 
     def __post_init__(self) -> None:
         lp, np_ = self.lateral_params, self.longitudinal_params
@@ -221,13 +283,30 @@ class Hover6DOF:
         for name, axis, params in (("_lat", lateral, lp), ("_lon", longitudinal, np_)):
             object.__setattr__(self, name, _aero_rows(*axis.system_rows(params), (0, 1, 2), 3))
         G = _gyroscopic(lp.Ix_plus, np_.Iy_plus, lp.Iz_plus, lp.Ixz_plus)
+        qs = self.aerodynamics is not None
         for name, f in zip(("_rhs", "_substeps"), _make_functions(
-                self._lat[0], self._lon[0], G, lp.g_plus, frozenset(self.terms))):
+                self._lat[0], self._lon[0], G, lp.g_plus, frozenset(self.terms), qs)):
             object.__setattr__(self, name, f)
+        if qs:  # the forces at hover with no control: the trim, which balances the weight
+            F0 = [float(v) for v in _as_list(self.aerodynamics.state_function(  # type: ignore
+                (0.0,) * 7)((0.0,) * 6))]
+            if len(F0) != 6 or not all(math.isfinite(v) for v in F0):
+                raise Hover6DOFError(f"the aerodynamics at hover give {F0!r}: expected 6 "
+                                     "finite forces and moments")
+            object.__setattr__(self, "_F0", tuple(F0))
+            object.__setattr__(self, "_inertia", (lp.m_plus, lp.Ix_plus, np_.Iy_plus,
+                                                  lp.Iz_plus, lp.Ixz_plus))
+
+    def _acc(self, c_lat: Sequence[float], c_lon: Sequence[float]) -> Callable[..., tuple]:
+        """The quasi-steady aerodynamics' ``acc`` for the controls held over a step."""
+        f = self.aerodynamics.state_function((*c_lat, *c_lon))  # type: ignore[union-attr]
+        return quasi_steady_rates(f, self._F0, *self._inertia)  # type: ignore[attr-defined]
 
     def derivative(self, x: Sequence[float], c_lat: Sequence[float],
                    c_lon: Sequence[float]) -> list[float]:
         """dx/dt+ of the 13-value state with the lateral (3) and longitudinal (4) controls."""
+        if self.aerodynamics is not None:
+            return self._rhs(x, self._acc(c_lat, c_lon))
         bl = [sum(k * c for k, c in zip(row, c_lat)) for row in self._lat[1]]
         bn = [sum(k * c for k, c in zip(row, c_lon)) for row in self._lon[1]]
         return self._rhs(x, bl, bn)
@@ -243,22 +322,37 @@ class Hover6DOF:
         """
         if not (math.isfinite(h_wb) and h_wb > 0.0):
             raise Hover6DOFError(f"step = {h_wb!r} wing beats must be finite and > 0")
-        bl = [sum(map(mul, row, c_lat)) for row in self._lat[1]]
-        bn = [sum(map(mul, row, c_lon)) for row in self._lon[1]]
+        qs = self.aerodynamics is not None
+        if qs:
+            args: tuple = (self._acc(c_lat, c_lon),)
+        else:
+            args = ([sum(map(mul, row, c_lat)) for row in self._lat[1]],
+                    [sum(map(mul, row, c_lon)) for row in self._lon[1]])
         rate = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5])
-        hmax = min(MAX_SUBSTEP_WB, MAX_TURN_PER_SUBSTEP_RAD / rate) if rate > 0 else MAX_SUBSTEP_WB
+        top, turn = ((MAX_SUBSTEP_QS_WB, MAX_TURN_PER_SUBSTEP_QS_RAD) if qs
+                     else (MAX_SUBSTEP_WB, MAX_TURN_PER_SUBSTEP_RAD))
+        hmax = min(top, turn / rate) if rate > 0 else top
         n = max(1, math.ceil(h_wb / hmax - 1e-9))
         if n > 10_000_000:
             raise Hover6DOFError(f"a step of {h_wb!r} wing beats at a rate of {rate!r} rad per "
                                  f"wing beat needs {n} sub-steps; take shorter steps")
         h = h_wb / n
-        y = self._substeps(x, n, h, bl, bn)  # Butcher's order 6 (see _STAGES)
+        try:
+            y = self._substeps(x, n, h, *args)  # Butcher's order 6 (see _STAGES)
+        except (OverflowError, ValueError, FloatingPointError) as e:  # the aerodynamics' own
+            raise Hover6DOFError(f"the aerodynamics failed in a step of {h_wb!r} wing beats "
+                                 f"(from u, v, w, p, q, r = {list(x[:6])!r}): {e}") from e
         norm = math.sqrt(sum(c * c for c in y[6:10]))  # finiteness on the sum: faster
         if not (math.isfinite(sum(y)) or all(math.isfinite(a) for a in y)) or not norm > 0.0:
             raise Hover6DOFError(f"the state is not finite after a step of {h_wb!r} wing beats "
                                  f"(from u, v, w, p, q, r = {list(x[:6])!r})")
         y[6:10] = [c / norm for c in y[6:10]]
         return y
+
+
+def _as_list(values: Any) -> list:
+    """A sequence of forces as a list (an array by its ``tolist``)."""
+    return values.tolist() if hasattr(values, "tolist") else list(values)
 
 
 def initial_state(starts: dict[str, float], U: float, n: float) -> list[float]:

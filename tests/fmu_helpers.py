@@ -18,10 +18,13 @@ def model_description(path: Path) -> ET.Element:
 
 
 def set_values(inst: Any, values: dict[str, Any]) -> None:
-    """Set Real or Boolean variables by name on a harness ``Instance``."""
+    """Set Real, Boolean or Integer variables by name on a harness
+    ``Instance``."""
     for name, value in values.items():
         if isinstance(value, bool):
             inst.slave.setBoolean([inst.fmu.vr(name)], [value])
+        elif inst.fmu.variables[name].type == "Integer":
+            inst.slave.setInteger([inst.fmu.vr(name)], [value])
         else:
             inst.slave.setReal([inst.fmu.vr(name)], [value])
 

@@ -6,13 +6,16 @@ import argparse
 import json
 import os
 import sys
+from typing import Any
 
 from ...builder.build import project_systems
+from ...core.files import write_text_atomic
 from ...core.extras import require
 from ...harness.sweep.cases import SweepSpec
 from ...harness.sweep.results import format_summary
 from ...harness.sweep.run import run_sweep
-from . import EXIT_FAILED, EXIT_OK
+from ...harness.validity.halves import format_halves, halves_summary
+from . import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 
 __all__ = ["run"]
 
@@ -22,6 +25,14 @@ _SWEEP_DEFAULTS = {"grid": 21, "amplitudes": 10, "gains": "paper,stabilising",
                    "steps": "0.1,1,3", "stop": "200", "extent": 1.0}
 _SWEEP_COMPARE_DEFAULTS = {"grid": 25, "amplitudes": 12, "gains": "paper", "steps": "1",
                            "stop": "100", "extent": 3.0}
+
+
+def _add_halves(result: Any) -> None:
+    """``--compare nonlinear --halves``: each half of Sect. 3.6 over the direction cases
+    (:func:`dronefly.harness.validity.halves.halves_summary`, on the model classes), into the
+    summary and ``sweep.json``."""
+    result.summary["comparison"]["halves"] = halves_summary(result.rows)
+    write_text_atomic(result.json, json.dumps(result.summary, indent=2, allow_nan=False) + "\n")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,6 +47,10 @@ def run(args: argparse.Namespace) -> int:
     if args.scheduler is not None:
         require("distributed")
     system, compare = args.system, args.compare
+    if args.halves and compare != "nonlinear":
+        print("dronefly sweep: error: --halves needs --compare nonlinear (the halves are "
+              "those of the project's plants)", file=sys.stderr)
+        return EXIT_USAGE
     d = _SWEEP_COMPARE_DEFAULTS if compare is not None else _SWEEP_DEFAULTS
     opt = {k: getattr(args, k) if getattr(args, k) is not None else v for k, v in d.items()}
     spec = SweepSpec.from_text(disturbances=args.disturbances, slices=args.slices,
@@ -53,7 +68,12 @@ def run(args: argparse.Namespace) -> int:
                        fresh=args.fresh, plot=not args.no_plot,
                        progress_bar=False if args.no_progress else None,
                        set_values=dict(args.set_values), system=system, compare=compare)
+    halves = args.halves and "comparison" in result.summary
+    if halves:
+        _add_halves(result)
     print(json.dumps(result.summary, indent=2) if args.json else format_summary(result.summary))
+    if halves and not args.json:
+        print("\n".join(format_halves(result.summary["comparison"].get("halves", []))))
     code = EXIT_OK
     if result.summary["errors"]:
         print(f"dronefly sweep: error: {result.summary['errors']} case(s) failed (see the "

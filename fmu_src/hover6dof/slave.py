@@ -2,14 +2,24 @@
 
 A drop-in for ``DroneFlyLateral`` and ``DroneFlyLongitudinal`` (their states, controls and
 parameters, with the same names, units and causalities; see :mod:`dronefly.models.hover6dof`). The
-wrapper only maps variables; the equations live in :mod:`.model`.
+wrapper only maps variables; the equations live in :mod:`dronefly.models.rigid_body`.
+
+The Integer parameter ``aerodynamics`` (fixed) chooses the aerodynamics: 1 (the default) the
+paper's linear derivatives, standard library only; 2 the cycle-averaged forces of the
+quasi-steady wing model (:class:`dronefly.models.quasisteady.QuasiSteadyModel`, dickinson1999,
+all terms, the default grid) as functions of the state. Only the second imports numpy, and
+only when it is chosen: :func:`_quasi_steady_model` imports the model in the function, so
+that the default FMU loads nothing outside the standard library (tests/test_host_requirements).
 """
 
 from __future__ import annotations
 
 import math
+import os
+from functools import lru_cache
 from typing import Any
 
+from ... import models as _models
 from ...fmi import SlaveBase, Var
 from ...models.hover6dof import (EARTH_OUTPUTS, EULER_OUTPUTS, EXTRA_STARTS, OUTPUT_NAMES,
     STATE_OUTPUTS)
@@ -21,7 +31,7 @@ from ...models import lateral_dynamics as lateral
 from ...models import longitudinal_dynamics as longitudinal
 from ...models.rigid_body import STATE_SIZE, Hover6DOF, Hover6DOFError, initial_state, outputs
 
-__all__ = ["DroneFlyHover6DOF"]
+__all__ = ["AERODYNAMICS", "DroneFlyHover6DOF"]
 
 _AXES = (LATERAL, LONGITUDINAL)
 _LAT_PARAMS = lateral.LateralParameters.names()
@@ -29,6 +39,35 @@ _LON_PARAMS = longitudinal.LongitudinalParameters.names()
 _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS))
 _ATTITUDE = ("delta_gamma_start", "delta_theta_start", "psi_start")
 _VELOCITY = ("delta_u_start", "delta_v_start", "delta_w_start")
+#: the values of the parameter ``aerodynamics``
+AERODYNAMICS = {1: "linear", 2: "quasi_steady"}
+_AERO_TEXT = ("aerodynamics: 1 = linear (the paper's stability and control derivatives, the "
+              "derivative parameters), 2 = quasi_steady (the cycle-averaged forces of a "
+              "quasi-steady blade-element model of the wings, dickinson1999, as functions of "
+              "the state; the derivative parameters unused; needs numpy)")
+
+
+def _quasi_steady_model(resources: str | None) -> Any:
+    """The trimmed quasi-steady wing model (built once per process, then shared).
+
+    The import is here, not at the top, on purpose: the model needs numpy, and the FMU with
+    its default (linear) aerodynamics must import nothing outside the standard library. An
+    FMU's package is shared by name by every instance in the process (same sources, same
+    name), and the folder it was first imported from may be gone (fmpy removes each
+    extraction after its run): the package's ``models`` folder of this instance is added to
+    where ``models`` looks for modules first."""
+    folder = os.path.join(resources, *_models.__name__.split(".")) if resources else ""
+    if folder and os.path.isdir(folder) and folder not in _models.__path__:
+        _models.__path__.insert(0, folder)
+    return _trimmed_quasi_steady()
+
+
+@lru_cache(maxsize=1)
+def _trimmed_quasi_steady() -> Any:
+    from ...models.quasisteady import QuasiSteadyModel  # lazy: numpy only when chosen
+    model = QuasiSteadyModel()
+    model.trim()
+    return model
 
 
 def _slice(vrs: tuple[int, ...]) -> slice:
@@ -74,6 +113,8 @@ def _variables() -> tuple[Var, ...]:
                 continue  # m_plus and g_plus: one parameter for both axes
             out.append(Var(name, "parameter", "tunable", describe(name), "1",
                            start=getattr(params, name)))
+    out.append(Var("aerodynamics", "parameter", "fixed", _AERO_TEXT, None, start=1,
+                   type="Integer"))
     out.append(Var("n", "parameter", "tunable",
                    "wing-beat frequency; reference time t_w = 1/n (Sect. 2.4)", "Hz", start=N_HZ))
     out.append(Var("U", "parameter", "tunable", "reference velocity U = 2 Phi n r2 (Sect. 2.4)",
@@ -93,9 +134,10 @@ class DroneFlyHover6DOF(SlaveBase):
     MODEL_DESCRIPTION = (
         "Hovering model drone fly as a nonlinear rigid body in six degrees of freedom (Newton-"
         "Euler, full inertia tensor, exact gravity projection, quaternion attitude) with the "
-        "linear aerodynamic derivatives of Zhang & Sun (Eq. 12, Table 1, Sect. 3.5): the "
-        "aerodynamics stay linear, as the paper assumes; a drop-in for DroneFlyLateral and "
-        "DroneFlyLongitudinal")
+        "linear aerodynamic derivatives of Zhang & Sun (Eq. 12, Table 1, Sect. 3.5), as the "
+        "paper assumes, or (parameter aerodynamics = 2, needs numpy) the cycle-averaged "
+        "forces of a quasi-steady blade-element model of the wings as functions of the "
+        "state; a drop-in for DroneFlyLateral and DroneFlyLongitudinal")
     VARIABLES = _variables()
     DEFAULT_EXPERIMENT = (0.0, 30.0 / N_HZ, 0.1 / N_HZ)
 
@@ -113,11 +155,15 @@ class DroneFlyHover6DOF(SlaveBase):
     def _refresh(self) -> None:
         lp = lateral.LateralParameters(*self._values(_LAT_PARAMS))
         np_ = longitudinal.LongitudinalParameters(*self._values(_LON_PARAMS))
-        if self._model is None or (self._model.lateral_params, self._model.longitudinal_params) \
-                != (lp, np_):
+        aero = self._value("aerodynamics")
+        if aero not in AERODYNAMICS:
+            raise ValueError(f"aerodynamics = {aero!r}: expected 1 (linear) or 2 (quasi_steady)")
+        if self._model is None or (self._model.lateral_params, self._model.longitudinal_params,
+                                   self._model.aerodynamics is None) != (lp, np_, aero == 1):
             lp.validate()
             np_.validate()
-            self._model = Hover6DOF(lp, np_)
+            self._model = Hover6DOF(lp, np_, aerodynamics=None if aero == 1
+                                    else _quasi_steady_model(self.resources))
         n, U = self._values(("n", "U"))
         for name, value in (("n", n), ("U", U)):
             if not (math.isfinite(value) and value > 0.0):

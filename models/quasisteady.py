@@ -611,6 +611,98 @@ class QuasiSteadyModel:
                 out += s
         return out / (2.0 * self.geometry.S_wing * self.n_time)
 
+    def forces_at(self, angles: Sequence[Sequence[float]] | Array,
+                  state: Sequence[float] | Array = (0.0,) * 6) -> Array:
+        """The instantaneous (X+, Y+, Z+, L+, M+, N+) of both wings at one instant.
+
+        ``angles`` holds, per wing (columns left, right), the stroke angle phi, the pitch angle
+        psi of the chord from the forward stroke direction (alpha_d in mid-downstroke,
+        pi - alpha_u in mid-upstroke) and their first two derivatives in t+: rows (phi, dphi,
+        ddphi, psi, dpsi, ddpsi), shape (6, 2). Any wing motion, not only this model's
+        harmonic kinematics (the wing-beat-resolved plant, :mod:`dronefly.models.flapping`,
+        changes the kinematics between wing beats). The terms and their scaling are those of
+        :meth:`forces_over_cycle`; the added mass's time derivative is analytic, from the
+        wing's angular accelerations and the body's rates. The body's own acceleration does not
+        enter it (the state is the body's, not its rate): that leaves out the added mass of the
+        air that the wings carry with the body, m_a / m = 0.1 % of the insect's mass (both
+        wings), a correction the cycle average does not have either.
+        """
+        a = np.asarray(angles, dtype=float)
+        x = np.asarray(state, dtype=float)
+        if a.shape != (6, 2) or x.shape != (6,):
+            raise DroneflyError(f"angles of shape {a.shape} and state of shape {x.shape}: "
+                                "expected (6, 2) and (6,)")
+        g, terms, k = self.geometry, self.terms, self.geometry.k
+        phi, dphi, ddphi, psi, dpsi, ddpsi = (c[:, None] for c in a)
+        u, v, w, p, qq, rr = (float(c) for c in x)
+        side = np.array([-1.0, 1.0])[:, None]
+        r, chord, cw = self._r[None, :], self._chord[None, :], self._cw[None, :]
+        sphi, cphi, spsi, cpsi = np.sin(phi), np.cos(phi), np.sin(psi), np.cos(psi)
+        erx, ery = sphi, side * cphi
+        etx, ety = cphi, -side * sphi
+        ecx, ecy, ecz = cpsi * etx, cpsi * ety, -spsi
+        nx, ny, nz = -spsi * etx, -spsi * ety, -cpsi
+        Px, Py, Pz = g.hinge[0] + erx * r, side * g.hinge[1] + ery * r, g.hinge[2] + 0.0 * r
+        vf = k * dphi * r
+        Wx = vf * etx + u + k * (qq * Pz - rr * Py)  # the full velocity (with the spanwise part)
+        Wy = vf * ety + v + k * (rr * Px - p * Pz)
+        Wz = w + k * (p * Py - qq * Px) + 0.0 * vf
+        span = Wx * erx + Wy * ery
+        Vx, Vy, Vz = Wx - span * erx, Wy - span * ery, Wz
+        omega_p = dpsi + side * (p * erx + qq * ery)
+        speed2 = Vx * Vx + Vy * Vy + Vz * Vz
+        Vc = Vx * ecx + Vy * ecy + Vz * ecz
+        Vn = Vx * nx + Vy * ny + Vz * nz
+        Fx = np.zeros_like(Vx)
+        Fy = np.zeros_like(Vx)
+        Fz = np.zeros_like(Vx)
+        if terms.translational:
+            alpha = np.arctan2(np.abs(Vn), np.abs(Vc))
+            speed = np.sqrt(speed2)
+            inv = 1.0 / np.where(speed > 0.0, speed, 1.0)
+            sa = np.abs(Vn) * inv
+            s_n = -np.sign(Vn)
+            Lx, Ly, Lz = s_n * nx + sa * Vx * inv, s_n * ny + sa * Vy * inv, \
+                s_n * nz + sa * Vz * inv
+            norm = np.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
+            norm = np.where(norm > 0.0, norm, 1.0)
+            cl = self.coefficients.lift(alpha) * speed2 * cw / norm
+            cd = self.coefficients.drag(alpha) * speed2 * cw * inv
+            Fx = Fx + cl * Lx - cd * Vx
+            Fy = Fy + cl * Ly - cd * Vy
+            Fz = Fz + cl * Lz - cd * Vz
+        if terms.rotational:
+            f = 2.0 * math.pi * (0.75 - g.x0_hat) * k * omega_p * chord * cw * side
+            Fx = Fx + f * (ery * Vz)
+            Fy = Fy - f * (erx * Vz)
+            Fz = Fz + f * (erx * Vy - ery * Vx)
+        if terms.added_mass:
+            # I = m_a v_mid n; d/dt+ of V.n and of omega_p with the body's velocity held
+            m_a = 0.5 * math.pi * k * chord * cw
+            mid = k * (0.5 - g.x0_hat) * chord
+            v_mid = Vn - mid * omega_p
+            dnx = -dpsi * ecx + spsi * dphi * erx  # dn/dt+ = -dpsi e_c + sin(psi) dphi e_r
+            dny = -dpsi * ecy + spsi * dphi * ery
+            dnz = -dpsi * ecz
+            ar = k * r * ddphi  # dV/dt+ = k r (ddphi e_t - dphi^2 e_r) + k Omega x dP/dt+
+            br = k * r * dphi * dphi
+            dPx, dPy = r * dphi * etx, r * dphi * ety
+            dWx = ar * etx - br * erx + k * (-rr * dPy)
+            dWy = ar * ety - br * ery + k * (rr * dPx)
+            dWz = k * (p * dPy - qq * dPx)
+            dVn = dWx * nx + dWy * ny + dWz * nz + Wx * dnx + Wy * dny + Wz * dnz
+            domega = ddpsi + side * dphi * (p * etx + qq * ety)
+            dv = dVn - mid * domega
+            ix, iy, iz = m_a * v_mid * nx, m_a * v_mid * ny, m_a * v_mid * nz
+            Fx = Fx - m_a * (dv * nx + v_mid * dnx) - (qq * iz - rr * iy)
+            Fy = Fy - m_a * (dv * ny + v_mid * dny) - (rr * ix - p * iz)
+            Fz = Fz - m_a * (dv * nz + v_mid * dnz) - (p * iy - qq * ix)
+        if terms.added_mass and terms.added_mass_form != "impulse":
+            raise DroneflyError("forces_at has the impulse form of the added mass only")
+        out = np.array([Fx.sum(), Fy.sum(), Fz.sum(), (Py * Fz - Pz * Fy).sum(),
+                        (Pz * Fx - Px * Fz).sum(), (Px * Fy - Py * Fx).sum()])
+        return out / (2.0 * g.S_wing)
+
     def forces_over_cycle(self, state: Sequence[float] | Array = (0.0,) * 6,
                           control: Mapping[str, float] | None = None,
                           trim: Trim | None = None) -> Array:

@@ -134,11 +134,22 @@ class FlappingModel:
         leave out the wing inertia (zero on average): the averaged model, for comparison.
     data : mapping
         Flight data (default :data:`dronefly.models.lateral.FLIGHT_DATA`).
+    frequency_factor : float
+        The averaging experiment (default 1, the insect): the wing beat is ``frequency_factor``
+        times faster while the forces at each phase stay what they are, so their cycle average,
+        the averaged model, is unchanged; the "beat" of every method is then one of these
+        shorter periods (:attr:`period` wing beats of the insect). As the factor grows, the
+        Floquet exponents per wing beat tend to the averaged model's eigenvalues.
     """
 
     def __init__(self, qs: QuasiSteadyModel | None = None, steps_per_beat: int = STEPS_PER_BEAT,
                  wing_inertia: bool = True, averaged: bool = False,
-                 data: Mapping[str, float] = FLIGHT_DATA) -> None:
+                 data: Mapping[str, float] = FLIGHT_DATA,
+                 frequency_factor: float = 1.0) -> None:
+        if not (math.isfinite(frequency_factor) and frequency_factor >= 1.0):
+            raise FlappingError(f"frequency_factor = {frequency_factor!r} must be >= 1")
+        #: the period of the forcing, in wing beats of the insect (1 / frequency_factor)
+        self.period = 1.0 / frequency_factor
         if not (isinstance(steps_per_beat, int) and steps_per_beat > 0
                 and steps_per_beat % 20 == 0):
             raise FlappingError(f"steps_per_beat = {steps_per_beat!r} must be a positive "
@@ -275,7 +286,7 @@ class FlappingModel:
         R = ((1.0 - 2.0 * (e2 * e2 + e3 * e3), 2.0 * (e1 * e2 - e0 * e3), 2.0 * (e1 * e3 + e0 * e2)),
              (2.0 * (e1 * e2 + e0 * e3), 1.0 - 2.0 * (e1 * e1 + e3 * e3), 2.0 * (e2 * e3 - e0 * e1)),
              (R20, R21, R22))
-        return np.array([
+        return self.period * np.array([
             F[0] / m + g * R20 - (q * w - r * v), F[1] / m + g * R21 - (r * u - p * w),
             F[2] / m + g * R22 - (p * v - q * u), dom[0], dom[1], dom[2],
             0.5 * (-e1 * p - e2 * q - e3 * r), 0.5 * (e0 * p + e2 * r - e3 * q),
@@ -284,8 +295,9 @@ class FlappingModel:
 
     def derivative(self, tau: float, x: Sequence[float], c_prev: Sequence[float] | None = None,
                    c_now: Sequence[float] | None = None) -> np.ndarray:
-        """dx/dt+ of the 13-value state at phase ``tau`` of a beat (controls as :meth:`angles`;
-        default: the trimmed hover)."""
+        """dx/dtau (tau the phase of the beat; dx/dt+ times :attr:`period`) of the 13-value
+        state at phase ``tau`` of a beat (controls as :meth:`angles`; default: the trimmed
+        hover)."""
         cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
         return self._rhs(tau, np.asarray(x, dtype=float), self._beat(cp, cn), cn)
 
@@ -510,7 +522,7 @@ class PeriodicOrbit:
             drift = X[-1, i] - X[0, i]
             pos = X[:, i] - X[0, i] - drift * tau
             out[f"{name}_pp_um"] = float((pos.max() - pos.min()) * L_um)
-            out[f"{name}_drift_mm_per_s"] = float(drift * m.U * 1e3)
+            out[f"{name}_drift_mm_per_s"] = float(drift / m.period * m.U * 1e3)
         eul = np.array([euler_from_quaternion(x[6:10]) for x in X])
         for i, name in enumerate(("phi", "theta", "psi")):
             out[f"{name}_pp_deg"] = float(np.degrees(eul[:, i].max() - eul[:, i].min()))
@@ -531,6 +543,6 @@ class Floquet:
     def of(cls, model: FlappingModel, orbit: PeriodicOrbit, step: float = 1e-6) -> "Floquet":
         M = model.monodromy(orbit.z0, orbit.control, step)
         mu = np.linalg.eigvals(M)
-        lam = np.log(mu.astype(complex))
+        lam = np.log(mu.astype(complex)) / model.period  # per wing beat of the insect
         order = sorted(range(len(lam)), key=lambda i: (-lam[i].real, -lam[i].imag))
         return cls(M, mu[order], lam[order])

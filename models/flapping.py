@@ -281,8 +281,11 @@ class FlappingModel:
         R20, R21, R22 = 2.0 * (e1 * e3 - e0 * e2), 2.0 * (e2 * e3 + e0 * e1), \
             1.0 - 2.0 * (e1 * e1 + e2 * e2)
         m, g = self.m, self.g
-        om = y[3:6]
-        dom = self.J_inv @ (F[3:] - np.cross(om, self.J @ om))
+        (Jx, Jy, Jz), Ji = self.J @ y[3:6], self.J_inv
+        gx, gy, gz = F[3] - (q * Jz - r * Jy), F[4] - (r * Jx - p * Jz), F[5] - (p * Jy - q * Jx)
+        dom = (Ji[0, 0] * gx + Ji[0, 1] * gy + Ji[0, 2] * gz,
+               Ji[1, 0] * gx + Ji[1, 1] * gy + Ji[1, 2] * gz,
+               Ji[2, 0] * gx + Ji[2, 1] * gy + Ji[2, 2] * gz)
         R = ((1.0 - 2.0 * (e2 * e2 + e3 * e3), 2.0 * (e1 * e2 - e0 * e3), 2.0 * (e1 * e3 + e0 * e2)),
              (2.0 * (e1 * e2 + e0 * e3), 1.0 - 2.0 * (e1 * e1 + e3 * e3), 2.0 * (e2 * e3 - e0 * e1)),
              (R20, R21, R22))
@@ -364,22 +367,26 @@ class FlappingModel:
         return self.z_from_state(self.beat(self.state_from_z(z), control, control))
 
     def periodic_orbit(self, control: Sequence[float] | None = None, tol: float = 1e-12,
-                       max_iter: int = 20, step: float = 1e-6,
-                       samples: int | None = None) -> "PeriodicOrbit":
+                       max_iter: int = 30, step: float = 1e-6, samples: int | None = None,
+                       jacobian: np.ndarray | None = None) -> "PeriodicOrbit":
         """Hover as a periodic orbit: Newton's method on the state at the start of a beat
-        (shooting with the wing-beat map; the central-difference Jacobian at the start, the
-        trimmed hover's state 0, kept), to a residual below ``tol``.
+        (shooting with the wing-beat map), from the trimmed hover's state 0, to a residual
+        below ``tol``.
+
+        The Jacobian is kept for every step (the chord method: the wing-beat map is nearly
+        linear over the orbit's offset): ``jacobian``, an approximation of the monodromy
+        matrix (the averaged model's serves), or by default the central-difference one at the
+        start.
 
         Raises
         ------
         FlappingError
-            Newton does not bring the residual below ``tol`` in ``max_iter`` iterations.
+            The residual is not below ``tol`` after ``max_iter`` steps.
         """
         z = np.zeros(len(Z_NAMES))
         history = []
-        # Newton with the Jacobian of the start (chord method): the wing-beat map is nearly
-        # linear over the orbit's offset, so one Jacobian serves every step
-        J = self.monodromy(z, control, step) - np.eye(len(z))
+        M = self.monodromy(z, control, step) if jacobian is None else np.asarray(jacobian)
+        J = M - np.eye(len(z))
         for _ in range(max_iter):
             res = self.z_map(z, control) - z
             history.append(float(np.max(np.abs(res))))

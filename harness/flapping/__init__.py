@@ -7,6 +7,8 @@ analysis. An analysis package (numpy), not shipped in an FMU.
 
 from __future__ import annotations
 
-from .floquet import AXES, FloquetReport, averaged_exponents, convergence, floquet_report
+from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_monodromy,
+                      convergence, convergence_rows, floquet_report)
 
-__all__ = ["AXES", "FloquetReport", "averaged_exponents", "convergence", "floquet_report"]
+__all__ = ["AXES", "FloquetReport", "answer", "averaged_exponents", "averaged_monodromy",
+           "convergence", "convergence_rows", "floquet_report"]

@@ -262,6 +262,14 @@ def _cross(a: Array, b: Array) -> Array:
     return out
 
 
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross3(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
     """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
     tau = np.mod(t - start, 1.0) / duration
@@ -621,11 +629,14 @@ class QuasiSteadyModel:
         ddphi, psi, dpsi, ddpsi), shape (6, 2). Any wing motion, not only this model's
         harmonic kinematics (the wing-beat-resolved plant, :mod:`dronefly.models.flapping`,
         changes the kinematics between wing beats). The terms and their scaling are those of
-        :meth:`forces_over_cycle`; the added mass's time derivative is analytic, from the
-        wing's angular accelerations and the body's rates. The body's own acceleration does not
-        enter it (the state is the body's, not its rate): that leaves out the added mass of the
-        air that the wings carry with the body, m_a / m = 0.1 % of the insect's mass (both
-        wings), a correction the cycle average does not have either.
+        :meth:`forces_over_cycle`, evaluated as :meth:`forces_vector` evaluates them: each
+        element's velocity (the spanwise part removed) is V_c e_c + V_n n, affine in the span,
+        its forces along e_c, n and (the added mass's turning normal) e_r. The added mass's
+        time derivative is analytic, from the wing's angular accelerations and the body's
+        rates; the body's own acceleration does not enter it (the state is the body's, not its
+        rate): that leaves out the added mass of the air that the wings carry with the body,
+        m_a / m = 0.1 % of the insect's mass (both wings), a correction the cycle average does
+        not have either.
         """
         a = np.asarray(angles, dtype=float)
         x = np.asarray(state, dtype=float)
@@ -633,75 +644,95 @@ class QuasiSteadyModel:
             raise DroneflyError(f"angles of shape {a.shape} and state of shape {x.shape}: "
                                 "expected (6, 2) and (6,)")
         g, terms, k = self.geometry, self.terms, self.geometry.k
-        phi, dphi, ddphi, psi, dpsi, ddpsi = (c[:, None] for c in a)
-        u, v, w, p, qq, rr = (float(c) for c in x)
-        side = np.array([-1.0, 1.0])[:, None]
-        r, chord, cw = self._r[None, :], self._chord[None, :], self._cw[None, :]
-        sphi, cphi, spsi, cpsi = np.sin(phi), np.cos(phi), np.sin(psi), np.cos(psi)
-        erx, ery = sphi, side * cphi
-        etx, ety = cphi, -side * sphi
-        ecx, ecy, ecz = cpsi * etx, cpsi * ety, -spsi
-        nx, ny, nz = -spsi * etx, -spsi * ety, -cpsi
-        Px, Py, Pz = g.hinge[0] + erx * r, side * g.hinge[1] + ery * r, g.hinge[2] + 0.0 * r
-        vf = k * dphi * r
-        Wx = vf * etx + u + k * (qq * Pz - rr * Py)  # the full velocity (with the spanwise part)
-        Wy = vf * ety + v + k * (rr * Px - p * Pz)
-        Wz = w + k * (p * Py - qq * Px) + 0.0 * vf
-        span = Wx * erx + Wy * ery
-        Vx, Vy, Vz = Wx - span * erx, Wy - span * ery, Wz
-        omega_p = dpsi + side * (p * erx + qq * ery)
-        speed2 = Vx * Vx + Vy * Vy + Vz * Vz
-        Vc = Vx * ecx + Vy * ecy + Vz * ecz
-        Vn = Vx * nx + Vy * ny + Vz * nz
-        Fx = np.zeros_like(Vx)
-        Fy = np.zeros_like(Vx)
-        Fz = np.zeros_like(Vx)
-        if terms.translational:
-            alpha = np.arctan2(np.abs(Vn), np.abs(Vc))
-            speed = np.sqrt(speed2)
-            inv = 1.0 / np.where(speed > 0.0, speed, 1.0)
-            sa = np.abs(Vn) * inv
-            s_n = -np.sign(Vn)
-            Lx, Ly, Lz = s_n * nx + sa * Vx * inv, s_n * ny + sa * Vy * inv, \
-                s_n * nz + sa * Vz * inv
-            norm = np.sqrt(Lx * Lx + Ly * Ly + Lz * Lz)
-            norm = np.where(norm > 0.0, norm, 1.0)
-            cl = self.coefficients.lift(alpha) * speed2 * cw / norm
-            cd = self.coefficients.drag(alpha) * speed2 * cw * inv
-            Fx = Fx + cl * Lx - cd * Vx
-            Fy = Fy + cl * Ly - cd * Vy
-            Fz = Fz + cl * Lz - cd * Vz
-        if terms.rotational:
-            f = 2.0 * math.pi * (0.75 - g.x0_hat) * k * omega_p * chord * cw * side
-            Fx = Fx + f * (ery * Vz)
-            Fy = Fy - f * (erx * Vz)
-            Fz = Fz + f * (erx * Vy - ery * Vx)
-        if terms.added_mass:
-            # I = m_a v_mid n; d/dt+ of V.n and of omega_p with the body's velocity held
-            m_a = 0.5 * math.pi * k * chord * cw
-            mid = k * (0.5 - g.x0_hat) * chord
-            v_mid = Vn - mid * omega_p
-            dnx = -dpsi * ecx + spsi * dphi * erx  # dn/dt+ = -dpsi e_c + sin(psi) dphi e_r
-            dny = -dpsi * ecy + spsi * dphi * ery
-            dnz = -dpsi * ecz
-            ar = k * r * ddphi  # dV/dt+ = k r (ddphi e_t - dphi^2 e_r) + k Omega x dP/dt+
-            br = k * r * dphi * dphi
-            dPx, dPy = r * dphi * etx, r * dphi * ety
-            dWx = ar * etx - br * erx + k * (-rr * dPy)
-            dWy = ar * ety - br * ery + k * (rr * dPx)
-            dWz = k * (p * dPy - qq * dPx)
-            dVn = dWx * nx + dWy * ny + dWz * nz + Wx * dnx + Wy * dny + Wz * dnz
-            domega = ddpsi + side * dphi * (p * etx + qq * ety)
-            dv = dVn - mid * domega
-            ix, iy, iz = m_a * v_mid * nx, m_a * v_mid * ny, m_a * v_mid * nz
-            Fx = Fx - m_a * (dv * nx + v_mid * dnx) - (qq * iz - rr * iy)
-            Fy = Fy - m_a * (dv * ny + v_mid * dny) - (rr * ix - p * iz)
-            Fz = Fz - m_a * (dv * nz + v_mid * dnz) - (p * iy - qq * ix)
         if terms.added_mass and terms.added_mass_form != "impulse":
             raise DroneflyError("forces_at has the impulse form of the added mass only")
-        out = np.array([Fx.sum(), Fy.sum(), Fz.sum(), (Py * Fz - Pz * Fy).sum(),
-                        (Pz * Fx - Px * Fz).sum(), (Px * Fy - Py * Fx).sum()])
-        return out / (2.0 * g.S_wing)
+        u, v, w, p, q, rr = (float(c) for c in x)
+        trig = np.sin(np.concatenate([a[0], a[3], a[0] + 0.5 * math.pi, a[3] + 0.5 * math.pi]))
+        r, cw = self._r, self._cw
+        out = [0.0] * 6
+        frames = []
+        for i, s in ((0, -1.0), (1, 1.0)):
+            sphi, spsi, cphi, cpsi = (float(trig[j]) for j in (i, 2 + i, 4 + i, 6 + i))
+            dphi, ddphi, dpsi, ddpsi = (float(a[j, i]) for j in (1, 2, 4, 5))
+            # e_r = (sphi, s cphi, 0), e_t = (cphi, -s sphi, 0), e_c = cpsi e_t + spsi up,
+            # n = -spsi e_t + cpsi up (up = -z); e_r x e_c = s_or n, e_r x n = -s_or e_c
+            er = (sphi, s * cphi, 0.0)
+            et = (cphi, -s * sphi, 0.0)
+            ec = (cpsi * et[0], cpsi * et[1], -spsi)
+            nn = (-spsi * et[0], -spsi * et[1], -cpsi)
+            H = (g.hinge[0], s * g.hinge[1], g.hinge[2])
+            s_or = _dot(_cross3(er, ec), nn)
+            Om = (p, q, rr)
+            Vb = (u, v, w)
+            # V.a = V_b.a + k Omega.(H x a) + r (k dphi e_t.a + k Omega.(e_r x a))
+            an = _dot(Vb, nn) + k * _dot(Om, _cross3(H, nn))
+            bn = -k * dphi * spsi - k * s_or * _dot(Om, ec)
+            ac = _dot(Vb, ec) + k * _dot(Om, _cross3(H, ec))
+            bc = k * dphi * cpsi + k * s_or * _dot(Om, nn)
+            vr0 = _dot(Vb, er) + k * _dot(Om, _cross3(H, er))
+            om_p = dpsi + s * (p * er[0] + q * er[1])
+            d_om = ddpsi + s * dphi * (p * et[0] + q * et[1])
+            # d(V.n)/dt+ = r (-k ddphi spsi + k dphi Omega.(e_t x n)) - dpsi V_c + spsi dphi V_r
+            dbn = -k * ddphi * spsi + k * dphi * _dot(Om, _cross3(et, nn))
+            frames.append((er, ec, nn, H, s_or, spsi * dphi, dpsi, ac, bc, vr0, om_p, d_om,
+                           dbn, an, bn))
+        an_, bn_, ac_, bc_ = (np.array([f[j] for f in frames])[:, None] for j in (13, 14, 7, 8))
+        Vn = an_ + bn_ * r
+        Vc = ac_ + bc_ * r
+        Fc = np.zeros_like(Vn)
+        Fn = np.zeros_like(Vn)
+        Fr = np.zeros_like(Vn)
+        if terms.translational:
+            aVn, aVc = np.abs(Vn), np.abs(Vc)
+            speed = np.sqrt(Vn * Vn + Vc * Vc)
+            alpha = np.arctan2(aVn, aVc)
+            cl = self.coefficients.lift(alpha)
+            cd = self.coefficients.drag(alpha)
+            qd = cw * speed
+            # lift normal to V away from the side the flow meets, drag against V
+            Fc = qd * (cl * np.copysign(aVn, Vc) - cd * Vc)
+            Fn = qd * (-cl * np.copysign(aVc, Vn) - cd * Vn)
+        om_col = np.array([f[10] for f in frames])[:, None]
+        if terms.rotational:
+            # rho Gamma_rot (a_p x V), a_p = side e_r: side s_or (V_c n - V_n e_c)
+            side_sor = np.array([-frames[0][4], frames[1][4]])[:, None]
+            f = (2.0 * math.pi * (0.75 - g.x0_hat) * k) * (om_col * side_sor) * (self._chord * cw)
+            Fc = Fc - f * Vn
+            Fn = Fn + f * Vc
+        S0 = S1 = (0.0, 0.0)
+        if terms.added_mass:
+            # I = m_a v_mid n; -dI/dt+ = -m_a dv n - m_a v_mid dn/dt+, dn/dt+ = -dpsi e_c +
+            # spsi dphi e_r; and -Omega x I (summed per wing below)
+            m_a = 0.5 * math.pi * k * self._chord * cw
+            mid = k * (0.5 - g.x0_hat) * self._chord
+            v_mid = Vn - mid * om_col
+            col = {j: np.array([f[j] for f in frames])[:, None] for j in (5, 6, 9, 11, 12)}
+            dv = col[12] * r - col[6] * Vc + col[5] * col[9] - mid * col[11]
+            mv = m_a * v_mid
+            Fn = Fn - m_a * dv
+            Fc = Fc + mv * col[6]
+            Fr = -mv * col[5]
+            sums_mv = mv @ np.stack([np.ones_like(r), r], axis=1)  # (wing, [sum, sum r])
+            S0, S1 = tuple(sums_mv[:, 0]), tuple(sums_mv[:, 1])
+        R = np.stack([np.ones_like(r), r], axis=1)
+        sums = np.stack([Fc @ R, Fn @ R, Fr @ R])  # (3, wing, [sum, sum r])
+        for i, (er, ec, nn, H, s_or, *_rest) in enumerate(frames):
+            fc, rfc = sums[0, i]
+            fn, rfn = sums[1, i]
+            fr = sums[2, i, 0]
+            F = tuple(fc * ec[j] + fn * nn[j] + fr * er[j] for j in range(3))
+            Mh = _cross3(H, F)
+            # r e_r x (Fc e_c + Fn n) = s_or r (Fc n - Fn e_c)
+            M = tuple(Mh[j] + s_or * (rfc * nn[j] - rfn * ec[j]) for j in range(3))
+            if terms.added_mass:
+                Oxn = _cross3((p, q, rr), nn)
+                F = tuple(F[j] - S0[i] * Oxn[j] for j in range(3))
+                a1, a2 = _cross3(H, Oxn), _cross3(er, Oxn)
+                M = tuple(M[j] - S0[i] * a1[j] - S1[i] * a2[j] for j in range(3))
+            for j in range(3):
+                out[j] += F[j]
+                out[3 + j] += M[j]
+        return np.array(out) / (2.0 * g.S_wing)
 
     def forces_over_cycle(self, state: Sequence[float] | Array = (0.0,) * 6,
                           control: Mapping[str, float] | None = None,

@@ -480,11 +480,15 @@ class Flight:
         self._latch(k)
         return self.model.advance(self.y, j / N, min(1.0, j / N + dt), self.c_prev, self.c_now)
 
-    def beat_controls(self, t: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """(previous, current) controls of the beat that holds ``t`` (latched by now)."""
-        k = min(int(math.floor(t + self._tolerance())), self.grid // self.N)
-        self._latch(k)
-        return self.c_prev, self.c_now
+    def phase(self, t: float) -> tuple[float, tuple[float, ...], tuple[float, ...]]:
+        """(phase in the beat, its previous and current controls) at ``t`` (at or after the
+        kept state, within a step): at the start of a beat not yet entered, the end of the
+        last one (its angles are the same: the controls act from the beat's first instant
+        on)."""
+        k = int(math.floor(t + self._tolerance()))
+        if k > self.latched:
+            return (0.0 if self.latched < 0 else 1.0), self.c_prev, self.c_now
+        return max(0.0, min(1.0, t - k)), self.c_prev, self.c_now
 
     def snapshot(self) -> dict:
         """Everything the flight's future depends on (plain values)."""

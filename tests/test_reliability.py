@@ -32,7 +32,7 @@ _SHARED = {"DroneFlyLongitudinal", "StateFeedbackLongitudinal", *_VARIANTS}
 #: the FMUs fuzzed with logging on and off (one per slave class, and the container); the
 #: others run the same slave classes with other tables: logging on only (suite time)
 BUILT_SLAVE_CLASSES = {"DroneFlyLateral", "StateFeedback", "DroneFlyHover6DOF",
-                       "DroneFlyClosedLoop"}
+                       "DroneFlyFlapping", "DroneFlyClosedLoop"}
 
 
 @pytest.mark.parametrize("name", BUILT)

@@ -221,21 +221,17 @@ def convergence(rows: Sequence[tuple[float, float, float]] | None = None,
 
 def answer(report: FloquetReport, without_inertia: FloquetReport,
            rows: Sequence[tuple[float, float, float]]) -> str:
-    """The answer in a few sentences (docs/flapping.md, README)."""
+    """The answer in three sentences (docs/flapping.md, README)."""
     o, o0 = report.oscillation, without_inertia.oscillation
     err = report.error_pct()
-    lat_f = report.floquet["lateral"][0]
-    lat_a = report.averaged["lateral"][0]
     all_err = [e for v in err.values() for e in v]
     return (
-        f"Hover is a periodic orbit on which the body moves {o['x_pp_um']:.1f} micrometres fore "
-        f"and aft, {o['z_pp_um']:.2f} up and down and pitches {o['theta_pp_deg']:.3f} deg in "
-        f"each wing beat ({o0['x_pp_um']:.1f} micrometres and {o0['theta_pp_deg']:.3f} deg "
-        f"without the wings' inertia), sinking {o['z_drift_mm_per_s']:.1f} mm/s with the "
-        f"averaged trim's kinematics. The averaged model's eigenvalues are off the Floquet "
-        f"exponents by {min(all_err):.1f} to {max(all_err):.1f} % (the lateral instability "
-        f"{lat_a.real:+.4f} per wing beat averaged, {lat_f.real:+.4f} flapping; longitudinal "
-        f"at most {max(err['longitudinal']):.1f} %): the averaged model holds for the drone "
-        f"fly, every mode keeping its type and stability. With the wing beat {rows[-1][0]:g} "
-        f"times faster and the forces at each phase unchanged the largest error falls to "
-        f"{rows[-1][1]:.2f} % (lateral) and {rows[-1][2]:.2f} % (longitudinal), as 1/frequency.")
+        f"Hover is a periodic orbit: the body moves {o['x_pp_um']:.1f} micrometres fore and aft "
+        f"and pitches {o['theta_pp_deg']:.3f} deg in each wing beat ({o0['x_pp_um']:.1f} and "
+        f"{o0['theta_pp_deg']:.3f} without the wings' inertia). The averaged model's "
+        f"eigenvalues are off the Floquet exponents by {min(all_err):.1f} to "
+        f"{max(all_err):.1f} % (the lateral instability {report.averaged['lateral'][0].real:+.4f}"
+        f" per wing beat averaged, {report.floquet['lateral'][0].real:+.4f} flapping), every "
+        f"mode keeping its type and stability: it holds for the drone fly. With the wing beat "
+        f"{rows[-1][0]:g} times faster the error falls to {max(rows[-1][1:]):.2f} %, as "
+        "1/frequency.")

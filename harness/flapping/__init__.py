@@ -2,13 +2,17 @@
 Floquet exponents beside the averaged model's eigenvalues and the paper's.
 
 :mod:`dronefly.models.flapping` is the model; :mod:`dronefly.harness.flapping.floquet` the
-analysis. An analysis package (numpy), not shipped in an FMU.
+analysis in the model, :mod:`dronefly.harness.flapping.fmi_floquet` the same through FMI (any FMU
+that can get and set its state; ``dronefly floquet``). An analysis package (numpy), not shipped
+in an FMU.
 """
 
 from __future__ import annotations
 
 from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_monodromy,
                       convergence, convergence_rows, floquet_report)
+from .fmi_floquet import FmiFloquet, FmiPeriodicMap, floquet_analysis, floquet_text, fmi_floquet
 
-__all__ = ["AXES", "FloquetReport", "answer", "averaged_exponents", "averaged_monodromy",
-           "convergence", "convergence_rows", "floquet_report"]
+__all__ = ["AXES", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
+           "averaged_exponents", "averaged_monodromy", "convergence", "convergence_rows",
+           "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet"]

@@ -227,11 +227,10 @@ def answer(report: FloquetReport, without_inertia: FloquetReport,
     all_err = [e for v in err.values() for e in v]
     return (
         f"Hover is a periodic orbit: the body moves {o['x_pp_um']:.1f} micrometres fore and aft "
-        f"and pitches {o['theta_pp_deg']:.3f} deg in each wing beat ({o0['x_pp_um']:.1f} and "
-        f"{o0['theta_pp_deg']:.3f} without the wings' inertia). The averaged model's "
-        f"eigenvalues are off the Floquet exponents by {min(all_err):.1f} to "
-        f"{max(all_err):.1f} % (the lateral instability {report.averaged['lateral'][0].real:+.4f}"
-        f" per wing beat averaged, {report.floquet['lateral'][0].real:+.4f} flapping), every "
-        f"mode keeping its type and stability: it holds for the drone fly. With the wing beat "
-        f"{rows[-1][0]:g} times faster the error falls to {max(rows[-1][1:]):.2f} %, as "
-        "1/frequency.")
+        f"and pitches {o['theta_pp_deg']:.3f} deg per wing beat ({o0['x_pp_um']:.1f} and "
+        f"{o0['theta_pp_deg']:.3f} without wing inertia). The averaged model's eigenvalues are "
+        f"{min(all_err):.1f} to {max(all_err):.1f} % off the Floquet exponents (lateral "
+        f"instability {report.averaged['lateral'][0].real:+.4f} averaged, "
+        f"{report.floquet['lateral'][0].real:+.4f} flapping); every mode keeps its type and "
+        f"stability. With the wing beat {rows[-1][0]:g} times faster the error falls to "
+        f"{max(rows[-1][1:]):.2f} %, as 1/frequency.")

@@ -148,7 +148,7 @@ class DroneFlyFlapping(SlaveBase):
         "the linear plants are the wing kinematics, taken at the start of each wing beat. "
         "Needs numpy and scipy in the Python that runs it")
     VARIABLES = _variables()
-    DEFAULT_EXPERIMENT = (0.0, 5.0 / N_HZ, 0.25 / N_HZ)
+    DEFAULT_EXPERIMENT = (0.0, 2.0 / N_HZ, 0.1 / N_HZ)
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -26,10 +26,12 @@ and velocity relative to the body, the Coriolis term with the body's rate). It i
 and it is not negligible within the wing beat: the two wings' forward-backward inertial forces
 add (together up to 4.2 times the weight), and they dominate the body's fore-aft oscillation
 (docs/flapping.md gives the orbit with and without them). Their cycle average is zero, so they
-do not change the averaged model. Left out (second order, or below 0.1 %): the centripetal term
-omega x (omega x r_w), the wings' share of the inertia tensor varying in the beat (the
-paper's J+ holds the mean), the shift of the centre of mass (44 micrometres peak) in the
-gravity moment, and the wing's rotational inertia about its own span.
+do not change the averaged model. Left out: the centripetal term omega x (omega x r_w) (second
+order in the body's rate), the change within the beat of the wings' share of the inertia
+tensor (each wing's m_w r^2 about the centre of mass is about 1 % of Iy; the paper's J+ holds
+the mean), the shift of the insect's centre of mass in the gravity moment (40 micrometres peak:
+the body's fore-aft oscillation on the periodic orbit is its mirror image), and the wing's
+rotational inertia about its own span.
 
 Controls (the seven of the linear plants, in the order of
 :data:`dronefly.models.quasisteady.CONTROLS`) are the wing kinematics they stand for

@@ -635,7 +635,7 @@ class QuasiSteadyModel:
         time derivative is analytic, from the wing's angular accelerations and the body's
         rates; the body's own acceleration does not enter it (the state is the body's, not its
         rate): that leaves out the added mass of the air that the wings carry with the body,
-        m_a / m = 0.1 % of the insect's mass (both wings), a correction the cycle average does
+        m_a / m = 0.24 % of the insect's mass (both wings), a correction the cycle average does
         not have either.
         """
         a = np.asarray(angles, dtype=float)

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_monodromy,
                       convergence, convergence_rows, floquet_report)
+from .closed_loop import ClosedLoopReport, closed_loop_report
 from .fmi_floquet import FmiFloquet, FmiPeriodicMap, floquet_analysis, floquet_text, fmi_floquet
 
-__all__ = ["AXES", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
+__all__ = ["AXES", "ClosedLoopReport", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
+           "closed_loop_report",
            "averaged_exponents", "averaged_monodromy", "convergence", "convergence_rows",
            "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet"]

@@ -676,12 +676,12 @@ class QuasiSteadyModel:
             dbn = -k * ddphi * spsi + k * dphi * _dot(Om, _cross3(et, nn))
             frames.append((er, ec, nn, H, s_or, spsi * dphi, dpsi, ac, bc, vr0, om_p, d_om,
                            dbn, an, bn))
-        an_, bn_, ac_, bc_ = (np.array([f[j] for f in frames])[:, None] for j in (13, 14, 7, 8))
+        # the per-wing scalars as columns (wing, 1): one array for all of them
+        cols = np.array([f[5:] for f in frames]).T[:, :, None]
+        spd, dps, ac_, bc_, vr0_, om_col, dom_, dbn_, an_, bn_ = cols
         Vn = an_ + bn_ * r
         Vc = ac_ + bc_ * r
-        Fc = np.zeros_like(Vn)
-        Fn = np.zeros_like(Vn)
-        Fr = np.zeros_like(Vn)
+        Fc = Fn = Fr = 0.0 * Vn
         if terms.translational:
             aVn, aVc = np.abs(Vn), np.abs(Vc)
             speed = np.sqrt(Vn * Vn + Vc * Vc)
@@ -692,7 +692,6 @@ class QuasiSteadyModel:
             # lift normal to V away from the side the flow meets, drag against V
             Fc = qd * (cl * np.copysign(aVn, Vc) - cd * Vc)
             Fn = qd * (-cl * np.copysign(aVc, Vn) - cd * Vn)
-        om_col = np.array([f[10] for f in frames])[:, None]
         if terms.rotational:
             # rho Gamma_rot (a_p x V), a_p = side e_r: side s_or (V_c n - V_n e_c)
             side_sor = np.array([-frames[0][4], frames[1][4]])[:, None]
@@ -706,16 +705,16 @@ class QuasiSteadyModel:
             m_a = 0.5 * math.pi * k * self._chord * cw
             mid = k * (0.5 - g.x0_hat) * self._chord
             v_mid = Vn - mid * om_col
-            col = {j: np.array([f[j] for f in frames])[:, None] for j in (5, 6, 9, 11, 12)}
-            dv = col[12] * r - col[6] * Vc + col[5] * col[9] - mid * col[11]
+            dv = dbn_ * r - dps * Vc + spd * vr0_ - mid * dom_
             mv = m_a * v_mid
             Fn = Fn - m_a * dv
-            Fc = Fc + mv * col[6]
-            Fr = -mv * col[5]
-            sums_mv = mv @ np.stack([np.ones_like(r), r], axis=1)  # (wing, [sum, sum r])
-            S0, S1 = tuple(sums_mv[:, 0]), tuple(sums_mv[:, 1])
-        R = np.stack([np.ones_like(r), r], axis=1)
-        sums = np.stack([Fc @ R, Fn @ R, Fr @ R])  # (3, wing, [sum, sum r])
+            Fc = Fc + mv * dps
+            Fr = -mv * spd
+        R = self.__dict__.get("_span_sums")
+        if R is None:  # (element, [1, r]): the span sums of f and of r f in one product
+            R = self.__dict__["_span_sums"] = np.stack([np.ones_like(r), r], axis=1)
+        sums = np.stack([Fc, Fn, Fr, m_a * v_mid if terms.added_mass else 0.0 * Vn]) @ R
+        S0, S1 = sums[3, :, 0], sums[3, :, 1]  # the added mass's impulse: (wing, [sum, r])
         for i, (er, ec, nn, H, s_or, *_rest) in enumerate(frames):
             fc, rfc = sums[0, i]
             fn, rfn = sums[1, i]

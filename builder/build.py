@@ -34,7 +34,7 @@ from .entry import entry2, entry3, host_documentation
 from .modeldescription import model_description_bytes
 from .modeldescription3 import model_description3_bytes
 
-__all__ = ["FMI3_FILES", "FMI3_OUT", "FMUS", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
+__all__ = ["FMI3_FILES", "FMI3_OUT", "FMUS", "NEEDS_NUMPY", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
            "fmu_sources", "project_fmus", "project_systems"]
 
 #: the pythonfmu versions the FMUs are built with (FMI 2.0: pythonfmu's binary; FMI 3.0:
@@ -97,7 +97,15 @@ FMUS: dict[str, _Spec] = {
         "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py",
         "models/quasisteady.py"),  # imported (with numpy) only with aerodynamics = 2
+    # the one FMU that needs numpy in the host's Python (see NEEDS_NUMPY)
+    "DroneFlyFlapping": _plant(
+        "flapping", "DroneFlyFlapping", *_FMI, "models/linear.py", "models/linear_algebra.py",
+        "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
+        "models/longitudinal_dynamics.py", "models/rigid_body.py", "models/quasisteady.py",
+        "models/flapping.py"),
 }
+#: the FMUs that import numpy (the others run on the standard library alone)
+NEEDS_NUMPY = frozenset({"DroneFlyFlapping"})
 
 
 def _source_path(rel: str) -> Path:

@@ -76,6 +76,9 @@ _EPILOG = {
             "  dronefly aero --no-rotational --added-mass-form sane2001\n"
             "units: states non-dimensional (x+: dv/U, dp t_w, ...), controls in rad; forces "
             "over 0.5 rho U^2 S_t, moments over 0.5 rho U^2 S_t c",
+    "floquet": "examples:\n  dronefly floquet\n  dronefly floquet --json\n"
+               "  dronefly floquet --plant build/DroneFlyLateral.fmu --period 0.006097560975609756\n"
+               "units: --period in s (default 1/n, one wing beat); exponents per wing beat",
     "simulate": "examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50\n"
                 "units: --stop/--step in wing beats; --gamma0 in rad (SI)",
 }
@@ -315,6 +318,19 @@ def _parser() -> argparse.ArgumentParser:
                         "averages to zero over a cycle) or Sane & Dickinson 2001's normal "
                         "acceleration alone")
     q.add_argument("--json", action="store_true", help="print JSON")
+    f = add("floquet", "periodic orbit and Floquet exponents of a plant FMU through FMI (get/set "
+            "FMU state), beside the averaged model's eigenvalues for the flapping plant")
+    f.add_argument("--plant", default=None, metavar="FMU",
+                   help="any FMI 2.0 CS FMU that can get and set its state, with an x_start "
+                        "parameter per state output x (default: build/DroneFlyFlapping.fmu, "
+                        "built if missing)")
+    f.add_argument("--period", type=positive, default=None, metavar="S",
+                   help="the period in s (default 1/n from the FMU's parameter n)")
+    f.add_argument("--steps", type=int_arg("steps", 1), default=1, metavar="N",
+                   help="communication steps per period (default 1)")
+    f.add_argument("--build", default="build", metavar="DIR",
+                   help="where the default plant is built (default build/)")
+    f.add_argument("--json", action="store_true", help="print JSON")
     return p
 
 

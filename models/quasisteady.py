@@ -279,6 +279,13 @@ def gauss_jacobi(n: int, a: float, b: float) -> tuple[Array, Array]:
     mu0 = 2.0 ** (a + b + 1.0) * math.gamma(a + 1.0) * math.gamma(b + 1.0) / math.gamma(a + b + 2.0)
     return x, mu0 * v[0] ** 2
 
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross3(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
 
 def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
     """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
@@ -678,6 +685,120 @@ class QuasiSteadyModel:
         mp = self._maps(kin["Phi"], kin["phibar"], kin["alpha_d"], kin["alpha_u"])
         mean = self._mean_of
         return lambda state: mean(mp, state)
+
+    def forces_at(self, angles: Sequence[Sequence[float]] | Array,
+                  state: Sequence[float] | Array = (0.0,) * 6) -> Array:
+        """The instantaneous (X+, Y+, Z+, L+, M+, N+) of both wings at one instant.
+
+        ``angles`` holds, per wing (columns left, right), the stroke angle phi, the pitch angle
+        psi of the chord from the forward stroke direction (alpha_d in mid-downstroke,
+        pi - alpha_u in mid-upstroke) and their first two derivatives in t+: rows (phi, dphi,
+        ddphi, psi, dpsi, ddpsi), shape (6, 2). Any wing motion, not only this model's
+        harmonic kinematics (the wing-beat-resolved plant, :mod:`dronefly.models.flapping`,
+        changes the kinematics between wing beats). The terms and their scaling are those of
+        :meth:`forces_over_cycle`, evaluated as :meth:`forces_vector` evaluates them: each
+        element's velocity (the spanwise part removed) is V_c e_c + V_n n, affine in the span,
+        its forces along e_c, n and (the added mass's turning normal) e_r. The added mass's
+        time derivative is analytic, from the wing's angular accelerations and the body's
+        rates; the body's own acceleration does not enter it (the state is the body's, not its
+        rate): that leaves out the added mass of the air that the wings carry with the body,
+        m_a / m = 0.24 % of the insect's mass (both wings), a correction the cycle average does
+        not have either.
+        """
+        a = np.asarray(angles, dtype=float)
+        x = np.asarray(state, dtype=float)
+        if a.shape != (6, 2) or x.shape != (6,):
+            raise DroneflyError(f"angles of shape {a.shape} and state of shape {x.shape}: "
+                                "expected (6, 2) and (6,)")
+        g, terms, k = self.geometry, self.terms, self.geometry.k
+        if terms.added_mass and terms.added_mass_form != "impulse":
+            raise DroneflyError("forces_at has the impulse form of the added mass only")
+        u, v, w, p, q, rr = (float(c) for c in x)
+        trig = np.sin(np.concatenate([a[0], a[3], a[0] + 0.5 * math.pi, a[3] + 0.5 * math.pi]))
+        r, cw = self._r, self._cw
+        out = [0.0] * 6
+        frames = []
+        for i, s in ((0, -1.0), (1, 1.0)):
+            sphi, spsi, cphi, cpsi = (float(trig[j]) for j in (i, 2 + i, 4 + i, 6 + i))
+            dphi, ddphi, dpsi, ddpsi = (float(a[j, i]) for j in (1, 2, 4, 5))
+            # e_r = (sphi, s cphi, 0), e_t = (cphi, -s sphi, 0), e_c = cpsi e_t + spsi up,
+            # n = -spsi e_t + cpsi up (up = -z); e_r x e_c = s_or n, e_r x n = -s_or e_c
+            er = (sphi, s * cphi, 0.0)
+            et = (cphi, -s * sphi, 0.0)
+            ec = (cpsi * et[0], cpsi * et[1], -spsi)
+            nn = (-spsi * et[0], -spsi * et[1], -cpsi)
+            H = (g.hinge[0], s * g.hinge[1], g.hinge[2])
+            s_or = _dot(_cross3(er, ec), nn)
+            Om = (p, q, rr)
+            Vb = (u, v, w)
+            # V.a = V_b.a + k Omega.(H x a) + r (k dphi e_t.a + k Omega.(e_r x a))
+            an = _dot(Vb, nn) + k * _dot(Om, _cross3(H, nn))
+            bn = -k * dphi * spsi - k * s_or * _dot(Om, ec)
+            ac = _dot(Vb, ec) + k * _dot(Om, _cross3(H, ec))
+            bc = k * dphi * cpsi + k * s_or * _dot(Om, nn)
+            vr0 = _dot(Vb, er) + k * _dot(Om, _cross3(H, er))
+            om_p = dpsi + s * (p * er[0] + q * er[1])
+            d_om = ddpsi + s * dphi * (p * et[0] + q * et[1])
+            # d(V.n)/dt+ = r (-k ddphi spsi + k dphi Omega.(e_t x n)) - dpsi V_c + spsi dphi V_r
+            dbn = -k * ddphi * spsi + k * dphi * _dot(Om, _cross3(et, nn))
+            frames.append((er, ec, nn, H, s_or, spsi * dphi, dpsi, ac, bc, vr0, om_p, d_om,
+                           dbn, an, bn))
+        # the per-wing scalars as columns (wing, 1): one array for all of them
+        cols = np.array([f[5:] for f in frames]).T[:, :, None]
+        spd, dps, ac_, bc_, vr0_, om_col, dom_, dbn_, an_, bn_ = cols
+        Vn = an_ + bn_ * r
+        Vc = ac_ + bc_ * r
+        Fc = Fn = Fr = 0.0 * Vn
+        if terms.translational:
+            aVn, aVc = np.abs(Vn), np.abs(Vc)
+            speed = np.sqrt(Vn * Vn + Vc * Vc)
+            alpha = np.arctan2(aVn, aVc)
+            cl = self.coefficients.lift(alpha)
+            cd = self.coefficients.drag(alpha)
+            qd = cw * speed
+            # lift normal to V away from the side the flow meets, drag against V
+            Fc = qd * (cl * np.copysign(aVn, Vc) - cd * Vc)
+            Fn = qd * (-cl * np.copysign(aVc, Vn) - cd * Vn)
+        if terms.rotational:
+            # rho Gamma_rot (a_p x V), a_p = side e_r: side s_or (V_c n - V_n e_c)
+            side_sor = np.array([-frames[0][4], frames[1][4]])[:, None]
+            f = (2.0 * math.pi * (0.75 - g.x0_hat) * k) * (om_col * side_sor) * (self._chord * cw)
+            Fc = Fc - f * Vn
+            Fn = Fn + f * Vc
+        S0 = S1 = (0.0, 0.0)
+        if terms.added_mass:
+            # I = m_a v_mid n; -dI/dt+ = -m_a dv n - m_a v_mid dn/dt+, dn/dt+ = -dpsi e_c +
+            # spsi dphi e_r; and -Omega x I (summed per wing below)
+            m_a = 0.5 * math.pi * k * self._chord * cw
+            mid = k * (0.5 - g.x0_hat) * self._chord
+            v_mid = Vn - mid * om_col
+            dv = dbn_ * r - dps * Vc + spd * vr0_ - mid * dom_
+            mv = m_a * v_mid
+            Fn = Fn - m_a * dv
+            Fc = Fc + mv * dps
+            Fr = -mv * spd
+        R = self.__dict__.get("_span_sums")
+        if R is None:  # (element, [1, r]): the span sums of f and of r f in one product
+            R = self.__dict__["_span_sums"] = np.stack([np.ones_like(r), r], axis=1)
+        sums = np.stack([Fc, Fn, Fr, m_a * v_mid if terms.added_mass else 0.0 * Vn]) @ R
+        S0, S1 = sums[3, :, 0], sums[3, :, 1]  # the added mass's impulse: (wing, [sum, r])
+        for i, (er, ec, nn, H, s_or, *_rest) in enumerate(frames):
+            fc, rfc = sums[0, i]
+            fn, rfn = sums[1, i]
+            fr = sums[2, i, 0]
+            F = tuple(fc * ec[j] + fn * nn[j] + fr * er[j] for j in range(3))
+            Mh = _cross3(H, F)
+            # r e_r x (Fc e_c + Fn n) = s_or r (Fc n - Fn e_c)
+            M = tuple(Mh[j] + s_or * (rfc * nn[j] - rfn * ec[j]) for j in range(3))
+            if terms.added_mass:
+                Oxn = _cross3((p, q, rr), nn)
+                F = tuple(F[j] - S0[i] * Oxn[j] for j in range(3))
+                a1, a2 = _cross3(H, Oxn), _cross3(er, Oxn)
+                M = tuple(M[j] - S0[i] * a1[j] - S1[i] * a2[j] for j in range(3))
+            for j in range(3):
+                out[j] += F[j]
+                out[3 + j] += M[j]
+        return np.array(out) / (2.0 * g.S_wing)
 
     def forces_over_cycle(self, state: Sequence[float] | Array = (0.0,) * 6,
                           control: Mapping[str, float] | None = None,

@@ -182,7 +182,7 @@ ARRAYS = {"DroneFlyLateral": {"A": [4, 4], "B": [4, 3]},
           "StateFeedbackDelayed": {"K": [3, 4], "KI": [3, 4]},
           "StateFeedbackLongitudinal": {"K": [4, 4], "KI": [4, 4]},
           "StateFeedbackLongitudinalDelayed": {"K": [4, 4], "KI": [4, 4]},
-          "DroneFlyHover6DOF": {}}
+          "DroneFlyHover6DOF": {}, "DroneFlyFlapping": {}}
 
 
 def test_arrays_cover_every_fmu():

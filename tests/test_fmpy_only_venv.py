@@ -1,6 +1,7 @@
 """The FMUs in a virtual environment that has only fmpy (which brings numpy, not scipy), as a new
 user runs them: ``fmpy.simulate_fmu`` of every FMU that ``dronefly build`` writes, FMI 2.0 and
-3.0 (and the FMI 2.0 container FMU holding two of them), reproduces the reference results in
+3.0 (and the FMI 2.0 container FMU holding two of them; the flapping plant, which needs numpy,
+with the numpy that fmpy brings), reproduces the reference results in
 fmu_*/, controller/ and harness/interop/.
 
 The environment is created once per test session in a temporary folder (``pip install
@@ -71,7 +72,7 @@ def test_every_fmu_reproduces_its_reference_in_an_fmpy_only_venv(
     assert fmus3 == fmus2 - {"DroneFlyClosedLoop"}
     jobs, expected = [], []
     for fmi, fmus, names in ((2, built_fmus, fmus2), (3, built_fmus3, fmus3)):
-        for model in sorted(names):
+        for model in sorted(names):  # the flapping plant too: it needs numpy, which fmpy brings
             inp, opt, ref = reference_paths(model)
             result = tmp_path / f"{model}_fmi{fmi}.json"
             jobs.append({"fmu": str(fmus[model]), "input": str(inp) if inp.exists() else None,

@@ -159,9 +159,10 @@ def test_fmu_imports_only_the_standard_library(extracted, name, fmi):
     module outside the standard library besides its own package and pythonfmu's facade; its
     outputs are fmpy's for the same experiment in this interpreter (the same code and
     interpreter: equal but for the last bit, 1e-13 of the largest output)."""
-    from dronefly.builder.build import FMUS
+    from dronefly.builder.build import FMUS, NEEDS_NUMPY
 
-    assert set(FMU_NAMES) == set(FMUS)
+    # every FMU but the flapping plant, which needs numpy (its README says so)
+    assert set(FMU_NAMES) == set(FMUS) - NEEDS_NUMPY
     fmu = extracted[fmi, name]
     r = host(sys.executable, fmu, modules=True)
     assert r.returncode == 0, r.stderr

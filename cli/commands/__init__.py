@@ -8,4 +8,5 @@ __all__ = ["COMMANDS", "EXIT_FAILED", "EXIT_OK", "EXIT_USAGE"]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 #: the subcommands, each the name of its module in this package
-COMMANDS = ("build", "simulate", "cosim", "check", "demo", "analyze", "sweep", "aero")
+COMMANDS = ("build", "simulate", "cosim", "check", "demo", "analyze", "sweep", "aero",
+            "floquet")

@@ -20,6 +20,7 @@ import numpy as np
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
 from ...core.files import write_csv_atomic, write_text_atomic
+from ...fmu_src.flapping.slave import LOAD_OUTPUTS, WING_OUTPUTS
 from ...models import longitudinal as lon
 from ...models.hover6dof import OUTPUT_NAMES
 from ...models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES
@@ -95,6 +96,20 @@ def _hover6dof_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
     return {**_plant_inputs(t), **_longitudinal_plant_inputs(t)}
 
 
+def _flapping_inputs(t: np.ndarray) -> dict[str, np.ndarray]:
+    """Both axes' controls as pulses a wing beat or two long, some set within a beat (they
+    act from the next beat's start)."""
+    wb = t * N_HZ
+    zero = np.zeros_like(t)
+    return {
+        "delta_Phi_a": np.where((wb >= 1 - 1e-9) & (wb < 3 - 1e-9), 0.05, 0.0),
+        "delta_alpha_1a": zero, "delta_alpha_2a": np.where(wb >= 3.5 - 1e-9, -0.03, 0.0),
+        "delta_Phi": zero, "delta_alpha_1": zero,
+        "delta_phibar": np.where((wb >= 2 - 1e-9) & (wb < 4 - 1e-9), 0.05, 0.0),
+        "delta_alpha_2": zero,
+    }
+
+
 REFERENCES: dict[str, _Setup] = {
     "DroneFlyLateral": _Setup("fmu_src/lateral", _plant_inputs, STATE_NAMES),
     "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
@@ -109,6 +124,12 @@ REFERENCES: dict[str, _Setup] = {
                                                stop_wingbeats=60.0),
     "DroneFlyHover6DOF": _Setup("fmu_src/hover6dof", _hover6dof_inputs, OUTPUT_NAMES,
                                 stop_wingbeats=60.0),
+    # the flapping plant: a few wing beats, four communication points in each (every output,
+    # the wing angles and the instantaneous loads too)
+    "DroneFlyFlapping": _Setup("fmu_src/flapping", _flapping_inputs,
+                               (*OUTPUT_NAMES, *(w[0] for w in WING_OUTPUTS),
+                                *(w[0] for w in LOAD_OUTPUTS)), stop_wingbeats=6.0,
+                               step_wingbeats=0.25),
     # the container FMU: the closed loop from its default initial state (a 0.1 rad roll)
     "DroneFlyClosedLoop": _Setup("harness/interop", _no_inputs, (*STATE_NAMES, *CONTROL_NAMES),
                                  stop_wingbeats=100.0),

@@ -1,0 +1,20 @@
+"""The averaged model itself (issue 30): the periodic orbit of the wing-beat-resolved model, its
+Floquet exponents beside the averaged model's eigenvalues and the paper's.
+
+:mod:`dronefly.models.flapping` is the model; :mod:`dronefly.harness.flapping.floquet` the
+analysis in the model, :mod:`dronefly.harness.flapping.fmi_floquet` the same through FMI (any FMU
+that can get and set its state; ``dronefly floquet``). An analysis package (numpy), not shipped
+in an FMU.
+"""
+
+from __future__ import annotations
+
+from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_monodromy,
+                      convergence, convergence_rows, floquet_report)
+from .closed_loop import ClosedLoopReport, closed_loop_report
+from .fmi_floquet import FmiFloquet, FmiPeriodicMap, floquet_analysis, floquet_text, fmi_floquet
+
+__all__ = ["AXES", "ClosedLoopReport", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
+           "closed_loop_report",
+           "averaged_exponents", "averaged_monodromy", "convergence", "convergence_rows",
+           "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet"]

@@ -1,0 +1,561 @@
+"""The wing-beat-resolved model: the rigid body driven by the flapping wings' instantaneous forces.
+
+Zhang & Sun (Sect. 2.1) replace the flapping wings by their cycle-averaged forces. This model
+does not: the rigid body of ``DroneFlyHover6DOF`` (same 13-value non-dimensional state, same
+axes: body axes at the centre of mass, x forward, y right, z down; earth axes north-east-down)
+is driven at every instant of the wing beat by the forces and moments of both wings from the
+quasi-steady blade-element model, :meth:`dronefly.models.quasisteady.QuasiSteadyModel.forces_at`
+(one implementation, imported). Everything is non-dimensional as there: velocities over U,
+rates times t_w, time t+ in wing beats, forces over 0.5 rho U^2 S_t, lengths in mean chords c
+(the position P+ in U t_w, as the 6-DOF plant's).
+
+Equations (x = (V+, omega+, e, P+), R(e) body -> earth):
+
+- m+ dV+/dt+ = F_aero+(t+, V+, omega+) + F_wing+ + m+ g+ R^T e_z - m+ omega+ x V+
+- J+ domega+/dt+ = M_aero+ + M_wing+ - omega+ x J+ omega+
+- de/dt+ = e * (0, omega+) / 2, dP+/dt+ = R V+
+
+with m+, J+ (the full tensor, Ixz+) and g+ from the Sect. 2.4 flight data
+(:func:`dronefly.models.lateral.reference_scales`), the same data whose weight the
+quasi-steady trim balances (so the trimmed wing motion holds the insect up on average).
+
+Wing inertia: each wing (m_w = 0.56 mg, 0.6 % of the insect) is a point mass at 0.35 R along
+its span axis from the root, moving relative to the body with the prescribed stroke; the body
+feels the reaction -m_w (a_rel + 2 omega x v_rel) at that point (a_rel, v_rel its acceleration
+and velocity relative to the body, the Coriolis term with the body's rate). It is included,
+and it is not negligible within the wing beat: the two wings' forward-backward inertial forces
+add (together up to 4.2 times the weight), and they dominate the body's fore-aft oscillation
+(docs/flapping.md gives the orbit with and without them). Their cycle average is zero, so they
+do not change the averaged model. Left out: the centripetal term omega x (omega x r_w) (second
+order in the body's rate), the change within the beat of the wings' share of the inertia
+tensor (each wing's m_w r^2 about the centre of mass is about 1 % of Iy; the paper's J+ holds
+the mean), the shift of the insect's centre of mass in the gravity moment (40 micrometres peak:
+the body's fore-aft oscillation on the periodic orbit is its mirror image), and the wing's
+rotational inertia about its own span.
+
+Controls (the seven of the linear plants, in the order of
+:data:`dronefly.models.quasisteady.CONTROLS`) are the wing kinematics they stand for
+(:meth:`QuasiSteadyModel.wing_kinematics`: per-wing stroke amplitude, mean stroke angle, angles
+of attack). **When a change takes effect**: the controls are sampled at the start of each wing
+beat, t+ = k, the rear stroke reversal where the wing is at rest, and held for that beat.
+Beat k's stroke runs from the rear reversal the previous beat reached to the front reversal of
+the new controls (downstroke), then to their rear reversal (upstroke), each half a cosine, so
+the stroke angle and its rate are continuous; the pitch rotation centred on the reversal at
+t+ = k is already under way when the controls are sampled and is finished with the angles it
+began with, so the new angles of attack begin with the next rotation: the upstroke angle
+alpha_u in beat k, the downstroke angle alpha_d from beat k + 1 (no jump in the pitch angle or
+rate, so no impulse of the added mass). With the controls held, the kinematics are exactly
+those of the quasi-steady model. A host that steps once per wing beat and one that steps 40
+times per wing beat, setting the same controls at the beats' starts, see the same physics
+(tests/test_flapping.py): a change between two beat starts waits for the next one.
+
+Integration: the classical Runge-Kutta method on a fixed grid of :data:`STEPS_PER_BEAT` steps
+per wing beat anchored at the beats' starts (so the stroke reversals, t+ = k and k + 1/2, and
+the rotations' ends are grid points, where the forces have kinks), independent of any
+communication step: a communication point between two grid points is reached by a partial step
+from the last grid point that the state does not keep. The accuracy against
+``scipy.integrate.solve_ivp`` (rtol 1e-10): tests/test_flapping.py.
+
+numpy is imported (the quasi-steady model needs it); the FMU that ships this module documents it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..core.errors import DroneflyError
+from .lateral import FLIGHT_DATA, reference_scales
+from .quasisteady import CONTROLS, QuasiSteadyModel
+from .rigid_body import euler_from_quaternion, quaternion_from_euler
+
+__all__ = ["STATE_SIZE", "STEPS_PER_BEAT", "WING_CM_OVER_R", "FlappingError", "FlappingModel",
+           "Flight", "Floquet", "PeriodicOrbit", "Z_NAMES", "wing_beat_controls"]
+
+#: number of state values (as the 6-DOF plant: u, v, w, p, q, r, e0..e3, x, y, z)
+STATE_SIZE = 13
+#: Runge-Kutta steps per wing beat (a multiple of 20 puts t+ = 0.15, 0.35, ... on the grid)
+STEPS_PER_BEAT = 40
+#: the wing's centre of mass along its span, from the root, over R
+WING_CM_OVER_R = 0.35
+#: the reduced coordinates of the wing-beat map (position and heading are neutral)
+Z_NAMES: tuple[str, ...] = ("u", "v", "w", "p", "q", "r", "phi", "theta")
+
+
+class FlappingError(DroneflyError):
+    """A bad value for the flapping model (the message names it)."""
+
+
+def wing_beat_controls(control: Mapping[str, float] | Sequence[float] | None) -> tuple[float, ...]:
+    """The seven controls [rad] in :data:`CONTROLS` order from a mapping or a sequence."""
+    if control is None:
+        return (0.0,) * len(CONTROLS)
+    if isinstance(control, Mapping):
+        unknown = set(control) - set(CONTROLS)
+        if unknown:
+            raise FlappingError(f"controls {sorted(unknown)!r}: expected {', '.join(CONTROLS)}")
+        values = tuple(float(control.get(n, 0.0)) for n in CONTROLS)
+    else:
+        values = tuple(float(c) for c in control)
+        if len(values) != len(CONTROLS):
+            raise FlappingError(f"{len(values)} controls: expected {len(CONTROLS)} "
+                                f"({', '.join(CONTROLS)})")
+    for name, v in zip(CONTROLS, values):
+        if not math.isfinite(v):
+            raise FlappingError(f"control {name} = {v!r} is not finite")
+    return values
+
+
+@dataclass(frozen=True)
+class _Beat:
+    """One wing beat's kinematic constants, per wing (left, right), from the controls held in
+    the previous beat and in this one."""
+
+    down: tuple[np.ndarray, np.ndarray]  # stroke: phi = a + b (1 - cos 2 pi t)/2, downstroke
+    up: tuple[np.ndarray, np.ndarray]  # the same, upstroke
+    psi: tuple[np.ndarray, ...]  # pitch angles: old up, old down, new up, new down
+
+
+class FlappingModel:
+    """The flapping drone fly: one wing beat at a time, or any part of one.
+
+    Parameters
+    ----------
+    qs : QuasiSteadyModel, optional
+        The aerodynamics (default: ``QuasiSteadyModel()``); its trim is the hover kinematics.
+    steps_per_beat : int
+        Runge-Kutta steps per wing beat, a positive multiple of 20.
+    wing_inertia : bool
+        Add the wings' inertial reaction (default True).
+    averaged : bool
+        Replace the instantaneous forces by their cycle average
+        (:meth:`QuasiSteadyModel.forces_vector`, the kinematics of the beat's controls) and
+        leave out the wing inertia (zero on average): the averaged model, for comparison.
+    data : mapping
+        Flight data (default :data:`dronefly.models.lateral.FLIGHT_DATA`).
+    frequency_factor : float
+        The averaging experiment (default 1, the insect): the wing beat is ``frequency_factor``
+        times faster while the forces at each phase stay what they are, so their cycle average,
+        the averaged model, is unchanged; the "beat" of every method is then one of these
+        shorter periods (:attr:`period` wing beats of the insect). As the factor grows, the
+        Floquet exponents per wing beat tend to the averaged model's eigenvalues.
+    """
+
+    def __init__(self, qs: QuasiSteadyModel | None = None, steps_per_beat: int = STEPS_PER_BEAT,
+                 wing_inertia: bool = True, averaged: bool = False,
+                 data: Mapping[str, float] = FLIGHT_DATA,
+                 frequency_factor: float = 1.0) -> None:
+        if not (math.isfinite(frequency_factor) and frequency_factor >= 1.0):
+            raise FlappingError(f"frequency_factor = {frequency_factor!r} must be >= 1")
+        #: the period of the forcing, in wing beats of the insect (1 / frequency_factor)
+        self.period = 1.0 / frequency_factor
+        if not (isinstance(steps_per_beat, int) and steps_per_beat > 0
+                and steps_per_beat % 20 == 0):
+            raise FlappingError(f"steps_per_beat = {steps_per_beat!r} must be a positive "
+                                "multiple of 20")
+        self.qs = qs or QuasiSteadyModel()
+        self.trim = self.qs.trim()
+        self.steps_per_beat = steps_per_beat
+        self.wing_inertia = bool(wing_inertia) and not averaged
+        self.averaged = bool(averaged)
+        s = reference_scales(data)
+        self.U, self.n = s["U"], s["n"]
+        self.m = s["m_plus"]
+        self.g = s["g_plus"]
+        Ix, Iy, Iz, Ixz = s["Ix_plus"], s["Iy_plus"], s["Iz_plus"], s["Ixz_plus"]
+        self.J = np.array([[Ix, 0.0, -Ixz], [0.0, Iy, 0.0], [-Ixz, 0.0, Iz]])
+        self.J_inv = np.linalg.inv(self.J)
+        geo = self.qs.geometry
+        q_force = 0.5 * data["rho"] * s["U"] * 2.0 * data["S_wing"] * s["t_w"]
+        #: one wing's mass, non-dimensional as m+
+        self.m_wing = data["m_wing"] / q_force
+        self.r_wing = WING_CM_OVER_R * geo.R
+        self._hinge = np.array([[geo.hinge[0], -geo.hinge[1], geo.hinge[2]],
+                                [geo.hinge[0], geo.hinge[1], geo.hinge[2]]])
+        D = geo.rotation_fraction
+        if not 0.0 < D < 0.5:
+            raise FlappingError(f"rotation fraction {D!r} must be in (0, 0.5)")
+        self._D = D
+        self._beats: dict[tuple, _Beat] = {}
+
+    # -- kinematics -----------------------------------------------------------------------
+    def _beat(self, c_prev: tuple[float, ...], c_now: tuple[float, ...]) -> _Beat:
+        key = (c_prev, c_now)
+        beat = self._beats.get(key)
+        if beat is None:
+            names = dict(zip(CONTROLS, c_prev)), dict(zip(CONTROLS, c_now))
+            old, new = (self.qs.wing_kinematics(c, self.trim) for c in names)
+            rear_old = old["phibar"] - 0.5 * old["Phi"]
+            rear, front = new["phibar"] - 0.5 * new["Phi"], new["phibar"] + 0.5 * new["Phi"]
+            beat = _Beat((rear_old, front - rear_old), (rear, front - rear),
+                         (math.pi - old["alpha_u"], old["alpha_d"], math.pi - new["alpha_u"],
+                          new["alpha_d"]))
+            if len(self._beats) > 64:
+                self._beats.clear()
+            self._beats[key] = beat
+        return beat
+
+    def angles(self, tau: float, c_prev: Sequence[float], c_now: Sequence[float]) -> np.ndarray:
+        """(phi, dphi, ddphi, psi, dpsi, ddpsi) of both wings (columns left, right) at the
+        phase ``tau`` in [0, 1] of a wing beat whose controls are ``c_now`` after ``c_prev``
+        (derivatives in t+)."""
+        return self._angles(tau, self._beat(wing_beat_controls(c_prev), wing_beat_controls(c_now)))
+
+    def _angles(self, tau: float, beat: _Beat, mid: float | None = None) -> np.ndarray:
+        # the half-stroke of the step whose midpoint is ``mid``: the stroke's acceleration
+        # jumps at the front reversal when the controls change, a Runge-Kutta step needs the
+        # branch of its own interval at its ends
+        a, b = beat.down if (tau if mid is None else mid) <= 0.5 else beat.up
+        w = 2.0 * math.pi * tau
+        cw, sw = math.cos(w), math.sin(w)
+        D = self._D
+        psi_old_up, psi_old_down, psi_up, psi_down = beat.psi
+        if tau < 0.5 * D:
+            s, p0, dp = (tau + 0.5 * D) / D, psi_old_up, psi_old_down - psi_old_up
+        elif tau < 0.5 - 0.5 * D:
+            s, p0, dp = None, psi_old_down, None
+        elif tau < 0.5 + 0.5 * D:
+            s, p0, dp = (tau - 0.5 + 0.5 * D) / D, psi_old_down, psi_up - psi_old_down
+        elif tau < 1.0 - 0.5 * D:
+            s, p0, dp = None, psi_up, None
+        else:
+            s, p0, dp = (tau - 1.0 + 0.5 * D) / D, psi_up, psi_down - psi_up
+        if s is None:
+            psi, dpsi, ddpsi = p0, 0.0 * p0, 0.0 * p0
+        else:
+            ws = 2.0 * math.pi * s
+            psi = p0 + dp * (s - math.sin(ws) / (2.0 * math.pi))
+            dpsi = dp * (1.0 - math.cos(ws)) / D
+            ddpsi = dp * (2.0 * math.pi * math.sin(ws) / (D * D))
+        return np.array([a + b * (0.5 - 0.5 * cw), b * (math.pi * sw),
+                         b * (2.0 * math.pi ** 2 * cw), psi, dpsi, ddpsi])
+
+    # -- equations ------------------------------------------------------------------------
+    def loads(self, tau: float, x: Sequence[float], c_prev: Sequence[float],
+              c_now: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+        """(aerodynamic (X+, Y+, Z+, L+, M+, N+), wing inertial (the same six)) at phase
+        ``tau`` of a beat, body state ``x`` (at least its six velocities and rates)."""
+        cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
+        return self._loads(tau, np.asarray(x[:6], dtype=float), self._beat(cp, cn), cn)
+
+    def _loads(self, tau: float, v: np.ndarray, beat: _Beat, c_now: tuple[float, ...],
+               mid: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        if self.averaged:
+            return (self.qs.forces_vector(v, dict(zip(CONTROLS, c_now)), self.trim),
+                    np.zeros(6))
+        ang = self._angles(tau, beat, mid)
+        aero = self.qs.forces_at(ang, v)
+        if not self.wing_inertia:
+            return aero, np.zeros(6)
+        # per wing: e_r = (sin phi, s cos phi, 0), e_t = (cos phi, -s sin phi, 0)
+        kw = -self.m_wing * self.qs.geometry.k  # the reaction, over 0.5 rho U^2 S_t
+        rw, (hx, _, hz) = self.r_wing, self._hinge[1]
+        hy = self._hinge[1][1]
+        p, q, r = float(v[3]), float(v[4]), float(v[5])
+        out = [0.0] * 6
+        for i, s in ((0, -1.0), (1, 1.0)):
+            phi, dphi, ddphi = float(ang[0, i]), float(ang[1, i]), float(ang[2, i])
+            sp, cp = math.sin(phi), math.cos(phi)
+            erx, ery, etx, ety = sp, s * cp, cp, -s * sp
+            vx, vy = rw * dphi * etx, rw * dphi * ety  # velocity relative to the body
+            at, ar = rw * ddphi, rw * dphi * dphi
+            # a_rel + 2 omega x v_rel (v_rel has no z component)
+            fx = kw * (at * etx - ar * erx + 2.0 * (-r * vy))
+            fy = kw * (at * ety - ar * ery + 2.0 * (r * vx))
+            fz = kw * (2.0 * (p * vy - q * vx))
+            px, py, pz = hx + rw * erx, s * hy + rw * ery, hz
+            out[0] += fx
+            out[1] += fy
+            out[2] += fz
+            out[3] += py * fz - pz * fy
+            out[4] += pz * fx - px * fz
+            out[5] += px * fy - py * fx
+        return aero, np.array(out)
+
+    def _rhs(self, tau: float, y: np.ndarray, beat: _Beat, c_now: tuple[float, ...],
+             mid: float | None = None) -> np.ndarray:
+        aero, wing = self._loads(tau, y[:6], beat, c_now, mid)
+        F = aero + wing
+        u, v, w, p, q, r, e0, e1, e2, e3 = y[:10]
+        R20, R21, R22 = 2.0 * (e1 * e3 - e0 * e2), 2.0 * (e2 * e3 + e0 * e1), \
+            1.0 - 2.0 * (e1 * e1 + e2 * e2)
+        m, g = self.m, self.g
+        (Jx, Jy, Jz), Ji = self.J @ y[3:6], self.J_inv
+        gx, gy, gz = F[3] - (q * Jz - r * Jy), F[4] - (r * Jx - p * Jz), F[5] - (p * Jy - q * Jx)
+        dom = (Ji[0, 0] * gx + Ji[0, 1] * gy + Ji[0, 2] * gz,
+               Ji[1, 0] * gx + Ji[1, 1] * gy + Ji[1, 2] * gz,
+               Ji[2, 0] * gx + Ji[2, 1] * gy + Ji[2, 2] * gz)
+        R = ((1.0 - 2.0 * (e2 * e2 + e3 * e3), 2.0 * (e1 * e2 - e0 * e3), 2.0 * (e1 * e3 + e0 * e2)),
+             (2.0 * (e1 * e2 + e0 * e3), 1.0 - 2.0 * (e1 * e1 + e3 * e3), 2.0 * (e2 * e3 - e0 * e1)),
+             (R20, R21, R22))
+        return self.period * np.array([
+            F[0] / m + g * R20 - (q * w - r * v), F[1] / m + g * R21 - (r * u - p * w),
+            F[2] / m + g * R22 - (p * v - q * u), dom[0], dom[1], dom[2],
+            0.5 * (-e1 * p - e2 * q - e3 * r), 0.5 * (e0 * p + e2 * r - e3 * q),
+            0.5 * (e0 * q - e1 * r + e3 * p), 0.5 * (e0 * r + e1 * q - e2 * p),
+            *(row[0] * u + row[1] * v + row[2] * w for row in R)])
+
+    def derivative(self, tau: float, x: Sequence[float], c_prev: Sequence[float] | None = None,
+                   c_now: Sequence[float] | None = None) -> np.ndarray:
+        """dx/dtau (tau the phase of the beat; dx/dt+ times :attr:`period`) of the 13-value
+        state at phase ``tau`` of a beat (controls as :meth:`angles`; default: the trimmed
+        hover)."""
+        cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
+        return self._rhs(tau, np.asarray(x, dtype=float), self._beat(cp, cn), cn)
+
+    def advance(self, x: Sequence[float], tau0: float, tau1: float,
+                c_prev: Sequence[float] | None = None,
+                c_now: Sequence[float] | None = None) -> np.ndarray:
+        """The state at phase ``tau1`` of a beat from the state at ``tau0`` (0 <= tau0 <= tau1
+        <= 1): Runge-Kutta steps on the beat's grid, a partial step at either end off it.
+
+        Raises
+        ------
+        FlappingError
+            The state is not finite after the step.
+        """
+        if not (0.0 <= tau0 <= tau1 <= 1.0):
+            raise FlappingError(f"phases {tau0!r} -> {tau1!r} must satisfy 0 <= tau0 <= tau1 <= 1")
+        cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
+        beat = self._beat(cp, cn)
+        N = self.steps_per_beat
+        y = np.array(x, dtype=float)
+        if y.shape != (STATE_SIZE,):
+            raise FlappingError(f"state of {y.size} values: expected {STATE_SIZE}")
+        # grid points strictly inside (tau0, tau1), with a tolerance for round-off
+        j0 = math.floor(tau0 * N + 1e-9) + 1
+        j1 = math.ceil(tau1 * N - 1e-9) - 1
+        cuts = [tau0, *(j / N for j in range(j0, j1 + 1)), tau1]
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            if b - a > 1e-12:
+                y = self._rk4(y, a, b - a, beat, cn)
+        if not np.all(np.isfinite(y)):
+            raise FlappingError(f"the state is not finite after phases {tau0!r} -> {tau1!r} "
+                                f"(from u, v, w, p, q, r = {list(np.asarray(x)[:6])!r})")
+        y[6:10] /= math.sqrt(float(y[6:10] @ y[6:10]))
+        return y
+
+    def _rk4(self, y: np.ndarray, t: float, h: float, beat: _Beat, cn: tuple) -> np.ndarray:
+        mid = t + 0.5 * h
+        k1 = self._rhs(t, y, beat, cn, mid)
+        k2 = self._rhs(mid, y + (0.5 * h) * k1, beat, cn, mid)
+        k3 = self._rhs(mid, y + (0.5 * h) * k2, beat, cn, mid)
+        k4 = self._rhs(t + h, y + h * k3, beat, cn, mid)
+        return y + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+
+    def beat(self, x: Sequence[float], c_prev: Sequence[float] | None = None,
+             c_now: Sequence[float] | None = None) -> np.ndarray:
+        """The wing-beat map: the state at the start of the next beat."""
+        return self.advance(x, 0.0, 1.0, c_prev, c_now)
+
+    # -- reduced coordinates (the periodic orbit and the Floquet analysis) ----------------
+    @staticmethod
+    def state_from_z(z: Sequence[float], psi: float = 0.0) -> np.ndarray:
+        """The 13-value state of the reduced coordinates :data:`Z_NAMES` (heading ``psi``,
+        position 0)."""
+        return np.array([*z[:6], *quaternion_from_euler(z[6], z[7], psi), 0.0, 0.0, 0.0])
+
+    @staticmethod
+    def z_from_state(x: Sequence[float]) -> np.ndarray:
+        """The reduced coordinates (:data:`Z_NAMES`) of a 13-value state."""
+        phi, theta, _ = euler_from_quaternion(x[6:10])
+        return np.array([*x[:6], phi, theta])
+
+    def z_map(self, z: Sequence[float], control: Sequence[float] | None = None) -> np.ndarray:
+        """One wing beat with the controls held, in reduced coordinates."""
+        return self.z_from_state(self.beat(self.state_from_z(z), control, control))
+
+    def periodic_orbit(self, control: Sequence[float] | None = None, tol: float = 1e-12,
+                       max_iter: int = 30, step: float = 1e-6, samples: int | None = None,
+                       jacobian: np.ndarray | None = None) -> "PeriodicOrbit":
+        """Hover as a periodic orbit: Newton's method on the state at the start of a beat
+        (shooting with the wing-beat map), from the trimmed hover's state 0, to a residual
+        below ``tol``.
+
+        The Jacobian is kept for every step (the chord method: the wing-beat map is nearly
+        linear over the orbit's offset): ``jacobian``, an approximation of the monodromy
+        matrix (the averaged model's serves), or by default the central-difference one at the
+        start.
+
+        Raises
+        ------
+        FlappingError
+            The residual is not below ``tol`` after ``max_iter`` steps.
+        """
+        z = np.zeros(len(Z_NAMES))
+        history = []
+        M = self.monodromy(z, control, step) if jacobian is None else np.asarray(jacobian)
+        J = M - np.eye(len(z))
+        for _ in range(max_iter):
+            res = self.z_map(z, control) - z
+            history.append(float(np.max(np.abs(res))))
+            if history[-1] < tol:
+                break
+            z = z - np.linalg.solve(J, res)
+        else:
+            raise FlappingError(f"no periodic orbit: the residual is {history[-1]:.3g} after "
+                                f"{max_iter} steps ({history!r})")
+        return PeriodicOrbit(self, z, control, history, samples or 200)
+
+    def monodromy(self, z: Sequence[float], control: Sequence[float] | None = None,
+                  step: float = 1e-6) -> np.ndarray:
+        """d(z after one beat)/d(z at its start), central differences of the wing-beat map."""
+        z = np.asarray(z, dtype=float)
+        cols = []
+        for j in range(len(z)):
+            dz = np.zeros(len(z))
+            dz[j] = step
+            cols.append((self.z_map(z + dz, control) - self.z_map(z - dz, control)) / (2 * step))
+        return np.column_stack(cols)
+
+
+class Flight:
+    """The model in time: the state on the Runge-Kutta grid, the controls latched at the beats'
+    starts, any instant reached by a partial step that the flight does not keep.
+
+    Time is t+ in wing beats from the start; beat k is [k, k + 1). ``set_controls`` may be
+    called at any time: the values are taken when the flight enters the next beat (see the
+    module's text). The whole state is :meth:`snapshot` (plain Python values; the FMU's
+    state).
+    """
+
+    def __init__(self, model: FlappingModel, x0: Sequence[float],
+                 controls: Sequence[float] | Mapping[str, float] | None = None) -> None:
+        self.model = model
+        y = np.array(x0, dtype=float)
+        if y.shape != (STATE_SIZE,) or not np.all(np.isfinite(y)):
+            raise FlappingError(f"initial state {list(np.ravel(x0))!r}: expected {STATE_SIZE} "
+                                "finite values")
+        c = wing_beat_controls(controls)
+        self.grid = 0  # grid index of y: t+ = grid / N
+        self.y = y
+        self.pending = c
+        self.c_prev = c  # before the first beat the insect flapped with the initial controls
+        self.c_now = c
+        self.latched = -1  # the beat whose controls c_now are
+
+    @property
+    def N(self) -> int:
+        return self.model.steps_per_beat
+
+    def set_controls(self, controls: Sequence[float] | Mapping[str, float] | None) -> None:
+        """The controls for the next beat that starts (taken at its start)."""
+        self.pending = wing_beat_controls(controls)
+
+    def _latch(self, beat: int) -> None:
+        if self.latched < beat:
+            if self.latched >= 0:
+                self.c_prev = self.c_now
+            self.c_now = self.pending
+            self.latched = beat
+
+    def _tolerance(self) -> float:
+        return 1e-9 / self.N
+
+    def advance_to(self, t: float) -> np.ndarray:
+        """Integrate the kept state to the last grid point at or before ``t`` (wing beats) and
+        return the state at ``t`` (a partial step from there if ``t`` is off the grid)."""
+        N = self.N
+        if not t >= self.grid / N - self._tolerance():
+            raise FlappingError(f"time {t!r} wing beats is before the flight's state "
+                                f"({self.grid / N!r})")
+        m = self.model
+        while (self.grid + 1) / N <= t + self._tolerance():
+            k, j = divmod(self.grid, N)
+            self._latch(k)
+            self.y = m.advance(self.y, j / N, (j + 1) / N, self.c_prev, self.c_now)
+            self.grid += 1
+        return self.state_at(t)
+
+    def state_at(self, t: float) -> np.ndarray:
+        """The state at ``t`` between the kept grid point and the next (not kept)."""
+        N = self.N
+        dt = t - self.grid / N
+        if abs(dt) <= self._tolerance():
+            return self.y.copy()
+        if not 0.0 < dt < 1.0 / N + self._tolerance():
+            raise FlappingError(f"time {t!r} is not within one grid step after the state")
+        k, j = divmod(self.grid, N)
+        self._latch(k)
+        return self.model.advance(self.y, j / N, min(1.0, j / N + dt), self.c_prev, self.c_now)
+
+    def phase(self, t: float) -> tuple[float, tuple[float, ...], tuple[float, ...]]:
+        """(phase in the beat, its previous and current controls) at ``t`` (at or after the
+        kept state, within a step): at the start of a beat not yet entered, the end of the
+        last one (its angles are the same: the controls act from the beat's first instant
+        on)."""
+        k = int(math.floor(t + self._tolerance()))
+        if k > self.latched:
+            return (0.0 if self.latched < 0 else 1.0), self.c_prev, self.c_now
+        return max(0.0, min(1.0, t - k)), self.c_prev, self.c_now
+
+    def snapshot(self) -> dict:
+        """Everything the flight's future depends on (plain values)."""
+        return {"grid": self.grid, "y": [float(v) for v in self.y], "pending": self.pending,
+                "c_prev": self.c_prev, "c_now": self.c_now, "latched": self.latched}
+
+    def restore(self, snap: Mapping) -> None:
+        """Return to a :meth:`snapshot`."""
+        self.grid = int(snap["grid"])
+        self.y = np.array(snap["y"], dtype=float)
+        self.pending = tuple(snap["pending"])
+        self.c_prev = tuple(snap["c_prev"])
+        self.c_now = tuple(snap["c_now"])
+        self.latched = int(snap["latched"])
+
+
+@dataclass
+class PeriodicOrbit:
+    """The periodic orbit: its start (reduced coordinates), the Newton residuals, and the
+    body's motion within the beat."""
+
+    model: FlappingModel
+    z0: np.ndarray
+    control: Sequence[float] | None
+    residuals: list
+    samples: int
+
+    def trajectory(self) -> np.ndarray:
+        """The 13-value state at ``samples`` + 1 equally spaced phases of one beat."""
+        flight = Flight(self.model, self.model.state_from_z(self.z0), self.control)
+        return np.array([flight.advance_to(j / self.samples) for j in range(self.samples + 1)])
+
+    def oscillation(self) -> dict[str, float]:
+        """Peak-to-peak excursions within the beat: the position (micrometres, the mean drift
+        over the beat removed) and the attitude (deg), and the mean drift velocity [mm/s]."""
+        X = self.trajectory()
+        m = self.model
+        L_um = m.U / m.n * 1e6  # U t_w in micrometres
+        tau = np.linspace(0.0, 1.0, len(X))
+        out: dict[str, float] = {}
+        for i, name in zip((10, 11, 12), ("x", "y", "z")):
+            drift = X[-1, i] - X[0, i]
+            pos = X[:, i] - X[0, i] - drift * tau
+            out[f"{name}_pp_um"] = float((pos.max() - pos.min()) * L_um)
+            out[f"{name}_drift_mm_per_s"] = float(drift / m.period * m.U * 1e3)
+        eul = np.array([euler_from_quaternion(x[6:10]) for x in X])
+        for i, name in enumerate(("phi", "theta", "psi")):
+            out[f"{name}_pp_deg"] = float(np.degrees(eul[:, i].max() - eul[:, i].min()))
+        out["theta_mean_deg"] = float(np.degrees(eul[:-1, 1].mean()))
+        return out
+
+
+@dataclass
+class Floquet:
+    """Floquet multipliers of the periodic orbit and the exponents log(mu) per wing beat,
+    beside the averaged model's eigenvalues in the same coordinates."""
+
+    monodromy: np.ndarray
+    multipliers: np.ndarray
+    exponents: np.ndarray
+
+    @classmethod
+    def of(cls, model: FlappingModel, orbit: PeriodicOrbit, step: float = 1e-6) -> "Floquet":
+        M = model.monodromy(orbit.z0, orbit.control, step)
+        mu = np.linalg.eigvals(M)
+        lam = np.log(mu.astype(complex)) / model.period  # per wing beat of the insect
+        order = sorted(range(len(lam)), key=lambda i: (-lam[i].real, -lam[i].imag))
+        return cls(M, mu[order], lam[order])

@@ -1,0 +1,254 @@
+"""The wing-beat-resolved model (models/flapping.py): its forces, its rigid body, its
+integration, when its controls take effect, and its periodic orbit.
+
+Oracles: the quasi-steady model's own sampled forces (``forces_over_cycle``) and cycle average
+(``forces_vector``); the 6-DOF plant's rigid body (``Hover6DOF.derivative``) fed the same
+loads; ``scipy.integrate.solve_ivp`` at rtol 1e-10. Coarse grids and few wing beats (the
+whole file runs in a few seconds).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from dronefly.models import lateral_dynamics as lat
+from dronefly.models import longitudinal_dynamics as lon
+from dronefly.models.flapping import (FlappingError, FlappingModel, Flight, wing_beat_controls)
+from dronefly.models.lateral import INERTIAS_SECT21
+from dronefly.models.quasisteady import CONTROLS, QuasiSteadyModel
+from dronefly.models.rigid_body import Hover6DOF
+
+X6 = np.array([0.03, -0.02, 0.01, 0.02, -0.03, 0.04])
+C7 = (0.05, 0.03, -0.02, 0.04, 0.02, -0.03, 0.01)
+
+
+@pytest.fixture(scope="module")
+def model() -> FlappingModel:
+    return FlappingModel(steps_per_beat=20)
+
+
+def _sampled_gap(n: int, js: np.ndarray) -> np.ndarray:
+    """|forces_at - forces_over_cycle| at samples js of a grid of n (controls C7, state X6)."""
+    qs = QuasiSteadyModel(n_time=n)
+    control = dict(zip(CONTROLS, C7))
+    F = qs.forces_over_cycle(X6, control)
+    kin = qs.wing_kinematics(control)
+    fm = FlappingModel(qs)
+    out = []
+    for j in js:
+        tau = (j + 0.5) / n
+        ang = fm.angles(tau, C7, C7)
+        # the model's harmonic stroke and its pitch profile, at the sample
+        assert np.allclose(ang[0], kin["phibar"] - 0.5 * kin["Phi"] * math.cos(2 * math.pi * tau),
+                           rtol=0, atol=1e-14)
+        out.append(np.max(np.abs(qs.forces_at(ang, X6) - F[:, j])))
+    return np.array(out)
+
+
+def test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model():
+    # forces_over_cycle differentiates the added mass's impulse by periodic central
+    # differences (error O(1/n^2)); forces_at differentiates it analytically: the gap falls
+    # nine times when the grid is three times finer, and the rest agrees to round-off
+    js = np.array([0, 100, 333, 600, 999])
+    coarse, fine = _sampled_gap(1000, js), _sampled_gap(3000, 3 * js + 1)
+    assert np.all(fine < coarse / 7.0)
+    assert np.max(fine) < 1e-4
+
+
+def test_cycle_average_of_the_instantaneous_forces_is_the_averaged_model(model):
+    # the mean of 400 midpoint samples against the 400-sample cycle average, whose added mass
+    # is integrated by parts (exact): they differ by the midpoint rule's O(1/n^2) on the
+    # analytic added mass, 3e-5 of the weight here
+    taus = (np.arange(400) + 0.5) / 400
+    mean = np.mean([model.loads(t, X6, C7, C7)[0] for t in taus], axis=0)
+    avg = QuasiSteadyModel(n_time=400).forces_vector(X6, dict(zip(CONTROLS, C7)), model.trim)
+    assert np.max(np.abs(mean - avg)) < 1e-4 * model.qs.geometry.weight
+
+
+def test_wing_inertia_averages_to_zero_and_peaks_at_four_weights(model):
+    taus = (np.arange(400) + 0.5) / 400
+    c0 = (0.0,) * 7
+    inertial = np.array([model.loads(t, np.zeros(6), c0, c0)[1] for t in taus])
+    W = model.qs.geometry.weight
+    assert np.max(np.abs(inertial.mean(axis=0))) < 1e-12 * W
+    # fore-aft force of both wings (they add) and the pitch moment; the others cancel
+    assert 4.1 < np.max(np.abs(inertial[:, 0])) / W < 4.3
+    assert np.max(np.abs(inertial[:, [1, 2, 3, 5]])) < 1e-12
+    assert np.max(np.abs(inertial[:, 4])) > W
+
+
+def test_rigid_body_is_the_6dof_plants_when_given_its_loads(monkeypatch):
+    # the 6-DOF plant's rigid body (paper's inertias) with its linear aerodynamics: feed the
+    # same accelerations to the flapping model's equations as loads; the derivatives agree
+    LP, NP = lat.default_parameters(), lon.default_parameters()
+    plant = Hover6DOF(LP, NP)
+    fm = FlappingModel(steps_per_beat=20)
+    m, g = INERTIAS_SECT21["m_plus"], INERTIAS_SECT21["g_plus"]
+    J = np.array([[LP.Ix_plus, 0, -LP.Ixz_plus], [0, NP.Iy_plus, 0], [-LP.Ixz_plus, 0, LP.Iz_plus]])
+    fm.m, fm.g, fm.J, fm.J_inv = m, g, J, np.linalg.inv(J)
+    x = np.array([0.05, -0.04, 0.03, 0.2, -0.1, 0.15, *plant_quaternion(), 0.0, 0.0, 0.0])
+    c_lat, c_lon = (0.1, -0.05, 0.02), (0.03, -0.02, 0.04, 0.01)
+    # the plant's aerodynamic accelerations: its derivative at the level attitude without the
+    # transport and gyroscopic terms (there the gravity terms vanish)
+    plain = Hover6DOF(LP, NP, terms=frozenset({"gravity"}))
+    a = np.array(plain.derivative([*x[:6], 1.0, 0.0, 0.0, 0.0, 0, 0, 0], c_lat, c_lon)[:6])
+    # the plant's weight is balanced by the mean force: F/m+ = a - g+ e_z
+    loads = np.concatenate([m * (a[:3] - np.array([0.0, 0.0, g])), J @ a[3:]])
+    monkeypatch.setattr(fm, "_loads", lambda *args, **kw: (loads, np.zeros(6)))
+    mine = fm.derivative(0.3, x)
+    theirs = np.array(plant.derivative(x, c_lat, c_lon))
+    assert np.max(np.abs(mine - theirs)) < 1e-13
+
+
+def plant_quaternion() -> tuple[float, ...]:
+    from dronefly.models.rigid_body import quaternion_from_euler
+    return quaternion_from_euler(0.3, -0.2, 0.5)
+
+
+def _reference_beat(fm: FlappingModel, x0, cp, cn, end: float = 1.0,
+                    start: float = 0.0) -> np.ndarray:
+    """solve_ivp (DOP853, rtol 1e-10) piecewise between the kinks of the forces in time (the
+    reversals, the rotations' ends), each piece on its own half-stroke's branch."""
+    beat = fm._beat(wing_beat_controls(cp), wing_beat_controls(cn))
+    cn = wing_beat_controls(cn)
+    cuts = [c for c in (0.0, 0.15, 0.35, 0.5, 0.65, 0.85, 1.0) if start <= c <= end]
+    y = np.array(x0, dtype=float)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        sol = solve_ivp(lambda t, yy: fm._rhs(t, yy, beat, cn, 0.5 * (a + b)), (a, b), y,
+                        method="DOP853", rtol=1e-10, atol=1e-13)
+        y = sol.y[:, -1]
+    return y
+
+
+def test_fixed_step_against_solve_ivp():
+    # half a wing beat from the hover state with the trimmed kinematics. The forces have kinks
+    # at the reversals and the rotations' ends, all on the grid: the classical Runge-Kutta
+    # method keeps its order 4 (the error falls ~16 times from 20 to 40 steps per beat)
+    fm20, fm40 = FlappingModel(steps_per_beat=20), FlappingModel(steps_per_beat=40)
+    x0 = fm20.state_from_z(np.zeros(8))
+    ref = _reference_beat(fm20, x0, None, None, end=0.5)
+    e20 = np.max(np.abs(fm20.advance(x0, 0.0, 0.5) - ref))
+    e40 = np.max(np.abs(fm40.advance(x0, 0.0, 0.5) - ref))
+    # the default grid: 3e-6 in the pitch rate q+ (whose swing in the beat is 0.03) at mid-beat,
+    # 8e-7 at the beat's end, where the half-strokes' errors partly cancel
+    assert e40 < 5e-6
+    assert e20 / e40 > 12.0
+
+
+def test_fixed_step_against_solve_ivp_across_a_control_change():
+    # a beat whose controls change at its start: the stroke's acceleration jumps at the front
+    # reversal (on the grid); where the flow meets an element at 0 or 90 deg off the grid the
+    # lift coefficient's nonzero ends make a small jump the grid does not see: 1e-6 over the
+    # beat. Here the stretch around the front reversal, where both happen
+    fm = FlappingModel(steps_per_beat=40)
+    x0 = fm.state_from_z(np.zeros(8))
+    cn = (0.1, 0.05, -0.05, 0.05, 0.02, 0.03, -0.02)
+    ref = _reference_beat(fm, x0, None, cn, start=0.35, end=0.65)
+    assert np.max(np.abs(fm.advance(x0, 0.35, 0.65, None, cn) - ref)) < 2e-6
+
+
+def test_kinematics_continuous_when_the_controls_change(model):
+    cp, cn, cq = (0.0,) * 7, C7, (-0.02, 0.04, 0.03, -0.03, 0.01, 0.02, -0.04)
+    eps = 1e-9
+    # across the start of a beat: the end of beat (cp -> cn) and the start of beat (cn -> cq)
+    end, start = model.angles(1.0 - eps, cp, cn), model.angles(eps, cn, cq)
+    assert np.max(np.abs(end[[0, 1, 3, 4]] - start[[0, 1, 3, 4]])) < 1e-6  # angles and rates
+    for tau in (0.15, 0.35, 0.5, 0.65, 0.85):
+        a, b = model.angles(tau - eps, cp, cn), model.angles(tau + eps, cp, cn)
+        assert np.max(np.abs(a[[0, 1, 3, 4]] - b[[0, 1, 3, 4]])) < 1e-6
+
+
+def _fly(fm: FlappingModel, steps_per_beat: int, schedule: list, beats: int = 2) -> np.ndarray:
+    """A host stepping ``steps_per_beat`` times per beat, setting schedule[k] at beat k's start."""
+    flight = Flight(fm, fm.state_from_z(np.zeros(8)))
+    h = 1.0 / steps_per_beat
+    x = None
+    for k in range(beats):
+        flight.set_controls(schedule[k])
+        for j in range(steps_per_beat):
+            x = flight.advance_to(k + (j + 1) * h)
+    return x
+
+
+def test_host_step_does_not_change_the_physics(model):
+    schedule = [C7, (0.0,) * 7]
+    once = _fly(model, 1, schedule)
+    assert np.array_equal(_fly(model, 40, schedule), once)  # on the grid: the same steps
+    # off the grid: partial steps that the flight does not keep
+    assert np.array_equal(_fly(model, 7, schedule), once)
+
+
+def test_a_control_set_within_a_beat_waits_for_the_next(model):
+    flight = Flight(model, model.state_from_z(np.zeros(8)))
+    flight.advance_to(0.3)
+    flight.set_controls(C7)  # mid-beat: beat 0 keeps the trim
+    x1 = flight.advance_to(1.0)
+    ref = Flight(model, model.state_from_z(np.zeros(8)))
+    assert np.array_equal(ref.advance_to(1.0), x1)
+    ref.set_controls(C7)
+    assert np.array_equal(ref.advance_to(1.5), flight.advance_to(1.5))
+
+
+def test_snapshot_restores_the_future(model):
+    flight = Flight(model, model.state_from_z(np.zeros(8)), C7)
+    flight.advance_to(0.4)
+    snap = flight.snapshot()
+    a = flight.advance_to(1.3)
+    flight.restore(snap)
+    assert np.array_equal(flight.advance_to(1.3), a)
+
+
+def test_bad_values_are_refused(model):
+    with pytest.raises(FlappingError, match="multiple of 20"):
+        FlappingModel(steps_per_beat=30)
+    with pytest.raises(FlappingError, match="not finite"):
+        wing_beat_controls((math.nan,) + (0.0,) * 6)
+    with pytest.raises(FlappingError, match="expected 7"):
+        wing_beat_controls((0.0,) * 3)
+    flight = Flight(model, model.state_from_z(np.zeros(8)))
+    flight.advance_to(0.5)
+    with pytest.raises(FlappingError, match="before"):
+        flight.advance_to(0.2)
+
+
+def test_hover_is_a_periodic_orbit(model):
+    orbit = model.periodic_orbit()
+    assert orbit.residuals[-1] < 1e-12
+    x0 = model.state_from_z(orbit.z0)
+    x1 = Flight(model, x0).advance_to(1.0)
+    # back to the start after one beat, but for the position (the orbit drifts slowly)
+    assert np.max(np.abs(x1[:10] - x0[:10])) < 1e-11
+    # symmetric: no lateral motion on the orbit
+    assert np.max(np.abs(orbit.z0[[1, 3, 5, 6]])) < 1e-14
+
+
+def test_the_averaged_twin_is_the_quasi_steady_linear_model():
+    # the flapping model with its forces replaced by their cycle average, linearised about
+    # hover (its one-beat map's logarithm), is the linear model of the quasi-steady
+    # derivatives with the same mass, inertias and gravity (Sect. 2.4 data): the eigenvalues
+    # agree to the derivatives' central differences (step 1e-3 across the forces' kinks in
+    # the state; measured 6e-8 lateral, 1.4e-5 longitudinal, relative)
+    from dataclasses import replace
+
+    from dronefly.harness.aero.compare import LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS
+    from dronefly.harness.aero.compare import derivative_table
+    from dronefly.harness.flapping import averaged_exponents
+    from dronefly.models.lateral import reference_scales, sort_eigenvalues
+
+    fm = FlappingModel(steps_per_beat=20)
+    qs = {r.parameter: r.quasi_steady for r in derivative_table(fm.qs)}
+    s = reference_scales()
+    lp = replace(lat.default_parameters(), **{p: qs[p] for p, _, _ in LATERAL_PARAMETERS},
+                 **{k: s[k] for k in ("m_plus", "Ix_plus", "Iz_plus", "Ixz_plus", "g_plus")})
+    np_ = replace(lon.default_parameters(), **{p: qs[p] for p, _, _ in LONGITUDINAL_PARAMETERS},
+                  **{k: s[k] for k in ("m_plus", "Iy_plus", "g_plus")})
+    avg = averaged_exponents(fm)
+    for axis, params, module in (("lateral", lp, lat), ("longitudinal", np_, lon)):
+        A, _ = module.system_matrices(params)
+        ev = sort_eigenvalues(np.linalg.eigvals(np.array(A)))
+        gap = max(abs(a - b) / abs(b) for a, b in zip(avg[axis], ev))
+        assert gap < 1e-4, (axis, avg[axis], ev)

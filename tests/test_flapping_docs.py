@@ -1,0 +1,69 @@
+"""docs/flapping.md quotes what the code computes: the periodic orbit, the Floquet exponents beside
+the averaged model's eigenvalues (with and without the wings' inertia), the averaging experiment
+and the answer (numbers compared as numbers, tests/docnumbers.py)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from docnumbers import NumericText, assert_same_numbers
+
+from dronefly.harness.flapping import (answer, convergence, convergence_rows, floquet_report)
+from dronefly.models.flapping import FlappingModel
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "flapping.md"
+
+
+def _block(text: str, name: str) -> str:
+    m = re.search(rf"<!-- flapping:{name} -->\n```text\n(.*?)\n```", text, re.S)
+    assert m, f"no flapping:{name} block in {DOC.name}"
+    return m.group(1)
+
+
+def _same(expected: str, actual: str, hint: str) -> None:
+    # columns realign when a sign appears: whitespace runs compare as one space
+    assert_same_numbers(" ".join(expected.split()), " ".join(actual.split()), hint)
+
+
+def _same_kind(a: complex, b: complex) -> bool:
+    """The same type of mode (real or oscillatory) and the same stability."""
+    return (abs(a.imag) > 1e-9) == (abs(b.imag) > 1e-9) and (a.real > 0) == (b.real > 0)
+
+
+def test_flapping_doc_is_what_the_code_computes():
+    text = DOC.read_text(encoding="utf-8")
+    report = floquet_report()
+    bare = floquet_report(FlappingModel(report.orbit.model.qs, wing_inertia=False))
+    rows = convergence_rows()
+    _same(_block(text, "report"), report.text(), "flapping:report")
+    _same(_block(text, "no-inertia"), bare.text(), "flapping:no-inertia")
+    _same(_block(text, "convergence"), convergence(rows), "flapping:convergence")
+    ans = answer(report, bare, rows)
+    _same(_block(text, "answer"), ans, "flapping:answer")
+    assert ans in NumericText((ROOT / "README.md").read_text(encoding="utf-8")), \
+        "README does not quote the answer"
+    # what the answer says in words: every mode keeps its type and stability, and the error
+    # falls as 1/frequency (halves, within 10 %, as the frequency doubles)
+    for axis, pairs in report.pairs().items():
+        for f, a in pairs:
+            assert _same_kind(f, a), (axis, f, a)
+    for (_, lat0, lon0), (_, lat1, lon1) in zip(rows[:-1], rows[1:]):
+        assert 1.8 < lat0 / lat1 < 2.2 and 1.4 < lon0 / lon1 < 2.2
+
+
+def test_flapping_doc_closed_loop_is_what_the_code_computes():
+    from dronefly.harness.flapping.closed_loop import closed_loop_report
+
+    text = DOC.read_text(encoding="utf-8")
+    report = closed_loop_report()
+    _same(_block(text, "closed-loop"), report.text(), "flapping:closed-loop")
+    # what the text says: Eq. (27) leaves both unstable, the quasi-steady design is neutral on
+    # the averaged model (its root on the axis to round-off) and unstable on the flapping one
+    eq27, qs = "Eq. (27)", "quasi-steady design"
+    assert report.flapping[eq27][0].real > 0 and report.averaged_sampled[eq27][0].real > 0
+    # (the design's derivatives are central differences of step 1e-3, the twin's forces the
+    # cycle average itself: the root lands 7e-6 off the axis)
+    assert abs(report.averaged_sampled[qs][0].real) < 1e-4 < report.flapping[qs][0].real
+    assert report.runs[eq27].gamma[-1] > 0.1

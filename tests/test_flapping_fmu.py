@@ -1,0 +1,116 @@
+"""DroneFlyFlapping through FMI: the same physics whatever the host's step, bad inputs refused,
+and the Floquet analysis through fmi2GetFMUstate/fmi2SetFMUstate equal to the model's own, and to
+the eigenvalues of a linear time-invariant FMU."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import fmpy
+import numpy as np
+import pytest
+
+from dronefly.cli.app import main
+from dronefly.harness.flapping import fmi_floquet
+from dronefly.models import lateral_dynamics as lat
+from dronefly.models.flapping import Floquet, FlappingModel
+from dronefly.models.lateral import N_HZ, sort_eigenvalues
+
+pytestmark = pytest.mark.integration
+
+STATES = ("delta_v", "delta_p", "delta_r", "delta_gamma", "delta_u", "delta_w", "delta_q",
+          "delta_theta", "x_earth", "z_earth", "stroke_angle_left", "angle_of_attack_right",
+          "Z_aero")
+
+
+def _inputs(steps_per_beat: int, beats: int) -> np.ndarray:
+    """A lateral and a longitudinal control changed at beat starts, on the host's grid."""
+    t = np.arange(beats * steps_per_beat + 1) / (steps_per_beat * N_HZ)
+    table = np.zeros(len(t), dtype=[("time", float), ("delta_Phi_a", float),
+                                    ("delta_phibar", float)])
+    table["time"] = t
+    wb = t * N_HZ
+    table["delta_Phi_a"] = np.where(wb >= 1 - 1e-9, 0.05, 0.0)
+    table["delta_phibar"] = np.where(wb >= 2 - 1e-9, -0.03, 0.0)
+    return table
+
+
+def test_one_step_or_forty_per_wing_beat_is_the_same_flight(built_fmus):
+    path = str(built_fmus["DroneFlyFlapping"])
+    runs = {}
+    for k in (1, 40):
+        r = fmpy.simulate_fmu(path, stop_time=3 / N_HZ, output_interval=1 / (k * N_HZ),
+                              input=_inputs(k, 3), output=list(STATES))
+        runs[k] = r[::k]  # the beats' ends
+    for name in STATES:
+        # the inputs are taken at the beats' starts; the internal grid does not move with the
+        # communication step: the same floating-point operations, so the same bits
+        assert np.array_equal(runs[1][name], runs[40][name]), name
+
+
+def _instance(path):
+    md = fmpy.read_model_description(path)
+    unzip = fmpy.extract(path)
+    from fmpy.fmi2 import FMU2Slave
+    s = FMU2Slave(guid=md.guid, unzipDirectory=unzip,
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bad")
+    s.instantiate(loggingOn=False)
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    return s, {v.name: v.valueReference for v in md.modelVariables}
+
+
+@pytest.mark.parametrize("value", [math.nan, math.inf, 1.5])
+def test_a_bad_input_is_refused_with_discard_and_the_state_kept(built_fmus, value):
+    s, vr = _instance(str(built_fmus["DroneFlyFlapping"]))
+    h = 0.25 / N_HZ
+    s.doStep(currentCommunicationPoint=0.0, communicationStepSize=h)
+    before = s.getReal([vr["delta_u"], vr["delta_q"]])
+    s.setReal([vr["delta_alpha_1a"]], [value])
+    with pytest.raises(Exception, match="discard"):
+        s.doStep(currentCommunicationPoint=h, communicationStepSize=h)
+    assert s.getReal([vr["delta_u"], vr["delta_q"]]) == before
+    s.setReal([vr["delta_alpha_1a"]], [0.0])
+    s.doStep(currentCommunicationPoint=h, communicationStepSize=h)  # recovered
+    s.terminate()
+    s.freeInstance()
+
+
+def test_floquet_of_a_linear_fmu_is_its_eigenvalues(built_fmus):
+    # the linear lateral plant with a period of one wing beat given: the map is exp(A), the
+    # central differences of a linear map are exact but for round-off (1e-15 here)
+    r = fmi_floquet(built_fmus["DroneFlyLateral"], 1.0 / N_HZ)
+    A, _ = lat.system_matrices(lat.default_parameters())
+    ev = sort_eigenvalues(np.linalg.eigvals(np.array(A)))
+    assert np.max(np.abs(np.array(r.exponents) - np.array(ev))) < 1e-8
+
+
+def test_floquet_through_fmi_is_the_models(built_fmus):
+    r = fmi_floquet(built_fmus["DroneFlyFlapping"])
+    model = FlappingModel()
+    orbit = model.periodic_orbit()
+    fl = Floquet.of(model, orbit)
+    # the same equations and grid: the orbit agrees to the Newton tolerance (in the FMU's
+    # SI units: velocities times U, rates times n), the exponents to the finite differences'
+    # round-off (a step of 1e-6 on a map computed to 1e-15: 1e-9)
+    z = orbit.z0
+    U, n = model.U, model.n
+    expected = [z[1] * U, z[3] * n, z[5] * n, z[6], z[0] * U, z[2] * U, z[4] * n, z[7]]
+    assert np.max(np.abs(r.orbit_start - expected) / r_scales(U, n)) < 1e-10
+    assert np.max(np.abs(np.array(r.exponents) - np.array(sort_eigenvalues(fl.exponents)))) \
+        < 1e-7
+
+
+def r_scales(U: float, n: float) -> np.ndarray:
+    return np.array([U, n, n, 1.0, U, U, n, 1.0])
+
+
+def test_floquet_command_json(built_fmus, capsys):
+    assert main(["floquet", "--plant", str(built_fmus["DroneFlyLateral"]), "--period",
+                 repr(1.0 / N_HZ), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) >= {"period_s", "floquet_exponents", "averaged_eigenvalues"}
+    assert out["averaged_eigenvalues"] == []
+    assert len(out["floquet_exponents"]) == 4

@@ -71,8 +71,11 @@ def _slice(vrs: tuple[int, ...]) -> slice:
     return slice(vrs[0], vrs[0] + len(vrs))
 
 
-#: which initial loads each control changes, measured as the checker does (a change of 1 rad,
-#: compared exactly; the dependencies check of ``dronefly check``)
+#: which initial loads each control can change at the rear reversal (measured with a change of
+#: 1 rad, as the dependencies check of ``dronefly check`` sets it). A superset where symmetry
+#: makes a load vanish exactly there on some machines and not on others (Y and N under
+#: delta_alpha_1a: 0 or round-off): a declared dependency that does not show is allowed (a
+#: warning of the check), an undeclared one would not be
 _LOAD_CONTROLS = {"delta_Phi_a": "XYLMN", "delta_alpha_1a": "YZLMN", "delta_alpha_2a": "XYZLMN",
                   "delta_Phi": "XM", "delta_alpha_1": "ZM", "delta_phibar": "XM",
                   "delta_alpha_2": "XZM"}

@@ -22,6 +22,9 @@ from dronefly.models.lateral import INERTIAS_SECT21
 from dronefly.models.quasisteady import CONTROLS, QuasiSteadyModel
 from dronefly.models.rigid_body import Hover6DOF
 
+#: the orbit and the monodromy (numpy's LAPACK): run again under a second BLAS kernel
+pytestmark = pytest.mark.numeric
+
 X6 = np.array([0.03, -0.02, 0.01, 0.02, -0.03, 0.04])
 C7 = (0.05, 0.03, -0.02, 0.04, 0.02, -0.03, 0.01)
 

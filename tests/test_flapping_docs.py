@@ -7,10 +7,15 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from docnumbers import NumericText, assert_same_numbers
 
 from dronefly.harness.flapping import (answer, convergence, convergence_rows, floquet_report)
 from dronefly.models.flapping import FlappingModel
+
+#: the documented orbit and Floquet numbers: run again under a second BLAS kernel (.ci/run)
+pytestmark = pytest.mark.numeric
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "flapping.md"

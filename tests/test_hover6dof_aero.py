@@ -24,6 +24,9 @@ from dronefly.models.linear import discretize_zoh
 from dronefly.models.quasisteady import FORCES, QuasiSteadyModel, gauss_jacobi
 from dronefly.models.rigid_body import Hover6DOF, gamma_from_quaternion
 
+#: the quasi-steady forces (numpy's matrix products): run again under a second BLAS kernel
+pytestmark = pytest.mark.numeric
+
 HOVER = [0.0] * 6 + [1.0, 0.0, 0.0, 0.0] + [0.0] * 3
 
 

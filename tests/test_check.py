@@ -9,7 +9,9 @@ import pytest
 
 from dronefly.builder.build import FMUS
 from dronefly.cli.app import main
+from dronefly.harness.compliance.checker import CheckOptions
 from dronefly.harness.compliance.suite import check_fmu, format_reports
+from dronefly.models.lateral import N_HZ
 from fmu_helpers import build_crashing_fmu
 
 pytestmark = pytest.mark.integration
@@ -108,7 +110,10 @@ def test_container_fmu_passes_and_its_binary_output_is_captured(built_fmus, capf
     FMPy's container prints container::logError(...) lines itself (fd 1); the check keeps them
     in the report and shows them only with --verbose (or when a check fails): the terminal
     text of ``dronefly check`` with and without --verbose from one check run (suite time)."""
-    report = check_fmu(built_fmus["DroneFlyClosedLoop"], fuzz=False)
+    # 30 wing beats, not the default experiment's 300: each check runs the loop several times
+    # (suite time), and every check and its messages are the same over any stop time
+    options = CheckOptions(stop_time=30 / N_HZ)
+    report = check_fmu(built_fmus["DroneFlyClosedLoop"], fuzz=False, options=options)
     assert "container::" not in "".join(capfd.readouterr())  # captured, not passed through
     assert report.passed, report.checks
     detail = {c.name: c.detail for c in report.checks}

@@ -25,7 +25,7 @@ feels the reaction -m_w (a_rel + 2 omega x v_rel) at that point (a_rel, v_rel it
 and velocity relative to the body, the Coriolis term with the body's rate). It is included,
 and it is not negligible within the wing beat: the two wings' forward-backward inertial forces
 add (together up to 4.2 times the weight), and they dominate the body's fore-aft oscillation
-(docs/flapping.md gives the orbit with and without them). Their cycle average is zero, so they
+(docs/averaging.md gives the orbit with and without them). Their cycle average is zero, so they
 do not change the averaged model. Left out: the centripetal term omega x (omega x r_w) (second
 order in the body's rate), the change within the beat of the wings' share of the inertia
 tensor (each wing's m_w r^2 about the centre of mass is about 1 % of Iy; the paper's J+ holds

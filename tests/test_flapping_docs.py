@@ -1,4 +1,4 @@
-"""docs/flapping.md quotes what the code computes: the periodic orbit, the Floquet exponents beside
+"""docs/averaging.md quotes what the code computes: the periodic orbit, the Floquet exponents beside
 the averaged model's eigenvalues (with and without the wings' inertia), the averaging experiment
 and the answer (numbers compared as numbers, tests/docnumbers.py)."""
 
@@ -18,7 +18,7 @@ from dronefly.models.flapping import FlappingModel
 pytestmark = pytest.mark.numeric
 
 ROOT = Path(__file__).resolve().parents[1]
-DOC = ROOT / "docs" / "flapping.md"
+DOC = ROOT / "docs" / "averaging.md"
 
 
 def _block(text: str, name: str) -> str:

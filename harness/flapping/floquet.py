@@ -221,7 +221,7 @@ def convergence(rows: Sequence[tuple[float, float, float]] | None = None,
 
 def answer(report: FloquetReport, without_inertia: FloquetReport,
            rows: Sequence[tuple[float, float, float]]) -> str:
-    """The answer in three sentences (docs/flapping.md, README)."""
+    """The answer in three sentences (docs/averaging.md, README)."""
     o, o0 = report.oscillation, without_inertia.oscillation
     err = report.error_pct()
     all_err = [e for v in err.values() for e in v]

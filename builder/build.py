@@ -96,13 +96,14 @@ FMUS: dict[str, _Spec] = {
         "hover6dof", "DroneFlyHover6DOF", *_FMI, "models/linear.py", "models/linear_algebra.py",
         "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py",
-        "models/quasisteady.py"),  # imported (with numpy) only with aerodynamics = 2
+        "models/quasisteady.py",  # imported (with numpy) only with aerodynamics = 2
+        "fmu_src/body_variables.py"),
     # the one FMU that needs numpy in the host's Python (see NEEDS_NUMPY)
     "DroneFlyFlapping": _plant(
         "flapping", "DroneFlyFlapping", *_FMI, "models/linear.py", "models/linear_algebra.py",
         "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py", "models/quasisteady.py",
-        "models/flapping.py"),
+        "models/flapping.py", "fmu_src/body_variables.py"),
 }
 #: the FMUs that import numpy (the others run on the standard library alone)
 NEEDS_NUMPY = frozenset({"DroneFlyFlapping"})

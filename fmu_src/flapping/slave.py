@@ -19,20 +19,17 @@ from typing import Any
 
 from ...fmi import SlaveBase, Var
 from ...models.flapping import (STATE_SIZE, STEPS_PER_BEAT, FlappingError, FlappingModel, Flight)
-from ...models.hover6dof import EARTH_OUTPUTS, EULER_OUTPUTS, EXTRA_STARTS, OUTPUT_NAMES, \
-    STATE_OUTPUTS
-from ...models.lateral import LATERAL, N_HZ, U_M_PER_S
-from ...models.longitudinal import LONGITUDINAL
+from ...models.hover6dof import EXTRA_STARTS, OUTPUT_NAMES, STATE_OUTPUTS
+from ...models.lateral import N_HZ, U_M_PER_S
 from ...models.quasisteady import CONTROLS
 from ...models.rigid_body import Hover6DOFError, initial_state, outputs
+from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs,
+                              start_parameters, state_outputs)
 
 __all__ = ["CONTROL_LIMIT_RAD", "LOAD_OUTPUTS", "MAX_STEP_BEATS", "WING_OUTPUTS",
            "DroneFlyFlapping"]
 
-_AXES = (LATERAL, LONGITUDINAL)
 _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS))
-_ATTITUDE = ("delta_gamma_start", "delta_theta_start", "psi_start")
-_VELOCITY = ("delta_u_start", "delta_v_start", "delta_w_start")
 #: the largest control magnitude accepted [rad] (Sect. 3.6 keeps them within 0.4 rad; the
 #: blade-element forces are defined for any wing attitude, so nothing else is refused)
 CONTROL_LIMIT_RAD = 1.0
@@ -86,13 +83,13 @@ def _initial_dependencies(name: str) -> tuple[str, ...]:
     if name in ("delta_gamma", "delta_theta", "theta"):
         return (f"{name if name != 'theta' else 'delta_theta'}_start",)
     if name in ("phi", "psi"):
-        return _ATTITUDE
+        return ATTITUDE_STARTS
     if name in STATE_OUTPUTS:
         return (f"{name}_start",)
     if name in ("x_earth", "y_earth", "z_earth"):
         return (f"{name}_start",)
     if name in ("vx_earth", "vy_earth", "vz_earth"):
-        return (*_VELOCITY, *_ATTITUDE)
+        return (*VELOCITY_STARTS, *ATTITUDE_STARTS)
     if name.startswith("stroke_angle"):  # at the rear reversal: phibar - Phi/2
         return ("delta_Phi_a", "delta_Phi", "delta_phibar")
     if name.startswith("angle_of_attack"):  # mid-rotation: (alpha_d + pi - alpha_u)/2
@@ -101,25 +98,12 @@ def _initial_dependencies(name: str) -> tuple[str, ...]:
     # controls that change them there (the others cancel between the wings or act later)
     load = name[0]
     controls = tuple(c for c, loads in _LOAD_CONTROLS.items() if load in loads)
-    return (*controls, *_VELOCITY, "delta_p_start", "delta_q_start", "delta_r_start")
+    return (*controls, *VELOCITY_STARTS, "delta_p_start", "delta_q_start", "delta_r_start")
 
 
 def _variables() -> tuple[Var, ...]:
-    out: list[Var] = []
-    unit, disp = LATERAL.control_unit
-    for axis in _AXES:
-        for name, text in zip(axis.control_names, axis.control_descriptions):
-            out.append(Var(name, "input", "continuous", f"{text} ({axis.name}); the wing "
-                           "kinematics it stands for, taken at the start of each wing beat",
-                           unit, disp, start=0.0))
-    states = [(n, d, u) for a in _AXES
-              for n, d, u in zip(a.state_names, a.state_descriptions, a.state_units)]
-    extra = [(n, d, (u, du)) for n, u, du, d in (*EULER_OUTPUTS, *EARTH_OUTPUTS)]
-    table = {n: (d, u) for n, d, u in (*states, *extra)}
-    for name in OUTPUT_NAMES:
-        text, (u, du) = table[name]
-        out.append(Var(name, "output", "continuous", text, u, du, initial="calculated",
-                       dependencies=(), initial_dependencies=_initial_dependencies(name)))
+    out = [*control_inputs("); the wing kinematics it stands for, taken at the start of each "
+                           "wing beat"), *state_outputs(_initial_dependencies)]
     for name, u, du, text in WING_OUTPUTS:
         out.append(Var(name, "output", "continuous", text, u, du, initial="calculated",
                        dependencies=(), initial_dependencies=_initial_dependencies(name)))
@@ -132,12 +116,7 @@ def _variables() -> tuple[Var, ...]:
                    start=N_HZ))
     out.append(Var("U", "parameter", "fixed", "reference velocity U = 2 Phi n r2 (Sect. 2.4; "
                    "fixed with n)", "m/s", start=U_M_PER_S))
-    for name, text, (u, du) in states:
-        out.append(Var(f"{name}_start", "parameter", "fixed", f"initial {text}", u, du,
-                       start=0.0))
-    for name, u, du, text in EXTRA_STARTS:
-        out.append(Var(name, "parameter", "fixed", text, u, du, start=0.0))
-    return tuple(out)
+    return (*out, *start_parameters())
 
 
 class DroneFlyFlapping(SlaveBase):

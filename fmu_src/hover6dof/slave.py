@@ -21,8 +21,7 @@ from typing import Any
 
 from ... import models as _models
 from ...fmi import SlaveBase, Var
-from ...models.hover6dof import (EARTH_OUTPUTS, EULER_OUTPUTS, EXTRA_STARTS, OUTPUT_NAMES,
-    STATE_OUTPUTS)
+from ...models.hover6dof import EXTRA_STARTS, OUTPUT_NAMES, STATE_OUTPUTS
 from ...models.lateral import LATERAL, N_HZ, U_M_PER_S
 from ...models.lateral import parameter_description as lateral_text
 from ...models.longitudinal import LONGITUDINAL
@@ -30,15 +29,14 @@ from ...models.longitudinal import parameter_description as longitudinal_text
 from ...models import lateral_dynamics as lateral
 from ...models import longitudinal_dynamics as longitudinal
 from ...models.rigid_body import STATE_SIZE, Hover6DOF, Hover6DOFError, initial_state, outputs
+from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs,
+                              start_parameters, state_outputs)
 
 __all__ = ["AERODYNAMICS", "DroneFlyHover6DOF"]
 
-_AXES = (LATERAL, LONGITUDINAL)
 _LAT_PARAMS = lateral.LateralParameters.names()
 _LON_PARAMS = longitudinal.LongitudinalParameters.names()
 _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS))
-_ATTITUDE = ("delta_gamma_start", "delta_theta_start", "psi_start")
-_VELOCITY = ("delta_u_start", "delta_v_start", "delta_w_start")
 #: the values of the parameter ``aerodynamics``
 AERODYNAMICS = {1: "linear", 2: "quasi_steady"}
 _AERO_TEXT = ("aerodynamics: 1 = linear (the paper's stability and control derivatives, the "
@@ -82,29 +80,16 @@ def _initial_dependencies(name: str) -> tuple[str, ...]:
     if name in ("delta_gamma", "delta_theta", "theta"):
         return (f"{name if name != 'theta' else 'delta_theta'}_start",)
     if name in ("phi", "psi"):
-        return _ATTITUDE
+        return ATTITUDE_STARTS
     if name in STATE_OUTPUTS:
         return (f"{name}_start", "U" if name in ("delta_u", "delta_v", "delta_w") else "n")
     if name in ("x_earth", "y_earth", "z_earth"):
         return (f"{name}_start", "n", "U")
-    return (*_VELOCITY, *_ATTITUDE, "U")  # the earth-axis velocity
+    return (*VELOCITY_STARTS, *ATTITUDE_STARTS, "U")  # the earth-axis velocity
 
 
 def _variables() -> tuple[Var, ...]:
-    out: list[Var] = []
-    unit, disp = LATERAL.control_unit
-    for axis in _AXES:
-        for name, text in zip(axis.control_names, axis.control_descriptions):
-            out.append(Var(name, "input", "continuous", f"{text} ({axis.name}; held over each "
-                           "step)", unit, disp, start=0.0))
-    states = [(n, d, u) for a in _AXES
-              for n, d, u in zip(a.state_names, a.state_descriptions, a.state_units)]
-    extra = [(n, d, (u, du)) for n, u, du, d in (*EULER_OUTPUTS, *EARTH_OUTPUTS)]
-    table = {n: (d, u) for n, d, u in (*states, *extra)}
-    for name in OUTPUT_NAMES:
-        text, (u, du) = table[name]
-        out.append(Var(name, "output", "continuous", text, u, du, initial="calculated",
-                       dependencies=(), initial_dependencies=_initial_dependencies(name)))
+    out = [*control_inputs("; held over each step)"), *state_outputs(_initial_dependencies)]
     defaults = (lateral.default_parameters(), longitudinal.default_parameters())
     for names, params, describe in ((_LAT_PARAMS, defaults[0], lateral_text),
                                     (_LON_PARAMS, defaults[1], longitudinal_text)):
@@ -119,12 +104,7 @@ def _variables() -> tuple[Var, ...]:
                    "wing-beat frequency; reference time t_w = 1/n (Sect. 2.4)", "Hz", start=N_HZ))
     out.append(Var("U", "parameter", "tunable", "reference velocity U = 2 Phi n r2 (Sect. 2.4)",
                    "m/s", start=U_M_PER_S))
-    for name, text, (u, du) in states:
-        out.append(Var(f"{name}_start", "parameter", "fixed", f"initial {text}", u, du,
-                       start=0.0))
-    for name, u, du, text in EXTRA_STARTS:
-        out.append(Var(name, "parameter", "fixed", text, u, du, start=0.0))
-    return tuple(out)
+    return (*out, *start_parameters())
 
 
 class DroneFlyHover6DOF(SlaveBase):

@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -73,7 +73,7 @@ from .quasisteady import CONTROLS, QuasiSteadyModel
 from .rigid_body import euler_from_quaternion, quaternion_from_euler
 
 __all__ = ["STATE_SIZE", "STEPS_PER_BEAT", "WING_CM_OVER_R", "FlappingError", "FlappingModel",
-           "Flight", "Floquet", "PeriodicOrbit", "Z_NAMES", "wing_beat_controls"]
+           "Flight", "Floquet", "PeriodicOrbit", "Z_NAMES", "shooting", "wing_beat_controls"]
 
 #: number of state values (as the 6-DOF plant: u, v, w, p, q, r, e0..e3, x, y, z)
 STATE_SIZE = 13
@@ -87,6 +87,36 @@ Z_NAMES: tuple[str, ...] = ("u", "v", "w", "p", "q", "r", "phi", "theta")
 
 class FlappingError(DroneflyError):
     """A bad value for the flapping model (the message names it)."""
+
+
+def shooting(period_map: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
+             monodromy: np.ndarray, tol: float, max_iter: int,
+             scales: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
+    """A periodic orbit by shooting: Newton's chord method on ``period_map(x) - x`` from ``x0``,
+    the Jacobian ``monodromy - I`` kept for every step (the map is nearly linear over the
+    orbit's offset), until the largest residual (over ``scales``, if given) is below ``tol``.
+
+    Returns
+    -------
+    x, residuals : array, list of float
+        The state at the orbit's start and the residual of each iteration.
+
+    Raises
+    ------
+    FlappingError
+        The residual is not below ``tol`` after ``max_iter`` steps.
+    """
+    x = np.asarray(x0, dtype=float)
+    J = np.asarray(monodromy, dtype=float) - np.eye(len(x))
+    residuals: list[float] = []
+    for _ in range(max_iter):
+        r = period_map(x) - x
+        residuals.append(float(np.max(np.abs(r if scales is None else r / scales))))
+        if residuals[-1] < tol:
+            return x, residuals
+        x = x - np.linalg.solve(J, r)
+    raise FlappingError(f"no periodic orbit: the residual is {residuals[-1]:.3g} after "
+                        f"{max_iter} steps ({residuals!r})")
 
 
 def wing_beat_controls(control: Mapping[str, float] | Sequence[float] | None) -> tuple[float, ...]:
@@ -386,18 +416,8 @@ class FlappingModel:
             The residual is not below ``tol`` after ``max_iter`` steps.
         """
         z = np.zeros(len(Z_NAMES))
-        history = []
         M = self.monodromy(z, control, step) if jacobian is None else np.asarray(jacobian)
-        J = M - np.eye(len(z))
-        for _ in range(max_iter):
-            res = self.z_map(z, control) - z
-            history.append(float(np.max(np.abs(res))))
-            if history[-1] < tol:
-                break
-            z = z - np.linalg.solve(J, res)
-        else:
-            raise FlappingError(f"no periodic orbit: the residual is {history[-1]:.3g} after "
-                                f"{max_iter} steps ({history!r})")
+        z, history = shooting(lambda x: self.z_map(x, control), z, M, tol, max_iter)
         return PeriodicOrbit(self, z, control, history, samples or 200)
 
     def monodromy(self, z: Sequence[float], control: Sequence[float] | None = None,

@@ -27,7 +27,7 @@ import numpy as np
 
 from ...builder.build import ensure_fmu
 from ...core.errors import DroneflyError
-from ...models.flapping import FlappingModel
+from ...models.flapping import FlappingModel, shooting
 from ...models.lateral import sort_eigenvalues
 from ..cosim.fmu import FMU
 from .floquet import averaged_exponents
@@ -164,17 +164,7 @@ def fmi_floquet(path: str | Path, period_s: float | None = None, *, steps: int =
     with FmiPeriodicMap(path, period_s, steps) as F:
         x = np.zeros(len(F.states))
         M0 = F.monodromy(x, rel_step) if jacobian is None else np.asarray(jacobian, dtype=float)
-        J = M0 - np.eye(len(x))
-        residuals = []
-        for _ in range(max_iter):
-            r = F(x) - x
-            residuals.append(float(np.max(np.abs(r) / F.scales)))
-            if residuals[-1] < tol:
-                break
-            x = x - np.linalg.solve(J, r)
-        else:
-            raise DroneflyError(f"no periodic orbit through FMI: residual {residuals[-1]:.3g} "
-                                f"after {max_iter} steps")
+        x, residuals = shooting(F, x, M0, tol, max_iter, F.scales)
         M = F.monodromy(x, rel_step)
         mu = np.linalg.eigvals(M)
         lam = sort_eigenvalues(np.log(mu.astype(complex)) / F.beats_per_period)

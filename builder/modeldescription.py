@@ -63,7 +63,7 @@ def model_description(cls: type[SlaveBase], guid: str) -> Element:
     })
     SubElement(root, "CoSimulation", {
         "modelIdentifier": cls.MODEL_NAME,
-        "needsExecutionTool": "true",  # a CPython 3 (standard library; numpy for the flapping plant)
+        "needsExecutionTool": "true",  # a CPython 3 (stdlib; numpy: the flapping plant)
         "canHandleVariableCommunicationStepSize": "true",
         "canInterpolateInputs": "false",
         "maxOutputDerivativeOrder": "0",

@@ -60,7 +60,7 @@ def model_description3(cls: Any, token: str) -> Element:
     })
     SubElement(root, "CoSimulation", {
         "modelIdentifier": cls.MODEL_NAME,
-        "needsExecutionTool": "true",  # a CPython 3 (standard library; numpy for the flapping plant)
+        "needsExecutionTool": "true",  # a CPython 3 (stdlib; numpy: the flapping plant)
         "canBeInstantiatedOnlyOncePerProcess": "false",
         "canGetAndSetFMUState": "true",
         "canSerializeFMUState": "true",

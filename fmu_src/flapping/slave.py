@@ -6,6 +6,13 @@ their inertia (:mod:`dronefly.models.flapping`); the seven controls of the linea
 wing kinematics they stand for, taken at the start of each wing beat. The wrapper only maps
 variables; the equations live in the model.
 
+The Integer parameter ``forces`` (fixed) chooses what drives the body: 1 (the default) the
+instantaneous forces and moments of the flapping wings and their inertia; 2 their cycle
+average, with the beat's kinematics (:class:`dronefly.models.flapping.FlappingModel` with
+``averaged=True``: the wings' inertia, zero on average, left out), which makes the FMU the
+quasi-steady averaged model, ``DroneFlyHover6DOF`` with ``aerodynamics = 2`` and the same body,
+sampled at the beats' starts: the comparison of Sect. 2.1's averaging through FMI.
+
 Unlike the other FMUs this one needs numpy in the Python that runs it (the quasi-steady
 model is vectorised over the blade elements): importing this module imports it. It needs no
 other package (the Gauss-Jacobi nodes of the span are numpy's eigenvalues).
@@ -26,7 +33,7 @@ from ...models.rigid_body import Hover6DOFError, initial_state, outputs
 from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs,
                               start_parameters, state_outputs)
 
-__all__ = ["CONTROL_LIMIT_RAD", "LOAD_OUTPUTS", "MAX_STEP_BEATS", "WING_OUTPUTS",
+__all__ = ["CONTROL_LIMIT_RAD", "FORCES", "LOAD_OUTPUTS", "MAX_STEP_BEATS", "WING_OUTPUTS",
            "DroneFlyFlapping"]
 
 _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS))
@@ -35,6 +42,12 @@ _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS)
 CONTROL_LIMIT_RAD = 1.0
 #: the longest communication step [wing beats] (each costs some 30 ms of computing)
 MAX_STEP_BEATS = 1000.0
+#: the values of the parameter ``forces``
+FORCES = {1: "instantaneous", 2: "cycle_averaged"}
+_FORCES_TEXT = ("forces on the body: 1 = instantaneous (the flapping wings' quasi-steady forces "
+                "at every instant of the wing beat, and the wings' inertia), 2 = cycle_averaged "
+                "(their average over the wing beat for the beat's controls, as functions of the "
+                "state; no wing inertia, zero on average: the averaged model of Sect. 2.1)")
 #: (name, unit, display unit, description) of the wing angles
 WING_OUTPUTS: tuple[tuple[str, str, str | None, str], ...] = (
     ("stroke_angle_left", "rad", "deg", "left wing's stroke (positional) angle, forward "
@@ -47,19 +60,23 @@ WING_OUTPUTS: tuple[tuple[str, str, str | None, str], ...] = (
 )
 #: (name, description) of the instantaneous aerodynamic loads (non-dimensional, body axes)
 LOAD_OUTPUTS: tuple[tuple[str, str], ...] = tuple(
-    (f"{c}_aero", f"instantaneous aerodynamic {what} of both wings, body {axis} axis, over "
-                  f"{scale} (the wings' inertia not included)")
+    (f"{c}_aero", f"instantaneous aerodynamic {what} of both wings (with forces = 2 their "
+                  f"cycle average), body {axis} axis, over {scale} (the wings' inertia not "
+                  "included)")
     for c, what, axis, scale in (
         ("X", "force", "x", "0.5 rho U^2 S_t"), ("Y", "force", "y", "0.5 rho U^2 S_t"),
         ("Z", "force", "z", "0.5 rho U^2 S_t"), ("L", "moment", "x", "0.5 rho U^2 S_t c"),
         ("M", "moment", "y", "0.5 rho U^2 S_t c"), ("N", "moment", "z", "0.5 rho U^2 S_t c")))
 
 
-@lru_cache(maxsize=1)
-def _shared_model() -> FlappingModel:
-    """One model for every instance of the process (it keeps no flight state; building it
-    trims the quasi-steady model, some 0.1 s)."""
-    return FlappingModel(steps_per_beat=STEPS_PER_BEAT)
+@lru_cache(maxsize=2)
+def _shared_model(forces: int = 1) -> FlappingModel:
+    """One model per value of ``forces`` for every instance of the process (it keeps no
+    flight state; building the first trims the quasi-steady model, some 0.1 s; the averaged
+    one shares its aerodynamics)."""
+    if forces == 1:
+        return FlappingModel(steps_per_beat=STEPS_PER_BEAT)
+    return FlappingModel(_shared_model(1).qs, STEPS_PER_BEAT, averaged=True)
 
 
 def _slice(vrs: tuple[int, ...]) -> slice:
@@ -68,14 +85,6 @@ def _slice(vrs: tuple[int, ...]) -> slice:
     return slice(vrs[0], vrs[0] + len(vrs))
 
 
-#: which initial loads each control can change at the rear reversal (measured with a change of
-#: 1 rad, as the dependencies check of ``dronefly check`` sets it). A superset where symmetry
-#: makes a load vanish exactly there on some machines and not on others (Y and N under
-#: delta_alpha_1a: 0 or round-off): a declared dependency that does not show is allowed (a
-#: warning of the check), an undeclared one would not be
-_LOAD_CONTROLS = {"delta_Phi_a": "XYLMN", "delta_alpha_1a": "YZLMN", "delta_alpha_2a": "XYZLMN",
-                  "delta_Phi": "XM", "delta_alpha_1": "ZM", "delta_phibar": "XM",
-                  "delta_alpha_2": "XZM"}
 
 
 def _initial_dependencies(name: str) -> tuple[str, ...]:
@@ -94,11 +103,15 @@ def _initial_dependencies(name: str) -> tuple[str, ...]:
         return ("delta_Phi_a", "delta_Phi", "delta_phibar")
     if name.startswith("angle_of_attack"):  # mid-rotation: (alpha_d + pi - alpha_u)/2
         return ("delta_alpha_2a", "delta_alpha_2")
-    # the loads at the start (the rear reversal, the wing at rest, mid-rotation): the
-    # controls that change them there (the others cancel between the wings or act later)
-    load = name[0]
-    controls = tuple(c for c, loads in _LOAD_CONTROLS.items() if load in loads)
-    return (*controls, *VELOCITY_STARTS, "delta_p_start", "delta_q_start", "delta_r_start")
+    # the loads at the start: with forces = 2 (the cycle average of the beat's kinematics)
+    # every control changes every load under a change of 1 rad, as the dependencies check of
+    # ``dronefly check`` sets it (the couplings of the lateral and longitudinal controls are of
+    # second order, but not zero); the model description holds for either value of forces,
+    # so the union of the two modes is declared (with forces = 1, at the rear reversal, the
+    # wing at rest and mid-rotation, fewer show: a declared dependency that does not show is
+    # allowed, a warning of the check; an undeclared one would not be)
+    return (*CONTROLS, "forces", *VELOCITY_STARTS, "delta_p_start", "delta_q_start",
+            "delta_r_start")
 
 
 def _variables() -> tuple[Var, ...]:
@@ -110,6 +123,8 @@ def _variables() -> tuple[Var, ...]:
     for name, text in LOAD_OUTPUTS:
         out.append(Var(name, "output", "continuous", text, "1", initial="calculated",
                        dependencies=(), initial_dependencies=_initial_dependencies(name)))
+    out.append(Var("forces", "parameter", "fixed", _FORCES_TEXT, None, start=1,
+                   type="Integer"))
     out.append(Var("n", "parameter", "fixed",
                    "wing-beat frequency; reference time t_w = 1/n (Sect. 2.4; the "
                    "aerodynamics are computed for this value, which cannot be changed)", "Hz",
@@ -127,7 +142,8 @@ class DroneFlyFlapping(SlaveBase):
         "Hovering model drone fly resolved within the wing beat: the rigid body of "
         "DroneFlyHover6DOF driven at every instant by the quasi-steady blade-element forces of "
         "both flapping wings and by the wings' inertia (no cycle averaging); the controls of "
-        "the linear plants are the wing kinematics, taken at the start of each wing beat. "
+        "the linear plants are the wing kinematics, taken at the start of each wing beat "
+        "(parameter forces = 2: the forces' cycle average instead, the averaged model). "
         "Needs numpy in the Python that runs it")
     VARIABLES = _variables()
     DEFAULT_EXPERIMENT = (0.0, 2.0 / N_HZ, 0.1 / N_HZ)
@@ -145,6 +161,11 @@ class DroneFlyFlapping(SlaveBase):
         self._U, self._n = U_M_PER_S, N_HZ
 
     def _refresh(self) -> None:
+        forces = self._value("forces")
+        if forces not in FORCES:
+            raise ValueError(f"forces = {forces!r}: expected 1 (instantaneous) or 2 "
+                             "(cycle_averaged)")
+        self._model = _shared_model(forces)
         for name, value, fixed in (("n", self._value("n"), N_HZ),
                                    ("U", self._value("U"), U_M_PER_S)):
             if value != fixed:
@@ -231,7 +252,8 @@ class DroneFlyFlapping(SlaveBase):
             y = [float(v) for v in snap["y"]]
             if len(y) != STATE_SIZE or not all(math.isfinite(v) for v in y):
                 raise ValueError(f"the state must hold {STATE_SIZE} finite values, got {y!r}")
-            if self._flight is None:
+            self._refresh()  # the model of the restored value of forces
+            if self._flight is None or self._flight.model is not self._model:
                 self._flight = Flight(self._model, y)
             self._flight.restore(snap)
         self._t0 = float(state["t0"])

@@ -349,6 +349,50 @@ def test_master_equals_fmpy_and_the_reference_results(ref, model, version):
         np.testing.assert_allclose(ours[name], y_ref[:, j], rtol=1e-7, atol=1e-9)
 
 
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+def test_master_on_feedthrough_equals_fmpy_and_the_reference_result(ref, version):
+    """Feedthrough, every output the master records (Float32 and Float64, the integer types up
+    to Int32, Boolean, Enumeration) against FMPy's simulate_fmu and fmusim's reference result
+    (of the FMI 3.0 build; its run set no inputs: every output holds its start value, which a
+    master that read a type with the wrong call, or the wrong variable, would not return).
+    UInt32, Int64 and UInt64 are not recorded (the master's rows are doubles, exact only to
+    2^53), String and Binary are not numbers: the reference's columns of those are left out,
+    and the master says it cannot record them."""
+    import fmpy
+    import numpy as np
+
+    from dronefly.harness.cosim.system import System, SystemSpecError
+    from dronefly.harness.cosim.system_master import SystemMaster
+
+    path = ref / version / "Feedthrough.fmu"
+    lines = (REF / "results" / "Feedthrough_out.csv").read_text().splitlines()
+    heads = lines[0].split(",")
+    cells = [ln.split(",") for ln in lines[1:]]
+    t_ref = np.array([float(c[0]) for c in cells])
+    h = float(t_ref[1] - t_ref[0])
+    with SystemMaster(System({"m": path})) as master:
+        run = master.run(h, len(t_ref) - 1)
+        assert run.failure is None
+        with pytest.raises(SystemSpecError, match="cannot record 'm.String_output'"):
+            master.run(h, 1, record=["m.String_output"])
+    ours = {n.split(".", 1)[1]: run.signals[:, j] for j, n in enumerate(run.names)}
+    assert {"Float64_continuous_output", "Int32_output", "Boolean_output",
+            "Enumeration_output"} <= set(ours)
+    fm = fmpy.simulate_fmu(str(path), fmi_type="CoSimulation", output_interval=h,
+                           stop_time=float(t_ref[-1]), output=sorted(ours))
+    np.testing.assert_allclose(run.time, t_ref, rtol=1e-7, atol=1e-12)
+    compared = 0
+    for j, name in enumerate(heads):
+        if name not in ours:
+            continue
+        col = np.array([{"true": 1.0, "false": 0.0}[c[j]] if c[j] in ("true", "false")
+                        else float(c[j]) for c in cells])
+        np.testing.assert_array_equal(ours[name], fm[name].astype(float), err_msg=name)
+        np.testing.assert_array_equal(ours[name], col, err_msg=name)  # exact: start values
+        compared += 1
+    assert compared == len(ours)
+
+
 def test_cosim_system_on_reference_fmus(ref, tmp_path, capsys):
     """`dronefly cosim --system` on one-FMU systems of Reference-FMUs: time in seconds (no
     wing-beat frequency), Stair (FMI 3.0, terminateSimulation at 9 s) ends there with its

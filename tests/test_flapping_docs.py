@@ -11,7 +11,8 @@ import pytest
 
 from docnumbers import NumericText, assert_same_numbers
 
-from dronefly.harness.flapping import (answer, convergence, convergence_rows, floquet_report)
+from dronefly.harness.flapping import (answer, convergence, convergence_rows, floquet_report,
+                                       master_report)
 from dronefly.models.flapping import FlappingModel
 
 #: the documented orbit and Floquet numbers: run again under a second BLAS kernel (.ci/run)
@@ -72,3 +73,15 @@ def test_flapping_doc_closed_loop_is_what_the_code_computes():
     # cycle average itself: the root lands 7e-6 off the axis)
     assert abs(report.averaged_sampled[qs][0].real) < 1e-4 < report.flapping[qs][0].real
     assert report.runs[eq27].gamma[-1] > 0.1
+
+
+@pytest.mark.integration
+def test_flapping_doc_master_run_is_what_the_code_computes(built_fmus):
+    text = DOC.read_text(encoding="utf-8")
+    report = master_report(built_fmus)
+    _same(_block(text, "master-run"), report.text(), "flapping:master-run")
+    # the shell example's last line: the CSV that dronefly cosim writes ends at the report's
+    # gamma after 30 wing beats (Eq. 27, the SSP's default gains)
+    gamma = report.loops["Eq. (27)"].gamma[-1]
+    _same(_block(text, "master-cli").splitlines()[-1],
+          f"gamma after 30 wing beats: {gamma:+.4f} rad", "flapping:master-cli")

@@ -201,8 +201,14 @@ def orbit_start(model: FlappingModel | None = None) -> np.ndarray:
 
 def flapping_starts(z: Sequence[float], roll0_rad: float = 0.0) -> dict[str, float]:
     """The ``*_start`` parameters (SI) of ``DroneFlyFlapping`` (and ``DroneFlyHover6DOF``)
-    that start it at the reduced state ``z`` = (u+, v+, w+, p+, q+, r+, phi, theta) with
-    ``roll0_rad`` added to the roll angle phi (heading and position 0).
+    that start it at a reduced state with a roll added (heading and position 0).
+
+    Parameters
+    ----------
+    z : sequence of 8 floats
+        (u+, v+, w+, p+, q+, r+, phi, theta): velocities over U, rates times t_w, angles [rad].
+    roll0_rad : float
+        Added to the roll angle phi [rad].
 
     The FMU takes the attitude as delta_gamma_start and delta_theta_start (gamma =
     asin(sin phi cos theta), the paper's roll angle; :func:`dronefly.models.rigid_body.

@@ -43,7 +43,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ...core.errors import CrossCheckError
+from ...core.errors import CrossCheckError, DroneflyError
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.flapping import STEPS_PER_BEAT
 from ...models.lateral import N_HZ, STATE_NAMES, U_M_PER_S
@@ -201,16 +201,18 @@ def master_report(fmus: Mapping[str, str | Path], report: ClosedLoopReport | Non
 
     Raises
     ------
+    DroneflyError
+        A ``report`` not of the FMU's integration, or fewer than 20 ``beats``.
     CrossCheckError
         A run failed, the identification's fit residual is too large, or the identified
         exponents contradict the linearised map's.
     """
     report = report or closed_loop_report(steps_per_beat=STEPS_PER_BEAT)
     if report.steps_per_beat != STEPS_PER_BEAT or report.orbit is None:
-        raise CrossCheckError(f"report.steps_per_beat = {report.steps_per_beat!r}: the map "
+        raise DroneflyError(f"report.steps_per_beat = {report.steps_per_beat!r}: the map "
                               f"must be the FMU's ({STEPS_PER_BEAT} Runge-Kutta steps per beat)")
     if not (isinstance(beats, int) and beats >= 20):
-        raise CrossCheckError(f"beats = {beats!r} must be a whole number >= 20")
+        raise DroneflyError(f"beats = {beats!r} must be a whole number >= 20")
     loops = {}
     for name, gains in report.gains.items():
         system = flapping_system(fmus, gains, roll0_rad, float(beats), report.orbit.z0)
@@ -223,7 +225,22 @@ def write_flapping_ssp(fmu_dir: str | Path, path: str | Path,
                        gains: Sequence[float] = PAPER_GAINS_EQ27, roll0_rad: float = 0.1,
                        stop_wb: float = 30.0) -> Path:
     """Write the flapping insect's lateral loop (:func:`~dronefly.harness.cosim.ssp.
-    flapping_system`) with the FMUs of ``fmu_dir`` (as ``dronefly build`` writes them) as an
-    SSP at ``path``, for ``dronefly cosim --system PATH --step 1``."""
+    flapping_system`) with the FMUs of ``fmu_dir`` as an SSP, for ``dronefly cosim --system
+    PATH --step 1``, and return its path.
+
+    Parameters
+    ----------
+    fmu_dir : str or Path
+        The folder of ``DroneFlyFlapping.fmu`` and ``StateFeedback.fmu`` (as ``dronefly build``
+        writes them).
+    path : str or Path
+        The SSP file to write.
+    gains : sequence of 4 floats
+        Non-dimensional gains of delta_Phi_a [rad] on x+ (default Eq. (27)).
+    roll0_rad : float
+        Roll added to the orbit's start [rad].
+    stop_wb : float
+        The SSP's DefaultExperiment stop time [wing beats].
+    """
     fmus = {p.stem: p for p in Path(fmu_dir).glob("*.fmu")}
     return write_system_ssp(flapping_system(fmus, gains, roll0_rad, stop_wb), path)

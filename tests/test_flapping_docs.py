@@ -11,8 +11,8 @@ import pytest
 
 from docnumbers import NumericText, assert_same_numbers
 
-from dronefly.harness.flapping import (answer, convergence, convergence_rows, floquet_report,
-                                       master_report)
+from dronefly.harness.flapping import (answer, convergence, convergence_rows, flapping_trim,
+                                       floquet_report, master_report)
 from dronefly.models.flapping import FlappingModel
 
 #: the documented orbit and Floquet numbers: run again under a second BLAS kernel (.ci/run)
@@ -85,3 +85,15 @@ def test_flapping_doc_master_run_is_what_the_code_computes(built_fmus):
     gamma = report.loops["Eq. (27)"].gamma[-1]
     _same(_block(text, "master-cli").splitlines()[-1],
           f"gamma after 30 wing beats: {gamma:+.4f} rad", "flapping:master-cli")
+
+
+def test_flapping_doc_own_trim_is_what_the_code_computes():
+    text = DOC.read_text(encoding="utf-8")
+    trim = flapping_trim()
+    _same(_block(text, "trim"), trim.text(), "flapping:trim")
+    # the trim holds the insect still: the orbit's mean drift, as the oscillation measures it
+    osc = trim.orbit.oscillation()
+    assert abs(osc["x_drift_mm_per_s"]) < 1e-8 and abs(osc["z_drift_mm_per_s"]) < 1e-8
+    # what the text says: the lateral instability nearer the averaged model's +0.1079
+    qs_trim, own = trim.lateral_exponents_qs_trim[0].real, trim.lateral_exponents[0].real
+    assert 0.1079 < own < qs_trim

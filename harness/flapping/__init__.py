@@ -16,9 +16,10 @@ from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_
 from .closed_loop import ClosedLoopReport, closed_loop_report
 from .fmi_floquet import FmiFloquet, FmiPeriodicMap, floquet_analysis, floquet_text, fmi_floquet
 from .master_run import MasterReport, master_report, write_flapping_ssp
+from .trim import FlappingTrim, flapping_trim
 
 __all__ = ["AXES", "ClosedLoopReport", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
            "closed_loop_report",
            "averaged_exponents", "averaged_monodromy", "convergence", "convergence_rows",
            "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet", "MasterReport",
-           "master_report", "write_flapping_ssp"]
+           "master_report", "write_flapping_ssp", "FlappingTrim", "flapping_trim"]

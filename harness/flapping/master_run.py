@@ -59,8 +59,9 @@ __all__ = ["AMPLITUDE", "FINE_STEP_WB", "IDENTIFICATION_BEATS", "MasterLoop", "M
 
 #: size of the initial x+ of the identification runs (non-dimensional). The lateral map is odd
 #: in the lateral state (left-right symmetry), so what a linear fit leaves is cubic: 2.4e-10 of
-#: |z| at 1e-5 (2.4e-8 at 1e-4, measured), round-off 1.2e-10 at 1e-6; 1e-5 keeps the fit
-#: within FIT_RESIDUAL_TOL (1e-9) with a factor 4
+#: |z| at 1e-5 (2.4e-8 at 1e-4, measured over 20-beat runs; 0.8e-10 and 1.2e-10 over the 10
+#: beats of IDENTIFICATION_BEATS), round-off 1.2e-10 at 1e-6; 1e-5 keeps the fit within
+#: FIT_RESIDUAL_TOL (1e-9) with a factor 4 or more
 AMPLITUDE = 1e-5
 #: wing beats of each identification run (40 pairs in all for the 8 x 8 fit: the loop is linear
 #: to the fit residual, so more beats add nothing)

@@ -106,12 +106,17 @@ def test_the_system_is_an_ssp_that_dronefly_cosim_flies(built_fmus, tmp_path, ca
     assert "3 steps to 3 wing beats" in capsys.readouterr().out
 
 
-def test_the_fmi3_build_flies_the_same_bits(built_fmus, built_fmus3, report):
+def test_the_fmi3_build_flies_the_same_bits_the_unconnected_inputs_at_their_starts(
+        built_fmus, built_fmus3, report):
     # the same model behind either interface, the same master: the same floating-point
     # operations
     runs = []
     for fmus in (built_fmus, built_fmus3):
         with SystemMaster(flapping_system(fmus, z0=report.orbit.z0)) as master:
-            runs.append(master.run(1 / N_HZ, 10, record=["plant.delta_gamma", "plant.delta_p",
-                                                        "lateral_controller.delta_Phi_a"]))
+            runs.append(master.run(1 / N_HZ, 10, record=[
+                "plant.delta_gamma", "plant.delta_p", "lateral_controller.delta_Phi_a",
+                *(f"plant.{c}" for c in LONGITUDINAL.control_names)]))
     assert np.array_equal(runs[0].signals, runs[1].signals)
+    # the unconnected inputs (recorded as themselves) kept their start values
+    assert not np.any(runs[0].signals[:, 3:])
+    assert np.any(runs[0].signals[:, 2])

@@ -11,7 +11,8 @@ import pytest
 
 from docnumbers import NumericText, assert_same_numbers
 
-from dronefly.harness.flapping import (answer, convergence, convergence_rows, floquet_report)
+from dronefly.harness.flapping import (answer, convergence, convergence_rows, flapping_trim,
+                                       floquet_report, master_report)
 from dronefly.models.flapping import FlappingModel
 
 #: the documented orbit and Floquet numbers: run again under a second BLAS kernel (.ci/run)
@@ -72,3 +73,27 @@ def test_flapping_doc_closed_loop_is_what_the_code_computes():
     # cycle average itself: the root lands 7e-6 off the axis)
     assert abs(report.averaged_sampled[qs][0].real) < 1e-4 < report.flapping[qs][0].real
     assert report.runs[eq27].gamma[-1] > 0.1
+
+
+@pytest.mark.integration
+def test_flapping_doc_master_run_is_what_the_code_computes(built_fmus):
+    text = DOC.read_text(encoding="utf-8")
+    report = master_report(built_fmus)
+    _same(_block(text, "master-run"), report.text(), "flapping:master-run")
+    # the shell example's output: the CSV that dronefly cosim writes ends at the report's
+    # gamma after 30 wing beats (Eq. 27, the SSP's default gains)
+    gamma = report.loops["Eq. (27)"].gamma[-1]
+    line = next(x for x in _block(text, "master-cli").splitlines() if x.startswith("gamma"))
+    _same(line, f"gamma after 30 wing beats: {gamma:+.4f} rad", "flapping:master-cli")
+
+
+def test_flapping_doc_own_trim_is_what_the_code_computes():
+    text = DOC.read_text(encoding="utf-8")
+    trim = flapping_trim()
+    _same(_block(text, "trim"), trim.text(), "flapping:trim")
+    # the trim holds the insect still: the orbit's mean drift, as the oscillation measures it
+    osc = trim.orbit.oscillation()
+    assert abs(osc["x_drift_mm_per_s"]) < 1e-8 and abs(osc["z_drift_mm_per_s"]) < 1e-8
+    # what the text says: the lateral instability nearer the averaged model's +0.1079
+    qs_trim, own = trim.lateral_exponents_qs_trim[0].real, trim.lateral_exponents[0].real
+    assert 0.1079 < own < qs_trim

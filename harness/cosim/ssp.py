@@ -1,4 +1,5 @@
-"""Write a :class:`~.description.System` as an SSP 1.0 file, and the hover system of the project.
+"""Write a :class:`~.description.System` as an SSP 1.0 file, and the systems of the project: the
+hover system (both axes) and the flapping insect's lateral loop.
 
 The archive holds ``SystemStructure.ssd`` (one component per instance with its Real, Integer
 and Boolean input/output connectors, the connections, a DefaultExperiment), each FMU once under
@@ -11,16 +12,22 @@ libcosim. Zip entries have fixed timestamps: the same system gives the same byte
 from __future__ import annotations
 
 from pathlib import Path
+import math
 from typing import Mapping, Sequence
 from xml.etree import ElementTree as ET
 
+import numpy as np
+
 from ...core.files import write_zip
 from ...models import lateral, longitudinal
+from ...models.feedback import PAPER_GAINS_EQ27
+from ...models.flapping import FlappingModel
 from .fmi3 import read_view
 from .system import System, SystemSpecError
 
-__all__ = ["HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS", "SSC_NS", "SSD_NS", "SSV_NS",
-           "hover_system", "write_system_ssp", "xml_bytes"]
+__all__ = ["FLAPPING", "FLAPPING_FMUS", "HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS",
+           "SSC_NS", "SSD_NS", "SSV_NS", "flapping_starts", "flapping_system", "hover_system",
+           "orbit_start", "write_system_ssp", "xml_bytes"]
 
 #: the XML namespaces of SSP 1.0's system structure, common types and parameter values
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -40,6 +47,11 @@ HOVER_FMUS = {"lateral": "DroneFlyLateral", "lateral_controller": "StateFeedback
 #: the same with the six-degree-of-freedom plant in place of both linear ones
 HOVER_6DOF_FMUS = {"plant": "DroneFlyHover6DOF", "lateral_controller": "StateFeedback",
                    "longitudinal_controller": "StateFeedbackLongitudinal"}
+FLAPPING = "DroneFlyFlappingLateral"
+#: instance -> model of the flapping insect's lateral loop: the wing-beat-resolved plant and the
+#: lateral controller; the plant's four longitudinal controls are left unconnected (they keep
+#: their start values, 0: the averaged trim's kinematics)
+FLAPPING_FMUS = {"plant": "DroneFlyFlapping", "lateral_controller": "StateFeedback"}
 
 
 #: the SSP 1.0 connector type of each variable type (FMI 3.0: Float64 and Float32 read as Real;
@@ -130,6 +142,20 @@ def _ssv(name: str, values: Mapping[str, object]) -> bytes:
     return xml_bytes(pset)
 
 
+def _system(fmus: Mapping[str, str | Path], models: Mapping[str, str],
+            params: dict[str, dict[str, object]], name: str, stop_wb: float) -> System:
+    """The instances ``models`` of the FMU files ``fmus`` (by model name), connected by name
+    (:meth:`System.by_name`: an input no other instance provides stays unconnected), with
+    ``params`` and a DefaultExperiment stop time of ``stop_wb`` wing beats."""
+    missing = [m for m in models.values() if m not in fmus]
+    if missing:
+        raise SystemSpecError(f"the {name} system needs the FMUs {', '.join(missing)}")
+    paths = {inst: Path(fmus[model]) for inst, model in models.items()}
+    system = System.by_name(paths, parameters=params, name=name)
+    system.stop_s = stop_wb / lateral.N_HZ
+    return system
+
+
 def hover_system(fmus: Mapping[str, str | Path],
                  x0_lateral: Sequence[float] = (0.0, 0.0, 0.0, 0.1),
                  x0_longitudinal: Sequence[float] = (0.0, 0.0, 0.0, 0.1),
@@ -152,16 +178,84 @@ def hover_system(fmus: Mapping[str, str | Path],
     """
 
     models = HOVER_6DOF_FMUS if nonlinear else HOVER_FMUS
-    missing = [m for m in models.values() if m not in fmus]
-    if missing:
-        raise SystemSpecError(f"the hover system needs the FMUs {', '.join(missing)}")
-    paths = {inst: Path(fmus[model]) for inst, model in models.items()}
     params: dict[str, dict[str, object]] = {}
     for inst, axis, x0 in (("lateral", lateral.LATERAL, x0_lateral),
                            ("longitudinal", longitudinal.LONGITUDINAL, x0_longitudinal)):
         scale = axis.scale_vector(lateral.U_M_PER_S, lateral.N_HZ)
         params.setdefault("plant" if nonlinear else inst, {}).update(
             {f"{s}_start": float(v) * k for s, v, k in zip(axis.state_names, x0, scale)})
-    system = System.by_name(paths, parameters=params, name=HOVER_6DOF if nonlinear else HOVER)
-    system.stop_s = stop_wingbeats / lateral.N_HZ
-    return system
+    return _system(fmus, models, params, HOVER_6DOF if nonlinear else HOVER, stop_wingbeats)
+
+
+def orbit_start(model: FlappingModel | None = None) -> np.ndarray:
+    """The start of the flapping insect's periodic orbit at the averaged trim's kinematics
+    (:meth:`FlappingModel.periodic_orbit`, the averaged twin's monodromy as the Newton
+    Jacobian): the reduced state (u+, v+, w+, p+, q+, r+, phi, theta) at a beat's start.
+
+    ``model`` defaults to ``FlappingModel()``, the model of the ``DroneFlyFlapping`` FMU.
+    """
+    model = model or FlappingModel()
+    twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True)
+    return model.periodic_orbit(jacobian=twin.monodromy(np.zeros(8))).z0
+
+
+def flapping_starts(z: Sequence[float], roll0_rad: float = 0.0) -> dict[str, float]:
+    """The ``*_start`` parameters (SI) of ``DroneFlyFlapping`` (and ``DroneFlyHover6DOF``)
+    that start it at a reduced state with a roll added (heading and position 0).
+
+    Parameters
+    ----------
+    z : sequence of 8 floats
+        (u+, v+, w+, p+, q+, r+, phi, theta): velocities over U, rates times t_w, angles [rad].
+    roll0_rad : float
+        Added to the roll angle phi [rad].
+
+    The FMU takes the attitude as delta_gamma_start and delta_theta_start (gamma =
+    asin(sin phi cos theta), the paper's roll angle; :func:`dronefly.models.rigid_body.
+    initial_state` inverts it): the same attitude to round-off.
+    """
+    U, n = lateral.U_M_PER_S, lateral.N_HZ
+    u, v, w, p, q, r, phi, theta = (float(x) for x in z)
+    phi += float(roll0_rad)
+    return {"delta_u_start": u * U, "delta_v_start": v * U, "delta_w_start": w * U,
+            "delta_p_start": p * n, "delta_q_start": q * n, "delta_r_start": r * n,
+            "delta_gamma_start": math.asin(math.sin(phi) * math.cos(theta)),
+            "delta_theta_start": theta}
+
+
+def flapping_system(fmus: Mapping[str, str | Path],
+                    gains: Sequence[float] = PAPER_GAINS_EQ27, roll0_rad: float = 0.1,
+                    stop_wb: float = 30.0, z0: Sequence[float] | None = None) -> System:
+    """The paper's lateral loop on the flapping insect: ``DroneFlyFlapping`` (instance
+    ``plant``) and ``StateFeedback`` (``lateral_controller``) with gains ``gains`` on
+    delta_Phi_a (row 1 of K; the other rows 0), the plant starting on its periodic orbit
+    with a roll.
+
+    The plant's longitudinal controls (delta_Phi, delta_alpha_1, delta_phibar,
+    delta_alpha_2) are left unconnected: SSP and the master let an unconnected input keep
+    its start value (0, the averaged trim's kinematics), so no longitudinal controller
+    flies them (the paper's longitudinal design is for its CFD derivatives and drives
+    delta_phibar past the plant's limit on the flapping insect).
+
+    Parameters
+    ----------
+    fmus : mapping
+        Model name (``DroneFlyFlapping``, ``StateFeedback``) -> FMU path.
+    gains : sequence of 4 floats
+        Non-dimensional gains of delta_Phi_a [rad] on x+ = (dv+, dp+, dr+, dgamma)
+        (default Eq. (27)).
+    roll0_rad : float
+        Roll angle phi added to the orbit's start [rad] (default 0.1).
+    stop_wb : float
+        Stop time of the SSP's DefaultExperiment, in wing beats.
+    z0 : sequence of 8 floats, optional
+        The orbit's start (:func:`orbit_start`, computed if not given, some 1 s).
+    """
+    if len(gains) != len(lateral.STATE_NAMES):
+        raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral.STATE_NAMES)} "
+                              "values (delta_Phi_a on dv+, dp+, dr+, dgamma)")
+    z = orbit_start() if z0 is None else np.asarray(z0, dtype=float)
+    params: dict[str, dict[str, object]] = {
+        "plant": flapping_starts(z, roll0_rad),
+        "lateral_controller": {f"K[1,{j + 1}]": float(k) for j, k in enumerate(gains)}}
+    return _system(fmus, FLAPPING_FMUS, params, FLAPPING, stop_wb)

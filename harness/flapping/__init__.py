@@ -4,7 +4,9 @@ Floquet exponents beside the averaged model's eigenvalues and the paper's.
 :mod:`dronefly.models.flapping` is the model; :mod:`dronefly.harness.flapping.floquet` the
 analysis in the model, :mod:`dronefly.harness.flapping.fmi_floquet` the same through FMI (any FMU
 that can get and set its state; ``dronefly floquet``). An analysis package (numpy), not shipped
-in an FMU.
+in an FMU. :mod:`dronefly.harness.flapping.closed_loop` flies the paper's controller in the
+model, :mod:`dronefly.harness.flapping.master_run` the same as a system of FMUs through the
+project's master.
 """
 
 from __future__ import annotations
@@ -13,8 +15,11 @@ from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_
                       convergence, convergence_rows, floquet_report)
 from .closed_loop import ClosedLoopReport, closed_loop_report
 from .fmi_floquet import FmiFloquet, FmiPeriodicMap, floquet_analysis, floquet_text, fmi_floquet
+from .master_run import MasterReport, master_report, write_flapping_ssp
+from .trim import FlappingTrim, flapping_trim
 
 __all__ = ["AXES", "ClosedLoopReport", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
            "closed_loop_report",
            "averaged_exponents", "averaged_monodromy", "convergence", "convergence_rows",
-           "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet"]
+           "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet", "MasterReport",
+           "master_report", "write_flapping_ssp", "FlappingTrim", "flapping_trim"]

@@ -91,6 +91,7 @@ class _Run:
     gamma: list[float]  # at the beats' starts
     u: list[float]
     roll_pp_last_deg: float  # roll angle's swing within the last beat
+    states: list[list[float]]  # x+ = (dv+, dp+, dr+, dgamma) at the beats' starts
 
 
 def _run(model: FlappingModel, orbit: PeriodicOrbit, k: Sequence[float], beats: int,
@@ -99,10 +100,11 @@ def _run(model: FlappingModel, orbit: PeriodicOrbit, k: Sequence[float], beats: 
     z[6] += roll0
     flight = Flight(model, model.state_from_z(z))
     x = flight.y
-    gammas, us, roll = [], [], []
+    gammas, us, roll, states = [], [], [], []
     for b in range(beats):
         xl = lateral_state(x)
         u = float(np.clip(np.dot(k, xl), -U_MAX, U_MAX))
+        states.append([float(v) for v in xl])
         gammas.append(float(xl[3]))
         us.append(u)
         flight.set_controls((u,) + (0.0,) * 6)
@@ -110,8 +112,10 @@ def _run(model: FlappingModel, orbit: PeriodicOrbit, k: Sequence[float], beats: 
         for j in range(1, samples + 1):
             x = flight.advance_to(b + j / samples)
             roll.append(euler_from_quaternion(x[6:10])[0])
-    gammas.append(float(lateral_state(x)[3]))
-    return _Run(gammas, us, math.degrees(max(roll) - min(roll)))
+    xl = lateral_state(x)
+    states.append([float(v) for v in xl])
+    gammas.append(float(xl[3]))
+    return _Run(gammas, us, math.degrees(max(roll) - min(roll)), states)
 
 
 @dataclass
@@ -124,6 +128,7 @@ class ClosedLoopReport:
     averaged_sampled: dict[str, list[complex]]
     averaged_continuous: dict[str, list[complex]]
     runs: dict[str, _Run]
+    orbit: PeriodicOrbit | None = None  # the flapping insect's, the loops' linearisation point
 
     def text(self) -> str:
         def fmt(values: Sequence[complex]) -> str:
@@ -169,4 +174,4 @@ def closed_loop_report(steps_per_beat: int = 20, beats: int = 30,
         steps_per_beat, gains,
         {n: _exponents(M, G0, G1, S, k) for n, k in gains.items()},
         {n: _exponents(M_avg, A0, A1, S_avg, k) for n, k in gains.items()},
-        continuous, {n: _run(model, orbit, k, beats, roll0) for n, k in gains.items()})
+        continuous, {n: _run(model, orbit, k, beats, roll0) for n, k in gains.items()}, orbit)

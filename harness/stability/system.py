@@ -69,6 +69,8 @@ class SystemResult:
     #: the unit of the step and stop: "wing beats", or "s" when no instance has a wing-beat
     #: frequency n [Hz] (then a "wing beat" is one second)
     time_unit: str = "wing beats"
+    #: the verdicts were sought (asked for, and the run complete): no axes then means no plant
+    sought_verdicts: bool = False
 
     def to_json(self) -> dict[str, Any]:
         axes = []
@@ -116,9 +118,9 @@ class SystemResult:
         if ended is not None:
             lines.append(f"an FMU ended the run at t = {ended:g} s (terminateSimulation / "
                          "fmi2Terminated), before the stop time")
-        if self.open_loop is not None and not self.open_loop:
-            lines.append("open loop: nothing to identify: the system has no plant (an instance "
-                         "with an x_start parameter per Real output x and the scales n and U)")
+        if self.sought_verdicts and not self.axes:
+            lines.append(("open loop" if self.open_loop is not None else "no verdict") +
+                         f": nothing to identify: the system has no plant ({_PLANT})")
         for a in self.axes:
             ev = ", ".join(_fmt(z) for z in a.identification.eigenvalues)
             lines.append(f"{a.plant.instance} ({a.plant.model}): {a.verdict} (dominant rate "
@@ -156,6 +158,10 @@ class SystemResult:
                     f"< {self.check_tol:g})")
         return (f" (identified at a step of {CHECK_STEP_WB:g} wing beats: max deviation "
                 f"{dev:.1e} > {self.check_tol:g}: cross-check failed)")
+
+
+#: what makes an instance a plant whose loop this master identifies (harness.cosim.verdicts)
+_PLANT = "an instance with an x_start parameter per Real output x and the scales n and U"
 
 
 def _passed(dev: float, tol: float) -> bool:
@@ -258,7 +264,8 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
         "eig(A) (open loop)", tol)
     result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation,
                           open_loop=opened, open_loop_deviation=open_dev,
-                          check_failures=failures, check_tol=tol, time_unit=unit)
+                          check_failures=failures, check_tol=tol, time_unit=unit,
+                          sought_verdicts=verdicts and run.complete)
     if out_dir is not None:
         write_run_files(result, out_dir, name or f"cosim_{system.name}_{master}",
                         _plot if plot else None)

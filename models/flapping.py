@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -83,6 +84,16 @@ STEPS_PER_BEAT = 40
 WING_CM_OVER_R = 0.35
 #: the reduced coordinates of the wing-beat map (position and heading are neutral)
 Z_NAMES: tuple[str, ...] = ("u", "v", "w", "p", "q", "r", "phi", "theta")
+
+
+#: the grids of stages kept (:meth:`FlappingModel._grid`, some 0.7 MB each), the oldest dropped
+_TABLES = 4
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product along the last axis of two arrays (..., 3), broadcast."""
+    i, j = [1, 2, 0], [2, 0, 1]
+    return a[..., i] * b[..., j] - a[..., j] * b[..., i]
 
 
 class FlappingError(DroneflyError):
@@ -210,6 +221,7 @@ class FlappingModel:
             raise FlappingError(f"rotation fraction {D!r} must be in (0, 0.5)")
         self._D = D
         self._beats: dict[tuple, _Beat] = {}
+        self._tables: dict[tuple, list] = {}
 
     # -- kinematics -----------------------------------------------------------------------
     def _beat(self, c_prev: tuple[float, ...], c_now: tuple[float, ...]) -> _Beat:
@@ -267,63 +279,125 @@ class FlappingModel:
     def loads(self, tau: float, x: Sequence[float], c_prev: Sequence[float],
               c_now: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         """(aerodynamic (X+, Y+, Z+, L+, M+, N+), wing inertial (the same six)) at phase
-        ``tau`` of a beat, body state ``x`` (at least its six velocities and rates)."""
+        ``tau`` of a beat, body state ``x`` (at least its six velocities and rates).
+
+        A phase within 1e-9 of a step of a grid point is that grid point (as the flight's
+        state there, :meth:`Flight.state_at`): its loads are those of the integration's
+        stage there."""
         cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
-        return self._loads(tau, np.asarray(x[:6], dtype=float), self._beat(cp, cn), cn)
+        beat, v = self._beat(cp, cn), np.asarray(x[:6], dtype=float)
+        N = self.steps_per_beat
+        j = round(tau * N)
+        if not self.averaged and 0 <= j <= N and abs(tau * N - j) <= 1e-9:
+            # the start of the beat's first step, else the end of the step that ends there
+            # (the same half-stroke as the phase's own at a reversal: the one before it)
+            aero, c0, W = self._grid((cp, cn), beat, cn)[max(j - 1, 0)][0 if j == 0 else 2]
+            return aero(v), c0 + W[:, :6] @ v
+        return self._loads(tau, v, beat, cn)
 
     def _loads(self, tau: float, v: np.ndarray, beat: _Beat, c_now: tuple[float, ...],
                mid: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        if self.averaged:
-            return (self.qs.forces_vector(v, dict(zip(CONTROLS, c_now)), self.trim),
-                    np.zeros(6))
-        ang = self._angles(tau, beat, mid)
-        aero = self.qs.forces_at(ang, v)
+        aero, c0, W = self._stages([(tau, mid)], beat, c_now)[0]
+        return aero(v), c0 + W[:, :6] @ v
+
+    def _stages(self, times: Sequence[tuple[float, float | None]], beat: _Beat,
+                c_now: tuple[float, ...]) -> list[tuple[Callable, np.ndarray, np.ndarray]]:
+        """What the equations need of the wing motion at each (phase, step midpoint) of
+        ``times`` (the midpoint chooses the half-stroke, :meth:`_angles`), all computed
+        together: (the aerodynamic loads as a function of the body's six velocities and
+        rates, the wing inertia's loads without the body's rates, their linear part in the
+        13-value state), the loads non-dimensional as :meth:`loads`'."""
+        T = len(times)
+        if self.averaged:  # the cycle average of the beat's controls, no wing inertia
+            aero = self.qs.state_function(c_now, self.trim)
+            return [(aero, np.zeros(6), np.zeros((6, STATE_SIZE)))] * T
+        ang = np.array([self._angles(tau, beat, mid) for tau, mid in times])
+        forces_of = self.qs.forces_of
+        c0, W = self._inertia(ang)
+        return [(partial(forces_of, inst), c0[i], W[i])
+                for i, inst in enumerate(self.qs.instants(ang))]
+
+    def _inertia(self, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The wings' inertial reaction at the instants of ``ang`` (T, 6, 2) (:meth:`angles`):
+        its loads without the body's rates (T, 6) and their linear part in the state
+        (T, 6, 13) (the Coriolis term), non-dimensional as :meth:`loads`'; zero without
+        ``wing_inertia``."""
+        T = len(ang)
+        c0, W = np.zeros((T, 6)), np.zeros((T, 6, STATE_SIZE))
         if not self.wing_inertia:
-            return aero, np.zeros(6)
+            return c0, W
+        phi, dphi, ddphi = ang[:, 0], ang[:, 1], ang[:, 2]  # (T, wing)
+        s = np.array([-1.0, 1.0])
+        sp, cp = np.sin(phi), np.cos(phi)
         # per wing: e_r = (sin phi, s cos phi, 0), e_t = (cos phi, -s sin phi, 0)
+        erx, ery, etx, ety = sp, s * cp, cp, -s * sp
         kw = -self.m_wing * self.qs.geometry.k  # the reaction, over 0.5 rho U^2 S_t
-        rw, (hx, _, hz) = self.r_wing, self._hinge[1]
-        hy = self._hinge[1][1]
-        p, q, r = float(v[3]), float(v[4]), float(v[5])
-        out = [0.0] * 6
-        for i, s in ((0, -1.0), (1, 1.0)):
-            phi, dphi, ddphi = float(ang[0, i]), float(ang[1, i]), float(ang[2, i])
-            sp, cp = math.sin(phi), math.cos(phi)
-            erx, ery, etx, ety = sp, s * cp, cp, -s * sp
-            vx, vy = rw * dphi * etx, rw * dphi * ety  # velocity relative to the body
-            at, ar = rw * ddphi, rw * dphi * dphi
-            # a_rel + 2 omega x v_rel (v_rel has no z component)
-            fx = kw * (at * etx - ar * erx + 2.0 * (-r * vy))
-            fy = kw * (at * ety - ar * ery + 2.0 * (r * vx))
-            fz = kw * (2.0 * (p * vy - q * vx))
-            px, py, pz = hx + rw * erx, s * hy + rw * ery, hz
-            out[0] += fx
-            out[1] += fy
-            out[2] += fz
-            out[3] += py * fz - pz * fy
-            out[4] += pz * fx - px * fz
-            out[5] += px * fy - py * fx
-        return aero, np.array(out)
+        rw = self.r_wing
+        hx, hy, hz = self._hinge[1]
+        vx, vy = rw * dphi * etx, rw * dphi * ety  # velocity relative to the body
+        at, ar = rw * ddphi, rw * dphi * dphi
+        zero = np.zeros_like(phi)
+        pos = np.stack([hx + rw * erx, s * hy + rw * ery, hz + zero], axis=-1)
+        # -m_w (a_rel + 2 omega x v_rel) (v_rel has no z component): the part without the
+        # rates, then the factors of p, q, r
+        forces = np.stack([np.stack([kw * (at * etx - ar * erx), kw * (at * ety - ar * ery),
+                                     zero], axis=-1),
+                           np.stack([zero, zero, 2.0 * kw * vy], axis=-1),
+                           np.stack([zero, zero, -2.0 * kw * vx], axis=-1),
+                           np.stack([-2.0 * kw * vy, 2.0 * kw * vx, zero], axis=-1)])
+        six = np.concatenate([forces, _cross(pos, forces)], axis=-1).sum(axis=2)  # (4, T, 6)
+        c0[:] = six[0]
+        W[:, :, 3:6] = six[1:].transpose(1, 2, 0)
+        return c0, W
+
+    def _grid(self, key: tuple, beat: _Beat, c_now: tuple[float, ...]) -> list:
+        """The :meth:`_stages` of every Runge-Kutta step of the beat's grid, per step (start,
+        middle, end), made once per pair of controls (the same every beat they are held)."""
+        table = self._tables.get(key)
+        if table is None:
+            N = self.steps_per_beat
+            times = []
+            for j in range(N):
+                t = j / N
+                h = (j + 1) / N - t
+                mid = t + 0.5 * h
+                times += [(t, mid), (mid, mid), (t + h, mid)]
+            stages = self._stages(times, beat, c_now)
+            table = [stages[3 * j:3 * j + 3] for j in range(N)]
+            if len(self._tables) >= _TABLES:
+                self._tables.pop(next(iter(self._tables)))
+            self._tables[key] = table
+        return table
 
     def _rhs(self, tau: float, y: np.ndarray, beat: _Beat, c_now: tuple[float, ...],
              mid: float | None = None) -> np.ndarray:
         aero, wing = self._loads(tau, y[:6], beat, c_now, mid)
-        F = aero + wing
-        u, v, w, p, q, r, e0, e1, e2, e3 = y[:10]
+        return self._body(y, aero + wing)
+
+    def _at(self, stage: tuple[Callable, np.ndarray, np.ndarray], y: np.ndarray) -> np.ndarray:
+        """dx/dtau at one of :meth:`_stages`'s instants."""
+        aero, c0, W = stage
+        return self._body(y, aero(y[:6]) + (c0 + W @ y))
+
+    def _body(self, y: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """dx/dtau of the rigid body (the module's equations) under the loads ``F`` (the six,
+        non-dimensional as :meth:`loads`'), in Python floats (13 values: numpy's per-call
+        cost would be most of it)."""
+        u, v, w, p, q, r, e0, e1, e2, e3 = y.tolist()[:10]
+        X, Y, Z, L, M, N = F.tolist()
         R20, R21, R22 = 2.0 * (e1 * e3 - e0 * e2), 2.0 * (e2 * e3 + e0 * e1), \
             1.0 - 2.0 * (e1 * e1 + e2 * e2)
         m, g = self.m, self.g
-        (Jx, Jy, Jz), Ji = self.J @ y[3:6], self.J_inv
-        gx, gy, gz = F[3] - (q * Jz - r * Jy), F[4] - (r * Jx - p * Jz), F[5] - (p * Jy - q * Jx)
-        dom = (Ji[0, 0] * gx + Ji[0, 1] * gy + Ji[0, 2] * gz,
-               Ji[1, 0] * gx + Ji[1, 1] * gy + Ji[1, 2] * gz,
-               Ji[2, 0] * gx + Ji[2, 1] * gy + Ji[2, 2] * gz)
+        J, Ji = self.J.tolist(), self.J_inv.tolist()
+        Jx, Jy, Jz = (row[0] * p + row[1] * q + row[2] * r for row in J)
+        gx, gy, gz = L - (q * Jz - r * Jy), M - (r * Jx - p * Jz), N - (p * Jy - q * Jx)
+        dom = [row[0] * gx + row[1] * gy + row[2] * gz for row in Ji]
         R = ((1.0 - 2.0 * (e2 * e2 + e3 * e3), 2.0 * (e1 * e2 - e0 * e3), 2.0 * (e1 * e3 + e0 * e2)),
              (2.0 * (e1 * e2 + e0 * e3), 1.0 - 2.0 * (e1 * e1 + e3 * e3), 2.0 * (e2 * e3 - e0 * e1)),
              (R20, R21, R22))
         return self.period * np.array([
-            F[0] / m + g * R20 - (q * w - r * v), F[1] / m + g * R21 - (r * u - p * w),
-            F[2] / m + g * R22 - (p * v - q * u), dom[0], dom[1], dom[2],
+            X / m + g * R20 - (q * w - r * v), Y / m + g * R21 - (r * u - p * w),
+            Z / m + g * R22 - (p * v - q * u), dom[0], dom[1], dom[2],
             0.5 * (-e1 * p - e2 * q - e3 * r), 0.5 * (e0 * p + e2 * r - e3 * q),
             0.5 * (e0 * q - e1 * r + e3 * p), 0.5 * (e0 * r + e1 * q - e2 * p),
             *(row[0] * u + row[1] * v + row[2] * w for row in R)])
@@ -361,19 +435,29 @@ class FlappingModel:
         cuts = [tau0, *(j / N for j in range(j0, j1 + 1)), tau1]
         for a, b in zip(cuts[:-1], cuts[1:]):
             if b - a > 1e-12:
-                y = self._rk4(y, a, b - a, beat, cn)
+                j = round(a * N)
+                if a == j / N and b == (j + 1) / N:  # a step of the grid: its stages are kept
+                    stages = self._grid((cp, cn), beat, cn)[j]
+                else:  # a partial step
+                    h = b - a
+                    mid = a + 0.5 * h
+                    stages = self._stages([(a, mid), (mid, mid), (a + h, mid)], beat, cn)
+                y = self._rk4(y, b - a, stages)
         if not np.all(np.isfinite(y)):
             raise FlappingError(f"the state is not finite after phases {tau0!r} -> {tau1!r} "
                                 f"(from u, v, w, p, q, r = {list(np.asarray(x)[:6])!r})")
         y[6:10] /= math.sqrt(float(y[6:10] @ y[6:10]))
         return y
 
-    def _rk4(self, y: np.ndarray, t: float, h: float, beat: _Beat, cn: tuple) -> np.ndarray:
-        mid = t + 0.5 * h
-        k1 = self._rhs(t, y, beat, cn, mid)
-        k2 = self._rhs(mid, y + (0.5 * h) * k1, beat, cn, mid)
-        k3 = self._rhs(mid, y + (0.5 * h) * k2, beat, cn, mid)
-        k4 = self._rhs(t + h, y + h * k3, beat, cn, mid)
+    def _rk4(self, y: np.ndarray, h: float, stages: Sequence[tuple]) -> np.ndarray:
+        """One step of the classical Runge-Kutta method of length ``h``, ``stages`` the
+        :meth:`_stages` at its start, middle and end."""
+        start, middle, end = stages
+        at = self._at
+        k1 = at(start, y)
+        k2 = at(middle, y + (0.5 * h) * k1)
+        k3 = at(middle, y + (0.5 * h) * k2)
+        k4 = at(end, y + h * k3)
         return y + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
 
     def beat(self, x: Sequence[float], c_prev: Sequence[float] | None = None,

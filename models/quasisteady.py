@@ -277,19 +277,17 @@ class Instant(NamedTuple):
 
     Attributes
     ----------
-    rows : array, shape (7, 8 n_span)
+    rows : array, shape (7, 8 n_span + 8)
         x1 @ rows is every element's V_n, V_c (over U) and rotational factor f, -f (over
-        0.5 rho U S_t), ordered (quantity, wing, element).
-    added_mass : array, shape (8, 7)
-        added_mass @ x1 is, per wing, the span sums of the added mass's impulse m_a v_mid and
-        of r times it, then of its normal force and of r times that.
+        0.5 rho U S_t), ordered (quantity, wing, element), then the added mass's sums: per
+        wing those of its impulse m_a v_mid and of r times it, then per wing those of its
+        normal force and of r times that.
     loads : array, shape (6, 28)
         loads @ (span sums of F_n, F_c and r times them; the added-mass sums; their
         products with the body's rates) is (X+, Y+, Z+, L+, M+, N+).
     """
 
     rows: Array
-    added_mass: Array
     loads: Array
 
 
@@ -828,9 +826,10 @@ class QuasiSteadyModel:
                                         axis=-1).transpose(1, 3, 2, 0)
         G[:, :, 16:] = P.reshape(T, 6, 12)
         G /= 2.0 * g.S_wing
-        am = am.reshape(T, 8, 7)
-        rows = rows.reshape(T, 7, -1)
-        return [Instant(rows[i], am[i], G[i]) for i in range(T)]
+        # one product with x1 for the elements and the added mass's sums
+        rows = np.concatenate([rows.reshape(T, 7, -1),
+                               am.reshape(T, 8, 7).transpose(0, 2, 1)], axis=-1)
+        return [Instant(rows[i], G[i]) for i in range(T)]
 
     def forces_of(self, instant: Instant, state: Sequence[float] | Array) -> Array:
         """The instantaneous (X+, Y+, Z+, L+, M+, N+) of both wings at an :meth:`instants`
@@ -838,19 +837,21 @@ class QuasiSteadyModel:
         the caller's; :meth:`forces_at` checks it).
 
         The state's part of :meth:`forces_at`: one product gives every element's V_n, V_c and
-        rotational factor, the translational forces are elementwise, then one product each
-        for the span sums, the added mass's sums and the six loads (the fewest numpy calls:
-        each costs about a microsecond).
+        rotational factor and the added mass's span sums, the translational forces are
+        elementwise, then one product each for their span sums and the six loads (the fewest
+        numpy calls: each costs about a microsecond).
         """
-        rows, am, out = instant
+        rows, out = instant
         x1 = np.empty(7)
         x1[0] = 1.0
         x1[1:] = state
-        E = (x1 @ rows).reshape(4, 2, -1)  # (V_n, V_c, f, -f) of (wing, element)
+        e = x1 @ rows
+        a = e[-8:]  # (S0, S1) of each wing, then the added mass's normal force sums
+        E = e[:-8].reshape(4, 2, -1)  # (V_n, V_c, f, -f) of (wing, element)
         V = E[:2]
         if self.terms.translational:
             aV = np.abs(V)
-            speed = np.sqrt(V[0] * V[0] + V[1] * V[1])
+            speed = np.hypot(V[0], V[1])
             alpha = np.arctan2(aV[0], aV[1])
             q = self._cw * speed
             cl = q * self.coefficients.lift(alpha)
@@ -862,7 +863,6 @@ class QuasiSteadyModel:
         else:
             F = E[2:] * V[::-1]
         sums = (F @ self._span_sums).reshape(-1)  # (F_n, F_c) x wing x (sum, r sum)
-        a = am @ x1  # (S0, S1) of each wing, then the added mass's normal force sums
         return out @ np.concatenate([sums, a, (a[:4, None] * x1[4:]).reshape(-1)])
 
     def forces_at(self, angles: Sequence[Sequence[float]] | Array,

@@ -86,6 +86,10 @@ WING_CM_OVER_R = 0.35
 Z_NAMES: tuple[str, ...] = ("u", "v", "w", "p", "q", "r", "phi", "theta")
 
 
+#: the centres of the pitch's five phases in a beat: the rotation about the reversal at its
+#: start, held, the rotation about the front reversal, held, the rotation about the next
+#: beat's start (a held phase has no centre: 0)
+_PITCH_CENTRES = np.array([0.0, 0.0, 0.5, 0.0, 1.0])
 #: the grids of stages kept (:meth:`FlappingModel._grid`, some 0.7 MB each), the oldest dropped
 _TABLES = 4
 
@@ -157,7 +161,10 @@ class _Beat:
 
     down: tuple[np.ndarray, np.ndarray]  # stroke: phi = a + b (1 - cos 2 pi t)/2, downstroke
     up: tuple[np.ndarray, np.ndarray]  # the same, upstroke
-    psi: tuple[np.ndarray, ...]  # pitch angles: old up, old down, new up, new down
+    # the pitch in each of its five phases (:data:`_PITCH_CENTRES`): from p0 by dp, (5, wing)
+    # each: the rotation from the old upstroke's angle to the old downstroke's, held, to the
+    # new upstroke's, held, to the new downstroke's
+    pitch: tuple[np.ndarray, np.ndarray]
 
 
 class FlappingModel:
@@ -220,6 +227,8 @@ class FlappingModel:
         if not 0.0 < D < 0.5:
             raise FlappingError(f"rotation fraction {D!r} must be in (0, 0.5)")
         self._D = D
+        #: the ends of the pitch's phases but the last (:data:`_PITCH_CENTRES`)
+        self._pitch_ends = np.array([0.5 * D, 0.5 - 0.5 * D, 0.5 + 0.5 * D, 1.0 - 0.5 * D])
         self._beats: dict[tuple, _Beat] = {}
         self._tables: dict[tuple, list] = {}
 
@@ -232,9 +241,12 @@ class FlappingModel:
             old, new = (self.qs.wing_kinematics(c, self.trim) for c in names)
             rear_old = old["phibar"] - 0.5 * old["Phi"]
             rear, front = new["phibar"] - 0.5 * new["Phi"], new["phibar"] + 0.5 * new["Phi"]
+            old_up, old_down = math.pi - old["alpha_u"], old["alpha_d"]
+            up, down = math.pi - new["alpha_u"], new["alpha_d"]
+            zero = 0.0 * up
             beat = _Beat((rear_old, front - rear_old), (rear, front - rear),
-                         (math.pi - old["alpha_u"], old["alpha_d"], math.pi - new["alpha_u"],
-                          new["alpha_d"]))
+                         (np.array([old_up, old_down, old_down, up, up]),
+                          np.array([old_down - old_up, zero, up - old_down, zero, down - up])))
             if len(self._beats) > 64:
                 self._beats.clear()
             self._beats[key] = beat
@@ -247,33 +259,33 @@ class FlappingModel:
         return self._angles(tau, self._beat(wing_beat_controls(c_prev), wing_beat_controls(c_now)))
 
     def _angles(self, tau: float, beat: _Beat, mid: float | None = None) -> np.ndarray:
-        # the half-stroke of the step whose midpoint is ``mid``: the stroke's acceleration
-        # jumps at the front reversal when the controls change, a Runge-Kutta step needs the
-        # branch of its own interval at its ends
-        a, b = beat.down if (tau if mid is None else mid) <= 0.5 else beat.up
-        w = 2.0 * math.pi * tau
-        cw, sw = math.cos(w), math.sin(w)
+        """:meth:`angles` at one phase (on the half-stroke of ``mid``, as :meth:`_angles_of`)."""
+        return self._angles_of([tau], [tau if mid is None else mid], beat)[0]
+
+    def _angles_of(self, taus: Sequence[float], mids: Sequence[float],
+                   beat: _Beat) -> np.ndarray:
+        """:meth:`angles` at the phases ``taus``, (T, 6, 2), each on the half-stroke of the
+        Runge-Kutta step whose midpoint is the one of ``mids`` (the stroke's acceleration jumps
+        at the front reversal when the controls change: a step needs the branch of its own
+        interval at its ends; the phase's own away from the reversals)."""
+        tau = np.asarray(taus, dtype=float)[:, None]  # (T, 1), the wings along the columns
+        down = (np.asarray(mids, dtype=float) <= 0.5)[:, None]
+        a = np.where(down, beat.down[0], beat.up[0])
+        b = np.where(down, beat.down[1], beat.up[1])
+        w = 2.0 * np.pi * tau
+        cw, sw = np.cos(w), np.sin(w)
         D = self._D
-        psi_old_up, psi_old_down, psi_up, psi_down = beat.psi
-        if tau < 0.5 * D:
-            s, p0, dp = (tau + 0.5 * D) / D, psi_old_up, psi_old_down - psi_old_up
-        elif tau < 0.5 - 0.5 * D:
-            s, p0, dp = None, psi_old_down, None
-        elif tau < 0.5 + 0.5 * D:
-            s, p0, dp = (tau - 0.5 + 0.5 * D) / D, psi_old_down, psi_up - psi_old_down
-        elif tau < 1.0 - 0.5 * D:
-            s, p0, dp = None, psi_up, None
-        else:
-            s, p0, dp = (tau - 1.0 + 0.5 * D) / D, psi_up, psi_down - psi_up
-        if s is None:
-            psi, dpsi, ddpsi = p0, 0.0 * p0, 0.0 * p0
-        else:
-            ws = 2.0 * math.pi * s
-            psi = p0 + dp * (s - math.sin(ws) / (2.0 * math.pi))
-            dpsi = dp * (1.0 - math.cos(ws)) / D
-            ddpsi = dp * (2.0 * math.pi * math.sin(ws) / (D * D))
-        return np.array([a + b * (0.5 - 0.5 * cw), b * (math.pi * sw),
-                         b * (2.0 * math.pi ** 2 * cw), psi, dpsi, ddpsi])
+        # the pitch: rotations of length D centred on the reversals tau = 0, 0.5, 1 (from the
+        # angle p0 by dp), held between them
+        phase = np.searchsorted(self._pitch_ends, tau[:, 0], side="right")
+        p0, dp = beat.pitch[0][phase], beat.pitch[1][phase]
+        s = ((tau - _PITCH_CENTRES[phase][:, None]) + 0.5 * D) / D
+        ws = 2.0 * np.pi * s
+        psi = p0 + dp * (s - np.sin(ws) / (2.0 * np.pi))
+        dpsi = dp * (1.0 - np.cos(ws)) / D
+        ddpsi = dp * (2.0 * np.pi * np.sin(ws) / (D * D))
+        return np.stack([a + b * (0.5 - 0.5 * cw), b * (np.pi * sw),
+                         b * (2.0 * np.pi ** 2 * cw), psi, dpsi, ddpsi], axis=1)
 
     # -- equations ------------------------------------------------------------------------
     def loads(self, tau: float, x: Sequence[float], c_prev: Sequence[float],
@@ -311,7 +323,8 @@ class FlappingModel:
         if self.averaged:  # the cycle average of the beat's controls, no wing inertia
             aero = self.qs.state_function(c_now, self.trim)
             return [(aero, np.zeros(6), np.zeros((6, STATE_SIZE)))] * T
-        ang = np.array([self._angles(tau, beat, mid) for tau, mid in times])
+        ang = self._angles_of([t for t, _ in times],
+                              [t if mid is None else mid for t, mid in times], beat)
         forces_of = self.qs.forces_of
         c0, W = self._inertia(ang)
         return [(partial(forces_of, inst), c0[i], W[i])
@@ -356,14 +369,24 @@ class FlappingModel:
         table = self._tables.get(key)
         if table is None:
             N = self.steps_per_beat
-            times = []
+            times: list[tuple[float, float]] = []
+            index: dict[tuple[float, bool], int] = {}  # an instant shared by two steps once
+
+            def instant(tau: float, mid: float) -> int:
+                key = (tau, mid <= 0.5)  # the phase and the half-stroke
+                if key not in index:
+                    index[key] = len(times)
+                    times.append((tau, mid))
+                return index[key]
+
+            steps = []
             for j in range(N):
                 t = j / N
                 h = (j + 1) / N - t
                 mid = t + 0.5 * h
-                times += [(t, mid), (mid, mid), (t + h, mid)]
+                steps.append([instant(tau, mid) for tau in (t, mid, t + h)])
             stages = self._stages(times, beat, c_now)
-            table = [stages[3 * j:3 * j + 3] for j in range(N)]
+            table = [[stages[i] for i in step] for step in steps]
             if len(self._tables) >= _TABLES:
                 self._tables.pop(next(iter(self._tables)))
             self._tables[key] = table
@@ -388,19 +411,22 @@ class FlappingModel:
         R20, R21, R22 = 2.0 * (e1 * e3 - e0 * e2), 2.0 * (e2 * e3 + e0 * e1), \
             1.0 - 2.0 * (e1 * e1 + e2 * e2)
         m, g = self.m, self.g
-        J, Ji = self.J.tolist(), self.J_inv.tolist()
-        Jx, Jy, Jz = (row[0] * p + row[1] * q + row[2] * r for row in J)
+        (J00, J01, J02), (J10, J11, J12), (J20, J21, J22) = self.J.tolist()
+        Jx, Jy, Jz = J00 * p + J01 * q + J02 * r, J10 * p + J11 * q + J12 * r, \
+            J20 * p + J21 * q + J22 * r
         gx, gy, gz = L - (q * Jz - r * Jy), M - (r * Jx - p * Jz), N - (p * Jy - q * Jx)
-        dom = [row[0] * gx + row[1] * gy + row[2] * gz for row in Ji]
-        R = ((1.0 - 2.0 * (e2 * e2 + e3 * e3), 2.0 * (e1 * e2 - e0 * e3), 2.0 * (e1 * e3 + e0 * e2)),
-             (2.0 * (e1 * e2 + e0 * e3), 1.0 - 2.0 * (e1 * e1 + e3 * e3), 2.0 * (e2 * e3 - e0 * e1)),
-             (R20, R21, R22))
+        (I00, I01, I02), (I10, I11, I12), (I20, I21, I22) = self.J_inv.tolist()
         return self.period * np.array([
             X / m + g * R20 - (q * w - r * v), Y / m + g * R21 - (r * u - p * w),
-            Z / m + g * R22 - (p * v - q * u), dom[0], dom[1], dom[2],
+            Z / m + g * R22 - (p * v - q * u), I00 * gx + I01 * gy + I02 * gz,
+            I10 * gx + I11 * gy + I12 * gz, I20 * gx + I21 * gy + I22 * gz,
             0.5 * (-e1 * p - e2 * q - e3 * r), 0.5 * (e0 * p + e2 * r - e3 * q),
             0.5 * (e0 * q - e1 * r + e3 * p), 0.5 * (e0 * r + e1 * q - e2 * p),
-            *(row[0] * u + row[1] * v + row[2] * w for row in R)])
+            (1.0 - 2.0 * (e2 * e2 + e3 * e3)) * u + 2.0 * (e1 * e2 - e0 * e3) * v
+            + 2.0 * (e1 * e3 + e0 * e2) * w,
+            2.0 * (e1 * e2 + e0 * e3) * u + (1.0 - 2.0 * (e1 * e1 + e3 * e3)) * v
+            + 2.0 * (e2 * e3 - e0 * e1) * w,
+            R20 * u + R21 * v + R22 * w])
 
     def derivative(self, tau: float, x: Sequence[float], c_prev: Sequence[float] | None = None,
                    c_now: Sequence[float] | None = None) -> np.ndarray:
@@ -424,11 +450,18 @@ class FlappingModel:
         if not (0.0 <= tau0 <= tau1 <= 1.0):
             raise FlappingError(f"phases {tau0!r} -> {tau1!r} must satisfy 0 <= tau0 <= tau1 <= 1")
         cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
-        beat = self._beat(cp, cn)
-        N = self.steps_per_beat
         y = np.array(x, dtype=float)
         if y.shape != (STATE_SIZE,):
             raise FlappingError(f"state of {y.size} values: expected {STATE_SIZE}")
+        return self._advance(y, tau0, tau1, cp, cn)
+
+    def _advance(self, y: np.ndarray, tau0: float, tau1: float, cp: tuple[float, ...],
+                 cn: tuple[float, ...]) -> np.ndarray:
+        """:meth:`advance` of a 13-value state array (not changed) with checked phases and
+        controls (:func:`wing_beat_controls`'s tuples)."""
+        beat = self._beat(cp, cn)
+        N = self.steps_per_beat
+        x = y
         # grid points strictly inside (tau0, tau1), with a tolerance for round-off
         j0 = math.floor(tau0 * N + 1e-9) + 1
         j1 = math.ceil(tau1 * N - 1e-9) - 1
@@ -445,7 +478,9 @@ class FlappingModel:
                 y = self._rk4(y, b - a, stages)
         if not np.all(np.isfinite(y)):
             raise FlappingError(f"the state is not finite after phases {tau0!r} -> {tau1!r} "
-                                f"(from u, v, w, p, q, r = {list(np.asarray(x)[:6])!r})")
+                                f"(from u, v, w, p, q, r = {x[:6].tolist()!r})")
+        if y is x:
+            y = y.copy()
         y[6:10] /= math.sqrt(float(y[6:10] @ y[6:10]))
         return y
 
@@ -570,7 +605,7 @@ class Flight:
         while (self.grid + 1) / N <= t + self._tolerance():
             k, j = divmod(self.grid, N)
             self._latch(k)
-            self.y = m.advance(self.y, j / N, (j + 1) / N, self.c_prev, self.c_now)
+            self.y = m._advance(self.y, j / N, (j + 1) / N, self.c_prev, self.c_now)
             self.grid += 1
         return self.state_at(t)
 
@@ -605,9 +640,9 @@ class Flight:
         """Return to a :meth:`snapshot`."""
         self.grid = int(snap["grid"])
         self.y = np.array(snap["y"], dtype=float)
-        self.pending = tuple(snap["pending"])
-        self.c_prev = tuple(snap["c_prev"])
-        self.c_now = tuple(snap["c_now"])
+        self.pending = wing_beat_controls(snap["pending"])
+        self.c_prev = wing_beat_controls(snap["c_prev"])
+        self.c_now = wing_beat_controls(snap["c_now"])
         self.latched = int(snap["latched"])
 
 

@@ -167,6 +167,12 @@ class _Beat:
     pitch: tuple[np.ndarray, np.ndarray]
 
 
+#: one instant of the equations (:meth:`FlappingModel._stages`): the aerodynamic loads as a
+#: function of the body's six velocities and rates, the wing inertia's loads without the
+#: body's rates (6,) and their linear part in the state (6, 13), the angles (6, 2)
+_Stage = tuple[Callable[[np.ndarray], np.ndarray], np.ndarray, np.ndarray, np.ndarray]
+
+
 class FlappingModel:
     """The flapping drone fly: one wing beat at a time, or any part of one.
 
@@ -255,8 +261,11 @@ class FlappingModel:
     def angles(self, tau: float, c_prev: Sequence[float], c_now: Sequence[float]) -> np.ndarray:
         """(phi, dphi, ddphi, psi, dpsi, ddpsi) of both wings (columns left, right) at the
         phase ``tau`` in [0, 1] of a wing beat whose controls are ``c_now`` after ``c_prev``
-        (derivatives in t+)."""
-        return self._angles(tau, self._beat(wing_beat_controls(c_prev), wing_beat_controls(c_now)))
+        (derivatives in t+); at a grid point (:meth:`loads`) those of its stage."""
+        cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
+        beat = self._beat(cp, cn)
+        stage = self._grid_stage(tau, beat, cp, cn)
+        return self._angles(tau, beat) if stage is None else stage[3].copy()
 
     def _angles(self, tau: float, beat: _Beat, mid: float | None = None) -> np.ndarray:
         """:meth:`angles` at one phase (on the half-stroke of ``mid``, as :meth:`_angles_of`)."""
@@ -298,36 +307,44 @@ class FlappingModel:
         stage there."""
         cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
         beat, v = self._beat(cp, cn), np.asarray(x[:6], dtype=float)
-        N = self.steps_per_beat
-        j = round(tau * N)
-        if not self.averaged and 0 <= j <= N and abs(tau * N - j) <= 1e-9:
-            # the start of the beat's first step, else the end of the step that ends there
-            # (the same half-stroke as the phase's own at a reversal: the one before it)
-            aero, c0, W = self._grid((cp, cn), beat, cn)[max(j - 1, 0)][0 if j == 0 else 2]
-            return aero(v), c0 + W[:, :6] @ v
-        return self._loads(tau, v, beat, cn)
+        stage = self._grid_stage(tau, beat, cp, cn)
+        if stage is None:
+            return self._loads(tau, v, beat, cn)
+        aero, c0, W, _ = stage
+        return aero(v), c0 + W[:, :6] @ v
 
     def _loads(self, tau: float, v: np.ndarray, beat: _Beat, c_now: tuple[float, ...],
                mid: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        aero, c0, W = self._stages([(tau, mid)], beat, c_now)[0]
+        aero, c0, W, _ = self._stages([(tau, mid)], beat, c_now)[0]
         return aero(v), c0 + W[:, :6] @ v
 
+    def _grid_stage(self, tau: float, beat: _Beat, cp: tuple[float, ...],
+                    cn: tuple[float, ...]) -> _Stage | None:
+        """The kept stage (:meth:`_grid`) at a phase within 1e-9 of a step of a grid point:
+        the start of the beat's first step, else the end of the step that ends there (the
+        same half-stroke as the phase's own at a reversal: the one before it); else None."""
+        N = self.steps_per_beat
+        j = round(tau * N)
+        if not (0 <= j <= N and abs(tau * N - j) <= 1e-9):
+            return None
+        return self._grid((cp, cn), beat, cn)[max(j - 1, 0)][0 if j == 0 else 2]
+
     def _stages(self, times: Sequence[tuple[float, float | None]], beat: _Beat,
-                c_now: tuple[float, ...]) -> list[tuple[Callable, np.ndarray, np.ndarray]]:
+                c_now: tuple[float, ...]) -> list[_Stage]:
         """What the equations need of the wing motion at each (phase, step midpoint) of
         ``times`` (the midpoint chooses the half-stroke, :meth:`_angles`), all computed
         together: (the aerodynamic loads as a function of the body's six velocities and
         rates, the wing inertia's loads without the body's rates, their linear part in the
-        13-value state), the loads non-dimensional as :meth:`loads`'."""
-        T = len(times)
-        if self.averaged:  # the cycle average of the beat's controls, no wing inertia
-            aero = self.qs.state_function(c_now, self.trim)
-            return [(aero, np.zeros(6), np.zeros((6, STATE_SIZE)))] * T
+        13-value state, the angles (:meth:`angles`)), the loads non-dimensional as
+        :meth:`loads`'."""
         ang = self._angles_of([t for t, _ in times],
                               [t if mid is None else mid for t, mid in times], beat)
+        if self.averaged:  # the cycle average of the beat's controls, no wing inertia
+            aero = self.qs.state_function(c_now, self.trim)
+            return [(aero, np.zeros(6), np.zeros((6, STATE_SIZE)), a) for a in ang]
         forces_of = self.qs.forces_of
         c0, W = self._inertia(ang)
-        return [(partial(forces_of, inst), c0[i], W[i])
+        return [(partial(forces_of, inst), c0[i], W[i], ang[i])
                 for i, inst in enumerate(self.qs.instants(ang))]
 
     def _inertia(self, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -397,9 +414,9 @@ class FlappingModel:
         aero, wing = self._loads(tau, y[:6], beat, c_now, mid)
         return self._body(y, aero + wing)
 
-    def _at(self, stage: tuple[Callable, np.ndarray, np.ndarray], y: np.ndarray) -> np.ndarray:
+    def _at(self, stage: _Stage, y: np.ndarray) -> np.ndarray:
         """dx/dtau at one of :meth:`_stages`'s instants."""
-        aero, c0, W = stage
+        aero, c0, W, _ = stage
         return self._body(y, aero(y[:6]) + (c0 + W @ y))
 
     def _body(self, y: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -101,6 +101,7 @@ def test_the_kept_stages_are_the_equations_on_the_fly(model):
     for tau in (0.0, 0.5, 0.525, 1.0):  # at a grid point the loads are its stage's
         ours = np.concatenate(model.loads(tau, y, cp, cn))
         assert np.max(np.abs(ours - np.concatenate(model._loads(tau, y[:6], beat, cn)))) < 1e-13
+        assert np.max(np.abs(model.angles(tau, cp, cn) - model._angles(tau, beat))) < 1e-13
 
 
 def test_cycle_average_of_the_instantaneous_forces_is_the_averaged_model(model):

@@ -56,6 +56,15 @@ communication step: a communication point between two grid points is reached by 
 from the last grid point that the state does not keep. The accuracy against
 ``scipy.integrate.solve_ivp`` (rtol 1e-10): tests/test_flapping.py.
 
+What the equations need of the wing motion at an instant (the angles, the quasi-steady model's
+:meth:`~dronefly.models.quasisteady.QuasiSteadyModel.instants`, the wing inertia as an affine
+map of the state) does not depend on the state: for the grid's steps it is made once per pair
+of controls (the 2N + 2 distinct stage instants of a beat, all together) and kept, so a beat
+with its controls held costs the 4N evaluations of the state's part
+(:meth:`~dronefly.models.quasisteady.QuasiSteadyModel.forces_of`, the rigid body) alone; a
+partial step makes its own. The kept stages are the equations evaluated at those instants, to
+round-off (tests/test_flapping.py); the angles and loads at a grid point are its stage's.
+
 numpy is imported (the quasi-steady model needs it); the FMU that ships this module documents it.
 """
 
@@ -92,12 +101,6 @@ Z_NAMES: tuple[str, ...] = ("u", "v", "w", "p", "q", "r", "phi", "theta")
 _PITCH_CENTRES = np.array([0.0, 0.0, 0.5, 0.0, 1.0])
 #: the grids of stages kept (:meth:`FlappingModel._grid`, some 0.7 MB each), the oldest dropped
 _TABLES = 4
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product along the last axis of two arrays (..., 3), broadcast."""
-    i, j = [1, 2, 0], [2, 0, 1]
-    return a[..., i] * b[..., j] - a[..., j] * b[..., i]
 
 
 class FlappingError(DroneflyError):
@@ -375,7 +378,7 @@ class FlappingModel:
                            np.stack([zero, zero, 2.0 * kw * vy], axis=-1),
                            np.stack([zero, zero, -2.0 * kw * vx], axis=-1),
                            np.stack([-2.0 * kw * vy, 2.0 * kw * vx, zero], axis=-1)])
-        six = np.concatenate([forces, _cross(pos, forces)], axis=-1).sum(axis=2)  # (4, T, 6)
+        six = np.concatenate([forces, np.cross(pos, forces)], axis=-1).sum(axis=2)  # (4, T, 6)
         c0[:] = six[0]
         W[:, :, 3:6] = six[1:].transpose(1, 2, 0)
         return c0, W
@@ -390,11 +393,11 @@ class FlappingModel:
             index: dict[tuple[float, bool], int] = {}  # an instant shared by two steps once
 
             def instant(tau: float, mid: float) -> int:
-                key = (tau, mid <= 0.5)  # the phase and the half-stroke
-                if key not in index:
-                    index[key] = len(times)
+                which = (tau, mid <= 0.5)  # the phase and the half-stroke
+                if which not in index:
+                    index[which] = len(times)
                     times.append((tau, mid))
-                return index[key]
+                return index[which]
 
             steps = []
             for j in range(N):

@@ -286,9 +286,9 @@ class Instant(NamedTuple):
         0.5 rho U S_t), ordered (quantity, wing, element), then the added mass's sums: per
         wing those of its impulse m_a v_mid and of r times it, then per wing those of its
         normal force and of r times that.
-    loads : array, shape (6, 28)
-        loads @ (span sums of F_n, F_c and r times them; the added-mass sums; their
-        products with the body's rates) is (X+, Y+, Z+, L+, M+, N+).
+    loads : array, shape (6, 8 n_span + 20)
+        loads @ (every element's F_n, F_c over 0.5 rho U^2 S_t, ordered as in ``rows``; the
+        added mass's sums; their products with the body's rates) is (X+, Y+, Z+, L+, M+, N+).
     """
 
     rows: Array
@@ -381,7 +381,6 @@ class QuasiSteadyModel:
         mid = g.k * (0.5 - g.x0_hat) * self._chord
         self._added_mass_sums = tuple(float(np.sum(m_a * self._r ** j)) for j in range(3)) + \
             tuple(float(np.sum(m_a * mid * self._r ** j)) for j in range(2))
-        self._span_sums = np.stack([np.ones_like(self._r), self._r], axis=1)  # f -> sum f, r f
         self._t = (np.arange(n_time) + 0.5) / n_time
         self._trim: Trim | None = None
         self._kin_key: tuple[bytes, ...] | None = None
@@ -830,6 +829,10 @@ class QuasiSteadyModel:
                                         axis=-1).transpose(1, 3, 2, 0)
         G[:, :, 16:] = P.reshape(T, 6, 12)
         G /= 2.0 * g.S_wing
+        # the span sums of (F_n, F_c) folded in: the loads of each element's forces
+        sums = G[:, :, :8].reshape(T, 6, 2, 2, 2)
+        G = np.concatenate([(sums[..., :1] + sums[..., 1:] * r).reshape(T, 6, -1),
+                            G[:, :, 8:]], axis=-1)
         # one product with x1 for the elements and the added mass's sums
         rows = np.concatenate([rows.reshape(T, 7, -1),
                                am.reshape(T, 8, 7).transpose(0, 2, 1)], axis=-1)
@@ -842,8 +845,9 @@ class QuasiSteadyModel:
 
         The state's part of :meth:`forces_at`: one product gives every element's V_n, V_c and
         rotational factor and the added mass's span sums, the translational forces are
-        elementwise, then one product each for their span sums and the six loads (the fewest
-        numpy calls: each costs about a microsecond).
+        elementwise, then one product gives the six loads of every element's forces, the added
+        mass's sums and their products with the rates (the fewest numpy calls: each costs about
+        a microsecond).
         """
         rows, out = instant
         x1 = np.empty(7)
@@ -866,8 +870,7 @@ class QuasiSteadyModel:
             F += E[2:] * V[::-1]  # F_n += f V_c, F_c -= f V_n
         else:
             F = E[2:] * V[::-1]
-        sums = (F @ self._span_sums).reshape(-1)  # (F_n, F_c) x wing x (sum, r sum)
-        return out @ np.concatenate([sums, a, (a[:4, None] * x1[4:]).reshape(-1)])
+        return out @ np.concatenate([F.reshape(-1), a, (a[:4, None] * x1[4:]).reshape(-1)])
 
     def forces_at(self, angles: Sequence[Sequence[float]] | Array,
                   state: Sequence[float] | Array = (0.0,) * 6) -> Array:

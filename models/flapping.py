@@ -323,14 +323,16 @@ class FlappingModel:
 
     def _grid_stage(self, tau: float, beat: _Beat, cp: tuple[float, ...],
                     cn: tuple[float, ...]) -> _Stage | None:
-        """The kept stage (:meth:`_grid`) at a phase within 1e-9 of a step of a grid point:
-        the start of the beat's first step, else the end of the step that ends there (the
-        same half-stroke as the phase's own at a reversal: the one before it); else None."""
+        """The kept stage (:meth:`_grid`) at a phase within 1e-9 of a step of a grid point,
+        else None: the start of the step that begins there if the phase is after the point,
+        else the end of the one that ends there, so that at the front reversal the half-stroke
+        is the phase's own (:meth:`angles`: the downstroke up to 0.5 included)."""
         N = self.steps_per_beat
         j = round(tau * N)
         if not (0 <= j <= N and abs(tau * N - j) <= 1e-9):
             return None
-        return self._grid((cp, cn), beat, cn)[max(j - 1, 0)][0 if j == 0 else 2]
+        table = self._grid((cp, cn), beat, cn)
+        return table[j][0] if j == 0 or (j < N and tau > j / N) else table[j - 1][2]
 
     def _stages(self, times: Sequence[tuple[float, float | None]], beat: _Beat,
                 c_now: tuple[float, ...]) -> list[_Stage]:

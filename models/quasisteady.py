@@ -839,15 +839,27 @@ class QuasiSteadyModel:
         return [Instant(rows[i], G[i]) for i in range(T)]
 
     def forces_of(self, instant: Instant, state: Sequence[float] | Array) -> Array:
-        """The instantaneous (X+, Y+, Z+, L+, M+, N+) of both wings at an :meth:`instants`
-        instant, for the body state (du+, dv+, dw+, dp+, dq+, dr+) (no check of the state:
-        the caller's; :meth:`forces_at` checks it).
+        """The instantaneous forces and moments of both wings at an :meth:`instants` instant.
 
         The state's part of :meth:`forces_at`: one product gives every element's V_n, V_c and
         rotational factor and the added mass's span sums, the translational forces are
         elementwise, then one product gives the six loads of every element's forces, the added
         mass's sums and their products with the rates (the fewest numpy calls: each costs about
         a microsecond).
+
+        Parameters
+        ----------
+        instant : Instant
+            The wing motion (:meth:`instants`).
+        state : array of 6 floats
+            (du+, dv+, dw+, dp+, dq+, dr+), non-dimensional as :meth:`forces_at`'s (no check:
+            the caller's; :meth:`forces_at` checks it).
+
+        Returns
+        -------
+        array
+            (X+, Y+, Z+, L+, M+, N+): forces over 0.5 rho U^2 S_t, moments over
+            0.5 rho U^2 S_t c.
         """
         rows, out = instant
         x1 = np.empty(7)

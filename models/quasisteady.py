@@ -64,7 +64,11 @@ modelled (Sun's CFD finds it negligible in hover). Cycle averages are the mean o
 midpoint rule); in the added mass's cycle average the time derivative is moved, by parts over
 the periodic cycle, onto the wing's own motion (analytic), so no derivative of the
 state-dependent flow is sampled. The velocities are affine in the state and the span, so
-what does not depend on the state is computed once per wing kinematics. The default grid,
+what does not depend on the state is computed once per wing kinematics; the instantaneous
+forces (:meth:`QuasiSteadyModel.forces_at`) are split the same way, into
+:meth:`QuasiSteadyModel.instants`, the wing motion's part (at any number of instants at once),
+and :meth:`QuasiSteadyModel.forces_of`, the state's (the wing-beat-resolved plant keeps the
+first for the instants of its grid). The default grid,
 8 elements and 100 samples, is the smallest whose derivatives agree with a grid of 32 x 800
 to 0.1 % of each input's largest derivative (tests/test_aero.py); the error is the midpoint
 rule's O(1/n_time^2) at the kinks of the quasi-steady forces where an element's velocity
@@ -75,7 +79,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -88,6 +92,7 @@ __all__ = [
     "COEFFICIENT_SETS",
     "CONTROLS",
     "FORCES",
+    "Instant",
     "STATES",
     "CoefficientSet",
     "QuasiSteadyModel",
@@ -254,12 +259,40 @@ class Trim:
 
 
 def _cross(a: Array, b: Array) -> Array:
-    """Row-wise cross product of two (N, 3) arrays."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
+    """Cross product along the last axis of two arrays (..., 3), broadcast: component i is
+    a_j b_k - a_k b_j, (i, j, k) the cyclic permutations of (0, 1, 2)."""
+    return a[..., _NEXT] * b[..., _AFTER] - a[..., _AFTER] * b[..., _NEXT]
+
+
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
+#: the lift's sign in (F_n, F_c) of :meth:`QuasiSteadyModel.forces_of`, per (wing, element)
+_LIFT_SIDE = np.array([-1.0, 1.0])[:, None, None]
+#: the wings' sides (left, right): the left wing mirrors the right in y
+_SIDE = np.array([-1.0, 1.0])
+_EYE3 = np.eye(3)
+
+
+class Instant(NamedTuple):
+    """The wing motion at one instant as :meth:`QuasiSteadyModel.forces_of` needs it
+    (:meth:`QuasiSteadyModel.instants`): non-dimensional maps of x1 = (1, du+, dv+, dw+, dp+,
+    dq+, dr+).
+
+    Attributes
+    ----------
+    rows : array, shape (7, 8 n_span + 8)
+        x1 @ rows is every element's V_n, V_c (over U) and rotational factor f, -f (over
+        0.5 rho U S_t), ordered (quantity, wing, element), then the added mass's sums: per
+        wing those of its impulse m_a v_mid and of r times it, then per wing those of its
+        normal force and of r times that.
+    loads : array, shape (6, 8 n_span + 20)
+        loads @ (every element's F_n, F_c over 0.5 rho U^2 S_t, ordered as in ``rows``; the
+        added mass's sums; their products with the body's rates) is (X+, Y+, Z+, L+, M+, N+).
+    """
+
+    rows: Array
+    loads: Array
 
 
 def gauss_jacobi(n: int, a: float, b: float) -> tuple[Array, Array]:
@@ -278,14 +311,6 @@ def gauss_jacobi(n: int, a: float, b: float) -> tuple[Array, Array]:
     x, v = np.linalg.eigh(np.diag(diag) + np.diag(off, 1) + np.diag(off, -1))
     mu0 = 2.0 ** (a + b + 1.0) * math.gamma(a + 1.0) * math.gamma(b + 1.0) / math.gamma(a + b + 2.0)
     return x, mu0 * v[0] ** 2
-
-def _dot(a: Sequence[float], b: Sequence[float]) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _cross3(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
 
 def _rotation_profile(t: Array, start: float, duration: float) -> tuple[Array, Array, Array]:
     """tau - sin(2 pi tau)/(2 pi) and its first two derivatives in t, 0/1 outside."""
@@ -348,6 +373,14 @@ class QuasiSteadyModel:
         self._r = g.R * r_hat
         self._cw = C * g.R * w * 0.5 ** (g.p + g.q - 1.0)
         self._chord = C * r_hat ** (g.p - 1.0) * (1.0 - r_hat) ** (g.q - 1.0)
+        self._roots = np.array([[g.hinge[0], -g.hinge[1], g.hinge[2]], list(g.hinge)])
+        # the added mass m_a = rho (pi/4) c^2 dr of each element and its mid-chord's lever
+        # arm over the pitch rate: sums of m_a r^j, j = 0, 1, 2, and of m_a mid r^j, j = 0, 1
+        m_a = (0.5 * math.pi * g.k * self._chord * self._cw if terms.added_mass
+               else 0.0 * self._r)
+        mid = g.k * (0.5 - g.x0_hat) * self._chord
+        self._added_mass_sums = tuple(float(np.sum(m_a * self._r ** j)) for j in range(3)) + \
+            tuple(float(np.sum(m_a * mid * self._r ** j)) for j in range(2))
         self._t = (np.arange(n_time) + 0.5) / n_time
         self._trim: Trim | None = None
         self._kin_key: tuple[bytes, ...] | None = None
@@ -686,6 +719,171 @@ class QuasiSteadyModel:
         mean = self._mean_of
         return lambda state: mean(mp, state)
 
+    def instants(self, angles: Sequence[Sequence[float]] | Array) -> list[Instant]:
+        """What :meth:`forces_of` needs of the wings' motion at one or more instants.
+
+        Everything of :meth:`forces_at` that does not depend on the body state: the frames of
+        both wings, the linear forms of each element's velocities in the state, and the maps
+        from the forces' span sums to the six loads. A host that needs the forces at the same
+        wing motion for many states (the Runge-Kutta stages of
+        :mod:`dronefly.models.flapping`, the same instants every wing beat) computes this once.
+
+        Parameters
+        ----------
+        angles : array, shape (6, 2) or (T, 6, 2)
+            As :meth:`forces_at`, per wing (columns left, right): phi [rad], dphi/dt+
+            [rad per wing beat], d2phi/dt+2 [rad per wing beat squared], psi [rad] and its two
+            derivatives; a stack of T instants (computed together).
+
+        Returns
+        -------
+        list of Instant
+            One per instant (one for a single (6, 2)).
+
+        Raises
+        ------
+        DroneflyError
+            The angles' shape is wrong, or the model's added mass is not the impulse form.
+        """
+        a = np.asarray(angles, dtype=float)
+        if a.ndim == 2:
+            a = a[None]
+        if a.ndim != 3 or a.shape[1:] != (6, 2):
+            raise DroneflyError(f"angles of shape {np.shape(angles)}: expected (6, 2) or "
+                                "(T, 6, 2)")
+        g, terms, k = self.geometry, self.terms, self.geometry.k
+        if terms.added_mass and terms.added_mass_form != "impulse":
+            raise DroneflyError("forces_at has the impulse form of the added mass only")
+        T = len(a)
+        phi, dphi, ddphi, psi, dpsi, ddpsi = (a[:, j, :] for j in range(6))  # each (T, wing)
+        side = _SIDE
+        sphi, cphi, spsi, cpsi = np.sin(phi), np.cos(phi), np.sin(psi), np.cos(psi)
+        zero = np.zeros_like(phi)
+        # e_r = (sphi, s cphi, 0), e_t = (cphi, -s sphi, 0), e_c = cpsi e_t + spsi up,
+        # n = -spsi e_t + cpsi up (up = -z); e_r x e_c = s_or n, e_r x n = -s_or e_c. Vectors
+        # are (T, wing, 3), H the roots (wing, 3)
+        etx, ety = cphi, -side * sphi
+        er = np.stack([sphi, side * cphi, zero], axis=-1)
+        et = np.stack([etx, ety, zero], axis=-1)
+        ec = np.stack([cpsi * etx, cpsi * ety, -spsi], axis=-1)
+        nn = np.stack([-spsi * etx, -spsi * ety, -cpsi], axis=-1)
+        H = self._roots
+        s_or = np.sum(_cross(er, ec) * nn, axis=-1)
+        so = s_or[..., None]
+        Hx = _cross(H, np.stack([nn, ec, er]))  # H x n, H x e_c, H x e_r
+        # linear forms in x1 = (1, u, v, w, p, q, r), (T, wing, form, 7). The element at span r
+        # has V_n = an + r bn, V_c = ac + r bc: V.a = V_b.a + k Omega.(H x a)
+        # + r (k dphi e_t.a + k Omega.(e_r x a)); V.e_r = vr0 (the same along the span); the
+        # pitch rate about a_p = s e_r (rotation plus the body's rate) om_p and its derivative
+        # d_om; d(V.n)/dt+ = r (-k ddphi spsi + k dphi Omega.(e_t x n)) - dpsi V_c
+        # + spsi dphi V_r, r dbn the first term
+        L = np.zeros((T, 2, 8, 7))
+        an, bn, ac, bc, vr0, om_p, d_om, dbn = (L[:, :, i] for i in range(8))
+        an[..., 1:4], an[..., 4:] = nn, k * Hx[0]
+        bn[..., 0], bn[..., 4:] = -k * dphi * spsi, -k * so * ec
+        ac[..., 1:4], ac[..., 4:] = ec, k * Hx[1]
+        bc[..., 0], bc[..., 4:] = k * dphi * cpsi, k * so * nn
+        vr0[..., 1:4], vr0[..., 4:] = er, k * Hx[2]
+        om_p[..., 0], om_p[..., 4:6] = dpsi, side[:, None] * er[..., :2]
+        d_om[..., 0], d_om[..., 4:6] = ddpsi, (side * dphi)[..., None] * et[..., :2]
+        dbn[..., 0], dbn[..., 4:] = -k * ddphi * spsi, (k * dphi)[..., None] * _cross(et, nn)
+        r, chord, cw = self._r, self._chord, self._cw
+        # per element: V_n, V_c and the rotational force factor f (as f and -f):
+        # rho Gamma_rot (a_p x V) = f (V_c n - V_n e_c), f = rho C_rot omega_p c^2 s s_or
+        c_rot = 2.0 * math.pi * (0.75 - g.x0_hat) * k if terms.rotational else 0.0
+        f = (c_rot * side * s_or)[..., None, None] * (chord * cw) * om_p[..., None]
+        rows = np.empty((T, 7, 4, 2, len(r)))  # (T, x1, quantity, wing, element)
+        rows[:, :, 0] = (an[..., None] + bn[..., None] * r).transpose(0, 2, 1, 3)
+        rows[:, :, 1] = (ac[..., None] + bc[..., None] * r).transpose(0, 2, 1, 3)
+        rows[:, :, 2] = f.transpose(0, 2, 1, 3)
+        rows[:, :, 3] = -rows[:, :, 2]
+        # the added mass, I = m_a v_mid n per element, v_mid = V_n - mid omega_p: its span
+        # sums are linear in x1: S0 = sum m_a v_mid, S1 = sum r m_a v_mid, and those of its
+        # normal force -m_a dv_mid/dt+ and of r times it (D0, D1), dv_mid/dt+ = r dbn
+        # - dpsi V_c + spsi dphi V_r - mid d(omega_p)/dt+
+        M0, M1, M2, Mm0, Mm1 = self._added_mass_sums
+        dps, spd = dpsi[..., None], (spsi * dphi)[..., None]
+        am = np.empty((T, 2, 2, 2, 7))  # (T, (S, D), wing, (sum, r sum), x1)
+        am[:, 0, :, 0] = an * M0 + bn * M1 - om_p * Mm0
+        am[:, 0, :, 1] = an * M1 + bn * M2 - om_p * Mm1
+        am[:, 1, :, 0] = -(dbn * M1 - dps * (ac * M0 + bc * M1) + spd * vr0 * M0 - d_om * Mm0)
+        am[:, 1, :, 1] = -(dbn * M2 - dps * (ac * M1 + bc * M2) + spd * vr0 * M1 - d_om * Mm1)
+        # the six loads of each sum, (T, wing, 6): a force F at the element (P = H + r e_r)
+        # adds (F, H x F) and r e_r x F, with r e_r x (Fc e_c + Fn n) = s_or r (Fc n - Fn e_c);
+        # the added mass: F_c += dpsi S0, F_r = -spsi dphi S0, and -Omega x sum(I):
+        # F -= S0 Omega x n, M -= S0 H x (Omega x n) + S1 e_r x (Omega x n)
+        z3 = np.zeros_like(nn)
+        c_fn, c_fc, c_fr = np.concatenate([np.stack([nn, ec, er]), Hx], axis=-1)
+        c_rfn, c_rfc = np.concatenate([z3, -so * ec], axis=-1), np.concatenate([z3, so * nn], -1)
+        G = np.empty((T, 6, 28))
+
+        def put(i: int, c: Array) -> None:  # the columns i (left), i + 2 (right)
+            G[:, :, i:i + 3:2] = np.swapaxes(c, 1, 2)
+
+        put(0, c_fn), put(1, c_rfn), put(4, c_fc), put(5, c_rfc)  # sums of (F_n, F_c)
+        put(8, dps * c_fc - spd * c_fr), put(9, dps * c_rfc), put(12, c_fn), put(13, c_rfn)
+        oxn = _cross(_EYE3[:, None, None, :], nn)  # e_j x n, (j, T, wing, 3)
+        P = np.empty((T, 6, 2, 2, 3))  # (T, load, wing, (S0, S1), omega_j)
+        P[:, :, :, 0] = -np.concatenate([oxn, _cross(H, oxn)], axis=-1).transpose(1, 3, 2, 0)
+        P[:, :, :, 1] = -np.concatenate([np.zeros_like(oxn), _cross(er, oxn)],
+                                        axis=-1).transpose(1, 3, 2, 0)
+        G[:, :, 16:] = P.reshape(T, 6, 12)
+        G /= 2.0 * g.S_wing
+        # the span sums of (F_n, F_c) folded in: the loads of each element's forces
+        sums = G[:, :, :8].reshape(T, 6, 2, 2, 2)
+        G = np.concatenate([(sums[..., :1] + sums[..., 1:] * r).reshape(T, 6, -1),
+                            G[:, :, 8:]], axis=-1)
+        # one product with x1 for the elements and the added mass's sums
+        rows = np.concatenate([rows.reshape(T, 7, -1),
+                               am.reshape(T, 8, 7).transpose(0, 2, 1)], axis=-1)
+        return [Instant(rows[i], G[i]) for i in range(T)]
+
+    def forces_of(self, instant: Instant, state: Sequence[float] | Array) -> Array:
+        """The instantaneous forces and moments of both wings at an :meth:`instants` instant.
+
+        The state's part of :meth:`forces_at`: one product gives every element's V_n, V_c and
+        rotational factor and the added mass's span sums, the translational forces are
+        elementwise, then one product gives the six loads of every element's forces, the added
+        mass's sums and their products with the rates (the fewest numpy calls: each costs about
+        a microsecond).
+
+        Parameters
+        ----------
+        instant : Instant
+            The wing motion (:meth:`instants`).
+        state : array of 6 floats
+            (du+, dv+, dw+, dp+, dq+, dr+), non-dimensional as :meth:`forces_at`'s (no check:
+            the caller's; :meth:`forces_at` checks it).
+
+        Returns
+        -------
+        array
+            (X+, Y+, Z+, L+, M+, N+): forces over 0.5 rho U^2 S_t, moments over
+            0.5 rho U^2 S_t c.
+        """
+        rows, out = instant
+        x1 = np.empty(7)
+        x1[0] = 1.0
+        x1[1:] = state
+        e = x1 @ rows
+        a = e[-8:]  # (S0, S1) of each wing, then the added mass's normal force sums
+        E = e[:-8].reshape(4, 2, -1)  # (V_n, V_c, f, -f) of (wing, element)
+        V = E[:2]
+        if self.terms.translational:
+            aV = np.abs(V)
+            speed = np.hypot(V[0], V[1])
+            alpha = np.arctan2(aV[0], aV[1])
+            q = self._cw * speed
+            cl = q * self.coefficients.lift(alpha)
+            cd = q * self.coefficients.drag(alpha)
+            # lift normal to V away from the side the flow meets, drag against V:
+            # F_n = -cl copysign(|V_c|, V_n) - cd V_n, F_c = cl copysign(|V_n|, V_c) - cd V_c
+            F = cl * (np.copysign(aV[::-1], V) * _LIFT_SIDE) - cd * V
+            F += E[2:] * V[::-1]  # F_n += f V_c, F_c -= f V_n
+        else:
+            F = E[2:] * V[::-1]
+        return out @ np.concatenate([F.reshape(-1), a, (a[:4, None] * x1[4:]).reshape(-1)])
+
     def forces_at(self, angles: Sequence[Sequence[float]] | Array,
                   state: Sequence[float] | Array = (0.0,) * 6) -> Array:
         """The instantaneous (X+, Y+, Z+, L+, M+, N+) of both wings at one instant.
@@ -704,101 +902,16 @@ class QuasiSteadyModel:
         rate): that leaves out the added mass of the air that the wings carry with the body,
         m_a / m = 0.24 % of the insect's mass (both wings), a correction the cycle average does
         not have either.
+
+        It is :meth:`forces_of` at the one :meth:`instants` instant of ``angles``: the part
+        that depends on the wing motion alone, then the state's.
         """
         a = np.asarray(angles, dtype=float)
         x = np.asarray(state, dtype=float)
         if a.shape != (6, 2) or x.shape != (6,):
             raise DroneflyError(f"angles of shape {a.shape} and state of shape {x.shape}: "
                                 "expected (6, 2) and (6,)")
-        g, terms, k = self.geometry, self.terms, self.geometry.k
-        if terms.added_mass and terms.added_mass_form != "impulse":
-            raise DroneflyError("forces_at has the impulse form of the added mass only")
-        u, v, w, p, q, rr = (float(c) for c in x)
-        trig = np.sin(np.concatenate([a[0], a[3], a[0] + 0.5 * math.pi, a[3] + 0.5 * math.pi]))
-        r, cw = self._r, self._cw
-        out = [0.0] * 6
-        frames = []
-        for i, s in ((0, -1.0), (1, 1.0)):
-            sphi, spsi, cphi, cpsi = (float(trig[j]) for j in (i, 2 + i, 4 + i, 6 + i))
-            dphi, ddphi, dpsi, ddpsi = (float(a[j, i]) for j in (1, 2, 4, 5))
-            # e_r = (sphi, s cphi, 0), e_t = (cphi, -s sphi, 0), e_c = cpsi e_t + spsi up,
-            # n = -spsi e_t + cpsi up (up = -z); e_r x e_c = s_or n, e_r x n = -s_or e_c
-            er = (sphi, s * cphi, 0.0)
-            et = (cphi, -s * sphi, 0.0)
-            ec = (cpsi * et[0], cpsi * et[1], -spsi)
-            nn = (-spsi * et[0], -spsi * et[1], -cpsi)
-            H = (g.hinge[0], s * g.hinge[1], g.hinge[2])
-            s_or = _dot(_cross3(er, ec), nn)
-            Om = (p, q, rr)
-            Vb = (u, v, w)
-            # V.a = V_b.a + k Omega.(H x a) + r (k dphi e_t.a + k Omega.(e_r x a))
-            an = _dot(Vb, nn) + k * _dot(Om, _cross3(H, nn))
-            bn = -k * dphi * spsi - k * s_or * _dot(Om, ec)
-            ac = _dot(Vb, ec) + k * _dot(Om, _cross3(H, ec))
-            bc = k * dphi * cpsi + k * s_or * _dot(Om, nn)
-            vr0 = _dot(Vb, er) + k * _dot(Om, _cross3(H, er))
-            om_p = dpsi + s * (p * er[0] + q * er[1])
-            d_om = ddpsi + s * dphi * (p * et[0] + q * et[1])
-            # d(V.n)/dt+ = r (-k ddphi spsi + k dphi Omega.(e_t x n)) - dpsi V_c + spsi dphi V_r
-            dbn = -k * ddphi * spsi + k * dphi * _dot(Om, _cross3(et, nn))
-            frames.append((er, ec, nn, H, s_or, spsi * dphi, dpsi, ac, bc, vr0, om_p, d_om,
-                           dbn, an, bn))
-        # the per-wing scalars as columns (wing, 1): one array for all of them
-        cols = np.array([f[5:] for f in frames]).T[:, :, None]
-        spd, dps, ac_, bc_, vr0_, om_col, dom_, dbn_, an_, bn_ = cols
-        Vn = an_ + bn_ * r
-        Vc = ac_ + bc_ * r
-        Fc = Fn = Fr = 0.0 * Vn
-        if terms.translational:
-            aVn, aVc = np.abs(Vn), np.abs(Vc)
-            speed = np.sqrt(Vn * Vn + Vc * Vc)
-            alpha = np.arctan2(aVn, aVc)
-            cl = self.coefficients.lift(alpha)
-            cd = self.coefficients.drag(alpha)
-            qd = cw * speed
-            # lift normal to V away from the side the flow meets, drag against V
-            Fc = qd * (cl * np.copysign(aVn, Vc) - cd * Vc)
-            Fn = qd * (-cl * np.copysign(aVc, Vn) - cd * Vn)
-        if terms.rotational:
-            # rho Gamma_rot (a_p x V), a_p = side e_r: side s_or (V_c n - V_n e_c)
-            side_sor = np.array([-frames[0][4], frames[1][4]])[:, None]
-            f = (2.0 * math.pi * (0.75 - g.x0_hat) * k) * (om_col * side_sor) * (self._chord * cw)
-            Fc = Fc - f * Vn
-            Fn = Fn + f * Vc
-        S0 = S1 = (0.0, 0.0)
-        if terms.added_mass:
-            # I = m_a v_mid n; -dI/dt+ = -m_a dv n - m_a v_mid dn/dt+, dn/dt+ = -dpsi e_c +
-            # spsi dphi e_r; and -Omega x I (summed per wing below)
-            m_a = 0.5 * math.pi * k * self._chord * cw
-            mid = k * (0.5 - g.x0_hat) * self._chord
-            v_mid = Vn - mid * om_col
-            dv = dbn_ * r - dps * Vc + spd * vr0_ - mid * dom_
-            mv = m_a * v_mid
-            Fn = Fn - m_a * dv
-            Fc = Fc + mv * dps
-            Fr = -mv * spd
-        R = self.__dict__.get("_span_sums")
-        if R is None:  # (element, [1, r]): the span sums of f and of r f in one product
-            R = self.__dict__["_span_sums"] = np.stack([np.ones_like(r), r], axis=1)
-        sums = np.stack([Fc, Fn, Fr, m_a * v_mid if terms.added_mass else 0.0 * Vn]) @ R
-        S0, S1 = sums[3, :, 0], sums[3, :, 1]  # the added mass's impulse: (wing, [sum, r])
-        for i, (er, ec, nn, H, s_or, *_rest) in enumerate(frames):
-            fc, rfc = sums[0, i]
-            fn, rfn = sums[1, i]
-            fr = sums[2, i, 0]
-            F = tuple(fc * ec[j] + fn * nn[j] + fr * er[j] for j in range(3))
-            Mh = _cross3(H, F)
-            # r e_r x (Fc e_c + Fn n) = s_or r (Fc n - Fn e_c)
-            M = tuple(Mh[j] + s_or * (rfc * nn[j] - rfn * ec[j]) for j in range(3))
-            if terms.added_mass:
-                Oxn = _cross3((p, q, rr), nn)
-                F = tuple(F[j] - S0[i] * Oxn[j] for j in range(3))
-                a1, a2 = _cross3(H, Oxn), _cross3(er, Oxn)
-                M = tuple(M[j] - S0[i] * a1[j] - S1[i] * a2[j] for j in range(3))
-            for j in range(3):
-                out[j] += F[j]
-                out[3 + j] += M[j]
-        return np.array(out) / (2.0 * g.S_wing)
+        return self.forces_of(self.instants(a)[0], x)
 
     def forces_over_cycle(self, state: Sequence[float] | Array = (0.0,) * 6,
                           control: Mapping[str, float] | None = None,

@@ -17,6 +17,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ...core.text import complex_text
 from ...models import (lateral_dynamics as lateral_model,
                        longitudinal_dynamics as longitudinal_model)
 from ...models.feedback import PAPER_GAINS_EQ27
@@ -282,11 +283,11 @@ class ParityReport:
         for axis, d in self.eigenvalues.items():
             for who, values in d.items():
                 lines.append(f"{axis} eigenvalues per wing beat, {who}: "
-                             + ", ".join(_fmt(z) for z in values))
+                             + ", ".join(complex_text(z) for z in values))
         c = self.controller
-        lines.append("Eq. (27) on the quasi-steady A and B: " + ", ".join(_fmt(z) for z in c["qs_A_qs_B"]))
+        lines.append("Eq. (27) on the quasi-steady A and B: " + ", ".join(complex_text(z) for z in c["qs_A_qs_B"]))
         lines.append("Eq. (27) on the paper's A, quasi-steady B: "
-                     + ", ".join(_fmt(z) for z in c["paper_A_qs_B"]))
+                     + ", ".join(complex_text(z) for z in c["paper_A_qs_B"]))
         lines.append("coefficient matching on the quasi-steady model: k = "
                      + ", ".join(f"{g:.4f}" for g in c["matched_gains"]))
         return "\n".join(lines)
@@ -301,13 +302,6 @@ def _residual(value: float) -> str:
 def _f4(value: float) -> str:
     """Four decimals; a value that rounds to zero prints 0.0000 whatever its sign (round-off)."""
     return f"{value:.4f}" if abs(value) >= 5e-5 else "0.0000"
-
-
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    if abs(z.imag) < 1e-12:
-        return f"{z.real:+.4f}"
-    return f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
 def parity_report(model: QuasiSteadyModel, step: float = 1e-3) -> ParityReport:

@@ -30,6 +30,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ...core.text import complexes_text
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.flapping import FlappingModel, Flight, Floquet, PeriodicOrbit
 from ...models.lateral import sort_eigenvalues
@@ -131,10 +132,6 @@ class ClosedLoopReport:
     orbit: PeriodicOrbit | None = None  # the flapping insect's, the loops' linearisation point
 
     def text(self) -> str:
-        def fmt(values: Sequence[complex]) -> str:
-            return ", ".join(f"{z.real:+.4f}{z.imag:+.4f}i" if abs(z.imag) > 1e-12
-                             else f"{z.real:+.4f}" for z in values)
-
         lines = [f"lateral feedback on delta_Phi_a, sampled once per wing beat "
                  f"({self.steps_per_beat} Runge-Kutta steps per beat)"]
         for name, k in self.gains.items():
@@ -142,9 +139,9 @@ class ClosedLoopReport:
             lines += [
                 "",
                 f"{name}: k = " + ", ".join(f"{g:+.4f}" for g in k),
-                "  flapping, sampled: " + fmt(self.flapping[name]),
-                "  averaged, sampled: " + fmt(self.averaged_sampled[name]),
-                "  averaged, continuous: " + fmt(self.averaged_continuous[name]),
+                "  flapping, sampled: " + complexes_text(self.flapping[name]),
+                "  averaged, sampled: " + complexes_text(self.averaged_sampled[name]),
+                "  averaged, continuous: " + complexes_text(self.averaged_continuous[name]),
                 f"  from a 0.1 rad roll: gamma {r.gamma[10]:+.4f} rad after 10 wing beats, "
                 f"{r.gamma[20]:+.4f} after 20, {r.gamma[-1]:+.4f} after {len(r.gamma) - 1}; "
                 f"largest |delta_Phi_a| {max(map(abs, r.u)):.4f} rad; roll swing within the "

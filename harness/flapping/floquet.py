@@ -27,6 +27,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ...core.text import complex_text
 from ...models.flapping import Floquet, FlappingModel, PeriodicOrbit
 from ...models.lateral import sort_eigenvalues
 from ..aero.compare import derivative_table, eigenvalues
@@ -148,13 +149,13 @@ class FloquetReport:
             lines.append("")
             lines.append(f"{axis} per wing beat")
             lines.append("  Floquet exponents (flapping): "
-                         + ", ".join(_fmt(z) for z in _paired(self.floquet[axis],
+                         + ", ".join(complex_text(z) for z in _paired(self.floquet[axis],
                                                                self.averaged[axis])))
             for who in ("averaged", "quasi_steady", "paper"):
                 label = {"averaged": "averaged model (same body)",
                          "quasi_steady": "quasi-steady derivatives, paper's inertias",
                          "paper": "paper"}[who]
-                lines.append(f"  {label}: " + ", ".join(_fmt(z) for z in getattr(self, who)[axis]))
+                lines.append(f"  {label}: " + ", ".join(complex_text(z) for z in getattr(self, who)[axis]))
             lines.append("  error of the averaged model: "
                          + ", ".join(f"{e:.1f} %" for e in err[axis]))
         return "\n".join(lines)
@@ -162,13 +163,6 @@ class FloquetReport:
 
 def _bound(value: float) -> str:
     return "< 1e-12" if value < 1e-12 else f"{value:.0e}"
-
-
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    if abs(z.imag) < 1e-12:
-        return f"{z.real:+.4f}"
-    return f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
 def floquet_report(model: FlappingModel | None = None) -> FloquetReport:

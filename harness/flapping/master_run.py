@@ -45,6 +45,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ...core.errors import CrossCheckError, DroneflyError
+from ...core.text import complexes_text
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.flapping import STEPS_PER_BEAT
 from ...models.lateral import N_HZ, STATE_NAMES, U_M_PER_S
@@ -102,12 +103,8 @@ class MasterReport:
     loops: dict[str, MasterLoop]
 
     def text(self) -> str:
-        def fmt(values: Sequence[complex]) -> str:
-            return ", ".join(f"{z.real:+.4f}{z.imag:+.4f}i" if abs(z.imag) > 1e-12
-                             else f"{z.real:+.4f}" for z in values)
-
-        lines = [f"DroneFlyFlapping + StateFeedback through SystemMaster (gauss-seidel), "
-                 f"a step of 1 wing beat: the controller samples once per beat"]
+        lines = ["DroneFlyFlapping + StateFeedback through SystemMaster (gauss-seidel), "
+                 "a step of 1 wing beat: the controller samples once per beat"]
         for name, loop in self.loops.items():
             ident = loop.verdict.identification
             g, n = loop.gamma, self.beats
@@ -119,8 +116,8 @@ class MasterReport:
                 f"{name}: {ident.verdict} (dominant rate {ident.dominant_growth_rate:+.4f} per "
                 "wing beat)",
                 f"  identified from runs (4 x {IDENTIFICATION_BEATS} wing beats from the orbit, "
-                f"x+ {AMPLITUDE:g}; fit residual < 1e-9): " + fmt(ident.eigenvalues),
-                f"  linearised wing-beat map: {fmt(loop.map_exponents)} (max deviation "
+                f"x+ {AMPLITUDE:g}; fit residual < 1e-9): " + complexes_text(ident.eigenvalues),
+                f"  linearised wing-beat map: {complexes_text(loop.map_exponents)} (max deviation "
                 f"< {RATE_TOL_PER_WINGBEAT:g})",
                 f"  from a {self.roll0_rad:g} rad roll: gamma {g[10]:+.4f} rad after 10 wing "
                 f"beats, {g[20]:+.4f} after 20, {g[n]:+.4f} after {n}; largest |delta_Phi_a| "

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...builder.build import project_fmus
 from ...core.files import write_run_files
+from ...core.text import complex_text
 from ...models.feedback import default_gains, gain_name, integral_gain_name
 from ...models.lateral import STATE_NAMES, plant_scales
 from ..cosim.calculated import plant_matrices
@@ -128,7 +129,7 @@ class CosimResult:
 
     def summary(self) -> str:
         shown = self.identification.eigenvalues[:_SHOWN]
-        ev = ", ".join(_fmt_complex(e) for e in shown)
+        ev = ", ".join(complex_text(e) for e in shown)
         rest = len(self.identification.eigenvalues) - len(shown)
         if rest > 0:
             ev += f", ... ({rest} more)"
@@ -143,10 +144,10 @@ class CosimResult:
             f"identified from the co-simulated runs, per wing beat{where}: {ev}",
             "computed from the plant FMU's A1, B1 and K, per wing beat: the exact sampled-data "
             f"loop at this step (the control held over each step, what the runs are checked "
-            f"against): {', '.join(_fmt_complex(e) for e in sampled)}"
+            f"against): {', '.join(complex_text(e) for e in sampled)}"
             + (", ..." if len(self.sampled_eigenvalues) > len(sampled) else "")
             + f"; eig(A1 + B1 K) of the continuous loop (no hold): "
-            f"{', '.join(_fmt_complex(e) for e in self.continuous_eigenvalues)}",
+            f"{', '.join(complex_text(e) for e in self.continuous_eigenvalues)}",
             f"{self.master} master, step {self.step_wingbeats:g} wing beats, "
             f"{len(self.run.time) - 1} steps to {self.stop_wingbeats:g} wing beats; max deviation "
             f"from the exact sampled-data solution {self.trajectory_error:.1e}",
@@ -169,10 +170,6 @@ class CosimResult:
 
 
 _SHOWN = 8  # identified eigenvalues the summary lists (the JSON has all)
-
-
-def _fmt_complex(z: complex) -> str:
-    return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
 def _read_plant_matrices(loop: Loop, values: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -32,6 +32,7 @@ import numpy as np
 
 from ...core.extras import pyplot
 from ...core.files import write_run_files
+from ...core.text import complex_text
 from ..cosim.master import LoopRun, step_count
 from ..cosim.system import System, SystemSpecError
 from ..cosim.system_master import SystemMaster
@@ -122,12 +123,12 @@ class SystemResult:
             lines.append(("open loop" if self.open_loop is not None else "no verdict") +
                          f": nothing to identify: the system has no plant ({_PLANT})")
         for a in self.axes:
-            ev = ", ".join(_fmt(z) for z in a.identification.eigenvalues)
+            ev = ", ".join(complex_text(z) for z in a.identification.eigenvalues)
             lines.append(f"{a.plant.instance} ({a.plant.model}): {a.verdict} (dominant rate "
                          f"{a.identification.dominant_growth_rate:+.5f} per wing beat); "
                          f"identified {ev}")
             if a.continuous is not None:
-                lines.append(f"  eig(A + B K): {', '.join(_fmt(z) for z in a.continuous)}"
+                lines.append(f"  eig(A + B K): {', '.join(complex_text(z) for z in a.continuous)}"
                              + self._check_text(self.continuous_deviation, a))
             o = None if self.open_loop is None else self.open_loop[a.plant.instance]
             if isinstance(o, NotIdentified):
@@ -136,7 +137,7 @@ class SystemResult:
                 lines.append(f"  open loop: {o.verdict} (dominant rate "
                              f"{o.identification.dominant_growth_rate:+.5f} per wing beat)"
                              + ("" if o.continuous is None else "; eig(A): " + ", ".join(
-                                 _fmt(z) for z in o.continuous)
+                                 complex_text(z) for z in o.continuous)
                                  + self._check_text(self.open_loop_deviation, o)))
         if not self.run.complete:
             lines.append(f"INCOMPLETE: {self.run.failure}")
@@ -166,10 +167,6 @@ _PLANT = "an instance with an x_start parameter per Real output x and the scales
 
 def _passed(dev: float, tol: float) -> bool:
     return dev <= tol  # False for NaN
-
-
-def _fmt(z: complex) -> str:
-    return f"{z.real:+.4f}" if abs(z.imag) < 5e-5 else f"{z.real:+.4f}{z.imag:+.4f}i"
 
 
 def _has_wingbeats(master: SystemMaster) -> bool:

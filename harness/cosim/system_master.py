@@ -108,6 +108,11 @@ class SystemMaster:
             raise
         self.names = [f"{i}.{v.name}" for i, md in mds.items() for v in md.modelVariables
                       if v.causality == "output" and v.type in RECORDABLE]
+        #: the outputs a run cannot record, by type (FMI 3.0's UInt32, Int64 and UInt64, and
+        #: String and Binary: the records are doubles, and 32-bit integers are read)
+        self.unrecordable = {f"{i}.{v.name}": v.type for i, md in mds.items()
+                             for v in md.modelVariables
+                             if v.causality == "output" and v.type not in RECORDABLE}
 
     def _typed(self, values: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
         """``{instance: {name: value}}`` converted to the variables' declared types."""

@@ -72,6 +72,8 @@ class SystemResult:
     time_unit: str = "wing beats"
     #: the verdicts were sought (asked for, and the run complete): no axes then means no plant
     sought_verdicts: bool = False
+    #: the outputs that cannot be recorded, with their types (``SystemMaster.unrecordable``)
+    unrecordable: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         axes = []
@@ -93,7 +95,7 @@ class SystemResult:
                 "stop_wingbeats": self.stop_wingbeats, "wingbeat_frequency_hz": self.n_hz,
                 "time_unit": self.time_unit, "ended_at_s": self._ended_at(),
                 "axes": axes, "check_failures": list(self.check_failures),
-                "recorded": list(self.run.names),
+                "recorded": list(self.run.names), "not_recorded": dict(self.unrecordable),
                 "csv": None if self.csv is None else str(self.csv),
                 "plot": None if self.plot is None else str(self.plot)}
 
@@ -115,6 +117,11 @@ class SystemResult:
         lines = [f"system {self.system}: {self.master} master, step {self.step_wingbeats:g} "
                  f"{u}, {len(self.run.time) - 1} steps to {self.stop_wingbeats:g} "
                  f"{u}, {len(self.run.names)} outputs recorded"]
+        if self.unrecordable:
+            shown = ", ".join(f"{n} ({t})" for n, t in self.unrecordable.items())
+            lines.append(f"not recorded: {shown}: the records are doubles, and integers are "
+                         "read as 32-bit ones (Real, Boolean and integer types up to Int32 are "
+                         "recorded)")
         ended = self._ended_at()
         if ended is not None:
             lines.append(f"an FMU ended the run at t = {ended:g} s (terminateSimulation / "
@@ -262,7 +269,8 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
     result = SystemResult(system.name, run, master, step_wingbeats, stop, n, axes, deviation,
                           open_loop=opened, open_loop_deviation=open_dev,
                           check_failures=failures, check_tol=tol, time_unit=unit,
-                          sought_verdicts=verdicts and run.complete)
+                          sought_verdicts=verdicts and run.complete,
+                          unrecordable=dict(m.unrecordable))
     if out_dir is not None:
         write_run_files(result, out_dir, name or f"cosim_{system.name}_{master}",
                         _plot if plot else None)

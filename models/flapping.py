@@ -99,8 +99,11 @@ Z_NAMES: tuple[str, ...] = ("u", "v", "w", "p", "q", "r", "phi", "theta")
 #: start, held, the rotation about the front reversal, held, the rotation about the next
 #: beat's start (a held phase has no centre: 0)
 _PITCH_CENTRES = np.array([0.0, 0.0, 0.5, 0.0, 1.0])
-#: the grids of stages kept (:meth:`FlappingModel._grid`, some 0.7 MB each), the oldest dropped
-_TABLES = 4
+#: the grids of stages kept (:meth:`FlappingModel._grid`, some 0.7 MB each), the least recently
+#: used dropped: one model serves every FMU instance of a process, so each instance whose
+#: controls are held keeps one (16 instances at their own controls before a grid is made again;
+#: a closed loop, whose controls change every beat, makes one per beat whatever the size)
+_TABLES = 16
 
 
 class FlappingError(DroneflyError):
@@ -388,8 +391,10 @@ class FlappingModel:
     def _grid(self, key: tuple, beat: _Beat, c_now: tuple[float, ...]) -> list:
         """The :meth:`_stages` of every Runge-Kutta step of the beat's grid, per step (start,
         middle, end), made once per pair of controls (the same every beat they are held)."""
-        table = self._tables.get(key)
-        if table is None:
+        table = self._tables.pop(key, None)
+        if table is not None:
+            self._tables[key] = table  # the most recently used last
+        else:
             N = self.steps_per_beat
             times: list[tuple[float, float]] = []
             index: dict[tuple[float, bool], int] = {}  # an instant shared by two steps once

@@ -329,3 +329,23 @@ def test_with_averaged_forces_it_is_the_quasi_steady_6dof_plant():
         b = six.step(b, [0.0] * 3, [0.0] * 4, 1.0)
         assert np.max(np.abs(a - np.array(b))) <= 1e-5 * 0.03, (a, b)
     assert np.max(np.abs(a[:6])) > 0.03  # the disturbance grew (the lateral instability)
+
+
+def test_eight_flights_at_their_own_held_controls_share_the_model_without_remaking_grids(
+        monkeypatch):
+    """One model serves every FMU instance of a process: eight flights, each at its own held
+    controls, stepped in turn for three beats, make each one's grid of stages once (eight
+    grids; with the four kept before, 24: each made again every beat), and fly as each would
+    alone, to the bit."""
+    m = FlappingModel(steps_per_beat=20)
+    made = []
+    original = m._stages
+    monkeypatch.setattr(m, "_stages", lambda *a: made.append(1) or original(*a))
+    x0 = [0.0] * 6 + [1.0] + [0.0] * 6
+    flights = [Flight(m, x0, (0.01 * k,) + (0.0,) * 6) for k in range(8)]
+    for beat in range(1, 4):
+        for f in flights:
+            f.advance_to(float(beat))
+    assert len(made) == 8
+    alone = Flight(FlappingModel(steps_per_beat=20), x0, (0.07,) + (0.0,) * 6)
+    assert np.array_equal(alone.advance_to(3.0), flights[7].y)

@@ -13,14 +13,28 @@ from ..models.hover6dof import EARTH_OUTPUTS, EULER_OUTPUTS, EXTRA_STARTS, OUTPU
 from ..models.lateral import LATERAL
 from ..models.longitudinal import LONGITUDINAL
 
-__all__ = ["AXES", "ATTITUDE_STARTS", "VELOCITY_STARTS", "control_inputs", "start_parameters",
-           "state_outputs"]
+__all__ = ["AXES", "ATTITUDE_STARTS", "VELOCITY_STARTS", "control_inputs", "rows",
+           "start_parameters", "state_outputs"]
 
 #: the two axes whose controls are the inputs and whose states are the outputs
 AXES = (LATERAL, LONGITUDINAL)
 #: the start parameters of the attitude and of the body-axis velocity
 ATTITUDE_STARTS = ("delta_gamma_start", "delta_theta_start", "psi_start")
 VELOCITY_STARTS = ("delta_u_start", "delta_v_start", "delta_w_start")
+
+
+def rows(vrs: tuple[int, ...]) -> slice:
+    """Consecutive value references ``vrs`` as one slice of the value table (the plants read
+    their controls and write their outputs as slices).
+
+    Raises
+    ------
+    ValueError
+        The value references are not consecutive (a change of the variable tables' order).
+    """
+    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
+        raise ValueError(f"value references {vrs} are not consecutive")
+    return slice(vrs[0], vrs[0] + len(vrs))
 
 
 def _states() -> list[tuple[str, str, tuple[str, str]]]:

@@ -30,7 +30,7 @@ from ...models.hover6dof import EXTRA_STARTS, OUTPUT_NAMES, STATE_OUTPUTS
 from ...models.lateral import N_HZ, U_M_PER_S
 from ...models.quasisteady import CONTROLS
 from ...models.rigid_body import Hover6DOFError, initial_state, outputs
-from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs,
+from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs, rows,
                               start_parameters, state_outputs)
 
 __all__ = ["CONTROL_LIMIT_RAD", "FORCES", "LOAD_OUTPUTS", "MAX_STEP_BEATS", "WING_OUTPUTS",
@@ -77,14 +77,6 @@ def _shared_model(forces: int = 1) -> FlappingModel:
     if forces == 1:
         return FlappingModel(steps_per_beat=STEPS_PER_BEAT)
     return FlappingModel(_shared_model(1).qs, STEPS_PER_BEAT, averaged=True)
-
-
-def _slice(vrs: tuple[int, ...]) -> slice:
-    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
-        raise ValueError(f"value references {vrs} are not consecutive")
-    return slice(vrs[0], vrs[0] + len(vrs))
-
-
 
 
 def _initial_dependencies(name: str) -> tuple[str, ...]:
@@ -152,8 +144,8 @@ class DroneFlyFlapping(SlaveBase):
         super().__init__(**kwargs)
         vr = self._vr
         self._controls = CONTROLS
-        self._inputs = _slice(tuple(vr[n] for n in self._controls))
-        self._outputs = _slice(tuple(vr[n] for n in (
+        self._inputs = rows(tuple(vr[n] for n in self._controls))
+        self._outputs = rows(tuple(vr[n] for n in (
             *OUTPUT_NAMES, *(w[0] for w in WING_OUTPUTS), *(w[0] for w in LOAD_OUTPUTS))))
         self._model = _shared_model()
         self._flight: Flight | None = None

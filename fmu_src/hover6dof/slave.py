@@ -29,7 +29,7 @@ from ...models.longitudinal import parameter_description as longitudinal_text
 from ...models import lateral_dynamics as lateral
 from ...models import longitudinal_dynamics as longitudinal
 from ...models.rigid_body import STATE_SIZE, Hover6DOF, Hover6DOFError, initial_state, outputs
-from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs,
+from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs, rows,
                               start_parameters, state_outputs)
 
 __all__ = ["AERODYNAMICS", "DroneFlyHover6DOF"]
@@ -66,13 +66,6 @@ def _trimmed_quasi_steady() -> Any:
     model = QuasiSteadyModel()
     model.trim()
     return model
-
-
-def _slice(vrs: tuple[int, ...]) -> slice:
-    """Consecutive value references ``vrs`` as one slice of the value table."""
-    if vrs != tuple(range(vrs[0], vrs[0] + len(vrs))):
-        raise ValueError(f"value references {vrs} are not consecutive")
-    return slice(vrs[0], vrs[0] + len(vrs))
 
 
 def _initial_dependencies(name: str) -> tuple[str, ...]:
@@ -126,8 +119,8 @@ class DroneFlyHover6DOF(SlaveBase):
         vr = self._vr
         self._controls = (*LATERAL.control_names, *LONGITUDINAL.control_names)
         # the controls' and the outputs' rows of the value table, as slices
-        self._inputs = _slice(tuple(vr[n] for n in self._controls))
-        self._outputs = _slice(tuple(vr[n] for n in OUTPUT_NAMES))
+        self._inputs = rows(tuple(vr[n] for n in self._controls))
+        self._outputs = rows(tuple(vr[n] for n in OUTPUT_NAMES))
         self._x = initial_state(dict.fromkeys(_STARTS, 0.0), U_M_PER_S, N_HZ)
         self._model: Hover6DOF | None = None
         self._U, self._n = U_M_PER_S, N_HZ

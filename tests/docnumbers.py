@@ -23,9 +23,17 @@ from __future__ import annotations
 import re
 from decimal import Decimal
 
-__all__ = ["NumericText", "assert_same_numbers", "numbers_differ", "same_numbers"]
+__all__ = ["NumericText", "assert_same_numbers", "doc_block", "numbers_differ", "same_numbers"]
 
 _NUMBER = re.compile(r"(?<![\w.])[-+−]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?(?![\w])")
+
+
+def doc_block(text: str, tag: str, doc: str = "the document") -> str:
+    """The text of the ```text block after the marker ``<!-- TAG -->`` in a document (the
+    numbers a test computes again); a missing marker fails the test, naming it and ``doc``."""
+    m = re.search(rf"<!-- {re.escape(tag)} -->\n```text\n(.*?)\n```", text, re.S)
+    assert m, f"no {tag} block in {doc}"
+    return m.group(1)
 
 
 def _is_real(token: str) -> bool:

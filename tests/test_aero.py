@@ -219,17 +219,14 @@ from pathlib import Path  # noqa: E402
 
 from docnumbers import NumericText  # noqa: E402
 from docnumbers import assert_same_numbers as same  # noqa: E402
+from docnumbers import doc_block  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "aerodynamics.md"
 
 
 def _block(text: str, name: str) -> str:
-    import re
-
-    m = re.search(rf"<!-- aero:{name} -->\n```text\n(.*?)\n```", text, re.S)
-    assert m, f"no aero:{name} block in {DOC.name}"
-    return m.group(1)
+    return doc_block(text, f"aero:{name}", DOC.name)
 
 
 @pytest.fixture(scope="module")

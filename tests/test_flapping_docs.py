@@ -4,12 +4,11 @@ and the answer (numbers compared as numbers, tests/docnumbers.py)."""
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import pytest
 
-from docnumbers import NumericText, assert_same_numbers
+from docnumbers import NumericText, assert_same_numbers, doc_block
 
 from dronefly.harness.flapping import (answer, convergence, convergence_rows, flapping_trim,
                                        floquet_report, master_report)
@@ -23,9 +22,7 @@ DOC = ROOT / "docs" / "averaging.md"
 
 
 def _block(text: str, name: str) -> str:
-    m = re.search(rf"<!-- flapping:{name} -->\n```text\n(.*?)\n```", text, re.S)
-    assert m, f"no flapping:{name} block in {DOC.name}"
-    return m.group(1)
+    return doc_block(text, f"flapping:{name}", DOC.name)
 
 
 def _same(expected: str, actual: str, hint: str) -> None:

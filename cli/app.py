@@ -37,6 +37,8 @@ _EPILOG = {
              "  dronefly cosim --gains=-0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
              "  (a value starting with '-' needs the form --gains=... or --x0=...)\n"
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
+             "  dronefly cosim --plant build/DroneFlyLongitudinal.fmu "
+             "--controller build/StateFeedbackLongitudinal.fmu\n"
              "  dronefly cosim --gains 'k11,k12,k13,k14;k21,k22,k23,k24;k31,k32,k33,k34'\n"
              "  dronefly cosim --gains my_gains.json --set plant.Lv_plus=0.25 --set u_max=0.3\n"
              "  dronefly cosim --system build/DroneFlyHover.ssp\n"
@@ -142,13 +144,15 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: build/StateFeedback.fmu, built on demand)")
     c.add_argument("--gains", type=converter(parse_gains), default=None, metavar="GAINS",
-                   help="non-dimensional 3x4 gain matrix u = K x+: paper (Eq. 27), stabilising, "
-                        "open, 'k1,k2,k3,k4' (delta_Phi_a only), 'row1;row2;row3', or a .csv/.json "
-                        "file (default paper)")
+                   help="non-dimensional 3x4 gain matrix u = K x+ of the lateral pair: paper "
+                        "(Eq. 27), stabilising, open, 'k1,k2,k3,k4' (delta_Phi_a only), "
+                        "'row1;row2;row3', or a .csv/.json file (default paper; for another "
+                        "pair, e.g. the longitudinal one, the controller's own K, and open)")
     c.add_argument("--x0", type=converter(parse_x0), default=None,
                    metavar="dv+,dp+,dr+,dgamma",
-                   help="non-dimensional initial state x+ (default 0,0,0,0.1: a 0.1 rad roll, or "
-                        "what --set plant.<state>_start gives; not both)")
+                   help="non-dimensional initial state x+, one value per state of the plant "
+                        "(default 0,0,0,0.1: a 0.1 rad roll; for another plant 0.1 rad on its "
+                        "first angle; or what --set plant.<state>_start gives; not both)")
     c.add_argument("--set", dest="set_values", action="append", default=[],
                    type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller (repeatable): plant.NAME=VALUE, "

@@ -28,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
                             "loop with --gains open)")
     # the --set values as text: converted to the variables' types by cosimulate
     result = cosimulate(args.plant, args.controller,
-                        gains="paper" if args.gains is None else args.gains,
+                        gains=args.gains,
                         x0=args.x0,
                         step_wingbeats=args.step,
                         stop_wingbeats=300.0 if args.stop is None else args.stop,

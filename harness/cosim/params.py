@@ -74,8 +74,10 @@ SHARED_SCALES: tuple[str, ...] = ("n", "U")
 
 def scale_ratios(plant_start: Mapping[str, Any], controller_start: Mapping[str, Any], *,
                  allow_mismatch: bool = False,
-                 override: str | None = "--allow-scale-mismatch") -> np.ndarray | None:
-    """Per state, the plant's scale over the controller's, (U_p/U_c, n_p/n_c, n_p/n_c, 1).
+                 override: str | None = "--allow-scale-mismatch",
+                 scales: tuple[str, ...] = ("U", "n", "n", "1")) -> np.ndarray | None:
+    """Per state, the plant's scale over the controller's: for the lateral ``scales``
+    (U_p/U_c, n_p/n_c, n_p/n_c, 1).
 
     Parameters
     ----------
@@ -85,6 +87,9 @@ def scale_ratios(plant_start: Mapping[str, Any], controller_start: Mapping[str, 
         Accept scales that differ (the user intends it); otherwise they must be equal.
     override : str or None
         The option that says so, named in the message (None: the caller has none).
+    scales : tuple of str
+        Per state, the scale that makes it non-dimensional: ``"U"``, ``"n"`` or ``"1"``
+        (:attr:`~dronefly.harness.cosim.pair.PairLayout.scales`).
 
     Returns
     -------
@@ -109,4 +114,5 @@ def scale_ratios(plant_start: Mapping[str, Any], controller_start: Mapping[str, 
                 f"the controller reads the plant's state with its own {k}; set both (e.g. "
                 f"--set plant.{k}={p[k]!r} --set controller.{k}={p[k]!r})"
                 + (f", or pass {override} if the mismatch is intended" if override else ""))
-    return np.array([p["U"] / c["U"], p["n"] / c["n"], p["n"] / c["n"], 1.0])
+    ratio = {"U": p["U"] / c["U"], "n": p["n"] / c["n"], "1": 1.0}
+    return np.array([ratio[s] for s in scales])

@@ -17,11 +17,12 @@ import numpy as np
 from ...builder.build import project_fmus
 from ...core.files import write_run_files
 from ...core.text import complex_text
-from ...models.feedback import default_gains, gain_name, integral_gain_name
-from ...models.lateral import STATE_NAMES, plant_scales
+from ...models.feedback import default_gains, gain_name
+from ...models.lateral import STATE_NAMES
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
+from ..cosim.pair import PairError, PairLayout, pair_layout
 from ..cosim.params import resolve_assignments, scale_ratios
 from ..cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
                                TRAJECTORY_TOL, Identification, classify, cross_check_failures,
@@ -44,13 +45,17 @@ DEFAULT_X0 = (0.0, 0.0, 0.0, 0.1)
 
 
 def parse_x0(text: str | Sequence[float]) -> np.ndarray:
-    """Non-dimensional initial state (dv+, dp+, dr+, dgamma) from ``a,b,c,d``."""
+    """Non-dimensional initial state x+ from ``a,b,c,...``: one finite number per state of
+    the plant (the lateral plant's dv+, dp+, dr+, dgamma; checked against the plant when the
+    pair is known)."""
     try:
         x = [float(p) for p in (text.split(",") if isinstance(text, str) else text)]
     except ValueError:
-        raise CoSimError(f"x0 = {text!r}: expected four numbers dv+,dp+,dr+,dgamma") from None
-    if len(x) != 4 or not all(math.isfinite(v) for v in x):
-        raise CoSimError(f"x0 = {text!r}: expected four finite numbers dv+,dp+,dr+,dgamma")
+        raise CoSimError(f"x0 = {text!r}: expected one number per state, e.g. "
+                         "dv+,dp+,dr+,dgamma") from None
+    if not x or not all(math.isfinite(v) for v in x):
+        raise CoSimError(f"x0 = {text!r}: expected finite numbers, one per state, e.g. "
+                         "dv+,dp+,dr+,dgamma")
     return np.array(x)
 
 
@@ -182,7 +187,7 @@ def _read_plant_matrices(loop: Loop, values: Mapping[str, Any]) -> tuple[np.ndar
 
 
 def cosimulate(plant: str | Path | None = None, controller: str | Path | None = None, *,
-               gains: str | np.ndarray = "paper", x0: str | Sequence[float] | None = None,
+               gains: str | np.ndarray | None = None, x0: str | Sequence[float] | None = None,
                step_wingbeats: float = 0.1, stop_wingbeats: float = 300.0,
                master: str = "gauss-seidel", out_dir: str | Path | None = "build/cosim",
                plot: bool = True, name: str | None = None,
@@ -196,15 +201,20 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     plant, controller : path, optional
         FMUs with the DroneFlyLateral / StateFeedback interface (default: the
         project's, built into ``build/`` on demand).
-    gains : str or (3, 4) array_like
-        Non-dimensional gains u = K x+ (rows: delta_Phi_a, delta_alpha_1a, delta_alpha_2a;
-        columns: dv+, dp+, dr+, dgamma): a named set ``paper`` (Eq. 27), ``stabilising`` or
-        ``open``, an inline matrix, a ``.csv``/``.json`` file (see
-        :func:`~dronefly.harness.paper.gains.parse_gains`) or an array.
+    gains : str or (3, 4) array_like, optional
+        Non-dimensional gains u = K x+ of the lateral pair (rows: delta_Phi_a, delta_alpha_1a,
+        delta_alpha_2a; columns: dv+, dp+, dr+, dgamma): a named set ``paper`` (Eq. 27),
+        ``stabilising`` or ``open``, an inline matrix, a ``.csv``/``.json`` file (see
+        :func:`~dronefly.harness.paper.gains.parse_gains`) or an array. None (default):
+        ``paper`` for a pair whose plant has the lateral states; for any other pair the
+        controller's own ``K[i,j]`` (with ``set_values``). ``open`` (all zeros) fits any
+        pair; another matrix of the wrong shape is refused.
     x0 : str or sequence, optional
-        Non-dimensional initial state (dv+, dp+, dr+, dgamma). Default :data:`DEFAULT_X0`
-        (a 0.1 rad roll), with the states whose ``plant.<state>_start`` [SI] ``set_values``
-        gives taken from there; giving both is refused.
+        Non-dimensional initial state x+, one value per state of the plant (the pair's
+        states: :func:`~dronefly.harness.cosim.pair.pair_layout`). Default: 0.1 rad in the
+        plant's first angle (for the lateral plant :data:`DEFAULT_X0`, a 0.1 rad roll), with
+        the states whose ``plant.<state>_start`` [SI] ``set_values`` gives taken from there;
+        giving both is refused.
     step_wingbeats, stop_wingbeats : float
         Communication step and stop time in wing beats.
     master : {'gauss-seidel', 'jacobi'}
@@ -231,6 +241,9 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
 
     Raises
     ------
+    PairError
+        A pair whose loop cannot be identified (its states, controls or gains; the reason
+        named), gains or x0 of another shape than the pair's.
     ParameterError
         The plant's and the controller's ``n`` or ``U`` differ (without
         ``allow_scale_mismatch``), a ``set_values`` name or value that cannot be used.
@@ -238,7 +251,7 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         A bad step, stop, master or x0, or x0 together with a ``plant.<state>_start``;
         sample instants off the communication grid.
     """
-    K = as_gain_matrix(gains)
+    K = None if gains is None else as_gain_matrix(gains)
     x0v = None if x0 is None else parse_x0(x0)
     step_count(stop_wingbeats, step_wingbeats)  # validates before anything is built
     if master not in MASTERS:
@@ -258,10 +271,11 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
     return result
 
 
-def _controller_timing(cf: FMU, ctrl_values: Mapping[str, Any], n_hz: float
-                       ) -> tuple[float, float, np.ndarray]:
-    """(sensing delay, sample period) in wing beats and the integral gains KI (3x4) the
-    controller runs with: its start values with ``ctrl_values`` set (0 where it has none)."""
+def _controller_timing(cf: FMU, ctrl_values: Mapping[str, Any], n_hz: float,
+                       layout: PairLayout) -> tuple[float, float, np.ndarray]:
+    """(sensing delay, sample period) in wing beats and the integral gains KI (controls x
+    states) the controller runs with: its start values with ``ctrl_values`` set (0 where it
+    has none)."""
 
     start = {**cf.start_values(), **ctrl_values}
 
@@ -269,53 +283,84 @@ def _controller_timing(cf: FMU, ctrl_values: Mapping[str, Any], n_hz: float
         v = start.get(name)
         return 0.0 if v is None else float(v)
 
-    KI = np.array([[value(integral_gain_name(i, j)) for j in range(len(STATE_NAMES))]
-                   for i in range(3)])
+    KI = np.array([[value(name) for name in row] for row in layout.gain_names("KI")])
     return value("sensing_delay") * n_hz, value("sample_period") * n_hz, KI
 
 
 def _initial_state(x0: np.ndarray | None, plant_values: Mapping[str, Any],
-                   scale: np.ndarray) -> np.ndarray:
-    """x0, or :data:`DEFAULT_X0` with the states ``plant_values`` starts (``<state>_start``,
-    SI) taken from there; both given: refused."""
-    given = {i: f"{s}_start" for i, s in enumerate(STATE_NAMES) if f"{s}_start" in plant_values}
+                   scale: np.ndarray, layout: PairLayout) -> np.ndarray:
+    """x0, or the layout's default x0 with the states ``plant_values`` starts
+    (``<state>_start``, SI) taken from there; both given: refused."""
+    given = {i: f"{s}_start" for i, s in enumerate(layout.states)
+             if f"{s}_start" in plant_values}
+    if x0 is not None and len(x0) != len(layout.states):
+        raise PairError(f"x0 = {','.join(f'{v:g}' for v in x0)} (--x0) has {len(x0)} values; "
+                        f"the plant has {len(layout.states)} states "
+                        f"({', '.join(layout.states)}, as x+)")
     if given and x0 is not None:
         name = next(iter(given.values()))
         raise CoSimError(f"x0 = {','.join(f'{v:g}' for v in x0)} (--x0) and plant.{name} = "
                          f"{plant_values[name]!r} both set the initial state: give one of them")
     if x0 is not None:
         return x0
-    out = np.array(DEFAULT_X0)
+    out = layout.default_x0()
     for i, name in given.items():
         out[i] = float(plant_values[name]) / scale[i]
     return out
 
 
-def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float, stop_wb: float,
+def _gains(K: np.ndarray | None, layout: PairLayout, cf: FMU,
+           ctrl_values: Mapping[str, Any]) -> np.ndarray:
+    """The loop's gains: ``K`` checked against the pair's shape, or by default the paper's
+    (a lateral pair) or the controller's own K (any other pair)."""
+    lateral = layout.states == tuple(STATE_NAMES)
+    if K is None:
+        if lateral and layout.shape == np.shape(default_gains()):
+            return np.array(default_gains(), dtype=float)
+        start = {**cf.start_values(), **ctrl_values}
+        return np.array([[float(start.get(n) or 0.0) for n in row]
+                         for row in layout.gain_names()])
+    if K.shape == layout.shape:
+        return K
+    if not K.any():  # open: no control, whatever the shape
+        return np.zeros(layout.shape)
+    raise PairError(f"--gains is a {K.shape[0]}x{K.shape[1]} matrix (the lateral design); "
+                    f"this pair has {layout.shape[0]} controls x {layout.shape[1]} states "
+                    f"({', '.join(layout.controls)} on {', '.join(layout.states)}): omit "
+                    "--gains to run the controller's own K, set its elements with --set "
+                    "controller.K[i,j]=VALUE, or give --gains open")
+
+
+def _cosimulate(loop: Loop, K: np.ndarray | None, x0: np.ndarray | None, step_wb: float, stop_wb: float,
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None, values: Mapping[str, Mapping[str, Any]],
                 record: Sequence[str] = (), allow_scale_mismatch: bool = False,
                 built: Sequence[str] = ()) -> CosimResult:
     pf, cf = loop.plant, loop.controller
+    layout = pair_layout(pf, cf)  # refused here, with the reason, if it cannot be identified
+    states, ns = list(layout.states), len(layout.states)
     plant_values, ctrl_values = dict(values.get("plant", {})), dict(values.get("controller", {}))
-    scale = np.array(plant_scales({**pf.start_values(), **plant_values}))
+    K = _gains(K, layout, cf, ctrl_values)
+    scale = layout.scale_vector({**pf.start_values(), **plant_values})
     ratio = scale_ratios({**pf.start_values(), **plant_values},
                          {**cf.start_values(), **ctrl_values},
-                         allow_mismatch=allow_scale_mismatch)
-    x0 = _initial_state(x0, plant_values, scale)
-    n = scale[1]
+                         allow_mismatch=allow_scale_mismatch, scales=layout.scales)
+    x0 = _initial_state(x0, plant_values, scale, layout)
+    n = float(layout.scale_vector({**pf.start_values(), **plant_values}, ("n",))[0])  # Hz
     h = step_wb / n
     n_steps = step_count(stop_wb, step_wb)
     stop_wb = round(n_steps * step_wb, 12)  # what is run and reported: whole steps, never past
     gains = {**ctrl_values,
              **{gain_name(i, j): float(K[i, j]) for i in range(K.shape[0]) for j in range(K.shape[1])}}
     jacobi = master == "jacobi"
-    tau_wb, period_wb, KI = _controller_timing(cf, ctrl_values, n)
+    tau_wb, period_wb, KI = _controller_timing(cf, ctrl_values, n, layout)
     Km = K  # the gains as the plant sees them: u = Km x+ in the plant's scales
+    n_ratio = 1.0 if ratio is None else float(
+        ratio[layout.scales.index("n")] if "n" in layout.scales else 1.0)
     if ratio is not None:
         # the controller's x+ is ratio * the plant's, its integral runs over its own wing
         # beats (n_c / n_p = 1 / ratio[1] of the plant's)
-        Km, KI = K * ratio, KI * ratio / ratio[1]
+        Km, KI = K * ratio, KI * ratio / n_ratio
     timing = None
     if tau_wb or period_wb or KI.any():
         timing = GridTiming(step_wb, tau_wb, period_wb, jacobi)
@@ -335,22 +380,22 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
                 f"whose instants are on it (one wing beat is {1.0 / float(n)!r} s)")
 
     def start(x: np.ndarray) -> dict[str, float]:
-        return {**plant_values, **{f"{s}_start": float(v) for s, v in zip(STATE_NAMES, x * scale)}}
+        return {**plant_values, **{f"{s}_start": float(v) for s, v in zip(states, x * scale)}}
 
     A, B = _read_plant_matrices(loop, plant_values)
     with pf.instantiate() as p, cf.instantiate() as c:
         # with a delay line (model (b)) the controller starts at the equilibrium: under the
         # Jacobi master it is fed x = 0 before the first step, as model (b) has it
-        feed0 = [0.0] * 4 if jacobi and timing is not None else None
+        feed0 = [0.0] * ns if jacobi and timing is not None else None
         run = loop.run(h, n_steps, master=master, plant_start=start(x0),
                        controller_params=gains, instances=(p, c), record=record,
                        u_source0=feed0)
         if timing is None:
             ident, F, exact_rates = _identify_plain(loop, p, c, start, gains, h, step_wb,
-                                                    n_steps, scale, jacobi, A, B, Km)
+                                                    n_steps, scale, jacobi, A, B, Km, states)
         else:
             ident, F, exact_rates, _ = _identify_model_b(loop, p, c, start, gains, h,
-                                                         timing, scale, A, B, Km, KI)
+                                                         timing, scale, A, B, Km, KI, states)
         open_run = None
         if plot and out_dir is not None and K.any():  # the open loop, for comparison
             zero = {**gains, **{gain_name(i, j): 0.0 for i in range(K.shape[0])
@@ -358,16 +403,16 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
             open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
                                 controller_params=zero, instances=(p, c), u_source0=feed0)
     cont = sort_eigenvalues(np.linalg.eigvals(A + B @ Km))
-    xs = np.column_stack([run.column(s) for s in STATE_NAMES]) / scale
+    xs = np.column_stack([run.column(s) for s in states]) / scale
     z = np.zeros(len(F))
-    z[:4] = x0
+    z[:ns] = x0
     if jacobi and timing is None:
-        z[4:8] = x0  # the Jacobi master feeds the controller x0 before the first step
+        z[ns:2 * ns] = x0  # the Jacobi master feeds the controller x0 before the first step
     every = 1 if timing is None else int(round(timing.Ts / step_wb))
     xs = xs[::every]
     ref = np.empty_like(xs)
     for k in range(len(xs)):
-        ref[k] = z[:4]
+        ref[k] = z[:ns]
         z = F @ z
     err = relative_deviation(xs, ref)
     exact_dominant = float(np.max(exact_rates.real))
@@ -381,6 +426,8 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
     result.extra["scale"] = scale.tolist()
     result.extra["built"] = list(built)
     result.extra["controls"] = list(loop.controls)  # what the plot draws as controls
+    result.extra["states"] = states
+    result.extra["units"] = list(layout.units)
     if open_run is not None:
         result.extra["open_loop"] = open_run
     if out_dir is not None:
@@ -391,21 +438,22 @@ def _cosimulate(loop: Loop, K: np.ndarray, x0: np.ndarray | None, step_wb: float
 
 def _identify_plain(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str, float],
                     h: float, step_wb: float, n_steps: int, scale: np.ndarray, jacobi: bool,
-                    A: np.ndarray, B: np.ndarray, K: np.ndarray
+                    A: np.ndarray, B: np.ndarray, K: np.ndarray, states: Sequence[str]
                     ) -> tuple[Identification, np.ndarray, np.ndarray]:
     """The loop without delay line: F fitted from runs from the unit states, the exact F
     (zero-order hold at the step) and its rates per wing beat."""
     id_runs = []
-    units = [(e, e) for e in np.eye(4)]
+    eye = np.eye(len(states))
+    units = [(e, e) for e in eye]
     if jacobi:
-        units = [(e, e) for e in np.eye(4)] + [(np.zeros(4), e) for e in np.eye(4)]
+        units = [(e, e) for e in eye] + [(np.zeros(len(states)), e) for e in eye]
     for x_now, x_prev in units:
         r = loop.run(h, min(_ID_STEPS, n_steps), master="jacobi" if jacobi else "gauss-seidel",
                      plant_start=start(x_now), controller_params=gains,
                      u_source0=list(x_prev * scale), instances=(p, c))
         if not r.complete:
             raise CoSimError(f"identification run failed: {r.failure}")
-        xs = np.column_stack([r.column(s) for s in STATE_NAMES]) / scale
+        xs = np.column_stack([r.column(s) for s in states]) / scale
         id_runs.append(np.vstack([x_prev, xs]) if jacobi else xs)
     ident = identify(id_runs, step_wb, delay=jacobi)
     F = sampled_closed_loop(A, B, K, step_wb, jacobi)
@@ -414,7 +462,7 @@ def _identify_plain(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str, 
 
 def _identify_model_b(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str, float],
                       h: float, timing: Any, scale: np.ndarray, A: np.ndarray, B: np.ndarray,
-                      K: np.ndarray, KI: np.ndarray
+                      K: np.ndarray, KI: np.ndarray, states: Sequence[str]
                       ) -> tuple[Identification, np.ndarray, np.ndarray, Any]:
     """The loop with its delay line and integral (model (b)): M fitted from runs from the unit
     states (the controller's line at the equilibrium), the exact M and its rates per wing beat."""
@@ -425,13 +473,13 @@ def _identify_model_b(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str
     samples = 2 * (d + 2) + 10  # pairs enough to span the 4 (d + 2) + q augmented states
     fl = FeedbackLoop(A, B, K, KI)
     runs = []
-    for e in np.eye(4):
+    for e in np.eye(len(states)):
         r = loop.run(h, samples * m, master="jacobi" if timing.jacobi else "gauss-seidel",
                      plant_start=start(e), controller_params=gains, instances=(p, c),
-                     u_source0=[0.0] * 4 if timing.jacobi else None)
+                     u_source0=[0.0] * len(states) if timing.jacobi else None)
         if not r.complete:
             raise CoSimError(f"identification run failed: {r.failure}")
-        runs.append(np.column_stack([r.column(s) for s in STATE_NAMES])[::m] / scale)
+        runs.append(np.column_stack([r.column(s) for s in states])[::m] / scale)
     try:
         fit = identify_delayed(runs, fl, Ts, tau)
     except LatencyInputError as e:

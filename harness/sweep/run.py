@@ -30,8 +30,10 @@ from fmpy import read_model_description
 
 from ...builder.build import BuildError, project_fmus
 from ...core.files import write_text_atomic
+from ...models.lateral import CONTROL_NAMES, STATE_NAMES
 from ..cosim.fmu import FMU, FMUError, start_values
 from ..cosim.master import CoSimError, Loop
+from ..cosim.pair import pair_layout
 from ..cosim.params import resolve_assignments, scale_ratios
 from ..cosim.system import System
 from .backends import (chunk_cases, connect_scheduler, make_progress_bar, run_dask, run_here,
@@ -61,13 +63,22 @@ class SweepResult:
 
 
 def _check_pair(refs: tuple[FmuRef, FmuRef]) -> None:
-    """Open both FMUs and connect them by name here, before any file is written."""
+    """Open both FMUs, connect them by name and identify their states here, before any file
+    is written: the sweep's box (Sect. 3.6), disturbances and gain sets are the lateral
+    plant's, so a pair with other states is refused with the reason."""
 
     try:
         with FMU(refs[0].path) as p, FMU(refs[1].path) as c:
             Loop(p, c)
+            layout = pair_layout(p, c)
     except (FMUError, CoSimError) as e:
         raise SweepInputError(str(e)) from e
+    if layout.states != tuple(STATE_NAMES) or layout.controls != tuple(CONTROL_NAMES):
+        raise SweepInputError(
+            f"--plant {str(refs[0].path)!r} has the states {', '.join(layout.states)} and the "
+            f"controls {', '.join(layout.controls)}; the sweep's box (the Sect. 3.6 bounds), "
+            f"disturbances and gain sets are on the lateral states {', '.join(STATE_NAMES)} "
+            f"and controls {', '.join(CONTROL_NAMES)} only: run this pair with dronefly cosim")
 
 
 def _resolve_values(refs: tuple[FmuRef, FmuRef],

@@ -90,7 +90,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse with a one-line error (the usage is one ``--help`` away)."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} ('{self.prog} --help' shows "
+                              "the usage)\n")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -110,6 +111,9 @@ def _parser() -> argparse.ArgumentParser:
     def add(name: str, helptext: str) -> argparse.ArgumentParser:
         sp = sub.add_parser(name, help=helptext, description=helptext, epilog=_EPILOG.get(name),
                             formatter_class=argparse.RawDescriptionHelpFormatter)
+        # also after the subcommand; SUPPRESS keeps a --debug given before it
+        sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the traceback of an internal error (a bug) or of bad input")
         return sp
 
     b = add("build", "build every FMU of the project")

@@ -18,13 +18,35 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_run_files",
+from .errors import DroneflyError
+
+__all__ = ["atomic_path", "check_output_folder", "format_cell", "write_csv_atomic", "write_run_files",
            "write_text_atomic", "write_zip"]
 
 #: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
 #: the signature of a zip archive's first local file header
 _ZIP_MAGIC = b"PK\x03\x04"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
+
+
+def check_output_folder(path: str | Path, option: str = "--out") -> Path:
+    """``path`` as an output folder, checked before any work: it, or the first of its parents
+    that exists, must be a folder.
+
+    Raises
+    ------
+    DroneflyError
+        One line naming the option and the value: ``--out 'x' is a file, not a folder``.
+    """
+    path = Path(path)
+    for p in (path, *path.parents):
+        if p.exists():
+            if not p.is_dir():
+                where = "" if p == path else f" (its parent {str(p)!r} is a file)"
+                raise DroneflyError(f"{option} {str(path)!r} " + (
+                    "is a file, not a folder" if p == path else f"cannot be a folder{where}"))
+            break
+    return path
 
 
 @contextlib.contextmanager

@@ -180,7 +180,8 @@ def _why_not_settable(self: Any, vr: int, kind: str) -> str:
         return "no such variable"
     if self._types[vr] != kind:
         names = self.TYPE_NAMES
-        return f"is a {names[self._types[vr]]} variable, not {names[kind]}"
+        got = names[self._types[vr]]
+        return f"is {'an' if got[:1] in 'AEIOU' else 'a'} {got} variable, not {names[kind]}"
     return f"not settable in state {self._mode!r}"
 
 

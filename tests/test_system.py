@@ -235,7 +235,7 @@ def test_algebraic_loop_is_refused_with_its_cycle_and_runs_under_jacobi(gain):
 @pytest.mark.parametrize("cons,fragment", [
     ([Connection("plant", "delta_v", "controller", "delta_p")], r"units differ \(m/s -> rad/s\)"),
     ([Connection("plant", "delta_q", "controller", "delta_p")], "has no variable 'delta_q'"),
-    ([Connection("controller", "delta_v", "plant", "delta_Phi_a")], "is a input, not an output"),
+    ([Connection("controller", "delta_v", "plant", "delta_Phi_a")], "is an input, not an output"),
 ])
 def test_bad_connections_are_refused(built_fmus, cons, fragment):
     system = System({"plant": built_fmus["DroneFlyLateral"],

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from ...builder.build import FMI3_OUT, build_all
+from ...core.files import check_output_folder
 from . import EXIT_OK
 
 __all__ = ["run"]
@@ -13,6 +14,7 @@ __all__ = ["run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly build`` with the parsed arguments; returns the exit code."""
+    check_output_folder(args.out)
     for path in [*build_all(args.out), *build_all(Path(args.out) / FMI3_OUT, fmi=3)]:
         print(path)
     return EXIT_OK

@@ -10,6 +10,7 @@ from typing import Any
 
 from ...core.errors import DroneflyError
 from ...core.extras import require
+from ...core.files import check_output_folder
 from ...harness.stability.run import cosimulate
 from ...harness.stability.system import cosimulate_system
 from . import EXIT_FAILED, EXIT_OK
@@ -19,6 +20,7 @@ __all__ = ["run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly cosim`` with the parsed arguments; returns the exit code."""
+    check_output_folder(args.out)
     if not args.no_plot:
         require("matplotlib", "pass --no-plot")
     if args.system is not None:

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from ...core.extras import require
+from ...core.files import check_output_folder
 from ...harness.stability.demo import demo_runs, format_table
 from . import EXIT_FAILED, EXIT_OK
 
@@ -14,6 +15,7 @@ __all__ = ["run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly demo`` with the parsed arguments; returns the exit code."""
+    check_output_folder(args.out)
     if not args.no_plot:
         require("matplotlib", "pass --no-plot")
     results = demo_runs(out_dir=args.out, plot=not args.no_plot,

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
+from ...core.text import a_or_an
 from .system import Connection, SystemSpecError
 
 __all__ = ["Feedthrough", "Order", "check_connections", "evaluation_order", "feedthrough"]
@@ -53,8 +54,8 @@ def check_connections(mds: Mapping[str, Any], connections: Sequence[Connection])
             if v is None:
                 raise SystemSpecError(f"connection {c}: {inst} has no variable {name!r}")
             if v.causality != causality:
-                raise SystemSpecError(f"connection {c}: {inst}.{name} is a {v.causality}, "
-                                      f"not an {causality}")
+                raise SystemSpecError(f"connection {c}: {inst}.{name} is "
+                                      f"{a_or_an(v.causality)}, not {a_or_an(causality)}")
             ends.append(v)
         src, dst = ends
         if src.type != dst.type:

@@ -11,6 +11,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ...core.errors import DroneflyError
+from ...core.text import a_or_an
 from .system import SystemSpecError
 from .values import settable, typed_value
 
@@ -57,7 +58,7 @@ def resolve_assignments(values: Mapping[str, Any],
         if v is None:
             raise ParameterError(f"{key!r}: {inst} has no variable {name!r}")
         if name not in settable(model_descriptions[inst]):
-            raise ParameterError(f"{key!r} is a {v.causality} {v.variability} variable of "
+            raise ParameterError(f"{key!r} is {a_or_an(v.causality)} {v.variability} variable of "
                                  f"{inst}; only parameters and inputs can be set")
         try:
             out.setdefault(inst, {})[name] = typed_value(f"{inst}.{name}", v, value)

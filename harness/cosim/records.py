@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...core.text import float_text, status_name
+
 __all__ = ["MASTERS", "MAX_STEPS", "LoopRun", "StepFailure"]
 
 MASTERS = ("gauss-seidel", "jacobi")
@@ -31,7 +33,8 @@ class StepFailure:
     message: str
 
     def __str__(self) -> str:
-        return (f"{self.fmu}: {self.call} at t = {self.time!r} s returned status {self.status}"
+        return (f"{self.fmu}: {self.call} at t = {float_text(self.time)} s returned "
+                f"{status_name(self.status, self.call)}"
                 + (f" ({self.message})" if self.message else ""))
 
 

@@ -147,6 +147,10 @@ class System:
                 raise SystemSpecError(f"SSP element {e.name!r} is not an FMU component "
                                    "(nested systems are not supported)")
             fmus[e.name] = Path(tmp.name, e.source)
+            if not fmus[e.name].is_file():  # named by the SSP and the component, not tmp
+                tmp.cleanup()
+                raise SystemSpecError(f"SSP file {str(path)!r}: component {e.name!r} names "
+                                      f"{str(e.source)!r}, which the SSP does not contain")
             values = {}
             for binding in e.parameterBindings or []:
                 for pset in binding.parameterValues or []:

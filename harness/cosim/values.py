@@ -21,6 +21,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ...core.text import a_or_an
 from .system import SystemSpecError
 
 __all__ = ["SETTER", "settable", "shown", "typed_value", "typed_values"]
@@ -158,7 +159,7 @@ def typed_value(where: str, v: Any, value: Any) -> Any:
         if not isinstance(value, str):
             raise SystemSpecError(f"{where} = {shown(value)}: a String takes text")
         return value
-    raise SystemSpecError(f"{where} is a {v.type} variable, which a system cannot set")
+    raise SystemSpecError(f"{where} is {a_or_an(v.type)} variable, which a system cannot set")
 
 
 def typed_values(inst: str, variables: Mapping[str, Any], values: Mapping[str, Any],

@@ -12,6 +12,7 @@ import numpy as np
 from ...builder.build import ensure_fmu
 from ...core.errors import DroneflyError
 from ...core.files import write_csv_atomic
+from ...core.text import status_name
 from ...models.lateral import N_HZ, STATE_NAMES, STATE_UNITS, scale_vector
 from ...models.lateral_dynamics import LateralModel, default_parameters
 from ..cosim.master import step_count
@@ -30,6 +31,8 @@ class PlantRun:
     complete: bool = True  # False: the FMU refused a step before the stop time
     requested_stop_wb: float | None = None  # when the stop is not a whole number of steps
     built: Path | None = None  # the FMU, if this run built it (missing or out of date)
+    #: what the FMU logged with a status of fmi2Discard or worse (why it refused a step)
+    messages: tuple[str, ...] = ()
 
     def summary(self) -> str:
         wb = self.time[-1] * N_HZ
@@ -44,8 +47,9 @@ class PlantRun:
         if self.built is not None:
             text += f"\nbuilt {self.built} (missing or out of date with the sources)"
         if not self.complete:
-            text += (f"\nINCOMPLETE: the FMU refused the step after {wb:.6g} wing beats (run "
-                     "with fmpy's debug logging for its message); the CSV holds what was computed")
+            why = "; ".join(self.messages) or "it logged no message"
+            text += (f"\nINCOMPLETE: the FMU refused the step after {wb:.6g} wing beats: {why}; "
+                     "the CSV holds what was computed")
         return text
 
 
@@ -91,10 +95,18 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     stop_wingbeats = n_steps * step_wingbeats
     out = Path(out_dir)
     fmu, fresh = ensure_fmu("DroneFlyLateral", out)  # built only if missing or out of date
+    messages: list[str] = []
+
+    def logger(env: object, instance: bytes, status: int, category: bytes,
+               message: bytes) -> None:
+        if status >= 2:  # fmi2Discard, fmi2Error, fmi2Fatal: why a step was refused
+            messages.append(f"{status_name(status)}: {message.decode('utf-8', 'replace')}")
+
+    # the FMU sends its log only with debug logging on; the logger keeps what refuses a step
     res = fmpy.simulate_fmu(str(fmu), stop_time=stop_wingbeats / N_HZ,
                             output_interval=step_wingbeats / N_HZ,
                             start_values={"delta_gamma_start": gamma0},
-                            output=list(STATE_NAMES))
+                            output=list(STATE_NAMES), debug_logging=True, logger=logger)
     t = np.asarray(res["time"], dtype=float)
     x = np.column_stack([res[n] for n in STATE_NAMES])
     complete = len(t) == n_steps + 1
@@ -106,4 +118,4 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     write_csv_atomic(csv, ["time", *STATE_NAMES], np.column_stack([t, x]).tolist())
     return PlantRun(t, x, err, csv, complete,
                     None if math.isclose(stop_wingbeats, requested, rel_tol=1e-9) else requested,
-                    fmu if fresh else None)
+                    fmu if fresh else None, tuple(messages))

@@ -29,7 +29,8 @@ from typing import Any, Callable, Mapping, Sequence
 from fmpy import read_model_description
 
 from ...builder.build import BuildError, project_fmus
-from ...core.files import write_text_atomic
+from ...core.errors import DroneflyError
+from ...core.files import check_output_folder, write_text_atomic
 from ...models.lateral import CONTROL_NAMES, STATE_NAMES
 from ..cosim.fmu import FMU, FMUError, start_values
 from ..cosim.master import CoSimError, Loop
@@ -383,11 +384,12 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     """
     t_start = time.perf_counter()
     s = replace(settings, **options) if settings is not None else SweepSettings(**options)
+    try:  # before anything is built or run
+        out = check_output_folder(out_dir)
+    except DroneflyError as e:
+        raise SweepInputError(str(e)) from e
     refs, cases, lateral = _inputs(spec, s)
     workers = _local_workers(s)
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise SweepInputError(f"output folder {str(out)!r} is a file")
     results = _Results(cases, refs, out / "sweep.csv", s)
     client = (connect_scheduler(s.scheduler, s.connect_timeout_s) if s.scheduler is not None
               else None)

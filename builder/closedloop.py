@@ -101,6 +101,27 @@ def parameter_values(plant_md, spec: ClosedLoopSpec) -> dict[str, float]:
     return out
 
 
+def _bindable(params: dict[str, float], fmus: dict[str, tuple[Any, Any]]) -> dict[str, float]:
+    """``params`` without the elements of FMI 3.0 arrays: SSP 1.0 binds scalars only, and an
+    element ``K[1,2]`` is no variable of the FMU. An element whose value is not its start
+    value cannot be bound: refused."""
+    out = {}
+    names = {comp: {v.name for v in read_model_description(str(path)).modelVariables}
+             for comp, (path, _) in fmus.items()}
+    for key, value in params.items():
+        comp, _, name = key.partition(".")
+        path, view = fmus[comp]
+        if name in names[comp]:
+            out[key] = value
+            continue
+        start = start_values(view).get(name)
+        if start is None or float(start) != float(value):
+            raise CoSimError(f"{comp}.{name} = {value!r}: {str(path)!r} has no variable "
+                             f"{name!r} (an element of an FMI 3.0 array), and SSP 1.0 binds "
+                             f"scalars only, so only its start value {start!r} can be used")
+    return out
+
+
 def fix_connection_types(config: dict[str, Any]) -> dict[str, Any]:
     """Rename FMI 2 type names in the container's connections (Real -> Float64, ...).
 
@@ -251,12 +272,21 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path.
 
     The FMUs may be FMI 2.0 or FMI 3.0 (read through the harness's view,
-    :func:`dronefly.harness.cosim.fmi3.read_view`: an FMI 3.0 array ``K`` is bound by its
-    elements ``K[i,j]``, as SSP 1.0 has no array values; see docs/fmi3.md).
+    :func:`dronefly.harness.cosim.fmi3.read_view`). Every SSV parameter names a variable of
+    its FMU, as a strict importer requires: SSP 1.0 has no array values, so an FMI 3.0 array
+    (the controller's ``K``) is not bound; its start values are the gains (see
+    docs/fmi3.md).
+
+    Raises
+    ------
+    CoSimError
+        Gains other than an FMI 3.0 controller's start values of ``K``: SSP 1.0 cannot bind
+        them.
     """
     pmd, cmd = read_view(plant), read_view(controller)
     n, _ = plant_md_scales(pmd)
-    params = parameter_values(pmd, spec)
+    params = _bindable(parameter_values(pmd, spec), {"plant": (plant, pmd),
+                                                     "controller": (controller, cmd)})
     step = spec.step_wingbeats / n
     root = ET.Element(f"{{{SSD_NS}}}SystemStructureDescription",
                       {"version": "1.0", "name": CLOSED_LOOP})

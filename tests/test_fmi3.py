@@ -271,8 +271,9 @@ def test_hover_system_fmi3_ssp_and_mixed_equal_fmi2(built_fmus, built_fmus3):
 def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     """build/fmi3/DroneFlyClosedLoop.ssp (FMI 3.0 FMUs, SSP 1.0) in our master: the paper's
     neutral verdict and the FMI 2.0 SSP's trajectory over its 300 wing beats, to 1e-12. Its
-    controller.ssv binds the elements K[i,j] of the FMI 3.0 array K: with gains other than the
-    FMUs' defaults both SSPs still agree, and differ from the default run."""
+    controller.ssv binds no K (SSP 1.0 binds scalars, K is an FMI 3.0 array: its start values
+    are the gains); gains other than the FMUs' defaults, bound in the FMI 2.0 SSP and set with
+    --set controller.K[i,j] on the FMI 3.0 one, still agree, and differ from the default run."""
     from dronefly.models.feedback import default_gains
     from dronefly.builder.closedloop import ClosedLoopSpec
     from dronefly.harness.cosim.master import CoSimError
@@ -291,9 +292,11 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     gains = [list(row) for row in default_gains()]
     gains[0][1], gains[1][0] = -0.25, 0.1
     spec = ClosedLoopSpec(gains=tuple(map(tuple, gains)), stop_wingbeats=60)
-    runs = [cosimulate_system(write_ssp(f["DroneFlyLateral"], f["StateFeedback"],
-                                        tmp_path / f"fmi{v}", spec), verdicts=False, **kw).run
-            for v, f in ((2, built_fmus), (3, built_fmus3))]
+    runs = [cosimulate_system(write_ssp(built_fmus["DroneFlyLateral"], built_fmus["StateFeedback"],
+                                        tmp_path / "fmi2", spec), verdicts=False, **kw).run,
+            cosimulate_system(built_fmus3["DroneFlyClosedLoop.ssp"], verdicts=False,
+                              stop_wingbeats=60, set_values={"controller.K[1,2]": -0.25,
+                                                             "controller.K[2,1]": 0.1}, **kw).run]
     assert all(run.complete and len(run.time) == 601 for run in runs)
     assert np.max(np.abs(runs[1].signals - runs[0].signals)) <= 1e-12
     assert np.max(np.abs(runs[1].signals - ref.run.signals[:601])) > 1e-3

@@ -32,6 +32,9 @@ __all__ = ["main"]
 _UNITS = ("\nunits: --step/--stop in wing beats (1 wing beat = 1/n = 6.1 ms); --x0 non-dimensional "
           "x+ = (dv/U, dp/n, dr/n, dgamma); --gains non-dimensional (rad per unit of x+); --set "
           "values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
+_SWEEP_UNITS = ("\nunits: --steps/--delays/--sample-periods/--stop in wing beats (1 wing beat = "
+                "1/n = 6.1 ms); --gains non-dimensional (rad per unit of x+ = (dv/U, dp/n, dr/n, "
+                "dgamma)); --set values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
 _EPILOG = {
     "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
              "  dronefly cosim --gains=-0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
@@ -71,7 +74,7 @@ _EPILOG = {
              "  dronefly sweep --steps 0.5 --delays 0,1,2,4 --sample-periods 0,1,2 "
              "--disturbances directions\n"
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
-             "130 interrupted (rerun to resume)" + _UNITS,
+             "130 interrupted (rerun to resume)" + _SWEEP_UNITS,
     "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
     "aero": "examples:\n  dronefly aero\n  dronefly aero --json --coefficients wang2004\n"
             "  dronefly aero forces --state delta_v=0.1 --control delta_Phi_a=0.2 --json\n"
@@ -129,7 +132,8 @@ def _parser() -> argparse.ArgumentParser:
     c = add("cosim", "co-simulate plant and controller FMUs, or any system of FMUs from an SSP "
             "file, with fmpy and check the stability of each loop")
     c.add_argument("--system", default=None, metavar="SSP",
-                   help="co-simulate the system of an SSP file (any number of FMI 2.0 CS FMUs); "
+                   help="co-simulate the system of an SSP file (any number of FMI 2.0 or 3.0 "
+                        "CS FMUs); "
                         "--set takes instance.NAME=VALUE; not with --plant/--controller/--gains/"
                         "--x0")
     c.add_argument("--open-loop", action="store_true",
@@ -329,7 +333,7 @@ def _parser() -> argparse.ArgumentParser:
     f = add("floquet", "periodic orbit and Floquet exponents of a plant FMU through FMI (get/set "
             "FMU state), beside the averaged model's eigenvalues for the flapping plant")
     f.add_argument("--plant", default=None, metavar="FMU",
-                   help="any FMI 2.0 CS FMU that can get and set its state, with an x_start "
+                   help="any FMI 2.0 or 3.0 CS FMU that can get and set its state, with an x_start "
                         "parameter per state output x (default: build/DroneFlyFlapping.fmu, "
                         "built if missing)")
     f.add_argument("--period", type=positive, default=None, metavar="S",

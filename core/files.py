@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import hashlib
 import io
 import json
 import os
@@ -20,7 +21,7 @@ import numpy as np
 
 from .errors import DroneflyError
 
-__all__ = ["atomic_path", "check_output_folder", "format_cell", "write_csv_atomic", "write_run_files",
+__all__ = ["atomic_path", "check_output_folder", "format_cell", "run_name", "write_csv_atomic", "write_run_files",
            "write_text_atomic", "write_zip"]
 
 #: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
@@ -105,6 +106,17 @@ def write_csv_atomic(path: str | Path, header: Sequence[str],
     return write_text_atomic(path, buf.getvalue())
 
 
+def run_name(stem: str, inputs: Mapping[str, Any]) -> str:
+    """The files' name of a run: ``stem`` for a run with the defaults (``inputs`` empty),
+    else ``stem_<8 hex digits>`` of a SHA-256 of the inputs that differ from them, so that
+    runs with different inputs never write over each other's files in one folder (and the
+    same inputs write the same name again)."""
+    if not inputs:
+        return stem
+    text = json.dumps({k: inputs[k] for k in sorted(inputs)}, sort_keys=True, default=repr)
+    return f"{stem}_{hashlib.sha256(text.encode('utf-8')).hexdigest()[:8]}"
+
+
 def write_run_files(result: Any, out_dir: str | Path, name: str,
                     plot: Callable[[Any, Path], Any] | None = None) -> None:
     """Write a co-simulation's ``name.csv``, ``name.png`` and ``name.json`` into ``out_dir``.
@@ -117,7 +129,8 @@ def write_run_files(result: Any, out_dir: str | Path, name: str,
     result : object
         A result with ``run`` (a ``LoopRun``: ``time`` [s], ``names``, ``signals``),
         ``to_json()`` and the attributes ``csv`` and ``plot``, which are set to the paths
-        written before ``to_json()`` is called (the JSON names them).
+        written before ``to_json()`` is called (the JSON names them; its ``units``, the unit
+        of every CSV column, is where a reader of the CSV finds them).
     out_dir : path
         The folder (made if missing).
     name : str

@@ -18,7 +18,7 @@ import zipfile
 from ctypes import byref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import fmpy
 from fmpy import platform, platform_tuple, sharedLibraryExtension
@@ -30,7 +30,8 @@ from fmpy.logging import addLoggerProxy
 from ...core.errors import DroneflyError
 from .fmi3 import FMU3Adapter, fmi2_view
 
-__all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "start_values"]
+__all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "column_units",
+           "start_values", "variable_unit"]
 
 # fmpy's native logger proxy keeps ONE Python logger per process (the last one
 # installed), so every instance shares one dispatcher that routes messages by
@@ -74,6 +75,29 @@ def start_values(md: Any) -> dict[str, float]:
     """Start values of the Real variables of an fmpy model description, by name."""
     return {v.name: float(v.start) for v in md.modelVariables
             if v.type == "Real" and v.start is not None}
+
+
+def variable_unit(v: Any) -> str:
+    """A variable's unit as its model description declares it (its own or its type's);
+    ``"1"`` for one without (a number, a count, a flag)."""
+    unit = getattr(v, "unit", None)
+    if unit is None and getattr(v, "declaredType", None) is not None:
+        unit = getattr(v.declaredType, "unit", None)
+    return unit or "1"
+
+
+def column_units(names: Sequence[str], fmus: Mapping[str, "FMU"],
+                 bare: str | None = None) -> dict[str, str]:
+    """The unit of each column of a run's CSV, ``time`` [s] first: ``instance.NAME`` from
+    that instance's FMU, a bare ``NAME`` from the FMU ``bare`` (the pair's plant)."""
+    out = {"time": "s"}
+    for name in names:
+        inst, dot, var = name.partition(".")
+        if not (dot and inst in fmus):
+            inst, var = bare, name
+        v = fmus[inst].variables.get(var) if inst in fmus else None
+        out[name] = "1" if v is None else variable_unit(v)
+    return out
 
 
 def check_archive(path: Path) -> None:

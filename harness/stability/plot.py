@@ -51,7 +51,7 @@ def plot_loop(result: Any, path: Path) -> bool:
     wb = run.time * n
     open_run = result.extra.get("open_loop")
     states = list(result.extra.get("states", STATE_NAMES))
-    units = list(result.extra.get("units", ("",) * len(states)))
+    units = list(result.extra.get("state_units", ("",) * len(states)))
     scale = np.asarray(result.extra.get("scale", (1.0,) * len(states)))
     lateral = states == list(STATE_NAMES)  # the Sect. 3.6 box is the lateral plant's
     t_exit = None

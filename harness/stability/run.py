@@ -15,12 +15,12 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ...builder.build import project_fmus
-from ...core.files import write_run_files
+from ...core.files import run_name, write_run_files
 from ...core.text import complex_text
 from ...models.feedback import default_gains, gain_name
 from ...models.lateral import STATE_NAMES
 from ..cosim.calculated import plant_matrices
-from ..cosim.fmu import FMU
+from ..cosim.fmu import FMU, column_units
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from ..cosim.pair import PairError, PairLayout, pair_layout
 from ..cosim.params import resolve_assignments, scale_ratios
@@ -130,6 +130,7 @@ class CosimResult:
             "plot": None if self.plot is None else str(self.plot),
             "recorded": list(self.run.names),
             "built": list(self.extra.get("built", ())),
+            "units": dict(self.extra.get("units", {})),
         }
 
     def summary(self) -> str:
@@ -258,15 +259,26 @@ def cosimulate(plant: str | Path | None = None, controller: str | Path | None = 
         raise CoSimError(f"master = {master!r}; choose one of {', '.join(MASTERS)}")
 
     built: list[Path] = []
+    plant_given, controller_given = plant is not None, controller is not None
     plant, controller = project_fmus(plant, controller, build_dir, built=built)
+    record = (record,) if isinstance(record, str) else tuple(record)
+    given_fmus = plant_given or controller_given
     with FMU(plant) as pf, FMU(controller) as cf:
         loop = Loop(pf, cf)
         values = resolve_assignments(dict(set_values or {}), {
             "plant": pf.model_description, "controller": cf.model_description})
+        # what differs from the defaults names the files (the gains: _default_name)
+        inputs = {k: v for k, v in (
+            ("x0", None if x0v is None else x0v.tolist()),
+            ("step_wb", None if step_wingbeats == 0.1 else step_wingbeats),
+            ("stop_wb", None if stop_wingbeats == 300.0 else stop_wingbeats),
+            ("set", {k: repr(v) for k, v in sorted(dict(set_values or {}).items())} or None),
+            ("record", list(record) or None),
+            ("fmus", [pf.model_description.guid, cf.model_description.guid]
+             if given_fmus else None)) if v is not None}
         result = _cosimulate(loop, K, x0v, step_wingbeats, stop_wingbeats, master, out_dir,
-                             plot, name, values,
-                             (record,) if isinstance(record, str) else tuple(record),
-                             allow_scale_mismatch, [str(p) for p in built])
+                             plot, name, values, record,
+                             allow_scale_mismatch, [str(p) for p in built], inputs)
     result.extra["requested_stop_wb"] = stop_wingbeats
     return result
 
@@ -335,7 +347,8 @@ def _cosimulate(loop: Loop, K: np.ndarray | None, x0: np.ndarray | None, step_wb
                 master: str, out_dir: str | Path | None, plot: bool,
                 name: str | None, values: Mapping[str, Mapping[str, Any]],
                 record: Sequence[str] = (), allow_scale_mismatch: bool = False,
-                built: Sequence[str] = ()) -> CosimResult:
+                built: Sequence[str] = (), inputs: Mapping[str, Any] | None = None
+                ) -> CosimResult:
     pf, cf = loop.plant, loop.controller
     layout = pair_layout(pf, cf)  # refused here, with the reason, if it cannot be identified
     states, ns = list(layout.states), len(layout.states)
@@ -427,11 +440,13 @@ def _cosimulate(loop: Loop, K: np.ndarray | None, x0: np.ndarray | None, step_wb
     result.extra["built"] = list(built)
     result.extra["controls"] = list(loop.controls)  # what the plot draws as controls
     result.extra["states"] = states
-    result.extra["units"] = list(layout.units)
+    # the unit of every CSV column, as the FMUs declare it (the JSON's "units")
+    result.extra["units"] = column_units(run.names, {"plant": pf, "controller": cf}, "plant")
+    result.extra["state_units"] = list(layout.units)
     if open_run is not None:
         result.extra["open_loop"] = open_run
     if out_dir is not None:
-        write_run_files(result, out_dir, name or _default_name(K, master),
+        write_run_files(result, out_dir, name or _default_name(K, master, inputs or {}),
                         plot_loop if plot else None)
     return result
 
@@ -490,12 +505,17 @@ def _identify_model_b(loop: Loop, p: Any, c: Any, start: Any, gains: Mapping[str
     return ident, fit.exact, rates_from_transition(fit.exact, Ts), fit
 
 
-def _default_name(K: np.ndarray, master: str) -> str:
+def _default_name(K: np.ndarray, master: str, inputs: Mapping[str, Any]) -> str:
+    """``cosim_<gains>_<master>``, with a digest of every other input that differs from the
+    defaults (:func:`~dronefly.core.files.run_name`): two runs with different inputs never
+    share a name."""
+    inputs = dict(inputs)
     if not K.any():
         tag = "open"
     elif np.array_equal(K, np.array(default_gains())):
         tag = "paper"
     else:
         tag = "custom"
-    return f"cosim_{tag}_{master}"
+        inputs["gains"] = K.tolist()
+    return run_name(f"cosim_{tag}_{master}", inputs)
 

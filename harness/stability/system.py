@@ -31,8 +31,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ...core.extras import pyplot
-from ...core.files import write_run_files
+from ...core.files import run_name, write_run_files
 from ...core.text import complex_text
+from ..cosim.fmu import column_units
 from ..cosim.master import LoopRun, step_count
 from ..cosim.system import System, SystemSpecError
 from ..cosim.system_master import SystemMaster
@@ -74,6 +75,8 @@ class SystemResult:
     sought_verdicts: bool = False
     #: the outputs that cannot be recorded, with their types (``SystemMaster.unrecordable``)
     unrecordable: dict[str, str] = field(default_factory=dict)
+    #: the unit of every recorded column, as its FMU declares it (``time`` in s)
+    units: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         axes = []
@@ -96,6 +99,7 @@ class SystemResult:
                 "time_unit": self.time_unit, "ended_at_s": self._ended_at(),
                 "axes": axes, "check_failures": list(self.check_failures),
                 "recorded": list(self.run.names), "not_recorded": dict(self.unrecordable),
+                "units": dict(self.units),
                 "csv": None if self.csv is None else str(self.csv),
                 "plot": None if self.plot is None else str(self.plot)}
 
@@ -249,11 +253,13 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
     with SystemMaster(system, master) as m:
         n = _wingbeat_frequency(m)
         unit = "wing beats" if _has_wingbeats(m) else "s"
-        stop = stop_wingbeats if stop_wingbeats is not None else (
-            (system.stop_s - system.start_s) * n if system.stop_s is not None else 300.0)
+        default_stop = ((system.stop_s - system.start_s) * n if system.stop_s is not None
+                        else 300.0)  # the SSP's DefaultExperiment
+        stop = stop_wingbeats if stop_wingbeats is not None else default_stop
         n_steps = step_count(stop, step_wingbeats)
         stop = round(n_steps * step_wingbeats, 12)
         run = m.run(step_wingbeats / n, n_steps, record=record)
+        units = column_units(run.names, m.fmus)
         axes, deviation, opened, open_dev = [], {}, None, {}
         if verdicts and run.complete:
             axes = axis_verdicts(m, step_wingbeats)
@@ -270,9 +276,15 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
                           open_loop=opened, open_loop_deviation=open_dev,
                           check_failures=failures, check_tol=tol, time_unit=unit,
                           sought_verdicts=verdicts and run.complete,
-                          unrecordable=dict(m.unrecordable))
+                          unrecordable=dict(m.unrecordable), units=units)
     if out_dir is not None:
-        write_run_files(result, out_dir, name or f"cosim_{system.name}_{master}",
+        inputs = {k: v for k, v in (
+            ("set", {k: repr(v) for k, v in sorted(dict(set_values or {}).items())} or None),
+            ("step_wb", None if step_wingbeats == 0.1 else step_wingbeats),
+            ("stop_wb", None if stop_wingbeats is None or stop_wingbeats == default_stop
+             else stop_wingbeats), ("record", list(record or ()) or None),
+            ("open_loop", open_loop or None)) if v is not None}
+        write_run_files(result, out_dir, name or run_name(f"cosim_{system.name}_{master}", inputs),
                         _plot if plot else None)
     return result
 
@@ -310,17 +322,24 @@ def _plot(result: SystemResult, path: Path) -> None:
     groups: dict[str, list[int]] = {}
     for j, full in enumerate(run.names):
         groups.setdefault(full.partition(".")[0], []).append(j)
-    fig, axs = plt.subplots(len(groups) or 1, 1, figsize=(8, 2.2 * max(len(groups), 1)),
-                            sharex=True, squeeze=False)
+    fig, axs = plt.subplots(len(groups) or 1, 1, figsize=(10, 2.4 * max(len(groups), 1)),
+                            sharex=True, squeeze=False, layout="constrained")
     t = run.time * result.n_hz
     verdict = {a.plant.instance: a.verdict for a in result.axes}
     for ax, (inst, cols) in zip(axs[:, 0], groups.items()):
+        units = list(dict.fromkeys(result.units.get(run.names[j], "1") for j in cols))
         for j in cols:
-            ax.plot(t, run.signals[:, j], label=run.names[j].partition(".")[2])
+            label = run.names[j].partition(".")[2]
+            unit = result.units.get(run.names[j], "1")
+            ax.plot(t, run.signals[:, j], label=label if len(units) == 1 else f"{label} [{unit}]")
         ax.set_title(f"{inst}" + (f" ({verdict[inst]})" if inst in verdict else ""),
                      fontsize=9)
-        ax.legend(fontsize=7, loc="upper right", ncol=2)
-    axs[-1, 0].set_xlabel("time [wing beats]")
-    fig.tight_layout()
+        # the unit of every curve (SI, as the FMU declares it): on the axis if they share one
+        ax.set_ylabel(f"[{units[0]}]" if len(units) == 1 else "SI units (legend)")
+        ax.grid(True, alpha=0.3)
+        # beside the axes, never over the curves
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    axs[-1, 0].set_xlabel("time [wing beats]" if result.time_unit == "wing beats" else
+                          "time [s]")
     fig.savefig(path, format="png", dpi=90)
     plt.close(fig)

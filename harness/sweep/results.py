@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import math
+import textwrap
 from collections import defaultdict
 from pathlib import Path
 from typing import Any, Sequence
@@ -26,7 +27,7 @@ from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputErr
 from .compare import COMPARE_COLUMNS, format_comparison
 from .delaymap import format_delay_groups, write_delay_map
 
-__all__ = ["COLUMNS", "DELAY_COLUMNS", "RESULT_COLUMNS", "format_summary", "load_done", "read_rows", "result_row",
+__all__ = ["COLUMNS", "DELAY_COLUMNS", "RESULT_COLUMNS", "column_units", "csv_header", "format_summary", "load_done", "read_rows", "result_row",
            "summarize", "write_maps", "write_results"]
 
 _CASE_COLS = ["case", "key", "family", "label", "amplitude", *(f"x0_{a}" for a in AXES), "gains",
@@ -38,6 +39,39 @@ COLUMNS = _CASE_COLS + RESULT_COLUMNS
 #: Columns added by the delay axes (:mod:`.delays`).
 DELAY_COLUMNS = ["delay_wb", "sample_period_wb", "delay_ms", "sample_period_ms", "stability",
                  "stability_rate", "stability_identified", "stability_deviation"]
+
+_X_PLUS = {"dv": "1 (dv/U)", "dp": "1 (dp/n)", "dr": "1 (dr/n)", "dgamma": "rad"}
+_OF_BOUND = "1 (of the bound)"
+_UNITS = {
+    "case": "1", "amplitude": "1 (of the box)", "step_wb": "wing beats",
+    "scale": "1 (factor on the bounds)", "stop_wb": "wing beats", "n_steps": "1",
+    "peak_u": "1 (of 0.4 rad)", "peak": _OF_BOUND, "t_exit_wb": "wing beats",
+    "delay_wb": "wing beats", "sample_period_wb": "wing beats", "delay_ms": "ms",
+    "sample_period_ms": "ms", "stability_rate": "1/wing beat",
+    "stability_deviation": "1/wing beat", "err_lateral": _OF_BOUND,
+    "err_longitudinal": _OF_BOUND, "cmp_peak": _OF_BOUND, "altitude_lost_m": "m",
+    "drift_m": "m",
+    **{f"x0_{a}": u for a, u in _X_PLUS.items()}, **{f"final_{a}": u for a, u in _X_PLUS.items()},
+    **{f"peak_{a}": _OF_BOUND for a in AXES},
+    **{c: _OF_BOUND for c in COMPARE_COLUMNS if c.startswith("err_")},
+    **{c: "text" for c in ("key", "family", "label", "gains", "master", "verdict", "error",
+                           "stability", "stability_identified", "cmp_verdict")},
+}
+
+
+def column_units(header: Sequence[str]) -> dict[str, str]:
+    """The unit of each column of ``sweep.csv`` (``sweep.json``'s ``units``): ``1 (dv/U)``
+    for a non-dimensional state, ``1 (of the bound)`` for a ratio to a Sect. 3.6 bound,
+    ``text`` for a word; a column without an entry is a bug (KeyError)."""
+    return {c: _UNITS[c] for c in header}
+
+
+def csv_header(rows: Sequence[dict[str, str]]) -> list[str]:
+    """The columns of ``sweep.csv`` for these rows (the delay and comparison columns when
+    the rows have them)."""
+    return (COLUMNS + (DELAY_COLUMNS if rows and "delay_wb" in rows[0] else [])
+            + (COMPARE_COLUMNS if rows and "err_dv" in rows[0] else []))
+
 
 _AXIS_LABEL = {"dv": "dv+ = dv/U", "dp": "dp+ = dp t_w", "dr": "dr+ = dr t_w",
                "dgamma": "dgamma [rad]"}
@@ -69,9 +103,7 @@ def result_row(case: Case, result: dict[str, Any], compare: bool = False) -> dic
 
 def write_results(path: Path, rows: list[dict[str, str]]) -> None:
     """``sweep.csv``: the rows in case order, atomically (the one CSV writer of the project)."""
-    header = (COLUMNS + (DELAY_COLUMNS if rows and "delay_wb" in rows[0] else [])
-              + (COMPARE_COLUMNS if rows and "err_dv" in rows[0] else []))
-    write_csv_atomic(path, header, sorted(rows, key=lambda r: int(r["case"])))
+    write_csv_atomic(path, csv_header(rows), sorted(rows, key=lambda r: int(r["case"])))
 
 
 def read_rows(path: str | Path) -> list[dict[str, str]]:
@@ -250,7 +282,8 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
             rs = [r for r in grid if r["label"] == label and combo(r) == (s, *dT)]
             gains = list(dict.fromkeys(r["gains"] for r in rs))
             steps = sorted({float(r["step_wb"]) for r in rs})
-            fig = Figure(figsize=(1.2 + 3.3 * len(steps), 0.9 + 3.0 * len(gains)), dpi=110,
+            width_in = max(5.0, 1.2 + 3.3 * len(steps))  # one column: room for the title
+            fig = Figure(figsize=(width_in, 1.3 + 3.0 * len(gains)), dpi=110,
                          layout="constrained")
             axes = fig.subplots(len(gains), len(steps), squeeze=False, sharex=True, sharey=True)
             mesh = None
@@ -268,14 +301,17 @@ def write_maps(rows: Sequence[dict[str, str]], out_dir: str | Path) -> list[Path
                         ax.set_ylabel(_AXIS_LABEL[sy])
             cb = fig.colorbar(mesh, ax=axes, shrink=0.8, extend="max", ticks=_LEVELS,
                               spacing="uniform", format="%.3g")
-            cb.set_label("peak over the run of max(|x_i|/bound_i, |u|/0.4 rad)")
+            cb.set_label("peak of max(|x_i|/bound_i, |u|/0.4 rad)")
             stop = rs[0]["stop_wb"]
-            fig.suptitle(f"Initial disturbances over the Sect. 3.6 box, slice {sx} x {sy} "
-                         f"(others 0), {float(stop):g} wing beats"
-                         + (f", bounds x {s:g}" if s != 1.0 else "")
-                         + (f", delay {dT[0]:g} wb, sample period {dT[1]:g} wb" if dT else "")
-                         + "\ngreen: stays within the bounds; red: leaves them; "
-                         "black line: peak = bound", fontsize=10)
+            # wrapped to the figure's width (about 13 characters per inch at 10 pt)
+            chars = int(width_in * 13)
+            fig.suptitle("\n".join(textwrap.wrap(
+                f"Initial disturbances over the Sect. 3.6 box, slice {sx} x {sy} "
+                f"(others 0), {float(stop):g} wing beats"
+                + (f", bounds x {s:g}" if s != 1.0 else "")
+                + (f", delay {dT[0]:g} wb, sample period {dT[1]:g} wb" if dT else ""), chars)
+                + textwrap.wrap("green: stays within the bounds; red: leaves them; black "
+                                "line: peak = bound", chars)), fontsize=10)
             name = (f"map_{sx}_{sy}" + (f"_scale{s:g}" if len(scales) > 1 or s != 1.0 else "")
                     + (f"_delay{dT[0]:g}_period{dT[1]:g}" if dT else ""))
             path = Path(out_dir) / f"{name}.png"

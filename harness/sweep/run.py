@@ -43,7 +43,8 @@ from .cases import Case, SweepInputError, SweepSpec
 from .compare import compare_summary
 from .comparemaps import write_compare_maps
 from .delays import delay_results, delay_summary
-from .results import (COLUMNS, load_done, read_rows, result_row, summarize, write_maps,
+from .results import (COLUMNS, column_units, csv_header, load_done, read_rows, result_row,
+                      summarize, write_maps,
                       write_results)
 from .system import SystemRef, check_system
 from .worker import FmuRef
@@ -417,7 +418,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
                    **({"system": refs[0].path, "plant": lateral.plant,
                        "controller": lateral.controller} if lateral is not None else
                       {"plant": refs[0].path, "controller": refs[1].path}),
-                   csv=str(results.csv),
+                   csv=str(results.csv), units=column_units(csv_header(rows)),
                    maps=[str(m) for m in maps])
 
     json_path = out / "sweep.json"

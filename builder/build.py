@@ -27,6 +27,7 @@ from pathlib import Path
 
 from ..core.errors import DroneflyError
 from ..core.files import write_zip
+from ..core.interrupt import checkpoint
 from ..fmi.fmi3 import fmi3_class
 from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 from .closedloop import CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, write_container, write_ssp
@@ -231,6 +232,7 @@ def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
         raise BuildError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
     if fmi not in (2, 3):
         raise BuildError(f"FMI version {fmi!r}: 2 or 3")
+    checkpoint()  # Ctrl-C during a build of many: between two FMUs
     out = Path(out_dir)
     target = out / f"{name}.fmu"
     _refuse_foreign(target, f"the {name} FMU", target.is_file()

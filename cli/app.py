@@ -25,7 +25,7 @@ from .commands import COMMANDS, EXIT_FAILED, EXIT_USAGE
 from .args import (converter, finite, floats_arg, int_arg, parse_gains, parse_names, parse_setting,
     parse_x0, positive)
 from ..core.errors import CrossCheckError, DroneflyError
-from ..core.interrupt import EXIT_INTERRUPTED, deferred_sigint
+from ..core.interrupt import EXIT_INTERRUPTED, deferred_sigint, sigint_at_once
 
 __all__ = ["main"]
 
@@ -350,8 +350,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as e:  # argparse already printed its one-line error, the help or version
         return int(e.code or 0)
     try:
-        with deferred_sigint() as interrupt:  # Ctrl-C lands between steps, never in an FMU
-            code = int(_command(args.command).run(args))
+        module = _command(args.command)
+        # Ctrl-C lands between steps, never in an FMU; a command that runs none stops at once
+        guard = deferred_sigint if getattr(module, "RUNS_FMUS", True) else sigint_at_once
+        with guard() as interrupt:
+            code = int(module.run(args))
         if interrupt.requested:
             raise KeyboardInterrupt
         return code

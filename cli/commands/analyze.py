@@ -11,7 +11,10 @@ from ...harness.paper.report import render
 from ...harness.paper.reproduction import analyze
 from . import EXIT_OK
 
-__all__ = ["run"]
+__all__ = ["RUNS_FMUS", "run"]
+
+#: no FMU runs here: Ctrl-C stops the command at once (:func:`dronefly.core.interrupt.sigint_at_once`)
+RUNS_FMUS = False
 
 
 def run(args: argparse.Namespace) -> int:

@@ -30,6 +30,7 @@ from fmpy import read_model_description
 
 from ...builder.build import BuildError, project_fmus
 from ...core.files import write_text_atomic
+from ...core.interrupt import checkpoint
 from ..cosim.fmu import FMU, FMUError, start_values
 from ..cosim.master import CoSimError, Loop
 from ..cosim.params import resolve_assignments, scale_ratios
@@ -320,6 +321,8 @@ class _Results:
         s = self.settings
         chunks = chunk_cases(self.todo, n_workers, s.chunk_steps)
         self.csv.parent.mkdir(parents=True, exist_ok=True)
+        if self.todo:  # the summary of an earlier run no longer describes the folder
+            self.csv.with_name("sweep.json").unlink(missing_ok=True)
         disable = (not stderr_is_tty()) if s.progress_bar is None else not s.progress_bar
         self.bar = make_progress_bar(total=len(self.todo), unit="case", desc="sweep",
                                      dynamic_ncols=True, disable=disable)
@@ -383,6 +386,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     n_workers = (len(client.scheduler_info()["workers"]) if client
                  else min(workers, max(1, len(results.todo))))
     results.run(refs, client, n_workers)
+    checkpoint()  # a Ctrl-C after the last chunk: no maps, no summary that says complete
     rows = [results.row(c) for c in cases]
     maps = write_maps(rows, out) if s.plot else []
     summary = summarize(rows, cases) | (delay_summary(rows) if results.timed else {})

@@ -18,8 +18,10 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["atomic_path", "format_cell", "write_csv_atomic", "write_run_files",
-           "write_text_atomic", "write_zip"]
+from .errors import DroneflyError
+
+__all__ = ["OutputPathError", "atomic_path", "check_output_dir", "check_output_file",
+           "format_cell", "write_csv_atomic", "write_run_files", "write_text_atomic", "write_zip"]
 
 #: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
 #: the signature of a zip archive's first local file header
@@ -27,20 +29,78 @@ _ZIP_MAGIC = b"PK\x03\x04"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
+class OutputPathError(DroneflyError):
+    """An output path that cannot be written: found before any work."""
+
+
+def _writable_folder(folder: Path, path: Path) -> None:
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputPathError(f"{str(path)!r}: the folder {str(folder)!r} is not writable")
+
+
+def check_output_dir(path: str | Path) -> Path:
+    """Check that ``path`` is a folder results can be written into, or can be made (its
+    missing parents too), before any work; returns it.
+
+    Raises
+    ------
+    OutputPathError
+        ``path`` is a file, or its nearest existing ancestor is a file or not writable.
+    """
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            raise OutputPathError(f"{str(path)!r} is a file, not a folder")
+        _writable_folder(path, path)
+        return path
+    ancestor = path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise OutputPathError(f"{str(path)!r}: {str(ancestor)!r} is a file, not a folder")
+    _writable_folder(ancestor, path)
+    return path
+
+
+def check_output_file(path: str | Path) -> Path:
+    """Check that the file ``path`` can be written (its folder exists and is writable, and it
+    is not a folder) before any work; returns it.
+
+    Raises
+    ------
+    OutputPathError
+        ``path`` is a folder, or its folder does not exist, is a file or is not writable.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputPathError(f"{str(path)!r} is a folder; give the file to write")
+    folder = path.parent
+    if not folder.exists():
+        raise OutputPathError(f"{str(path)!r}: the folder {str(folder)!r} does not exist")
+    if not folder.is_dir():
+        raise OutputPathError(f"{str(path)!r}: {str(folder)!r} is a file, not a folder")
+    _writable_folder(folder, path)
+    return path
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield ``path.part`` to write to; rename it to ``path`` if the block succeeds.
 
-    On an exception the partial file is removed and ``path`` is left as it was.
+    On an exception the partial file is removed and ``path`` is left as it was; an ``OSError``
+    on the temporary file is raised naming ``path``.
     """
     path = Path(path)
     tmp = path.with_name(path.name + ".part")
     try:
         yield tmp
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(e, OSError) and str(tmp) in (e.filename, e.filename2):
+            # the error names the file asked for, not its temporary name
+            raise type(e)(e.errno, e.strerror, str(path)) from e
         raise
 
 

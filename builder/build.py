@@ -16,6 +16,7 @@ when it is missing or its sources changed.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import re
@@ -24,6 +25,7 @@ import zipfile
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
+from typing import Callable, Iterator
 
 from ..core.errors import DroneflyError
 from ..core.files import write_zip
@@ -219,6 +221,27 @@ def _refuse_foreign(path: Path, what: str, ours: bool) -> None:
                          "it is left alone (move it away, or build into another folder)")
 
 
+#: the callbacks of :func:`reporting`, each called with every artefact the build writes
+_REPORTERS: list[Callable[[Path], None]] = []
+
+
+@contextlib.contextmanager
+def reporting(callback: Callable[[Path], None]) -> Iterator[None]:
+    """Call ``callback(path)`` for every FMU, SSP and container FMU the build writes inside the
+    block (the command line says so: what it built and where)."""
+    _REPORTERS.append(callback)
+    try:
+        yield
+    finally:
+        _REPORTERS.remove(callback)
+
+
+def _built(path: Path) -> Path:
+    for callback in list(_REPORTERS):
+        callback(path)
+    return path
+
+
 def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
     """Build one FMU into ``out_dir`` and return its path (``fmi``: 2 or 3, the FMI version).
 
@@ -244,7 +267,7 @@ def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
         files["modelDescription.xml"] = _model_description(name, guid, fmi)
     except (OSError, ImportError) as e:
         raise BuildError(f"cannot build {name}: {e}") from e
-    return write_zip(target, files)
+    return _built(write_zip(target, files))
 
 
 def ensure_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> tuple[Path, bool]:
@@ -358,6 +381,8 @@ def build_all(out_dir: str | Path = "build", fmi: int = 2) -> list[Path]:
                                             out / f"{name}.ssp", description=description))
         except (OSError, ValueError) as e:
             raise BuildError(f"cannot build {name}.ssp: {e}") from e
+    for path in [*loop, *systems]:
+        _built(path)
     return [*fmus.values(), *loop, *systems]
 
 

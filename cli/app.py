@@ -17,10 +17,12 @@ import argparse
 import importlib
 import sys
 import traceback
+from pathlib import Path
 from types import ModuleType
-from typing import Sequence
+from typing import Callable, Sequence
 
 from .. import __version__
+from ..builder.build import reporting
 from .commands import COMMANDS, EXIT_FAILED, EXIT_USAGE
 from .args import (converter, finite, floats_arg, int_arg, out_dir, out_file, parse_gains,
     parse_names, parse_setting, parse_x0, positive)
@@ -345,6 +347,17 @@ def _command(name: str) -> ModuleType:
     return importlib.import_module(f"{__package__}.commands.{name}")
 
 
+def _say_built(command: str, module: ModuleType) -> Callable[[Path], None]:
+    """What a command that builds the project's FMUs says for each (one line on stderr), unless
+    it says so itself (``SAYS_WHAT_IT_BUILT`` in its module: build, cosim, simulate)."""
+
+    def say(path: Path) -> None:
+        if not getattr(module, "SAYS_WHAT_IT_BUILT", False):
+            print(f"dronefly {command}: built {path}", file=sys.stderr, flush=True)
+
+    return say
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (also used by ``python -m dronefly``)."""
     parser = _parser()
@@ -356,7 +369,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         module = _command(args.command)
         # Ctrl-C lands between steps, never in an FMU; a command that runs none stops at once
         guard = deferred_sigint if getattr(module, "RUNS_FMUS", True) else sigint_at_once
-        with guard() as interrupt:
+        with guard() as interrupt, reporting(_say_built(args.command, module)):
             code = int(module.run(args))
         if interrupt.requested:
             raise KeyboardInterrupt

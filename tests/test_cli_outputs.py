@@ -106,3 +106,28 @@ def test_analyze_input_without_targets_is_refused(capsys, monkeypatch):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert err.startswith("dronefly analyze: error: --input 'delta_alpha_1a' needs --targets")
+
+
+# --- builds said ------------------------------------------------------------------------------
+@pytest.mark.integration
+@pytest.mark.parametrize("argv", [
+    ["demo", "--no-plot"],
+    ["floquet"],
+    ["sweep", "--workers", "1", "--no-plot", "--no-progress", "--grid", "2", "--slices",
+     "dgamma:dp", "--disturbances", "grid", "--gains", "paper", "--steps", "1", "--stop", "2"],
+    ["sweep", "--compare", "nonlinear", "--workers", "1", "--no-plot", "--no-progress",
+     "--disturbances", "directions", "--directions", "+dv", "--amplitudes", "1", "--stop", "1"],
+], ids=["demo", "floquet", "sweep", "sweep-compare-nonlinear"])
+def test_a_command_that_builds_fmus_says_what_it_built_and_where(argv, tmp_path, monkeypatch,
+                                                                  capsys):
+    """In an empty folder each builds the project's FMUs into build/: one line on stderr per
+    artefact written, naming its path; stdout is left to the result (JSON stays JSON)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) in (0, 1)  # a verdict is not what is tested here
+    err = capsys.readouterr().err.splitlines()
+    said = sorted(line.split(": built ", 1)[1] for line in err if ": built " in line)
+    assert all(line.startswith(f"dronefly {argv[0]}: built ") for line in err
+               if ": built " in line)
+    written = sorted(str(p.relative_to(tmp_path)) for p in (tmp_path / "build").rglob("*.*")
+                     if p.suffix in (".fmu", ".ssp"))
+    assert said and said == written

@@ -8,7 +8,10 @@ from pathlib import Path
 from ...builder.build import FMI3_OUT, build_all
 from . import EXIT_OK
 
-__all__ = ["run"]
+__all__ = ["SAYS_WHAT_IT_BUILT", "run"]
+
+#: prints every path it writes: the command line adds no line of its own
+SAYS_WHAT_IT_BUILT = True
 
 
 def run(args: argparse.Namespace) -> int:

@@ -14,7 +14,10 @@ from ...harness.stability.run import cosimulate
 from ...harness.stability.system import cosimulate_system
 from . import EXIT_FAILED, EXIT_OK
 
-__all__ = ["run"]
+__all__ = ["SAYS_WHAT_IT_BUILT", "run"]
+
+#: its summary and JSON name what it built: the command line adds no line of its own
+SAYS_WHAT_IT_BUILT = True
 
 
 def run(args: argparse.Namespace) -> int:

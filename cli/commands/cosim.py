@@ -9,10 +9,9 @@ from pathlib import Path
 from typing import Any
 
 from ...core.errors import DroneflyError
-from ...core.extras import require
 from ...harness.stability.run import cosimulate
 from ...harness.stability.system import cosimulate_system
-from . import EXIT_FAILED, EXIT_OK
+from . import EXIT_FAILED, EXIT_OK, feature
 
 __all__ = ["SAYS_WHAT_IT_BUILT", "run"]
 
@@ -22,8 +21,7 @@ SAYS_WHAT_IT_BUILT = True
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly cosim`` with the parsed arguments; returns the exit code."""
-    if not args.no_plot:
-        require("matplotlib", "pass --no-plot")
+    args.no_plot = not feature("cosim", not args.no_plot, "matplotlib", "plot")
     if args.system is not None:
         return _cosim_system(args)
     if args.open_loop:

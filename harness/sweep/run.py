@@ -29,6 +29,7 @@ from typing import Any, Callable, Mapping, Sequence
 from fmpy import read_model_description
 
 from ...builder.build import BuildError, project_fmus
+from ...core.extras import missing
 from ...core.files import write_text_atomic
 from ...core.interrupt import checkpoint
 from ..cosim.fmu import FMU, FMUError, start_values
@@ -170,7 +171,7 @@ class SweepSettings:
     plot : bool
         Write the PNG maps.
     progress_bar : bool, optional
-        tqdm bar on stderr (default: when stderr is a terminal).
+        tqdm bar on stderr (default: when stderr is a terminal and tqdm is installed).
     on_chunk : callable(done, total), optional
         Called after each chunk (cases done so far, cases to do); may raise to stop.
     chunk_steps : int, optional
@@ -323,7 +324,8 @@ class _Results:
         self.csv.parent.mkdir(parents=True, exist_ok=True)
         if self.todo:  # the summary of an earlier run no longer describes the folder
             self.csv.with_name("sweep.json").unlink(missing_ok=True)
-        disable = (not stderr_is_tty()) if s.progress_bar is None else not s.progress_bar
+        disable = ((not stderr_is_tty() or missing("tqdm") is not None)  # auto: if it can
+                   if s.progress_bar is None else not s.progress_bar)
         self.bar = make_progress_bar(total=len(self.todo), unit="case", desc="sweep",
                                      dynamic_ncols=True, disable=disable)
         self.last_flush = time.perf_counter()

@@ -111,3 +111,33 @@ def test_every_help_and_every_help_example_runs_on_the_core_install(core_env, tm
     said = "".join(run["stderr"] for run in json.loads(report.read_text()))
     assert "plot skipped: matplotlib is not installed" in said  # cosim, with the extra to install
     assert "one BLAS thread per worker process skipped: threadpoolctl" in said  # sweep
+
+
+@pytest.mark.parametrize("terminal", [True, False])
+def test_the_progress_bar_is_skipped_without_tqdm_or_without_a_terminal(
+        terminal, built_fmus, tmp_path, monkeypatch, capsys):
+    """Without tqdm the sweep runs without its bar: one line says so when there is a terminal
+    to show it on; without a terminal there is no bar to skip, and no line."""
+    import sys
+
+    from dronefly.cli.app import main
+    from dronefly.cli.commands import sweep
+
+    monkeypatch.setitem(sys.modules, "tqdm", None)  # import fails as if not installed
+    monkeypatch.setattr(sweep, "stderr_is_tty", lambda: terminal)
+    argv = ["sweep", "--plant", str(built_fmus["DroneFlyLateral"]), "--controller",
+            str(built_fmus["StateFeedback"]), "--workers", "1", "--no-plot", "--disturbances",
+            "directions", "--directions", "+dv", "--amplitudes", "1", "--gains", "paper",
+            "--steps", "1", "--stop", "2", "--out", str(tmp_path / "out")]
+    assert main(argv) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "skipped" in line]
+    assert said == ([] if not terminal else [
+        "dronefly sweep: progress bar skipped: tqdm is not installed (the sweep's progress "
+        "bar): pip install 'dronefly-fmu[sweep]'"])
+
+
+def test_no_optional_package_is_said_to_drive_worker_threads():
+    """The sweep's workers are processes; threadpoolctl limits BLAS threads in each."""
+    from dronefly.core.extras import EXTRAS
+
+    assert all("worker thread" not in what for _, what in EXTRAS.values())

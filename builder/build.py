@@ -16,6 +16,7 @@ when it is missing or its sources changed.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import re
@@ -24,9 +25,11 @@ import zipfile
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
+from typing import Callable, Iterator
 
 from ..core.errors import DroneflyError
 from ..core.files import write_zip
+from ..core.interrupt import checkpoint
 from ..fmi.fmi3 import fmi3_class
 from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 from .closedloop import CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, write_container, write_ssp
@@ -218,6 +221,27 @@ def _refuse_foreign(path: Path, what: str, ours: bool) -> None:
                          "it is left alone (move it away, or build into another folder)")
 
 
+#: the callbacks of :func:`reporting`, each called with every artefact the build writes
+_REPORTERS: list[Callable[[Path], None]] = []
+
+
+@contextlib.contextmanager
+def reporting(callback: Callable[[Path], None]) -> Iterator[None]:
+    """Call ``callback(path)`` for every FMU, SSP and container FMU the build writes inside the
+    block (the command line says so: what it built and where)."""
+    _REPORTERS.append(callback)
+    try:
+        yield
+    finally:
+        _REPORTERS.remove(callback)
+
+
+def _built(path: Path) -> Path:
+    for callback in list(_REPORTERS):
+        callback(path)
+    return path
+
+
 def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
     """Build one FMU into ``out_dir`` and return its path (``fmi``: 2 or 3, the FMI version).
 
@@ -231,6 +255,7 @@ def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
         raise BuildError(f"unknown FMU {name!r}; known: {', '.join(FMUS)}")
     if fmi not in (2, 3):
         raise BuildError(f"FMI version {fmi!r}: 2 or 3")
+    checkpoint()  # Ctrl-C during a build of many: between two FMUs
     out = Path(out_dir)
     target = out / f"{name}.fmu"
     _refuse_foreign(target, f"the {name} FMU", target.is_file()
@@ -242,7 +267,7 @@ def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
         files["modelDescription.xml"] = _model_description(name, guid, fmi)
     except (OSError, ImportError) as e:
         raise BuildError(f"cannot build {name}: {e}") from e
-    return write_zip(target, files)
+    return _built(write_zip(target, files))
 
 
 def ensure_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> tuple[Path, bool]:
@@ -356,6 +381,8 @@ def build_all(out_dir: str | Path = "build", fmi: int = 2) -> list[Path]:
                                             out / f"{name}.ssp", description=description))
         except (OSError, ValueError) as e:
             raise BuildError(f"cannot build {name}.ssp: {e}") from e
+    for path in [*loop, *systems]:
+        _built(path)
     return [*fmus.values(), *loop, *systems]
 
 

@@ -17,15 +17,17 @@ import argparse
 import importlib
 import sys
 import traceback
+from pathlib import Path
 from types import ModuleType
-from typing import Sequence
+from typing import Callable, Sequence
 
 from .. import __version__
+from ..builder.build import reporting
 from .commands import COMMANDS, EXIT_FAILED, EXIT_USAGE
-from .args import (converter, finite, floats_arg, int_arg, parse_gains, parse_names, parse_setting,
-    parse_x0, positive)
+from .args import (converter, finite, floats_arg, int_arg, out_dir, out_file, parse_gains,
+    parse_names, parse_setting, parse_x0, positive)
 from ..core.errors import CrossCheckError, DroneflyError
-from ..core.interrupt import EXIT_INTERRUPTED, deferred_sigint
+from ..core.interrupt import EXIT_INTERRUPTED, deferred_sigint, sigint_at_once
 
 __all__ = ["main"]
 
@@ -42,7 +44,8 @@ _EPILOG = {
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
              "  dronefly cosim --plant build/DroneFlyLongitudinal.fmu "
              "--controller build/StateFeedbackLongitudinal.fmu\n"
-             "  dronefly cosim --gains 'k11,k12,k13,k14;k21,k22,k23,k24;k31,k32,k33,k34'\n"
+             "  dronefly cosim --gains='-0.3,-0.3,-0.2,-0.1;0,0,0,0;0.1,0,0,0'  (rows: "
+             "delta_Phi_a; delta_alpha_1a; delta_alpha_2a)\n"
              "  dronefly cosim --gains my_gains.json --set plant.Lv_plus=0.25 --set u_max=0.3\n"
              "  dronefly cosim --system build/DroneFlyHover.ssp\n"
              "  dronefly cosim --system build/DroneFlyHover.ssp --open-loop\n"
@@ -120,14 +123,14 @@ def _parser() -> argparse.ArgumentParser:
         return sp
 
     b = add("build", "build every FMU of the project")
-    b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
+    b.add_argument("--out", type=out_dir, default="build", metavar="DIR", help="output folder (default: build/)")
 
     s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance")
     s.add_argument("--stop", type=positive, default=30.0, help="stop time in wing beats (default 30)")
     s.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")
     s.add_argument("--gamma0", type=finite, default=0.1,
                    help="initial roll angle delta_gamma in rad, SI (default 0.1)")
-    s.add_argument("--out", default="build", metavar="DIR", help="folder of the FMU and the result CSV")
+    s.add_argument("--out", type=out_dir, default="build", metavar="DIR", help="folder of the FMU and the result CSV")
 
     c = add("cosim", "co-simulate plant and controller FMUs, or any system of FMUs from an SSP "
             "file, with fmpy and check the stability of each loop")
@@ -171,14 +174,14 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--allow-scale-mismatch", action="store_true",
                    help="accept a plant and a controller whose n or U differ (refused otherwise: "
                         "the controller reads the plant's state with its own n and U)")
-    c.add_argument("--build", default="build", metavar="DIR",
+    c.add_argument("--build", type=out_dir, default="build", metavar="DIR",
                    help="where the project's FMUs are built if --plant/--controller are not given")
     c.add_argument("--step", type=positive, default=0.1, help="communication step in wing beats (default 0.1)")
     c.add_argument("--stop", type=positive, default=None,
                    help="stop time in wing beats (default 300, or the SSP's DefaultExperiment)")
     c.add_argument("--master", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
                    help="ordering of the FMU calls (default gauss-seidel)")
-    c.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSV, PNG and JSON")
+    c.add_argument("--out", type=out_dir, default="build/cosim", metavar="DIR", help="folder of CSV, PNG and JSON")
     c.add_argument("--json", action="store_true", help="print a machine-readable summary")
     c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
 
@@ -216,28 +219,31 @@ def _parser() -> argparse.ArgumentParser:
                         "(default 600 s)")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table")
-    d.add_argument("--out", default="build/cosim", metavar="DIR", help="folder of CSVs and plots")
+    d.add_argument("--out", type=out_dir, default="build/cosim", metavar="DIR", help="folder of CSVs and plots")
     d.add_argument("--no-plot", action="store_true", help="do not write the PNGs")
     d.add_argument("--set", dest="set_values", action="append", default=[],
                    type=parse_setting, metavar="NAME=VALUE",
                    help="set a parameter of the plant or controller for both runs (repeatable; "
                         "SI units), as cosim --set")
-    d.add_argument("--build", default="build", metavar="DIR",
+    d.add_argument("--build", type=out_dir, default="build", metavar="DIR",
                    help="where the project's FMUs are built if missing or out of date")
 
     a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model")
-    a.add_argument("--json", action="store_true", help="print JSON (table, matrices, eigenvalues, gains)")
-    a.add_argument("--markdown", action="store_true", help="print the Markdown report (docs/reproduction.md)")
+    form = a.add_mutually_exclusive_group()  # one report: both are refused (exit 2)
+    form.add_argument("--json", action="store_true",
+                      help="print JSON (table, matrices, eigenvalues, gains); not with --markdown")
+    form.add_argument("--markdown", action="store_true",
+                      help="print the Markdown report (docs/reproduction.md); not with --json")
     a.add_argument("--targets", default=None, metavar="LIST",
                    help="comma-separated closed-loop eigenvalues per wing beat for an extra "
                         "gain design; write --targets=... when the first one is negative")
-    a.add_argument("--input", default="delta_Phi_a", metavar="NAME",
-                   help="control input of that design: delta_Phi_a (default), delta_alpha_1a, "
-                        "delta_alpha_2a")
-    a.add_argument("--out", default=None, metavar="FILE", help="write to FILE instead of stdout")
+    a.add_argument("--input", default=None, metavar="NAME",
+                   help="with --targets: the control input of that design: delta_Phi_a "
+                        "(default), delta_alpha_1a, delta_alpha_2a")
+    a.add_argument("--out", type=out_file, default=None, metavar="FILE", help="write to FILE instead of stdout")
     w = add("sweep", "co-simulate many disturbed closed loops: where do they stay within the "
             "Sect. 3.6 bounds?")
-    w.add_argument("--out", default="build/sweep", metavar="DIR",
+    w.add_argument("--out", type=out_dir, default="build/sweep", metavar="DIR",
                    help="folder of sweep.csv, sweep.json and map_*.png; rerun to resume "
                         "(default build/sweep)")
     w.add_argument("--plant", default=None, metavar="FMU", help="plant FMU (default: built)")
@@ -340,7 +346,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="the period in s (default 1/n from the FMU's parameter n)")
     f.add_argument("--steps", type=int_arg("steps", 1), default=1, metavar="N",
                    help="communication steps per period (default 1)")
-    f.add_argument("--build", default="build", metavar="DIR",
+    f.add_argument("--build", type=out_dir, default="build", metavar="DIR",
                    help="where the default plant is built (default build/)")
     f.add_argument("--json", action="store_true", help="print JSON")
     return p
@@ -354,6 +360,17 @@ def _command(name: str) -> ModuleType:
     return importlib.import_module(f"{__package__}.commands.{name}")
 
 
+def _say_built(command: str, module: ModuleType) -> Callable[[Path], None]:
+    """What a command that builds the project's FMUs says for each (one line on stderr), unless
+    it says so itself (``SAYS_WHAT_IT_BUILT`` in its module: build, cosim, simulate)."""
+
+    def say(path: Path) -> None:
+        if not getattr(module, "SAYS_WHAT_IT_BUILT", False):
+            print(f"dronefly {command}: built {path}", file=sys.stderr, flush=True)
+
+    return say
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (also used by ``python -m dronefly``)."""
     parser = _parser()
@@ -362,8 +379,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as e:  # argparse already printed its one-line error, the help or version
         return int(e.code or 0)
     try:
-        with deferred_sigint() as interrupt:  # Ctrl-C lands between steps, never in an FMU
-            code = int(_command(args.command).run(args))
+        module = _command(args.command)
+        # Ctrl-C lands between steps, never in an FMU; a command that runs none stops at once
+        guard = deferred_sigint if getattr(module, "RUNS_FMUS", True) else sigint_at_once
+        with guard() as interrupt, reporting(_say_built(args.command, module)):
+            code = int(module.run(args))
         if interrupt.requested:
             raise KeyboardInterrupt
         return code

@@ -14,9 +14,10 @@ import re
 from typing import Any, Callable
 
 from ..core.errors import DroneflyError
+from ..core.files import check_output_dir, check_output_file
 from ..harness.sweep.parse import parse_floats, parse_int
 
-__all__ = ["converter", "finite", "floats_arg", "int_arg", "parse_gains",
+__all__ = ["converter", "finite", "floats_arg", "int_arg", "out_dir", "out_file", "parse_gains",
            "parse_names", "parse_setting", "parse_x0", "positive"]
 
 
@@ -31,6 +32,21 @@ def converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
 
     convert.__name__ = fn.__name__
     return convert
+
+
+@converter
+def out_dir(text: str) -> str:
+    """An output folder option (``--out DIR``, ``--build DIR``), checked when the command line
+    is parsed, before any work, its default too (:func:`dronefly.core.files.check_output_dir`)."""
+    check_output_dir(text)
+    return text
+
+
+@converter
+def out_file(text: str) -> str:
+    """An output file option (``--out FILE``): :func:`dronefly.core.files.check_output_file`."""
+    check_output_file(text)
+    return text
 
 
 def int_arg(name: str, lo: int) -> Callable[[str], int]:

@@ -1,7 +1,10 @@
 """Optional packages, named by the extra of ``dronefly-fmu`` that installs them.
 
-A command that needs one checks it before it writes anything and, if it is missing, stops
-with one line naming the extra to install (exit code 2).
+A missing optional package costs only its feature: a command asks :func:`missing` before any
+work and, if the package is absent, goes on without the feature (a plot, the progress bar, one
+BLAS thread per worker) and says so in one line naming the extra to install. A feature the user
+asked for by an option that needs the package (``sweep --scheduler``: Dask) is refused instead,
+with the same line (:func:`require`, exit code 2).
 """
 
 from __future__ import annotations
@@ -14,13 +17,13 @@ from typing import Any
 
 from .errors import DroneflyError
 
-__all__ = ["EXTRAS", "MissingExtra", "optional", "pyplot", "require"]
+__all__ = ["EXTRAS", "MissingExtra", "missing", "optional", "pyplot", "require"]
 
 #: module -> (extra, what needs it)
 EXTRAS: dict[str, tuple[str, str]] = {
     "matplotlib": ("plot", "plots"),
     "tqdm": ("sweep", "the sweep's progress bar"),
-    "threadpoolctl": ("sweep", "the sweep's worker threads"),
+    "threadpoolctl": ("sweep", "BLAS thread limits"),
     "distributed": ("sweep", "a Dask cluster"),
     "libcosimpy": ("interop", "the libcosim importer"),
 }
@@ -28,6 +31,16 @@ EXTRAS: dict[str, tuple[str, str]] = {
 
 class MissingExtra(DroneflyError):
     """An optional package is not installed."""
+
+
+def missing(module: str) -> str | None:
+    """None if ``module`` can be imported, else the line that says what is missing and the extra
+    that installs it (as :class:`MissingExtra` would)."""
+    try:
+        require(module)
+    except MissingExtra as e:
+        return str(e)
+    return None
 
 
 def require(module: str, alternative: str = "") -> None:

@@ -21,8 +21,9 @@ import numpy as np
 
 from .errors import DroneflyError
 
-__all__ = ["atomic_path", "check_output_folder", "format_cell", "run_name", "write_csv_atomic", "write_run_files",
-           "write_text_atomic", "write_zip"]
+__all__ = ["OutputPathError", "atomic_path", "check_output_dir", "check_output_file",
+           "format_cell", "run_name", "write_csv_atomic", "write_run_files", "write_text_atomic",
+           "write_zip"]
 
 #: Fixed timestamp of every archive entry, so that equal contents give equal bytes.
 #: the signature of a zip archive's first local file header
@@ -30,23 +31,57 @@ _ZIP_MAGIC = b"PK\x03\x04"
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
 
-def check_output_folder(path: str | Path, option: str = "--out") -> Path:
-    """``path`` as an output folder, checked before any work: it, or the first of its parents
-    that exists, must be a folder.
+class OutputPathError(DroneflyError):
+    """An output path that cannot be written: found before any work."""
+
+
+def _writable_folder(folder: Path, path: Path) -> None:
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputPathError(f"{str(path)!r}: the folder {str(folder)!r} is not writable")
+
+
+def check_output_dir(path: str | Path) -> Path:
+    """Check that ``path`` is a folder results can be written into, or can be made (its
+    missing parents too), before any work; returns it.
 
     Raises
     ------
-    DroneflyError
-        One line naming the option and the value: ``--out 'x' is a file, not a folder``.
+    OutputPathError
+        ``path`` is a file, or its nearest existing ancestor is a file or not writable.
     """
     path = Path(path)
-    for p in (path, *path.parents):
-        if p.exists():
-            if not p.is_dir():
-                where = "" if p == path else f" (its parent {str(p)!r} is a file)"
-                raise DroneflyError(f"{option} {str(path)!r} " + (
-                    "is a file, not a folder" if p == path else f"cannot be a folder{where}"))
-            break
+    if path.exists():
+        if not path.is_dir():
+            raise OutputPathError(f"{str(path)!r} is a file, not a folder")
+        _writable_folder(path, path)
+        return path
+    ancestor = path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise OutputPathError(f"{str(path)!r}: {str(ancestor)!r} is a file, not a folder")
+    _writable_folder(ancestor, path)
+    return path
+
+
+def check_output_file(path: str | Path) -> Path:
+    """Check that the file ``path`` can be written (its folder exists and is writable, and it
+    is not a folder) before any work; returns it.
+
+    Raises
+    ------
+    OutputPathError
+        ``path`` is a folder, or its folder does not exist, is a file or is not writable.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputPathError(f"{str(path)!r} is a folder; give the file to write")
+    folder = path.parent
+    if not folder.exists():
+        raise OutputPathError(f"{str(path)!r}: the folder {str(folder)!r} does not exist")
+    if not folder.is_dir():
+        raise OutputPathError(f"{str(path)!r}: {str(folder)!r} is a file, not a folder")
+    _writable_folder(folder, path)
     return path
 
 
@@ -54,16 +89,20 @@ def check_output_folder(path: str | Path, option: str = "--out") -> Path:
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield ``path.part`` to write to; rename it to ``path`` if the block succeeds.
 
-    On an exception the partial file is removed and ``path`` is left as it was.
+    On an exception the partial file is removed and ``path`` is left as it was; an ``OSError``
+    on the temporary file is raised naming ``path``.
     """
     path = Path(path)
     tmp = path.with_name(path.name + ".part")
     try:
         yield tmp
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(e, OSError) and str(tmp) in (e.filename, e.filename2):
+            # the error names the file asked for, not its temporary name
+            raise type(e)(e.errno, e.strerror, str(path)) from e
         raise
 
 

@@ -127,3 +127,22 @@ plant = _opened("DroneFlyLateral")
 controller = _opened("StateFeedback")
 longitudinal_plant = _opened("DroneFlyLongitudinal")
 longitudinal_controller = _opened("StateFeedbackLongitudinal")
+
+
+@pytest.fixture(scope="session")
+def core_env(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The ``bin`` folder of a virtual environment with only the core install of dronefly-fmu
+    (no extra: tests/core_install.py); its optional packages are checked to be absent."""
+    import subprocess
+
+    from core_install import OPTIONAL_MODULES, make_core_env
+
+    bin_dir = make_core_env(tmp_path_factory.mktemp("core_env") / "venv")
+    code = ("import importlib.util, sys\n"
+            f"found = [m for m in {OPTIONAL_MODULES!r} if importlib.util.find_spec(m)]\n"
+            "import dronefly.cli, numpy, scipy, fmpy, pythonfmu\n"
+            "sys.exit(f'optional packages found: {found}' if found else 0)\n")
+    r = subprocess.run([str(bin_dir / "python"), "-c", code], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return bin_dir

@@ -53,10 +53,14 @@ def sigint_after_chunk(run_sweep: Any) -> Any:
     """``run_sweep`` that sends SIGINT once its first chunk of cases is finished."""
 
     def run(*args: Any, on_chunk: Any = None, **kwargs: Any) -> Any:
+        sent = []
+
         def chunk_done(done: int, total: int) -> None:
             if on_chunk is not None:
                 on_chunk(done, total)
-            _ctrl_c()
+            if not sent:  # once: the chunks that finish after it must not send more
+                sent.append(done)
+                _ctrl_c()
 
         return run_sweep(*args, on_chunk=chunk_done, **kwargs)
 

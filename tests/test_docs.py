@@ -2,8 +2,11 @@
 
 Every fenced ``sh``/``bash``/``console`` block of README.md and docs/*.md runs as written with
 bash, and every ``python`` block in a fresh interpreter, each in a scratch folder (cwd: a tmp dir;
-the virtual environment's bin first on PATH; ``DRONEFLY_REPO`` = the checkout, for the one block
-that compiles a source file of it). Each must exit 0 and leave the checkout as it was. A block
+``DRONEFLY_REPO`` = the checkout, for the one block that compiles a source file of it). A block
+runs in the core install (``pip install dronefly-fmu`` without extras: tests/core_install.py, its
+bin first on PATH), so every documented example is shown to need no optional package; a block
+marked ``<!-- doc-test: needs ... -->`` (an extra, gcc, Ecos) runs in this environment, with
+everything installed. Each must exit 0 and leave the checkout as it was. A block
 is skipped only with a reason: a ``<!-- doc-test: skip (why) -->`` line right before it, counted
 below, so a new block runs by default. The numbers the README and docs quote are compared with
 what the code computes.
@@ -43,9 +46,9 @@ def _status() -> str:
                           capture_output=True, text=True).stdout
 
 
-def _env() -> dict[str, str]:
+def _env(bin_dir: Path) -> dict[str, str]:
     env = dict(os.environ)
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
+    env["PATH"] = f"{bin_dir}{os.pathsep}{env.get('PATH', '')}"
     env.pop("PYTHONPATH", None)
     env["DRONEFLY_REPO"] = str(ROOT)
     return env
@@ -71,9 +74,12 @@ def test_every_block_is_run_or_skipped_with_a_reason():
 
 @pytest.mark.integration
 @pytest.mark.parametrize("doc, lang, body, mark", _blocks())
-def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
+def test_block_runs_verbatim(doc, lang, body, mark, tmp_path, request):
     if mark.startswith("skip ("):
         pytest.skip(mark)
+    # the core install unless the block says what more it needs
+    bin_dir = (Path(sys.executable).parent if mark.startswith("needs ")
+               else request.getfixturevalue("core_env"))
     if mark.startswith("needs gcc"):
         from dronefly.harness.interop.libcosim import libpython_path
 
@@ -89,11 +95,11 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path):
     if lang == "python":
         script = tmp_path / "block.py"
         script.write_text(body)
-        r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=_env(),
-                           capture_output=True, text=True, timeout=300)
+        r = subprocess.run([str(bin_dir / "python"), str(script)], cwd=tmp_path,
+                           env=_env(bin_dir), capture_output=True, text=True, timeout=300)
     else:
-        r = subprocess.run(["bash", "-c", body], cwd=tmp_path, env=_env(), capture_output=True,
-                           text=True, timeout=300)
+        r = subprocess.run(["bash", "-c", body], cwd=tmp_path, env=_env(bin_dir),
+                           capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{doc.name}: exit {r.returncode}\n{r.stdout[-1500:]}\n{r.stderr[-1500:]}"
     assert _status() == before, f"{doc.name}: the block changed the checkout"
 

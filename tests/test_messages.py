@@ -61,7 +61,9 @@ def test_out_that_is_a_file_is_one_line(tmp_path, capsys, monkeypatch, command):
     afile.write_text("mine")
     assert main([*command, "--out", str(afile)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"dronefly {command[0]}: error: --out {str(afile)!r} is a file, not a folder"]
+    # argparse's form: the option, then the value (checked when the command line is read)
+    assert err == [f"dronefly {command[0]}: error: argument --out: {str(afile)!r} is a file, "
+                   "not a folder"]
     assert afile.read_text() == "mine"
     assert [p.name for p in tmp_path.iterdir()] == ["afile"]  # refused before any build
 
@@ -90,11 +92,12 @@ def test_bare_command_hints_at_help(capsys):
 
 
 @pytest.mark.parametrize("where", ["before", "after"])
-def test_debug_before_or_after_the_subcommand(tmp_path, capsys, where):
-    afile = tmp_path / "afile"
-    afile.write_text("")
-    rest = ["--out", str(afile), "--no-plot"]
+def test_debug_before_or_after_the_subcommand(built_fmus, tmp_path, capsys, where):
+    # a mistake found by the run, not by argparse: --debug shows its traceback
+    rest = ["--plant", str(built_fmus["DroneFlyLateral"]), "--controller",
+            str(built_fmus["StateFeedback"]), "--set", "plant.no_such_name=1", "--no-plot",
+            "--out", str(tmp_path)]
     argv = ["--debug", "cosim", *rest] if where == "before" else ["cosim", "--debug", *rest]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert "Traceback" in err and "is a file, not a folder" in err
+    assert "Traceback" in err and "no_such_name" in err

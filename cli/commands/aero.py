@@ -9,7 +9,10 @@ from ...core.errors import DroneflyError
 from ...harness.aero import QuasiSteadyModel, Terms, parity_report
 from . import EXIT_OK
 
-__all__ = ["run"]
+__all__ = ["RUNS_FMUS", "run"]
+
+#: no FMU runs here: Ctrl-C stops the command at once (:func:`dronefly.core.interrupt.sigint_at_once`)
+RUNS_FMUS = False
 
 
 def run(args: argparse.Namespace) -> int:

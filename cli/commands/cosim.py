@@ -9,20 +9,19 @@ from pathlib import Path
 from typing import Any
 
 from ...core.errors import DroneflyError
-from ...core.extras import require
-from ...core.files import check_output_folder
 from ...harness.stability.run import cosimulate
 from ...harness.stability.system import cosimulate_system
-from . import EXIT_FAILED, EXIT_OK
+from . import EXIT_FAILED, EXIT_OK, feature
 
-__all__ = ["run"]
+__all__ = ["SAYS_WHAT_IT_BUILT", "run"]
+
+#: its summary and JSON name what it built: the command line adds no line of its own
+SAYS_WHAT_IT_BUILT = True
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly cosim`` with the parsed arguments; returns the exit code."""
-    check_output_folder(args.out)
-    if not args.no_plot:
-        require("matplotlib", "pass --no-plot")
+    args.no_plot = not feature("cosim", not args.no_plot, "matplotlib", "plot")
     if args.system is not None:
         return _cosim_system(args)
     if args.open_loop:

@@ -5,20 +5,16 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ...core.extras import require
-from ...core.files import check_output_folder
 from ...harness.stability.demo import demo_runs, format_table
-from . import EXIT_FAILED, EXIT_OK
+from . import EXIT_FAILED, EXIT_OK, feature
 
 __all__ = ["run"]
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly demo`` with the parsed arguments; returns the exit code."""
-    check_output_folder(args.out)
-    if not args.no_plot:
-        require("matplotlib", "pass --no-plot")
-    results = demo_runs(out_dir=args.out, plot=not args.no_plot,
+    plot = feature("demo", not args.no_plot, "matplotlib", "plots")
+    results = demo_runs(out_dir=args.out, plot=plot,
                         set_values=dict(args.set_values), build_dir=args.build)
     print(format_table(results))
     failed = [(g, f) for g, r in zip(("open", "paper"), results) for f in r.check_failures]

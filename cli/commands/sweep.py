@@ -11,11 +11,12 @@ from typing import Any
 from ...builder.build import project_systems
 from ...core.files import write_text_atomic
 from ...core.extras import require
+from ...harness.sweep.backends import stderr_is_tty
 from ...harness.sweep.cases import SweepSpec
 from ...harness.sweep.results import format_summary
 from ...harness.sweep.run import run_sweep
 from ...harness.validity.halves import format_halves, halves_summary
-from . import EXIT_FAILED, EXIT_OK, EXIT_USAGE
+from . import EXIT_FAILED, EXIT_OK, EXIT_USAGE, feature
 
 __all__ = ["run"]
 
@@ -37,15 +38,13 @@ def _add_halves(result: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly sweep`` with the parsed arguments; returns the exit code."""
-    if args.scheduler is not None or args.workers != 1:  # one BLAS thread per worker process
-        if args.scheduler is not None or (args.workers or os.cpu_count() or 1) > 1:
-            require("threadpoolctl", "pass --workers 1")
-    if not args.no_progress:
-        require("tqdm", "pass --no-progress")
-    if not args.no_plot:
-        require("matplotlib", "pass --no-plot")
-    if args.scheduler is not None:
+    if args.scheduler is not None:  # asked for: refused without Dask
         require("distributed")
+    # the optional features: without their package, skipped with one line each
+    feature("sweep", args.scheduler is not None or (args.workers or os.cpu_count() or 1) > 1,
+            "threadpoolctl", "one BLAS thread per worker process")
+    progress = feature("sweep", not args.no_progress and stderr_is_tty(), "tqdm", "progress bar")
+    plot = feature("sweep", not args.no_plot, "matplotlib", "maps")
     system, compare = args.system, args.compare
     if args.halves and compare != "nonlinear":
         print("dronefly sweep: error: --halves needs --compare nonlinear (the halves are "
@@ -65,8 +64,7 @@ def run(args: argparse.Namespace) -> int:
     workers, timeout = args.workers, args.connect_timeout
     result = run_sweep(spec, args.out, plant=args.plant, controller=args.controller,
                        workers=workers, scheduler=args.scheduler, connect_timeout_s=timeout,
-                       fresh=args.fresh, plot=not args.no_plot,
-                       progress_bar=False if args.no_progress else None,
+                       fresh=args.fresh, plot=plot, progress_bar=progress,
                        set_values=dict(args.set_values), system=system, compare=compare)
     halves = args.halves and "comparison" in result.summary
     if halves:

@@ -27,6 +27,7 @@ import numpy as np
 
 from ...builder.build import ensure_fmu
 from ...core.errors import DroneflyError
+from ...core.interrupt import checkpoint
 from ...models.flapping import FlappingModel, shooting
 from ...models.lateral import sort_eigenvalues
 from ..cosim.fmu import FMU
@@ -105,6 +106,7 @@ class FmiPeriodicMap:
         s.exitInitializationMode()
         h = self.period_s / self.steps
         for k in range(self.steps):
+            checkpoint()  # Ctrl-C: between steps, never inside the FMU
             s.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
         self.evaluations += 1
         return np.array(s.getReal(self._vr_out))

@@ -12,6 +12,8 @@ import numpy as np
 from ...builder.build import ensure_fmu
 from ...core.errors import DroneflyError
 from ...core.files import write_csv_atomic
+from ...core.interrupt import checkpoint
+from ...core.interrupt import pending as interrupt_pending
 from ...core.text import status_name
 from ...models.lateral import N_HZ, STATE_NAMES, STATE_UNITS, scale_vector
 from ...models.lateral_dynamics import LateralModel, default_parameters
@@ -85,6 +87,12 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
         Stop time and communication step in wing beats (t_w = 1/n).
     gamma0 : float
         Initial roll angle [rad].
+
+    Raises
+    ------
+    KeyboardInterrupt
+        A deferred Ctrl-C (:mod:`dronefly.core.interrupt`): the run stops after the step it is
+        in, and no CSV is written.
     """
 
 
@@ -106,7 +114,10 @@ def simulate_plant(stop_wingbeats: float = 30.0, step_wingbeats: float = 0.1, ga
     res = fmpy.simulate_fmu(str(fmu), stop_time=stop_wingbeats / N_HZ,
                             output_interval=step_wingbeats / N_HZ,
                             start_values={"delta_gamma_start": gamma0},
-                            output=list(STATE_NAMES), debug_logging=True, logger=logger)
+                            output=list(STATE_NAMES), debug_logging=True, logger=logger,
+                            # Ctrl-C: stop after this step (fmpy frees the instance)
+                            step_finished=lambda time, recorder: not interrupt_pending())
+    checkpoint()  # interrupted: no CSV, as if the run had not been asked for
     t = np.asarray(res["time"], dtype=float)
     x = np.column_stack([res[n] for n in STATE_NAMES])
     complete = len(t) == n_steps + 1

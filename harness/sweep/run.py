@@ -30,7 +30,9 @@ from fmpy import read_model_description
 
 from ...builder.build import BuildError, project_fmus
 from ...core.errors import DroneflyError
-from ...core.files import check_output_folder, write_text_atomic
+from ...core.extras import missing
+from ...core.files import check_output_dir, write_text_atomic
+from ...core.interrupt import checkpoint
 from ...models.lateral import CONTROL_NAMES, STATE_NAMES
 from ..cosim.fmu import FMU, FMUError, start_values
 from ..cosim.master import CoSimError, Loop
@@ -182,7 +184,7 @@ class SweepSettings:
     plot : bool
         Write the PNG maps.
     progress_bar : bool, optional
-        tqdm bar on stderr (default: when stderr is a terminal).
+        tqdm bar on stderr (default: when stderr is a terminal and tqdm is installed).
     on_chunk : callable(done, total), optional
         Called after each chunk (cases done so far, cases to do); may raise to stop.
     chunk_steps : int, optional
@@ -333,7 +335,10 @@ class _Results:
         s = self.settings
         chunks = chunk_cases(self.todo, n_workers, s.chunk_steps)
         self.csv.parent.mkdir(parents=True, exist_ok=True)
-        disable = (not stderr_is_tty()) if s.progress_bar is None else not s.progress_bar
+        if self.todo:  # the summary of an earlier run no longer describes the folder
+            self.csv.with_name("sweep.json").unlink(missing_ok=True)
+        disable = ((not stderr_is_tty() or missing("tqdm") is not None)  # auto: if it can
+                   if s.progress_bar is None else not s.progress_bar)
         self.bar = make_progress_bar(total=len(self.todo), unit="case", desc="sweep",
                                      dynamic_ncols=True, disable=disable)
         self.last_flush = time.perf_counter()
@@ -386,7 +391,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     t_start = time.perf_counter()
     s = replace(settings, **options) if settings is not None else SweepSettings(**options)
     try:  # before anything is built or run
-        out = check_output_folder(out_dir)
+        out = check_output_dir(out_dir)
     except DroneflyError as e:
         raise SweepInputError(str(e)) from e
     refs, cases, lateral = _inputs(spec, s)
@@ -397,6 +402,7 @@ def run_sweep(spec: SweepSpec | None = None, out_dir: str | Path = "build/sweep"
     n_workers = (len(client.scheduler_info()["workers"]) if client
                  else min(workers, max(1, len(results.todo))))
     results.run(refs, client, n_workers)
+    checkpoint()  # a Ctrl-C after the last chunk: no maps, no summary that says complete
     rows = [results.row(c) for c in cases]
     maps = write_maps(rows, out) if s.plot else []
     summary = summarize(rows, cases) | (delay_summary(rows) if results.timed else {})

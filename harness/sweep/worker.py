@@ -61,6 +61,9 @@ _LOCK = threading.Lock()
 _FMUS: dict[str, Any] = {}  # digest -> harness.cosim.fmu.FMU (extracted once per process)
 _LOOPS: dict[tuple[int, str, str], tuple[Any, Any, Any, np.ndarray]] = {}
 _TMP: list[str] = []
+#: set by the parent of a process pool on Ctrl-C (:func:`init_worker`): a chunk stops before its
+#: next case and hands back the cases it finished
+_STOP: Any = None
 
 
 def _open_fmu(ref: FmuRef, data: bytes | None) -> Any:
@@ -147,10 +150,13 @@ class _NoLimit:
         """Nothing to restore."""
 
 
-def init_worker(refs: tuple[FmuRef, FmuRef]) -> None:
-    """Process-pool initializer: ignore Ctrl-C (the parent handles it), open the FMUs once."""
+def init_worker(refs: tuple[FmuRef, FmuRef], stop: Any = None) -> None:
+    """Process-pool initializer: ignore Ctrl-C (the parent handles it and sets ``stop``, a
+    ``multiprocessing.Event``: then each chunk ends before its next case), open the FMUs once."""
 
+    global _STOP
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _STOP = stop
     _LOOPS.clear()  # forked: these belong to the parent (which also deletes its extractions)
     _FMUS.clear()
     _TMP.clear()
@@ -212,6 +218,8 @@ def run_chunk(refs: tuple[FmuRef, FmuRef], cases: Sequence[Case],
     t_chunk = time.perf_counter()
     loop_s, out = 0.0, []
     for case in cases:
+        if _STOP is not None and _STOP.is_set():  # a pool worker: the parent saw Ctrl-C
+            break  # the cases finished so far are the chunk's result
         try:
             if interrupt_pending():  # the command line's deferred Ctrl-C
                 raise KeyboardInterrupt

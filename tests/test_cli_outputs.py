@@ -71,7 +71,8 @@ def test_analyze_out_in_a_missing_folder_is_refused_before_the_analysis(tmp_path
     monkeypatch.setattr(analyze, "analyze", lambda **kw: pytest.fail("the analysis ran"))
     assert main(["analyze", "--out", "nodir/x.md"]) == 2
     assert capsys.readouterr().err.strip() == (
-        "dronefly analyze: error: argument --out: 'nodir/x.md': the folder 'nodir' does not exist")
+        "dronefly analyze: error: argument --out: 'nodir/x.md': the folder 'nodir' does not exist"
+        " ('dronefly analyze --help' shows the usage)")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -94,7 +95,8 @@ def test_analyze_json_and_markdown_together_are_refused(capsys, monkeypatch):
     monkeypatch.setattr(analyze, "analyze", lambda **kw: pytest.fail("the analysis ran"))
     assert main(["analyze", "--json", "--markdown"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == "dronefly analyze: error: argument --markdown: not allowed with argument --json"
+    assert err == ("dronefly analyze: error: argument --markdown: not allowed with argument --json"
+                   " ('dronefly analyze --help' shows the usage)")
 
 
 def test_analyze_input_without_targets_is_refused(capsys, monkeypatch):

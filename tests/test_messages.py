@@ -63,7 +63,7 @@ def test_out_that_is_a_file_is_one_line(tmp_path, capsys, monkeypatch, command):
     err = capsys.readouterr().err.strip().splitlines()
     # argparse's form: the option, then the value (checked when the command line is read)
     assert err == [f"dronefly {command[0]}: error: argument --out: {str(afile)!r} is a file, "
-                   "not a folder"]
+                   f"not a folder ('dronefly {command[0]} --help' shows the usage)"]
     assert afile.read_text() == "mine"
     assert [p.name for p in tmp_path.iterdir()] == ["afile"]  # refused before any build
 

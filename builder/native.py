@@ -288,6 +288,25 @@ def _suffix(platform: str) -> str:
     raise NativeBuildError(f"unknown platform {platform!r}")
 
 
+def _is_native(path: Path) -> bool:
+    """Whether ``path`` is a native FMU that this build wrote (it is then rebuilt)."""
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as z:
+            return GENERATION_TOOL.encode() in z.read("modelDescription.xml") and \
+                "sources/vars.c" in z.namelist()
+    except (OSError, KeyError, zipfile.BadZipFile):
+        return False
+
+
+def _refuse_foreign(target: Path) -> None:
+    if target.is_dir() or (target.exists() and not _is_native(target)):
+        raise NativeBuildError(f"{str(target)!r} exists and is not a native FMU that dronefly "
+                               "build wrote: it is left alone (move it away, or build into "
+                               "another folder)")
+
+
 def build_native(name: str, out_dir: str | Path, fmi: int = 2,
                  toolchain: tuple[Compiler, dict[int, tuple[str, ...]]] | None | bool = True,
                  ) -> tuple[Path, tuple[str, ...]]:
@@ -302,6 +321,7 @@ def build_native(name: str, out_dir: str | Path, fmi: int = 2,
     """
     if fmi not in (2, 3):
         raise NativeBuildError(f"FMI version {fmi!r}: 2 or 3")
+    _refuse_foreign(Path(out_dir) / f"{name}.fmu")
     token, files = native_sources(name, fmi)
     chain = gcc_compiler() if toolchain is True else (toolchain or None)
     platforms: tuple[str, ...] = ()
@@ -326,6 +346,8 @@ def build_native_all(out_dir: str | Path, fmi: int = 2,
                      toolchain: Any = True) -> tuple[list[Path], tuple[str, ...]]:
     """Every native FMU into ``out_dir``; the paths and the platforms of their binaries."""
     paths, platforms = [], ()
+    for name in NATIVE_FMUS:  # every target checked before anything is written
+        _refuse_foreign(Path(out_dir) / f"{name}.fmu")
     for name in NATIVE_FMUS:
         path, platforms = build_native(name, out_dir, fmi, toolchain)
         paths.append(path)

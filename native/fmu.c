@@ -388,7 +388,7 @@ static int get_values(Instance *c, const unsigned *vr, size_t nvr, int kind, dou
 #if FMI_VERSION == 3
         if (vr[i] == 0) type = KIND_REAL;
 #endif
-        if (n < 0 || type != kind) {
+        if (n < 0 || type != kind) { /* answered NaN / false / 0 with a logged error */
             if (n < 0)
                 snprintf(msg, sizeof msg, "%sGet%s of %s: not a %s variable of this FMU", FMI,
                          type_name(kind), vr_name(vr[i], nb, sizeof nb), type_name(kind));
@@ -397,7 +397,10 @@ static int get_values(Instance *c, const unsigned *vr, size_t nvr, int kind, dou
                          "this FMU", FMI, type_name(kind), vr_name(vr[i], nb, sizeof nb),
                          type_name(type), type_name(kind));
             report(c, ST_ERROR, msg);
-            return ST_ERROR;
+            int count = n < 0 ? 1 : n;
+            if (k + (size_t)count > nout) return ST_ERROR;
+            for (int j = 0; j < count; j++) out[k++] = kind == KIND_REAL ? NAN : 0.0;
+            continue;
         }
         if (k + (size_t)n > nout) return ST_ERROR;
         for (int j = 0; j < n; j++) out[k++] = c->s.r[ROW(vr[i], rows, j)];
@@ -462,7 +465,9 @@ static int set_values(Instance *c, const unsigned *vr, size_t nvr, int kind, con
         report(c, ST_ERROR, msg);
         return ST_ERROR;
     }
-    if (bad) return ST_ERROR;
+    /* as the pythonfmu FMUs: a value that may not be set is logged (status Error), changes
+     * nothing, and the next doStep is refused naming it (the call itself returns OK) */
+    if (bad) return ST_OK;
     k = 0;
     for (size_t i = 0; i < nvr; i++) {
         const int *rows;
@@ -484,6 +489,7 @@ static int set_values(Instance *c, const unsigned *vr, size_t nvr, int kind, con
 typedef struct StateNode {
     uint32_t magic;
     struct StateNode *next;
+    char rejected[FMU_WHY]; /* not empty: bytes that are no state of this FMU, and why */
     Saved saved;
 } StateNode;
 
@@ -520,6 +526,7 @@ static int get_state(Instance *c, void **state) {
         c->states = s;
     }
     s->saved = c->s;
+    s->rejected[0] = '\0';
     *state = s;
     return ST_OK;
 }
@@ -530,7 +537,15 @@ static int set_state(Instance *c, const void *state) {
                "state of this instance (never made by it, or freed with " FMI "Free" STATE_API ")");
         return ST_ERROR;
     }
-    c->s = ((const StateNode *)state)->saved;
+    const StateNode *node = (const StateNode *)state;
+    if (node->rejected[0]) {
+        char msg[2 * FMU_WHY];
+        snprintf(msg, sizeof msg, FMI "Set" STATE_API " refused, the instance is unchanged: %s",
+                 node->rejected);
+        report(c, ST_ERROR, msg);
+        return ST_ERROR;
+    }
+    c->s = node->saved;
     c->dirty = 1; /* the next doStep rebuilds from the restored values */
     c->stale = 1;
     return ST_OK;
@@ -571,6 +586,11 @@ static int serialize(Instance *c, const void *state, unsigned char *out, size_t 
                "the buffer is smaller than " FMI "Serialized" STATE_API "Size");
         return ST_ERROR;
     }
+    if (((const StateNode *)state)->rejected[0]) {
+        report(c, ST_ERROR, FMI "Serialize" STATE_API ": the state was refused when it was "
+               "deserialized");
+        return ST_ERROR;
+    }
     const Saved *saved = &((const StateNode *)state)->saved;
     put64(out, STATE_MAGIC);
     put64(out + 8, STATE_FORMAT);
@@ -583,7 +603,6 @@ static int serialize(Instance *c, const void *state, unsigned char *out, size_t 
 }
 
 static int deserialize(Instance *c, const unsigned char *in, size_t size, void **state) {
-    char msg[FMU_WHY];
     const char *why = NULL;
     if (state == NULL) return ST_ERROR;
     if (in == NULL || size == 0) why = "0 bytes";
@@ -610,9 +629,13 @@ static int deserialize(Instance *c, const unsigned char *in, size_t size, void *
             return ST_OK;
         }
     }
-    snprintf(msg, sizeof msg, FMI "DeSerialize" STATE_API ": serialized state refused: %s", why);
-    report(c, ST_ERROR, msg);
-    return ST_ERROR;
+    /* as the pythonfmu FMUs: a handle that fmi2SetFMUstate refuses, saying why */
+    void *handle = NULL;
+    int st = get_state(c, &handle);
+    if (st != ST_OK) return st;
+    snprintf(((StateNode *)handle)->rejected, FMU_WHY, "serialized state refused: %s", why);
+    *state = handle;
+    return ST_OK;
 }
 
 static int reset(Instance *c) {

@@ -77,6 +77,10 @@ NATIVE_FMUS: dict[str, _NativeSpec] = {
     "DroneFlyLateral": _NativeSpec("fmu_src.lateral.slave", "DroneFlyLateral", "fmu_src/lateral",
                                    _PLANT_C),
     "StateFeedback": _NativeSpec("controller.slave", "StateFeedback", "controller", _CONTROLLER_C),
+    "DroneFlyLongitudinal": _NativeSpec("fmu_src.longitudinal.slave", "DroneFlyLongitudinal",
+                                        "fmu_src/longitudinal", _PLANT_C),
+    "StateFeedbackLongitudinal": _NativeSpec("controller.slave", "StateFeedbackLongitudinal",
+                                             "controller", _CONTROLLER_C),
 }
 
 #: a compiler: (sources folder, C files, defines, output binary, FMI platform) -> None, raising

@@ -9,8 +9,10 @@ it is also the one that builds with ``-fsanitize=address,undefined`` (zig ships 
 runtime for shared libraries). docs/interop.md says why zig and not mingw-w64, osxcross or
 FMPy's CMake build.
 
-A binary is compiled with warnings as errors (``-Wall -Wextra -Werror``), C99, ``-O2``, and
-symbols hidden by default (``-fvisibility=hidden``): a shared library exports exactly what its
+A binary is compiled with warnings as errors (``-Wall -Wextra -Werror``), C99, ``-O2``, no
+contraction of ``a * b + c`` into a fused multiply-add (``-ffp-contract=off``: clang contracts by
+default, gcc does not, and numpy does not: the same floats from every compiler), and symbols
+hidden by default (``-fvisibility=hidden``): a shared library exports exactly what its
 headers declare exported. The FMI headers do that for every FMI function (``FMI2_Export`` and
 ``FMI3_Export``: default visibility, or ``__declspec(dllexport)`` on Windows), so a C file that
 includes ``fmi2Functions.h`` or ``fmi3Functions.h`` and defines the functions exports them and
@@ -254,7 +256,8 @@ class Toolchain:
             raise ToolchainError(f"sources = {missing}: no such file")
         out = Path(out)
         out.parent.mkdir(parents=True, exist_ok=True)
-        flags = ["-std=c99", optimize, "-Wall", "-Wextra", "-Werror", "-fvisibility=hidden"]
+        flags = ["-std=c99", optimize, "-Wall", "-Wextra", "-Werror", "-fvisibility=hidden",
+                 "-ffp-contract=off"]
         if self.kind == "zig":
             flags = ["-target", p.zig_target, *flags, "-g0"]
         if shared:

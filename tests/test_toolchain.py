@@ -170,3 +170,28 @@ def test_the_sanitizer_build_catches_undefined_behaviour(tmp_path):
     assert r.returncode != 0 and "signed integer overflow" in r.stderr, r.stderr
     with pytest.raises(ToolchainError, match="sanitize = True"):
         tcmod._zig().compile([src], tmp_path / "z", host, shared=False, sanitize=True)
+
+
+def _cpu_has_fma() -> bool:
+    try:
+        with open("/proc/cpuinfo") as f:
+            return " fma " in f.read().replace("\n", " ")
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not (LINUX_X86 and _cpu_has_fma()),
+                    reason="runs Haswell code here: needs an x86_64 Linux CPU with FMA")
+def test_a_times_b_plus_c_is_not_fused(zig, tmp_path):
+    """clang fuses ``a * b + c`` into one rounding by default where the CPU has FMA; numpy and
+    the pythonfmu FMUs round twice. With a = 1 + 2^-30, b = 1 - 2^-30, c = -1: a b = 1 - 2^-60
+    rounds to 1, so two roundings give 0 exactly and one rounding gives -2^-60."""
+    src = tmp_path / "fma.c"
+    src.write_text('#include "fmi2Functions.h"\n'
+                   "FMI2_Export double f(double a, double b, double c) { return a * b + c; }\n")
+    out = zig.compile([src], tmp_path / "fma.so", "linux64", include_dirs=[fmi_include_dir()],
+                      extra_flags=["-mcpu=haswell"])
+    lib = ctypes.CDLL(str(out))
+    lib.f.restype = ctypes.c_double
+    lib.f.argtypes = [ctypes.c_double] * 3
+    assert lib.f(1 + 2**-30, 1 - 2**-30, -1.0) == 0.0

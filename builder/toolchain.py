@@ -250,11 +250,11 @@ class Toolchain:
         if sanitize and not self.can_sanitize():
             raise ToolchainError(f"sanitize = True: {self.kind} toolchain {self.command[0]} has "
                                  "no sanitizer runtime; use the host's gcc or clang on Linux")
-        srcs = [Path(s) for s in sources]
+        srcs = [Path(s).resolve() for s in sources]
         missing = [str(s) for s in srcs if not s.is_file()]
         if missing:
             raise ToolchainError(f"sources = {missing}: no such file")
-        out = Path(out)
+        out = Path(out).resolve()
         out.parent.mkdir(parents=True, exist_ok=True)
         flags = ["-std=c99", optimize, "-Wall", "-Wextra", "-Werror", "-fvisibility=hidden",
                  "-ffp-contract=off"]
@@ -265,7 +265,7 @@ class Toolchain:
         if sanitize:
             flags += ["-fsanitize=address,undefined", "-fno-sanitize-recover=undefined",
                       "-fno-omit-frame-pointer", "-g"]
-        flags += [f"-I{d}" for d in include_dirs]
+        flags += [f"-I{Path(d).resolve()}" for d in include_dirs]
         for k, v in (defines or {}).items():
             flags.append(f"-D{k}" if v is None else f"-D{k}={v}")
         flags += list(extra_flags)

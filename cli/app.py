@@ -110,7 +110,8 @@ def _parser() -> argparse.ArgumentParser:
                             formatter_class=argparse.RawDescriptionHelpFormatter)
         return sp
 
-    b = add("build", "build every FMU of the project")
+    b = add("build", "build every FMU of the project: pythonfmu in DIR (FMI 3.0 in DIR/fmi3), "
+            "native in DIR/native (DIR/native/fmi3)")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
 
     s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance")

@@ -35,12 +35,14 @@ from ..core.errors import DroneflyError
 from ..core.files import write_zip
 from ..fmi.fmi3 import fmi3_class
 from ..fmi.table3 import fmi3_table
+from .closedloop import write_container
 from .entry import HOST_REQUIREMENT
 from .modeldescription import model_description
 from .modeldescription3 import model_description3
 
 __all__ = ["GENERATION_TOOL", "NATIVE_FMUS", "NATIVE_OUT", "NativeBuildError", "Compiler",
-           "build_native", "build_native_all", "c_name", "fmi_headers", "gcc_compiler",
+           "build_native", "build_native_all", "build_native_container", "c_name", "ensure_native",
+           "native_pair", "fmi_headers", "gcc_compiler",
            "native_model_description", "native_sources", "vars_c"]
 
 #: where ``dronefly build`` writes the native FMUs, below its output folder (FMI 3.0 in
@@ -344,6 +346,50 @@ def build_native(name: str, out_dir: str | Path, fmi: int = 2,
                 compile_(src, c_files, {"FMI_VERSION": str(fmi)}, out, platform)
                 files[f"binaries/{platform}/{name}{_suffix(platform)}"] = out.read_bytes()
     return write_zip(Path(out_dir) / f"{name}.fmu", files), platforms
+
+
+def ensure_native(name: str, out_dir: str | Path, fmi: int = 2) -> Path:
+    """The native FMU ``name`` in ``out_dir``, built only if it is missing, out of date with
+    the sources, or has no binary for this machine.
+
+    Raises
+    ------
+    NativeBuildError
+        No C compiler to build it with, or a file there that the build did not write.
+    """
+    target = Path(out_dir) / f"{name}.fmu"
+    if _is_native(target):
+        import zipfile
+
+        token = native_sources(name, fmi)[0]
+        with zipfile.ZipFile(target) as z:
+            current = token.encode() in z.read("modelDescription.xml")
+            binary = any(n.startswith(f"binaries/{_HOST_PLATFORM[fmi]}/") for n in z.namelist())
+        if current and binary:
+            return target
+    if gcc_compiler() is None:
+        raise NativeBuildError(f"no C compiler (gcc) to build the native {name} FMU; install "
+                               "one, or run the pythonfmu FMUs (without --native)")
+    return build_native(name, out_dir, fmi)[0]
+
+
+def native_pair(build_dir: str | Path = "build") -> tuple[Path, Path]:
+    """The native lateral plant and its controller in ``build_dir``/native, built on demand
+    (:func:`ensure_native`): what ``--native`` of ``cosim``, ``demo`` and ``sweep`` runs."""
+    out = Path(build_dir) / NATIVE_OUT
+    return ensure_native("DroneFlyLateral", out), ensure_native("StateFeedback", out)
+
+
+def build_native_container(out_dir: str | Path) -> Path:
+    """The closed-loop container FMU ``DroneFlyClosedLoop.fmu`` from the native FMI 2.0 plant
+    and controller in ``out_dir`` (fmpy's container, as :mod:`.closedloop` builds it from the
+    pythonfmu FMUs, without the pythonfmu shim)."""
+    out = Path(out_dir)
+    try:
+        return write_container(out / "DroneFlyLateral.fmu", out / "StateFeedback.fmu", out,
+                               shim=False)
+    except (OSError, ValueError, KeyError) as e:
+        raise NativeBuildError(f"cannot build the native closed-loop container: {e}") from e
 
 
 def build_native_all(out_dir: str | Path, fmi: int = 2,

@@ -33,7 +33,7 @@ _UNITS = ("\nunits: --step/--stop in wing beats (1 wing beat = 1/n = 6.1 ms); --
           "x+ = (dv/U, dp/n, dr/n, dgamma); --gains non-dimensional (rad per unit of x+); --set "
           "values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
 _EPILOG = {
-    "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
+    "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --native\n  dronefly cosim --gains open --json\n"
              "  dronefly cosim --gains=-0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
              "  (a value starting with '-' needs the form --gains=... or --x0=...)\n"
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
@@ -50,7 +50,7 @@ _EPILOG = {
              "(with --system: against eig(A + B K), open loop eig(A); outputs kept), 2 bad "
              "input (also plant and controller with different n or U, without "
              "--allow-scale-mismatch), 130 interrupted" + _UNITS,
-    "demo": "examples:\n  dronefly demo\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
+    "demo": "examples:\n  dronefly demo\n  dronefly demo --native --no-plot\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
             "exit codes: 0 ok, 1 a run's cross-check failed (outputs kept), 2 bad input",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
              "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
@@ -58,7 +58,7 @@ _EPILOG = {
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
                "  dronefly analyze --targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51 "
                "--input delta_Phi_a",
-    "sweep": "examples:\n  dronefly sweep\n  dronefly sweep --gains paper,stabilising,open "
+    "sweep": "examples:\n  dronefly sweep\n  dronefly sweep --native\n  dronefly sweep --gains paper,stabilising,open "
              "--steps 0.1,0.5,1,2,3\n"
              "  dronefly sweep --disturbances lhs --lhs 500 --scales 1,1.5,2 --out build/lhs\n"
              "  dronefly sweep --scheduler tcp://10.0.0.5:8786\n"
@@ -138,6 +138,9 @@ def _parser() -> argparse.ArgumentParser:
                    "Boolean output); with "
                    "--plant/--controller, plant.NAME or controller.NAME, recorded after the "
                    "states and controls")
+    c.add_argument("--native", action="store_true",
+                   help="run the native (C) FMUs, DIR/native/DroneFlyLateral.fmu and "
+                        "StateFeedback.fmu, built on demand (needs a C compiler; docs/native.md)")
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
@@ -213,6 +216,9 @@ def _parser() -> argparse.ArgumentParser:
                         "SI units), as cosim --set")
     d.add_argument("--build", default="build", metavar="DIR",
                    help="where the project's FMUs are built if missing or out of date")
+    d.add_argument("--native", action="store_true",
+                   help="run the native (C) FMUs, DIR/native/DroneFlyLateral.fmu and "
+                        "StateFeedback.fmu, built on demand (needs a C compiler; docs/native.md)")
 
     a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model")
     a.add_argument("--json", action="store_true", help="print JSON (table, matrices, eigenvalues, gains)")
@@ -230,6 +236,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="folder of sweep.csv, sweep.json and map_*.png; rerun to resume "
                         "(default build/sweep)")
     w.add_argument("--plant", default=None, metavar="FMU", help="plant FMU (default: built)")
+    w.add_argument("--native", action="store_true",
+                   help="run the native (C) FMUs, build/native/DroneFlyLateral.fmu and "
+                        "StateFeedback.fmu, built on demand (needs a C compiler; docs/native.md)")
     w.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: built)")
     w.add_argument("--compare", default=None, metavar="SSP",

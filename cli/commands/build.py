@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from ...builder.build import FMI3_OUT, build_all
-from ...builder.native import NATIVE_OUT, build_native_all
+from ...builder.native import NATIVE_OUT, build_native_all, build_native_container
 from . import EXIT_OK
 
 __all__ = ["run"]
@@ -23,7 +23,9 @@ def run(args: argparse.Namespace) -> int:
     paths3, _ = build_native_all(native / FMI3_OUT, 3)
     for path in [*paths2, *paths3]:
         print(path)
-    if not platforms:
-        print(f"no C compiler: the native FMUs in {native} are source-code FMUs (sources/ only; "
-              "pip install ziglang for binaries)")
+    if platforms:  # the container runs binaries: none from source-code FMUs
+        print(build_native_container(native))
+    else:
+        print(f"no C compiler: the native FMUs in {native} are source-code FMUs (sources/ only, "
+              "no closed-loop container; install a C compiler for binaries)")
     return EXIT_OK

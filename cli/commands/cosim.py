@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ...builder.native import native_pair
 from ...core.errors import DroneflyError
 from ...core.extras import require
 from ...harness.stability.run import cosimulate
@@ -21,6 +22,13 @@ def run(args: argparse.Namespace) -> int:
     """Run ``dronefly cosim`` with the parsed arguments; returns the exit code."""
     if not args.no_plot:
         require("matplotlib", "pass --no-plot")
+    if args.native:
+        given = [f"--{k}" for k in ("plant", "controller", "system")
+                 if getattr(args, k) is not None]
+        if given:
+            raise DroneflyError(f"--native cannot be combined with {', '.join(given)} (it runs "
+                                "the project's native plant and controller)")
+        args.plant, args.controller = native_pair(args.build)
     if args.system is not None:
         return _cosim_system(args)
     if args.open_loop:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ...builder.native import native_pair
 from ...core.extras import require
 from ...harness.stability.demo import demo_runs, format_table
 from . import EXIT_FAILED, EXIT_OK
@@ -16,8 +17,10 @@ def run(args: argparse.Namespace) -> int:
     """Run ``dronefly demo`` with the parsed arguments; returns the exit code."""
     if not args.no_plot:
         require("matplotlib", "pass --no-plot")
+    plant, controller = native_pair(args.build) if args.native else (None, None)
     results = demo_runs(out_dir=args.out, plot=not args.no_plot,
-                        set_values=dict(args.set_values), build_dir=args.build)
+                        set_values=dict(args.set_values), build_dir=args.build, plant=plant,
+                        controller=controller)
     print(format_table(results))
     failed = [(g, f) for g, r in zip(("open", "paper"), results) for f in r.check_failures]
     for gains, failure in failed:

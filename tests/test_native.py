@@ -1,0 +1,308 @@
+"""The native (C) FMUs: one interface with the pythonfmu FMUs, the same numbers, the same
+refusals, FMU states, and the matrix exponential in C against Python's and scipy's.
+
+Where no C compiler is on the machine the tests that run a binary skip, naming it (a platform
+reason); CI installs gcc.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import shutil
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+import pytest
+
+from dronefly.builder import native
+from dronefly.builder.build import build_fmu
+from dronefly.builder.native import NATIVE_FMUS, build_native
+from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
+
+pytestmark = pytest.mark.integration
+
+_EPS = np.finfo(float).eps
+needs_cc = pytest.mark.skipif(native.gcc_compiler() is None,
+                              reason="no C compiler (gcc) on this machine to build the binaries")
+
+
+@pytest.fixture(scope="session")
+def native_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
+    """Every native FMU, FMI 2.0 and 3.0, built once: (model, version) -> path."""
+    if native.gcc_compiler() is None:
+        pytest.skip("no C compiler (gcc) on this machine to build the binaries")
+    out = tmp_path_factory.mktemp("native")
+    return {(name, fmi): build_native(name, out / f"fmi{fmi}", fmi)[0]
+            for fmi in (2, 3) for name in NATIVE_FMUS}
+
+
+@pytest.fixture(scope="session")
+def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
+    """The pythonfmu twins of the native FMUs."""
+    out = tmp_path_factory.mktemp("pythonfmu")
+    return {(name, fmi): build_fmu(name, out / f"fmi{fmi}", fmi)
+            for fmi in (2, 3) for name in NATIVE_FMUS}
+
+
+def _md(path: Path) -> ET.Element:
+    with zipfile.ZipFile(path) as z:
+        return ET.fromstring(z.read("modelDescription.xml"))
+
+
+def _differences(a: ET.Element, b: ET.Element, where: str = "") -> set[str]:
+    """Where two model descriptions differ: ``tag@attribute`` for an attribute, ``tag/child``
+    for an element only one of them has (element by element, in order)."""
+    here = f"{where}/{a.tag}"
+    out = {f"{here}@{k}" for k in set(a.attrib) | set(b.attrib) if a.get(k) != b.get(k)}
+    ka, kb = list(a), list(b)
+    extra_b = [c for c in kb if c.tag not in {x.tag for x in ka}]
+    out |= {f"{here}/{c.tag}" for c in extra_b}
+    kb = [c for c in kb if c not in extra_b]
+    assert [c.tag for c in ka] == [c.tag for c in kb], f"{here}: children differ"
+    for x, y in zip(ka, kb):
+        out |= _differences(x, y, here)
+    return out
+
+
+#: what may differ between a pythonfmu and a native model description, and nothing else
+_ALLOWED = {
+    2: {"/fmiModelDescription@guid", "/fmiModelDescription@generationTool",
+        "/fmiModelDescription@description", "/fmiModelDescription/CoSimulation@needsExecutionTool",
+        "/fmiModelDescription/CoSimulation/SourceFiles"},
+    3: {"/fmiModelDescription@instantiationToken", "/fmiModelDescription@generationTool",
+        "/fmiModelDescription@description",
+        "/fmiModelDescription/CoSimulation@needsExecutionTool"},
+}
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("name", sorted(NATIVE_FMUS))
+def test_model_description_is_the_pythonfmu_one(python_fmus, name, fmi):
+    """Variables, value references, units, display units, descriptions, causality,
+    variability, ModelStructure, default experiment and capability flags are the pythonfmu
+    FMU's (one table, one generator); only the identity, the tool, the host requirement and
+    needsExecutionTool differ (and FMI 2.0 lists the sources)."""
+    token, files = native.native_sources(name, fmi)
+    ours = ET.fromstring(files["modelDescription.xml"])
+    theirs = _md(python_fmus[name, fmi])
+    assert _differences(theirs, ours) == _ALLOWED[fmi]
+    assert ours.find("CoSimulation").get("needsExecutionTool") == "false"
+    assert ours.get("description").endswith(native.NATIVE_HOST)
+    assert token in files["sources/vars.h"].decode()
+
+
+def _bound(ref: np.ndarray, names: list[str], steps: int, columns: int, growth: float) -> float:
+    """Round-off of a reference run: each step's row product of ``columns`` terms rounds each
+    term and partial sum (at most ``columns`` eps of the largest value), the error of a step
+    carried on by the loop at most ``growth`` (the largest exp(Re lambda T) over the run)."""
+    top = max(float(np.max(np.abs(ref[n].astype(float)))) for n in names)
+    return growth * steps * columns * _EPS * max(top, 1e-300)
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("name", sorted(NATIVE_FMUS))
+def test_native_reproduces_the_reference(native_fmus, python_fmus, name, fmi):
+    """The reference result to round-off (the bound derived in :func:`_bound`), and the
+    pythonfmu FMU's result bit for bit (the same operations in the same order: the matrix
+    exponential with correctly rounded sums, the products summed left to right, no fused
+    multiply-add)."""
+    import fmpy
+    from fmpy.util import read_csv
+
+    check = check_reference(name, native_fmus[name, fmi])
+    assert check.cross_check_outliers == 0.0
+    inp, opt, ref_path = reference_paths(name)
+    ref = read_csv(str(ref_path))
+    names = list(ref.dtype.names[1:])
+    kw = dict(start_time=float(ref["time"][0]), stop_time=float(ref["time"][-1]),
+              output_interval=float(ref["time"][1] - ref["time"][0]), output=names)
+    if inp.exists():
+        kw["input"] = read_csv(str(inp))
+    got = fmpy.simulate_fmu(str(native_fmus[name, fmi]), **kw)
+    twin = fmpy.simulate_fmu(str(python_fmus[name, fmi]), **kw)
+    steps = len(ref) - 1
+    # the open lateral loop grows by exp(0.0786 per wing beat * 30 wing beats) = 10.6 at most
+    bound = _bound(ref, names, steps, 8, 10.6)
+    for n in names:
+        a, b = got[n].astype(float), ref[n].astype(float)
+        assert np.max(np.abs(a - b)) <= bound, (n, np.max(np.abs(a - b)), bound)
+        assert np.array_equal(a, twin[n].astype(float)), n
+
+
+def _exported_expm(path: Path, tmp: Path):
+    """fmu_expm of the FMU's binary (an exported symbol of the shared library)."""
+    with zipfile.ZipFile(path) as z:
+        member = next(m for m in z.namelist() if m.startswith("binaries/") and m.endswith(".so"))
+        target = tmp / Path(member).name
+        target.write_bytes(z.read(member))
+    lib = ctypes.CDLL(str(target))
+    f = lib.fmu_expm
+    f.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_int, ctypes.POINTER(ctypes.c_double)]
+    f.restype = None
+
+    def expm(a: np.ndarray) -> np.ndarray:
+        a = np.ascontiguousarray(a, dtype=float)
+        n = a.shape[0]
+        out = np.zeros((n, n))
+        f(a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), n,
+          out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
+
+    return expm
+
+
+@pytest.mark.parametrize("norm", (0.01, 0.2, 0.9, 2.0, 5.0, 40.0, 700.0))
+def test_expm_in_c_against_python_and_scipy(native_fmus, tmp_path, norm):
+    """The C matrix exponential: every Pade degree (3 to 13) and scaling, on 7 x 7 and 8 x 8
+    matrices of the plants' shape ([[A h, B h], [0, 0]]): the Python FMUs' floats bit for bit,
+    and scipy's expm to its condition: relative error <= 1e3 n eps ||M||_1, the growth of
+    round-off through the s squarings (Higham 2005, Sect. 3) times a margin of 10."""
+    from scipy.linalg import expm as scipy_expm
+
+    from dronefly.models.linear_algebra import expm as python_expm
+
+    expm = _exported_expm(native_fmus["DroneFlyLateral", 2], tmp_path)
+    rng = np.random.default_rng(37)
+    for n_x, n_u in ((4, 3), (4, 4)):
+        n = n_x + n_u
+        m = np.zeros((n, n))
+        m[:n_x, :] = rng.standard_normal((n_x, n))
+        m *= norm / np.max(np.sum(np.abs(m), axis=0))
+        ours = expm(m)
+        assert ours.tolist() == python_expm(m.tolist())
+        ref = scipy_expm(m)
+        rel = np.max(np.abs(ours - ref)) / np.max(np.abs(ref))
+        assert rel <= 1e3 * n * _EPS * max(norm, 1.0), (norm, rel)
+
+
+def _run_messages(path: Path, fmi: int, prepare, t0: float = 0.0, h: float = 1e-3):
+    """Status of one step after ``prepare(slave, vr)`` and the messages logged."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(path) as fmu, fmu.instantiate("probe") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=t0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        t, h2 = prepare(s, fmu)
+        from dronefly.harness.compliance.fuzzkit import status_of
+
+        before = len(inst.messages)
+        status = status_of(lambda: s.doStep(currentCommunicationPoint=t, communicationStepSize=h2))
+        return status, [m.message for m in inst.messages[before:]]
+
+
+def _nan_input(s, fmu):
+    s.setReal([fmu.vr("delta_Phi_a")], [math.nan])
+    return 0.0, 1e-3
+
+
+def _bad_step(s, fmu):
+    return 0.0, -1.0
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("case", (_nan_input, _bad_step), ids=("nan-input", "bad-step"))
+def test_the_same_refusals_with_the_same_message(native_fmus, python_fmus, fmi, case):
+    """A NaN input (Discard) and a step size that is not > 0 (FMI 2.0: Discard, 3.0: Error):
+    the native FMU answers with the pythonfmu FMU's status and logs its message, which names
+    the value."""
+    got = _run_messages(native_fmus["DroneFlyLateral", fmi], fmi, case)
+    want = _run_messages(python_fmus["DroneFlyLateral", fmi], fmi, case)
+    assert got[0] == want[0] != 0
+    assert any(("nan" in m or "-1.0" in m) for m in got[1])
+    assert [m.split(": ", 1)[1] for m in got[1]] == [m.split(": ", 1)[1] for m in want[1]]
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+def test_state_get_set_serialize_and_reset(native_fmus, fmi):
+    """A serialized state restored into another instance continues bit for bit; a refused
+    (corrupt) state leaves the instance unchanged; reset starts over."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    path = native_fmus["DroneFlyLateral", fmi]
+    h = 1e-3
+    with FMU(path) as fmu:
+        outs = [fmu.vr(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+        u = fmu.vr("delta_Phi_a")
+
+        def run(inst, t0, steps):
+            rows = []
+            for k in range(steps):
+                inst.slave.setReal([u], [0.01 * math.sin(7.0 * (t0 + k * h))])
+                inst.slave.doStep(currentCommunicationPoint=t0 + k * h, communicationStepSize=h)
+                rows.append(inst.slave.getReal(outs))
+            return rows
+
+        with fmu.instantiate("a") as a, fmu.instantiate("b") as b:
+            for inst in (a, b):
+                inst.slave.setupExperiment(startTime=0.0)
+                inst.slave.enterInitializationMode()
+                inst.slave.exitInitializationMode()
+            first = run(a, 0.0, 10)
+            blob = a.slave.serializeFMUstate(a.slave.getFMUstate())
+            later = run(a, 10 * h, 10)
+            b.slave.setFMUstate(b.slave.deSerializeFMUstate(blob))
+            assert run(b, 10 * h, 10) == later
+            bad = bytearray(blob)
+            bad[-3] ^= 0x55
+            before = b.slave.getReal(outs)
+            state = b.slave.deSerializeFMUstate(bytes(bad))
+            with pytest.raises(Exception):
+                b.slave.setFMUstate(state)
+            assert "checksum" in b.messages[-1].message
+            assert b.slave.getReal(outs) == before
+            a.slave.reset()
+            a.slave.setupExperiment(startTime=0.0)
+            a.slave.enterInitializationMode()
+            a.slave.exitInitializationMode()
+            assert run(a, 0.0, 10) == first
+
+
+def test_closed_loop_equals_the_pythonfmu_loop(native_fmus, tmp_path):
+    """dronefly cosim's master on the native pair against the pythonfmu pair: 300 steps of the
+    paper's loop, equal to 1e-12 (the issue's bound; measured: bit for bit)."""
+    from dronefly.harness.stability.run import cosimulate
+
+    runs = []
+    for plant, controller in ((native_fmus["DroneFlyLateral", 2], native_fmus["StateFeedback", 2]),
+                              (None, None)):
+        r = cosimulate(plant, controller, stop_wingbeats=30.0, out_dir=None, plot=False,
+                       build_dir=tmp_path)
+        runs.append(r.run)
+    a, b = runs
+    assert len(a.time) == len(b.time) == 301 and a.names == b.names
+    assert np.max(np.abs(a.signals - b.signals)) <= 1e-12
+
+
+def test_source_code_fmu_compiled_by_fmpy_gives_the_same_results(native_fmus, tmp_path):
+    """Without a toolchain the build writes source-code FMUs (sources/ with buildDescription.xml
+    for FMI 3.0, SourceFiles for FMI 2.0, no binaries/); fmpy compiles them with its own CMake
+    project (fmpy.build.build_platform_binary) and they give the native FMU's results."""
+    pytest.importorskip("cmake", reason="fmpy compiles with CMake (the cmake package)")
+    import fmpy
+    from fmpy.build import build_platform_binary
+    from fmpy.util import read_csv
+
+    for fmi in (2, 3):
+        path, platforms = build_native("DroneFlyLateral", tmp_path / f"src{fmi}", fmi,
+                                       toolchain=None)
+        assert platforms == ()
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+        assert not any(n.startswith("binaries/") for n in names)
+        assert ("sources/buildDescription.xml" in names) == (fmi == 3)
+        unzipped = tmp_path / f"unzipped{fmi}"
+        with zipfile.ZipFile(path) as z:
+            z.extractall(unzipped)
+        (tmp_path / f"cmake{fmi}").mkdir()
+        build_platform_binary(unzipped, build_dir=tmp_path / f"cmake{fmi}")
+        inp, opt, _ = reference_paths("DroneFlyLateral")
+        kw = dict(stop_time=0.05, output_interval=1e-3, input=read_csv(str(inp)))
+        got = fmpy.simulate_fmu(str(unzipped), **kw)
+        want = fmpy.simulate_fmu(str(native_fmus["DroneFlyLateral", fmi]), **kw)
+        for n in ("delta_v", "delta_p", "delta_r", "delta_gamma"):
+            assert np.array_equal(got[n], want[n]), n

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import ctypes
 import math
-import shutil
+import os
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -26,18 +28,22 @@ from dronefly.harness.compliance.reference import REFERENCES, check_reference, r
 pytestmark = pytest.mark.integration
 
 _EPS = np.finfo(float).eps
+#: set by test_native_cases_under_address_and_undefined_behaviour_sanitizers for the run of this
+#: file's native cases that it starts: every binary built with -fsanitize=address,undefined
+_SANITIZE = os.environ.get("DRONEFLY_NATIVE_SANITIZE") == "1"
 
 
 @pytest.fixture(scope="session")
 def native_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
     """Every native FMU, FMI 2.0 and 3.0, built once for this machine: (model, version) ->
     path."""
-    why = missing_reason()
+    why = missing_reason(sanitize=_SANITIZE)
     if why is not None:
         pytest.skip(why)
     out = tmp_path_factory.mktemp("native")
-    return {(name, fmi): build_native(name, out / f"fmi{fmi}", fmi,
-                                      platforms=(host_platform(f"{fmi}.0"),))[0]
+    tc = find_toolchain(sanitize=_SANITIZE)
+    return {(name, fmi): build_native(name, out / f"fmi{fmi}", fmi, tc,
+                                      (host_platform(f"{fmi}.0"),), sanitize=_SANITIZE)[0]
             for fmi in (2, 3) for name in NATIVE_FMUS}
 
 
@@ -139,9 +145,9 @@ def _exported_expm(path: Path, tmp: Path):
     that exports it (the FMU's binary exports the FMI functions only)."""
     with zipfile.ZipFile(path) as z:
         z.extractall(tmp / "fmu")
-    target = find_toolchain().compile([tmp / "fmu" / "sources" / "expm.c"], tmp / "expm.so",
-                                      host_platform("3.0"),
-                                      extra_flags=("-fvisibility=default",))
+    target = find_toolchain(sanitize=_SANITIZE).compile(
+        [tmp / "fmu" / "sources" / "expm.c"], tmp / "expm.so", host_platform("3.0"),
+        extra_flags=("-fvisibility=default",), sanitize=_SANITIZE)
     lib = ctypes.CDLL(str(target))
     f = lib.fmu_expm
     f.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_int, ctypes.POINTER(ctypes.c_double)]
@@ -379,3 +385,49 @@ def test_build_without_a_compiler_writes_source_code_fmus(tmp_path, monkeypatch,
         with zipfile.ZipFile(path) as z:
             names = z.namelist()
         assert "sources/fmu.c" in names and not any(n.startswith("binaries/") for n in names)
+
+
+_CANARY = b"""
+#include <stdlib.h>
+int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a[0]; free(a);
+                    return v; }
+"""
+#: this file's cases that run native code, rerun on sanitized binaries
+_SANITIZED_CASES = "reproduces or expm or refusals or state_get"
+
+
+@pytest.mark.skipif(_SANITIZE, reason="(this is the run the test starts)")
+def test_native_cases_under_address_and_undefined_behaviour_sanitizers(tmp_path):
+    """This file's native cases (reference runs, the matrix exponential, refusals, FMU states
+    with corrupt bytes, the closed loop) on binaries built with -fsanitize=address,undefined
+    (the host's compiler; undefined behaviour aborts), in a pytest run with the sanitizer
+    runtimes preloaded into Python. A canary with a heap overflow, built the same way, aborts
+    in that setup: the sanitizers are live."""
+    why = missing_reason(sanitize=True)
+    if why is not None or not sys.platform.startswith("linux"):
+        pytest.skip(why or "sanitizer runtimes are preloaded on Linux only")
+    tc = find_toolchain(sanitize=True)
+    runtimes = []
+    for lib in ("libasan.so", "libubsan.so"):
+        r = subprocess.run([tc.command[0], f"-print-file-name={lib}"], capture_output=True,
+                           text=True)
+        path = r.stdout.strip()
+        if not os.path.isabs(path):
+            pytest.skip(f"{tc.command[0]} has no {lib} (the sanitizer runtime) on this machine")
+        runtimes.append(path)
+    env = dict(os.environ, LD_PRELOAD=" ".join(runtimes), ASAN_OPTIONS="detect_leaks=0",
+               UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1", DRONEFLY_NATIVE_SANITIZE="1")
+    (tmp_path / "canary.c").write_bytes(_CANARY)
+    canary = tc.compile([tmp_path / "canary.c"], tmp_path / "canary.so", host_platform("3.0"),
+                        sanitize=True, extra_flags=("-fvisibility=default",))
+    r = subprocess.run([sys.executable, "-c", f"import ctypes; ctypes.CDLL({str(canary)!r})"
+                        ".canary(4)"], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and ("AddressSanitizer" in r.stderr
+                                  or "runtime error" in r.stderr), r.stderr[-2000:]
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:randomly", "-p",
+                        "no:cacheprovider", __file__, "-k", _SANITIZED_CASES],
+                       env=env, capture_output=True, text=True, timeout=600,
+                       cwd=Path(__file__).parent)
+    tail = (r.stdout + r.stderr)[-3000:]
+    assert r.returncode == 0, tail
+    assert "passed" in r.stdout and "skipped" not in r.stdout.splitlines()[-1], tail

@@ -81,6 +81,10 @@ NATIVE_FMUS: dict[str, _NativeSpec] = {
                                         "fmu_src/longitudinal", _PLANT_C),
     "StateFeedbackLongitudinal": _NativeSpec("controller.slave", "StateFeedbackLongitudinal",
                                              "controller", _CONTROLLER_C),
+    "StateFeedbackDelayed": _NativeSpec("controller.slave", "StateFeedbackDelayed", "controller",
+                                        _CONTROLLER_C),
+    "StateFeedbackLongitudinalDelayed": _NativeSpec(
+        "controller.slave", "StateFeedbackLongitudinalDelayed", "controller", _CONTROLLER_C),
 }
 
 def c_name(name: str) -> str:

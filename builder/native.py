@@ -20,6 +20,7 @@ source-code FMU.
 from __future__ import annotations
 
 import hashlib
+import importlib
 import re
 import tempfile
 import uuid
@@ -169,8 +170,6 @@ def vars_c(cls: Any, token: str) -> tuple[str, str]:
 
 
 def _slave_class(name: str) -> Any:
-    import importlib
-
     spec = NATIVE_FMUS[name]
     return getattr(importlib.import_module(f"..{spec.module}", __package__), spec.cls)
 

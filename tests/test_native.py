@@ -479,3 +479,36 @@ def test_controller_variants_step_as_the_pythonfmu_ones(native_fmus, python_fmus
     want = _controller_run(python_fmus[name, fmi], params, steps)
     assert got[0] == want[0]
     assert got[1] == want[1]
+
+
+def test_the_delay_line_bound_is_the_documented_one(native_fmus):
+    """docs/native.md's bound of the native controllers' delay line is CTRL_LINE of
+    controller/model.h; a delay that needs more samples is refused naming the values, one that
+    needs fewer runs (and equals the pythonfmu controller, which holds 100,000)."""
+    import re as _re
+
+    root = Path(__file__).resolve().parents[1]
+    bound = int(_re.search(r"#define CTRL_LINE (\d+)", (root / "controller" / "model.h")
+                           .read_text()).group(1))
+    doc = (root / "docs" / "native.md").read_text()
+    assert f"holds at most {bound} samples" in doc
+    h = 1e-3
+    for delay_steps, refused in ((bound - 2, False), (bound + 2, True)):
+        from dronefly.harness.cosim.fmu import FMU
+        from dronefly.harness.compliance.fuzzkit import status_of
+
+        with FMU(native_fmus["StateFeedbackDelayed", 2]) as fmu, fmu.instantiate("d") as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.setReal([fmu.vr("sensing_delay")], [delay_steps * h])
+            s.exitInitializationMode()
+            statuses = [status_of(lambda k=k: s.doStep(currentCommunicationPoint=k * h,
+                                                       communicationStepSize=h))
+                        for k in range(bound + 1)]
+            if refused:
+                assert statuses[-1] == 2 and statuses[:-1] == [0] * bound
+                assert f"more than {bound} samples" in inst.messages[-1].message
+                assert f"sensing_delay = {delay_steps * h!r} s" in inst.messages[-1].message
+            else:
+                assert statuses == [0] * (bound + 1)

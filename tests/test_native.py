@@ -358,6 +358,7 @@ def test_native_container_equals_the_pythonfmu_container(native_fmus, built_fmus
     from dronefly.builder.native import build_native_container
 
     folder = native_fmus["DroneFlyLateral", 2].parent
+    assert native_fmus["StateFeedback", 2].parent == folder  # (built on first use)
     container = build_native_container(folder)
     md = fmpy.read_model_description(str(container))
     outs = [v.name for v in md.modelVariables if v.causality == "output"]

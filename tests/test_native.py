@@ -530,3 +530,22 @@ def test_the_delay_line_bound_is_the_documented_one(native_fmus):
                 assert f"sensing_delay = {delay_steps * h!r} s" in inst.messages[-1].message
             else:
                 assert statuses == [0] * (bound + 1)
+
+
+def test_fmi3_takes_the_start_and_stop_time(native_fmus):
+    """docs/native.md: the native FMI 3.0 FMUs take fmi3EnterInitializationMode's start and
+    stop time: a first step elsewhere and a step past the stop time are refused (fmi3Error,
+    naming the times); a step within them runs."""
+    from dronefly.harness.compliance.fuzzkit import status_of
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(native_fmus["DroneFlyLateral", 3]) as fmu, fmu.instantiate("a") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0, stopTime=1.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        step = lambda t, h: status_of(lambda: s.doStep(currentCommunicationPoint=t,  # noqa: E731
+                                                       communicationStepSize=h))
+        assert step(5.0, 0.1) == 3 and "5.0 s does not continue" in inst.messages[-1].message
+        assert step(0.0, 2.0) == 3 and "past stopTime = 1.0 s" in inst.messages[-1].message
+        assert step(0.0, 0.5) == 0

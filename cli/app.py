@@ -38,7 +38,7 @@ _SWEEP_UNITS = ("\nunits: --steps/--delays/--sample-periods/--stop in wing beats
                 "1/n = 6.1 ms); --gains non-dimensional (rad per unit of x+ = (dv/U, dp/n, dr/n, "
                 "dgamma)); --set values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
 _EPILOG = {
-    "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --gains open --json\n"
+    "cosim": "examples:\n  dronefly cosim\n  dronefly cosim --native\n  dronefly cosim --gains open --json\n"
              "  dronefly cosim --gains=-0.3,-0.3,-0.2,-0.1 --step 1 --master jacobi\n"
              "  (a value starting with '-' needs the form --gains=... or --x0=...)\n"
              "  dronefly cosim --plant my/Plant.fmu --controller my/Controller.fmu\n"
@@ -58,7 +58,7 @@ _EPILOG = {
              "(with --system: against eig(A + B K), open loop eig(A); outputs kept), 2 bad "
              "input (also plant and controller with different n or U, without "
              "--allow-scale-mismatch), 130 interrupted" + _UNITS,
-    "demo": "examples:\n  dronefly demo\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
+    "demo": "examples:\n  dronefly demo\n  dronefly demo --native --no-plot\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
             "exit codes: 0 ok, 1 a run's cross-check failed (outputs kept), 2 bad input",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
              "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
@@ -66,7 +66,7 @@ _EPILOG = {
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
                "  dronefly analyze --targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51 "
                "--input delta_Phi_a",
-    "sweep": "examples:\n  dronefly sweep\n  dronefly sweep --gains paper,stabilising,open "
+    "sweep": "examples:\n  dronefly sweep\n  dronefly sweep --native\n  dronefly sweep --gains paper,stabilising,open "
              "--steps 0.1,0.5,1,2,3\n"
              "  dronefly sweep --disturbances lhs --lhs 500 --scales 1,1.5,2 --out build/lhs\n"
              "  dronefly sweep --scheduler tcp://10.0.0.5:8786\n"
@@ -78,7 +78,7 @@ _EPILOG = {
              "--disturbances directions\n"
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
              "130 interrupted (rerun to resume)" + _SWEEP_UNITS,
-    "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
+    "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus\n  dronefly build --native",
     "aero": "examples:\n  dronefly aero\n  dronefly aero --json --coefficients wang2004\n"
             "  dronefly aero forces --state delta_v=0.1 --control delta_Phi_a=0.2 --json\n"
             "  dronefly aero --no-rotational --added-mass-form sane2001\n"
@@ -122,8 +122,12 @@ def _parser() -> argparse.ArgumentParser:
                         help="show the traceback of an internal error (a bug) or of bad input")
         return sp
 
-    b = add("build", "build every FMU of the project")
+    b = add("build", "build every FMU of the project: FMI 2.0 in DIR, FMI 3.0 in DIR/fmi3")
     b.add_argument("--out", type=out_dir, default="build", metavar="DIR", help="output folder (default: build/)")
+    b.add_argument("--native", action="store_true",
+                   help="also the native (C) FMUs in DIR/native and DIR/native/fmi3, with binaries "
+                        "for every platform the toolchain builds for (zig cc: Linux, Windows, "
+                        "macOS; a minute or more) and the closed-loop container (docs/native.md)")
 
     s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance")
     s.add_argument("--stop", type=positive, default=30.0, help="stop time in wing beats (default 30)")
@@ -150,6 +154,9 @@ def _parser() -> argparse.ArgumentParser:
                    "Boolean output); with "
                    "--plant/--controller, plant.NAME or controller.NAME, recorded after the "
                    "states and controls")
+    c.add_argument("--native", action="store_true",
+                   help="run the native (C) FMUs, DIR/native/DroneFlyLateral.fmu and "
+                        "StateFeedback.fmu, built on demand (needs a C compiler; docs/native.md)")
     c.add_argument("--plant", default=None, metavar="FMU",
                    help="plant FMU (default: build/DroneFlyLateral.fmu, built on demand)")
     c.add_argument("--controller", default=None, metavar="FMU",
@@ -227,6 +234,9 @@ def _parser() -> argparse.ArgumentParser:
                         "SI units), as cosim --set")
     d.add_argument("--build", type=out_dir, default="build", metavar="DIR",
                    help="where the project's FMUs are built if missing or out of date")
+    d.add_argument("--native", action="store_true",
+                   help="run the native (C) FMUs, DIR/native/DroneFlyLateral.fmu and "
+                        "StateFeedback.fmu, built on demand (needs a C compiler; docs/native.md)")
 
     a = add("analyze", "reproduce every number of the paper (Tables 2-3, Eqs. 12-32) from the model")
     form = a.add_mutually_exclusive_group()  # one report: both are refused (exit 2)
@@ -247,6 +257,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="folder of sweep.csv, sweep.json and map_*.png; rerun to resume "
                         "(default build/sweep)")
     w.add_argument("--plant", default=None, metavar="FMU", help="plant FMU (default: built)")
+    w.add_argument("--native", action="store_true",
+                   help="run the native (C) FMUs, build/native/DroneFlyLateral.fmu and "
+                        "StateFeedback.fmu, built on demand (needs a C compiler; docs/native.md)")
     w.add_argument("--controller", default=None, metavar="FMU",
                    help="controller FMU (default: built)")
     w.add_argument("--compare", default=None, metavar="SSP",

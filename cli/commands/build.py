@@ -1,4 +1,5 @@
-"""``dronefly build``: every FMU of the project, FMI 2.0 and 3.0, and its systems."""
+"""``dronefly build``: every FMU of the project, FMI 2.0 and 3.0, and its systems; with
+``--native`` also the native FMUs for every platform the toolchain builds for."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from ...builder.build import FMI3_OUT, build_all
+from ...builder.native import NATIVE_OUT, build_native_all, build_native_container
 from . import EXIT_OK
 
 __all__ = ["SAYS_WHAT_IT_BUILT", "run"]
@@ -16,6 +18,19 @@ SAYS_WHAT_IT_BUILT = True
 
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly build`` with the parsed arguments; returns the exit code."""
-    for path in [*build_all(args.out), *build_all(Path(args.out) / FMI3_OUT, fmi=3)]:
+    out = Path(args.out)
+    for path in [*build_all(out), *build_all(out / FMI3_OUT, fmi=3)]:
         print(path)
+    if not getattr(args, "native", False):
+        return EXIT_OK
+    native = out / NATIVE_OUT
+    paths2, platforms = build_native_all(native, 2)
+    paths3, _ = build_native_all(native / FMI3_OUT, 3)
+    for path in [*paths2, *paths3]:
+        print(path)
+    if platforms:  # the container runs binaries: none from source-code FMUs
+        print(build_native_container(native))
+    else:
+        print(f"no C compiler: the native FMUs in {native} are source-code FMUs (sources/ only, "
+              "no closed-loop container; pip install ziglang for binaries)")
     return EXIT_OK

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ...builder.native import native_pair
 from ...core.errors import DroneflyError
 from ...harness.stability.run import cosimulate
 from ...harness.stability.system import cosimulate_system
@@ -22,6 +23,13 @@ SAYS_WHAT_IT_BUILT = True
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly cosim`` with the parsed arguments; returns the exit code."""
     args.no_plot = not feature("cosim", not args.no_plot, "matplotlib", "plot")
+    if args.native:
+        given = [f"--{k}" for k in ("plant", "controller", "system")
+                 if getattr(args, k) is not None]
+        if given:
+            raise DroneflyError(f"--native cannot be combined with {', '.join(given)} (it runs "
+                                "the project's native plant and controller)")
+        args.plant, args.controller = native_pair(args.build)
     if args.system is not None:
         return _cosim_system(args)
     if args.open_loop:

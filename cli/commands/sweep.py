@@ -9,6 +9,8 @@ import sys
 from typing import Any
 
 from ...builder.build import project_systems
+from ...builder.native import native_pair
+from ...core.errors import DroneflyError
 from ...core.files import write_text_atomic
 from ...core.extras import require
 from ...harness.sweep.backends import stderr_is_tty
@@ -46,6 +48,13 @@ def run(args: argparse.Namespace) -> int:
     progress = feature("sweep", not args.no_progress and stderr_is_tty(), "tqdm", "progress bar")
     plot = feature("sweep", not args.no_plot, "matplotlib", "maps")
     system, compare = args.system, args.compare
+    if args.native:
+        given = [f"--{k}" for k in ("plant", "controller", "system", "compare")
+                 if getattr(args, k) is not None]
+        if given:
+            raise DroneflyError(f"--native cannot be combined with {', '.join(given)} (it runs "
+                                "the project's native plant and controller)")
+        args.plant, args.controller = native_pair()
     if args.halves and compare != "nonlinear":
         print("dronefly sweep: error: --halves needs --compare nonlinear (the halves are "
               "those of the project's plants)", file=sys.stderr)

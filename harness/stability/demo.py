@@ -12,7 +12,8 @@ __all__ = ["demo_runs", "format_table", "verdict_table"]
 
 def demo_runs(out_dir: str | Path = "build/cosim", *, plot: bool = True,
               set_values: Mapping[str, Any] | None = None,
-              build_dir: str | Path = "build") -> list[CosimResult]:
+              build_dir: str | Path = "build", plant: str | Path | None = None,
+              controller: str | Path | None = None) -> list[CosimResult]:
     """Co-simulate open loop and Eq. (27) (Gauss-Seidel, 0.1 wing beat, 300 wing beats).
 
     Parameters
@@ -26,14 +27,16 @@ def demo_runs(out_dir: str | Path = "build/cosim", *, plot: bool = True,
         :func:`~dronefly.harness.stability.run.cosimulate` takes them.
     build_dir : path
         Where the project's FMUs are built if missing or out of date.
+    plant, controller : path, optional
+        The FMUs to run (default: the project's pythonfmu FMUs, as ``cosimulate``).
 
     Returns
     -------
     list of CosimResult
         The open loop, then Eq. (27); each with its ``check_failures``.
     """
-    return [cosimulate(gains=gains, out_dir=out_dir, plot=plot, set_values=set_values,
-                       build_dir=build_dir) for gains in ("open", "paper")]
+    return [cosimulate(plant, controller, gains=gains, out_dir=out_dir, plot=plot,
+                       set_values=set_values, build_dir=build_dir) for gains in ("open", "paper")]
 
 
 def format_table(results: list[CosimResult]) -> str:

@@ -1,0 +1,565 @@
+"""The native (C) FMUs: one interface with the pythonfmu FMUs, the same numbers, the same
+refusals, FMU states, and the matrix exponential in C against Python's and scipy's.
+
+Where no C compiler is on the machine the tests that run a binary skip, naming it (a platform
+reason); CI installs gcc.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import numpy as np
+import pytest
+
+from dronefly.builder import native
+from dronefly.builder.build import build_fmu
+from dronefly.builder.native import NATIVE_FMUS, build_native
+from dronefly.builder.toolchain import find_toolchain, host_platform, missing_reason
+from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
+
+pytestmark = pytest.mark.integration
+
+_EPS = np.finfo(float).eps
+#: set by test_native_cases_under_address_and_undefined_behaviour_sanitizers for the run of this
+#: file's native cases that it starts: every binary built with -fsanitize=address,undefined
+_SANITIZE = os.environ.get("DRONEFLY_NATIVE_SANITIZE") == "1"
+
+
+class _Built(dict):
+    """FMUs by (model, FMI version), each built on first use (a test that needs two builds two)."""
+
+    def __init__(self, make):
+        super().__init__()
+        self._make = make
+
+    def __missing__(self, key):
+        self[key] = path = self._make(*key)
+        return path
+
+    def all(self) -> list[Path]:
+        return [self[name, fmi] for fmi in (2, 3) for name in NATIVE_FMUS]
+
+
+@pytest.fixture(scope="session")
+def native_fmus(tmp_path_factory: pytest.TempPathFactory) -> _Built:
+    """The native FMUs, FMI 2.0 and 3.0, for this machine: (model, version) -> path, each built
+    once on first use, by the host's compiler where there is one (the quickest), else zig cc."""
+    why = missing_reason(sanitize=_SANITIZE)
+    if why is not None:
+        pytest.skip(why)
+    out = tmp_path_factory.mktemp("native")
+    tc = find_toolchain(sanitize=True) or find_toolchain()
+    return _Built(lambda name, fmi: build_native(name, out / f"fmi{fmi}", fmi, tc,
+                                                 (host_platform(f"{fmi}.0"),),
+                                                 sanitize=_SANITIZE)[0])
+
+
+@pytest.fixture(scope="session")
+def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> _Built:
+    """The pythonfmu twins of the native FMUs, each built on first use."""
+    out = tmp_path_factory.mktemp("pythonfmu")
+    return _Built(lambda name, fmi: build_fmu(name, out / f"fmi{fmi}", fmi))
+
+
+def _md(path: Path) -> ET.Element:
+    with zipfile.ZipFile(path) as z:
+        return ET.fromstring(z.read("modelDescription.xml"))
+
+
+def _differences(a: ET.Element, b: ET.Element, where: str = "") -> set[str]:
+    """Where two model descriptions differ: ``tag@attribute`` for an attribute, ``tag/child``
+    for an element only one of them has (element by element, in order)."""
+    here = f"{where}/{a.tag}"
+    out = {f"{here}@{k}" for k in set(a.attrib) | set(b.attrib) if a.get(k) != b.get(k)}
+    ka, kb = list(a), list(b)
+    extra_b = [c for c in kb if c.tag not in {x.tag for x in ka}]
+    out |= {f"{here}/{c.tag}" for c in extra_b}
+    kb = [c for c in kb if c not in extra_b]
+    assert [c.tag for c in ka] == [c.tag for c in kb], f"{here}: children differ"
+    for x, y in zip(ka, kb):
+        out |= _differences(x, y, here)
+    return out
+
+
+#: what may differ between a pythonfmu and a native model description, and nothing else
+_ALLOWED = {
+    2: {"/fmiModelDescription@guid", "/fmiModelDescription@generationTool",
+        "/fmiModelDescription@description", "/fmiModelDescription/CoSimulation@needsExecutionTool",
+        "/fmiModelDescription/CoSimulation/SourceFiles"},
+    3: {"/fmiModelDescription@instantiationToken", "/fmiModelDescription@generationTool",
+        "/fmiModelDescription@description",
+        "/fmiModelDescription/CoSimulation@needsExecutionTool"},
+}
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("name", sorted(NATIVE_FMUS))
+def test_model_description_is_the_pythonfmu_one(python_fmus, name, fmi):
+    """Variables, value references, units, display units, descriptions, causality,
+    variability, ModelStructure, default experiment and capability flags are the pythonfmu
+    FMU's (one table, one generator); only the identity, the tool, the host requirement and
+    needsExecutionTool differ (and FMI 2.0 lists the sources)."""
+    token, files = native.native_sources(name, fmi)
+    ours = ET.fromstring(files["modelDescription.xml"])
+    theirs = _md(python_fmus[name, fmi])
+    assert _differences(theirs, ours) == _ALLOWED[fmi]
+    assert ours.find("CoSimulation").get("needsExecutionTool") == "false"
+    assert ours.get("description").endswith(native.NATIVE_HOST)
+    assert token in files["sources/vars.h"].decode()
+
+
+def _bound(ref: np.ndarray, names: list[str], steps: int, columns: int, growth: float) -> float:
+    """Round-off of a reference run: each step's row product of ``columns`` terms rounds each
+    term and partial sum (at most ``columns`` eps of the largest value), the error of a step
+    carried on by the loop at most ``growth`` (the largest exp(Re lambda T) over the run)."""
+    top = max(float(np.max(np.abs(ref[n].astype(float)))) for n in names)
+    return growth * steps * columns * _EPS * max(top, 1e-300)
+
+
+def _growth(name: str, span_s: float) -> float:
+    """How much a plant's open loop can amplify an error over ``span_s``: exp(largest real part
+    of eig(A) per wing beat x the wing beats) (lateral: 10.6 over 30 wing beats; longitudinal:
+    17.9 over 60); 1 for a controller, whose outputs are each step's product alone."""
+    from dronefly.models import lateral_dynamics, longitudinal_dynamics
+    from dronefly.models.lateral import N_HZ
+
+    module = {"DroneFlyLateral": lateral_dynamics,
+              "DroneFlyLongitudinal": longitudinal_dynamics}.get(name)
+    if module is None:
+        return 1.0
+    A = module.system_matrices(module.default_parameters())[0]
+    return math.exp(max(float(np.max(np.linalg.eigvals(A).real)), 0.0) * span_s * N_HZ)
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("name", sorted(NATIVE_FMUS))
+def test_native_reproduces_the_reference(native_fmus, python_fmus, name, fmi):
+    """The reference result to round-off (the bound derived in :func:`_bound`), and the
+    pythonfmu FMU's result bit for bit (the same operations in the same order: the matrix
+    exponential with correctly rounded sums, the products summed left to right, no fused
+    multiply-add)."""
+    import fmpy
+    from fmpy.util import read_csv
+
+    check = check_reference(name, native_fmus[name, fmi])
+    assert check.cross_check_outliers == 0.0
+    inp, opt, ref_path = reference_paths(name)
+    ref = read_csv(str(ref_path))
+    names = list(ref.dtype.names[1:])
+    kw = dict(start_time=float(ref["time"][0]), stop_time=float(ref["time"][-1]),
+              output_interval=float(ref["time"][1] - ref["time"][0]), output=names)
+    if inp.exists():
+        kw["input"] = read_csv(str(inp))
+    got = fmpy.simulate_fmu(str(native_fmus[name, fmi]), **kw)
+    twin = fmpy.simulate_fmu(str(python_fmus[name, fmi]), **kw)
+    steps = len(ref) - 1
+    bound = _bound(ref, names, steps, 8, _growth(name, float(ref["time"][-1] - ref["time"][0])))
+    for n in names:
+        a, b = got[n].astype(float), ref[n].astype(float)
+        assert np.max(np.abs(a - b)) <= bound, (n, np.max(np.abs(a - b)), bound)
+        assert np.array_equal(a, twin[n].astype(float)), n
+
+
+def _exported_expm(path: Path, tmp: Path):
+    """fmu_expm of the FMU's sources/expm.c, built by the toolchain as a library of its own
+    that exports it (the FMU's binary exports the FMI functions only)."""
+    with zipfile.ZipFile(path) as z:
+        z.extractall(tmp / "fmu")
+    target = (find_toolchain(sanitize=True) or find_toolchain()).compile(
+        [tmp / "fmu" / "sources" / "expm.c"], tmp / "expm.so", host_platform("3.0"),
+        extra_flags=("-fvisibility=default",), sanitize=_SANITIZE)
+    lib = ctypes.CDLL(str(target))
+    f = lib.fmu_expm
+    f.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_int, ctypes.POINTER(ctypes.c_double)]
+    f.restype = None
+
+    def expm(a: np.ndarray) -> np.ndarray:
+        a = np.ascontiguousarray(a, dtype=float)
+        n = a.shape[0]
+        out = np.zeros((n, n))
+        f(a.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), n,
+          out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)))
+        return out
+
+    return expm
+
+
+@pytest.mark.parametrize("norm", (0.01, 0.2, 0.9, 2.0, 5.0, 40.0, 700.0))
+def test_expm_in_c_against_python_and_scipy(native_fmus, tmp_path, norm):
+    """The C matrix exponential: every Pade degree (3 to 13) and scaling, on 7 x 7 and 8 x 8
+    matrices of the plants' shape ([[A h, B h], [0, 0]]): the Python FMUs' floats bit for bit,
+    and scipy's expm to its condition: relative error <= 1e3 n eps ||M||_1, the growth of
+    round-off through the s squarings (Higham 2005, Sect. 3) times a margin of 10."""
+    from scipy.linalg import expm as scipy_expm
+
+    from dronefly.models.linear_algebra import expm as python_expm
+
+    expm = _exported_expm(native_fmus["DroneFlyLateral", 2], tmp_path)
+    rng = np.random.default_rng(37)
+    for n_x, n_u in ((4, 3), (4, 4)):
+        n = n_x + n_u
+        m = np.zeros((n, n))
+        m[:n_x, :] = rng.standard_normal((n_x, n))
+        m *= norm / np.max(np.sum(np.abs(m), axis=0))
+        ours = expm(m)
+        assert ours.tolist() == python_expm(m.tolist())
+        ref = scipy_expm(m)
+        rel = np.max(np.abs(ours - ref)) / np.max(np.abs(ref))
+        assert rel <= 1e3 * n * _EPS * max(norm, 1.0), (norm, rel)
+
+
+def _run_messages(path: Path, fmi: int, prepare, t0: float = 0.0, h: float = 1e-3):
+    """Status of one step after ``prepare(slave, vr)`` and the messages logged."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(path) as fmu, fmu.instantiate("probe") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=t0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        t, h2 = prepare(s, fmu)
+        from dronefly.harness.compliance.fuzzkit import status_of
+
+        before = len(inst.messages)
+        status = status_of(lambda: s.doStep(currentCommunicationPoint=t, communicationStepSize=h2))
+        return status, [m.message for m in inst.messages[before:]]
+
+
+def _nan_input(s, fmu):
+    s.setReal([fmu.vr("delta_Phi_a")], [math.nan])
+    return 0.0, 1e-3
+
+
+def _bad_step(s, fmu):
+    return 0.0, -1.0
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("case", (_nan_input, _bad_step), ids=("nan-input", "bad-step"))
+def test_the_same_refusals_with_the_same_message(native_fmus, python_fmus, fmi, case):
+    """A NaN input (Discard) and a step size that is not > 0 (FMI 2.0: Discard, 3.0: Error):
+    the native FMU answers with the pythonfmu FMU's status and logs its message, which names
+    the value."""
+    got = _run_messages(native_fmus["DroneFlyLateral", fmi], fmi, case)
+    want = _run_messages(python_fmus["DroneFlyLateral", fmi], fmi, case)
+    assert got[0] == want[0] != 0
+    assert any(("nan" in m or "-1.0" in m) for m in got[1])
+    assert [m.split(": ", 1)[1] for m in got[1]] == [m.split(": ", 1)[1] for m in want[1]]
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+def test_state_get_set_serialize_and_reset(native_fmus, fmi):
+    """A serialized state restored into another instance continues bit for bit; a refused
+    (corrupt) state leaves the instance unchanged; reset starts over."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    path = native_fmus["DroneFlyLateral", fmi]
+    h = 1e-3
+    with FMU(path) as fmu:
+        outs = [fmu.vr(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+        u = fmu.vr("delta_Phi_a")
+
+        def run(inst, t0, steps):
+            rows = []
+            for k in range(steps):
+                inst.slave.setReal([u], [0.01 * math.sin(7.0 * (t0 + k * h))])
+                inst.slave.doStep(currentCommunicationPoint=t0 + k * h, communicationStepSize=h)
+                rows.append(inst.slave.getReal(outs))
+            return rows
+
+        with fmu.instantiate("a") as a, fmu.instantiate("b") as b:
+            for inst in (a, b):
+                inst.slave.setupExperiment(startTime=0.0)
+                inst.slave.enterInitializationMode()
+                inst.slave.exitInitializationMode()
+            first = run(a, 0.0, 10)
+            blob = a.slave.serializeFMUstate(a.slave.getFMUstate())
+            later = run(a, 10 * h, 10)
+            b.slave.setFMUstate(b.slave.deSerializeFMUstate(blob))
+            assert run(b, 10 * h, 10) == later
+            bad = bytearray(blob)
+            bad[-3] ^= 0x55
+            before = b.slave.getReal(outs)
+            state = b.slave.deSerializeFMUstate(bytes(bad))
+            with pytest.raises(Exception):
+                b.slave.setFMUstate(state)
+            assert "checksum" in b.messages[-1].message
+            assert b.slave.getReal(outs) == before
+            a.slave.reset()
+            a.slave.setupExperiment(startTime=0.0)
+            a.slave.enterInitializationMode()
+            a.slave.exitInitializationMode()
+            assert run(a, 0.0, 10) == first
+
+
+def test_closed_loop_equals_the_pythonfmu_loop(native_fmus, tmp_path):
+    """dronefly cosim's master on the native pair against the pythonfmu pair: 300 steps of the
+    paper's loop, equal to 1e-12 (the issue's bound; measured: bit for bit)."""
+    from dronefly.harness.stability.run import cosimulate
+
+    runs = []
+    for plant, controller in ((native_fmus["DroneFlyLateral", 2], native_fmus["StateFeedback", 2]),
+                              (None, None)):
+        r = cosimulate(plant, controller, stop_wingbeats=30.0, out_dir=None, plot=False,
+                       build_dir=tmp_path)
+        runs.append(r.run)
+    a, b = runs
+    assert len(a.time) == len(b.time) == 301 and a.names == b.names
+    assert np.max(np.abs(a.signals - b.signals)) <= 1e-12
+
+
+def test_source_code_fmu_compiled_by_fmpy_gives_the_same_results(native_fmus, tmp_path):
+    """Without a toolchain the build writes source-code FMUs (sources/ with buildDescription.xml
+    for FMI 3.0, SourceFiles for FMI 2.0, no binaries/); fmpy compiles them with its own CMake
+    project (fmpy.build.build_platform_binary) and they give the native FMU's results."""
+    pytest.importorskip("cmake", reason="fmpy compiles with CMake (the cmake package)")
+    import fmpy
+    from fmpy.build import build_platform_binary
+    from fmpy.util import read_csv
+
+    for fmi in (2, 3):
+        path, platforms = build_native("DroneFlyLateral", tmp_path / f"src{fmi}", fmi,
+                                       toolchain=None)
+        assert platforms == ()
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+        assert not any(n.startswith("binaries/") for n in names)
+        assert ("sources/buildDescription.xml" in names) == (fmi == 3)
+        unzipped = tmp_path / f"unzipped{fmi}"
+        with zipfile.ZipFile(path) as z:
+            z.extractall(unzipped)
+        (tmp_path / f"cmake{fmi}").mkdir()
+        build_platform_binary(unzipped, build_dir=tmp_path / f"cmake{fmi}")
+        inp, opt, _ = reference_paths("DroneFlyLateral")
+        kw = dict(stop_time=0.05, output_interval=1e-3, input=read_csv(str(inp)))
+        got = fmpy.simulate_fmu(str(unzipped), **kw)
+        want = fmpy.simulate_fmu(str(native_fmus["DroneFlyLateral", fmi]), **kw)
+        for n in ("delta_v", "delta_p", "delta_r", "delta_gamma"):
+            assert np.array_equal(got[n], want[n]), n
+
+
+@pytest.mark.parametrize("profile", ("standard", "dronefly"))
+def test_dronefly_check_passes_every_native_fmu(native_fmus, profile):
+    """``dronefly check`` (both profiles; the dronefly profile with the fuzz on the FMI 2.0
+    FMUs, where it applies) passes every native FMU, FMI 2.0 and 3.0; its validate check is
+    ``fmpy validate``."""
+    from dronefly.harness.compliance.checker import CheckOptions
+    from dronefly.harness.compliance.suite import check_fmus
+
+    paths = sorted(native_fmus.all())
+    reports = check_fmus(paths, jobs=2, fuzz=True, options=CheckOptions(profile=profile))
+    for r in reports:
+        assert r.passed, (r.path, [(c.name, c.detail) for c in r.checks if not c.passed])
+        assert any(c.name == "validate" and c.passed and not c.skipped for c in r.checks)
+        if profile == "dronefly" and "fmi3" not in str(r.path):
+            assert any(c.name == "fuzz" and c.passed and not c.skipped for c in r.checks)
+
+
+def test_native_container_equals_the_pythonfmu_container(native_fmus, built_fmus, tmp_path):
+    """The closed loop through FMPy: fmpy's container of the native pair (no pythonfmu shim)
+    against the pythonfmu container, 300 steps of 0.1 wing beat, equal to 1e-12 (measured: bit
+    for bit)."""
+    import fmpy
+
+    from dronefly.builder.native import build_native_container
+
+    folder = native_fmus["DroneFlyLateral", 2].parent
+    assert native_fmus["StateFeedback", 2].parent == folder  # (built on first use)
+    container = build_native_container(folder)
+    md = fmpy.read_model_description(str(container))
+    outs = [v.name for v in md.modelVariables if v.causality == "output"]
+    step = float(md.defaultExperiment.stepSize)
+    kw = dict(stop_time=300 * step, output_interval=step, output=outs)
+    got = fmpy.simulate_fmu(str(container), **kw)
+    want = fmpy.simulate_fmu(str(built_fmus["DroneFlyClosedLoop"]), **kw)
+    assert len(got) == 301
+    for n in outs:
+        assert np.max(np.abs(got[n] - want[n])) <= 1e-12, n
+    with zipfile.ZipFile(container) as z:
+        assert not any("shim" in n for n in z.namelist())
+
+
+def test_native_option_refuses_what_cannot_take_effect(tmp_path, capsys):
+    """--native runs the project's pair: with --plant it is refused (exit 2, one line)."""
+    from dronefly.cli import main
+
+    assert main(["cosim", "--native", "--plant", str(tmp_path / "x.fmu"), "--no-plot"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--native cannot be combined with --plant" in err[0]
+
+
+def test_build_without_a_compiler_writes_source_code_fmus(tmp_path, monkeypatch, capsys):
+    """No C compiler: ``dronefly build --native`` still writes every native FMU, as source-code FMUs
+    (sources/, no binaries/), and says so in one line."""
+    import argparse
+
+    from dronefly.cli.commands import build as build_command
+
+    monkeypatch.setattr(native, "_default_toolchain", lambda: None)
+    monkeypatch.setattr(build_command, "build_all", lambda out, fmi=2: [])
+    assert build_command.run(argparse.Namespace(out=str(tmp_path), native=True)) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert sum("no C compiler" in ln for ln in lines) == 1
+    fmus = sorted((tmp_path / "native").rglob("*.fmu"))
+    assert len(fmus) == 2 * len(NATIVE_FMUS)
+    for path in fmus:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+        assert "sources/fmu.c" in names and not any(n.startswith("binaries/") for n in names)
+
+
+_CANARY = b"""
+#include <stdlib.h>
+int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a[0]; free(a);
+                    return v; }
+"""
+#: this file's cases that run native code, rerun on sanitized binaries
+#: (the cases that also run the pythonfmu twins run them in a Python whose every allocation goes
+#: through the sanitizer: a few only)
+_SANITIZED_CASES = ("expm or state_get or delay_line or reproduces and DroneFlyLateral or "
+                    "variants and sampled and integral and 2")
+
+
+@pytest.mark.skipif(_SANITIZE, reason="(this is the run the test starts)")
+def test_native_cases_under_address_and_undefined_behaviour_sanitizers(tmp_path):
+    """This file's native cases (reference runs, the matrix exponential, refusals, FMU states
+    with corrupt bytes, the closed loop) on binaries built with -fsanitize=address,undefined
+    (the host's compiler; undefined behaviour aborts), in a pytest run with the sanitizer
+    runtimes preloaded into Python. A canary with a heap overflow, built the same way, aborts
+    in that setup: the sanitizers are live."""
+    why = missing_reason(sanitize=True)
+    if why is not None or not sys.platform.startswith("linux"):
+        pytest.skip(why or "sanitizer runtimes are preloaded on Linux only")
+    tc = find_toolchain(sanitize=True)
+    runtimes = []
+    for lib in ("libasan.so", "libubsan.so"):
+        r = subprocess.run([tc.command[0], f"-print-file-name={lib}"], capture_output=True,
+                           text=True)
+        path = r.stdout.strip()
+        if not os.path.isabs(path):
+            pytest.skip(f"{tc.command[0]} has no {lib} (the sanitizer runtime) on this machine")
+        runtimes.append(path)
+    env = dict(os.environ, LD_PRELOAD=" ".join(runtimes), ASAN_OPTIONS="detect_leaks=0",
+               UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1", DRONEFLY_NATIVE_SANITIZE="1")
+    (tmp_path / "canary.c").write_bytes(_CANARY)
+    canary = tc.compile([tmp_path / "canary.c"], tmp_path / "canary.so", host_platform("3.0"),
+                        sanitize=True, extra_flags=("-fvisibility=default",))
+    r = subprocess.run([sys.executable, "-c", f"import ctypes; ctypes.CDLL({str(canary)!r})"
+                        ".canary(4)"], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and ("AddressSanitizer" in r.stderr
+                                  or "runtime error" in r.stderr), r.stderr[-2000:]
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:randomly", "-p",
+                        "no:cacheprovider", __file__, "-k", _SANITIZED_CASES],
+                       env=env, capture_output=True, text=True, timeout=600,
+                       cwd=Path(__file__).parent)
+    tail = (r.stdout + r.stderr)[-3000:]
+    assert r.returncode == 0, tail
+    assert "passed" in r.stdout and "skipped" not in r.stdout.splitlines()[-1], tail
+
+
+def _controller_run(path: Path, params: dict, steps: list[float]):
+    """A controller stepped with changing inputs and steps: every output before and after
+    each step, and the messages logged."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    out = []
+    with FMU(path) as fmu, fmu.instantiate("c") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        for k, v in params.items():
+            (s.setBoolean if isinstance(v, bool) else s.setReal)([fmu.vr(k)], [v])
+        s.exitInitializationMode()
+        xs = [fmu.vr(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+        us = [fmu.vr(n) for n in ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")]
+        t = 0.0
+        for k, h in enumerate(steps):
+            s.setReal(xs, [0.01 * math.sin(k), 0.3 * math.cos(0.7 * k), 0.2 * math.sin(0.3 * k),
+                           0.05 * math.cos(0.1 * k)])
+            out.append(s.getReal(us) + [s.getBoolean([fmu.vr("saturated")])[0]])
+            s.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            t += h
+            out.append(s.getReal(us))
+        return out, [m.message.split(": ", 1)[1] for m in inst.messages]
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("name, params", [
+    ("StateFeedback", {"sample_period": 4.1e-4, "KI[1,4]": -0.3, "KI[2,2]": 0.01}),
+    ("StateFeedback", {"sample_period": 7.3e-4, "sensing_delay": 2.9e-3, "KI[1,1]": 0.2}),
+    ("StateFeedback", {"sensing_delay": 1.7e-3, "limit_enabled": True, "u_max": 0.01}),
+    ("StateFeedbackDelayed", {"sample_period": 3e-4, "sensing_delay": 1.1e-3, "KI[3,3]": 0.5}),
+    ("StateFeedbackDelayed", {"sensing_delay": 6.1e-3}),
+], ids=("sampled-finer-than-the-step-integral", "sampled-delayed-integral", "delayed-limited",
+        "delayed-variant-sampled-integral", "delayed-variant"))
+def test_controller_variants_step_as_the_pythonfmu_ones(native_fmus, python_fmus, fmi, name,
+                                                        params):
+    """Sensing delay, sampling (also several sample instants in one step), integral action and
+    the limit, on 400 random steps of 0.2 to 1.5 ms with changing inputs: every output equals
+    the pythonfmu controller's bit for bit, and the warning about instants inside a step is
+    its text."""
+    steps = list(np.random.default_rng(1).uniform(2e-4, 1.5e-3, 400))
+    got = _controller_run(native_fmus[name, fmi], params, steps)
+    want = _controller_run(python_fmus[name, fmi], params, steps)
+    assert got[0] == want[0]
+    assert got[1] == want[1]
+
+
+def test_the_delay_line_bound_is_the_documented_one(native_fmus):
+    """docs/native.md's bound of the native controllers' delay line is CTRL_LINE of
+    controller/model.h; a delay that needs more samples is refused naming the values, one that
+    needs fewer runs (and equals the pythonfmu controller, which holds 100,000)."""
+    import re as _re
+
+    root = Path(__file__).resolve().parents[1]
+    bound = int(_re.search(r"#define CTRL_LINE (\d+)", (root / "controller" / "model.h")
+                           .read_text()).group(1))
+    doc = (root / "docs" / "native.md").read_text()
+    assert f"holds at most {bound} samples" in doc
+    h = 1e-3
+    for delay_steps, refused in ((bound - 2, False), (bound + 2, True)):
+        from dronefly.harness.cosim.fmu import FMU
+        from dronefly.harness.compliance.fuzzkit import status_of
+
+        with FMU(native_fmus["StateFeedbackDelayed", 2]) as fmu, fmu.instantiate("d") as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.setReal([fmu.vr("sensing_delay")], [delay_steps * h])
+            s.exitInitializationMode()
+            statuses = [status_of(lambda k=k: s.doStep(currentCommunicationPoint=k * h,
+                                                       communicationStepSize=h))
+                        for k in range(bound + 1)]
+            if refused:
+                assert statuses[-1] == 2 and statuses[:-1] == [0] * bound
+                assert f"more than {bound} samples" in inst.messages[-1].message
+                assert f"sensing_delay = {delay_steps * h!r} s" in inst.messages[-1].message
+            else:
+                assert statuses == [0] * (bound + 1)
+
+
+def test_fmi3_takes_the_start_and_stop_time(native_fmus):
+    """docs/native.md: the native FMI 3.0 FMUs take fmi3EnterInitializationMode's start and
+    stop time: a first step elsewhere and a step past the stop time are refused (fmi3Error,
+    naming the times); a step within them runs."""
+    from dronefly.harness.compliance.fuzzkit import status_of
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(native_fmus["DroneFlyLateral", 3]) as fmu, fmu.instantiate("a") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0, stopTime=1.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        step = lambda t, h: status_of(lambda: s.doStep(currentCommunicationPoint=t,  # noqa: E731
+                                                       communicationStepSize=h))
+        assert step(5.0, 0.1) == 3 and "5.0 s does not continue" in inst.messages[-1].message
+        assert step(0.0, 2.0) == 3 and "past stopTime = 1.0 s" in inst.messages[-1].message
+        assert step(0.0, 0.5) == 0

@@ -306,3 +306,72 @@ def test_source_code_fmu_compiled_by_fmpy_gives_the_same_results(native_fmus, tm
         want = fmpy.simulate_fmu(str(native_fmus["DroneFlyLateral", fmi]), **kw)
         for n in ("delta_v", "delta_p", "delta_r", "delta_gamma"):
             assert np.array_equal(got[n], want[n]), n
+
+
+@pytest.mark.parametrize("profile", ("standard", "dronefly"))
+def test_dronefly_check_passes_every_native_fmu(native_fmus, profile):
+    """``dronefly check`` (both profiles; the dronefly profile with the fuzz on the FMI 2.0
+    FMUs, where it applies) passes every native FMU, FMI 2.0 and 3.0; its validate check is
+    ``fmpy validate``."""
+    from dronefly.harness.compliance.checker import CheckOptions
+    from dronefly.harness.compliance.suite import check_fmus
+
+    paths = sorted(native_fmus.values())
+    reports = check_fmus(paths, jobs=2, fuzz=True, options=CheckOptions(profile=profile))
+    for r in reports:
+        assert r.passed, (r.path, [(c.name, c.detail) for c in r.checks if not c.passed])
+        assert any(c.name == "validate" and c.passed and not c.skipped for c in r.checks)
+        if profile == "dronefly" and "fmi3" not in str(r.path):
+            assert any(c.name == "fuzz" and c.passed and not c.skipped for c in r.checks)
+
+
+def test_native_container_equals_the_pythonfmu_container(native_fmus, built_fmus, tmp_path):
+    """The closed loop through FMPy: fmpy's container of the native pair (no pythonfmu shim)
+    against the pythonfmu container, 300 steps of 0.1 wing beat, equal to 1e-12 (measured: bit
+    for bit)."""
+    import fmpy
+
+    from dronefly.builder.native import build_native_container
+
+    folder = native_fmus["DroneFlyLateral", 2].parent
+    container = build_native_container(folder)
+    md = fmpy.read_model_description(str(container))
+    outs = [v.name for v in md.modelVariables if v.causality == "output"]
+    step = float(md.defaultExperiment.stepSize)
+    kw = dict(stop_time=300 * step, output_interval=step, output=outs)
+    got = fmpy.simulate_fmu(str(container), **kw)
+    want = fmpy.simulate_fmu(str(built_fmus["DroneFlyClosedLoop"]), **kw)
+    assert len(got) == 301
+    for n in outs:
+        assert np.max(np.abs(got[n] - want[n])) <= 1e-12, n
+    with zipfile.ZipFile(container) as z:
+        assert not any("shim" in n for n in z.namelist())
+
+
+def test_native_option_refuses_what_cannot_take_effect(tmp_path, capsys):
+    """--native runs the project's pair: with --plant it is refused (exit 2, one line)."""
+    from dronefly.cli import main
+
+    assert main(["cosim", "--native", "--plant", str(tmp_path / "x.fmu"), "--no-plot"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--native cannot be combined with --plant" in err[0]
+
+
+def test_build_without_a_compiler_writes_source_code_fmus(tmp_path, monkeypatch, capsys):
+    """No C compiler: ``dronefly build`` still writes every native FMU, as source-code FMUs
+    (sources/, no binaries/), and says so in one line."""
+    import argparse
+
+    from dronefly.cli.commands import build as build_command
+
+    monkeypatch.setattr(native, "gcc_compiler", lambda: None)
+    monkeypatch.setattr(build_command, "build_all", lambda out, fmi=2: [])
+    assert build_command.run(argparse.Namespace(out=str(tmp_path))) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert sum("no C compiler" in ln for ln in lines) == 1
+    fmus = sorted((tmp_path / "native").rglob("*.fmu"))
+    assert len(fmus) == 2 * len(NATIVE_FMUS)
+    for path in fmus:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+        assert "sources/fmu.c" in names and not any(n.startswith("binaries/") for n in names)

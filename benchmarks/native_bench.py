@@ -12,7 +12,8 @@ Measures, interleaved repeat by repeat (the machine is shared and noisy):
            (``native_limit.c``), both built by zig cc (builder/toolchain.py)
   simulate ``fmpy.simulate_fmu`` of the lateral plant alone over its default experiment
            (300 steps of 0.1 wing beat), native against pythonfmu, wall time (target: the
-           native plant at least 3 times faster)
+           native plant at least 3 times faster), and what one fmi2GetReal and one fmi2DoStep
+           cost through FMPy's FMU2Slave: FMPy's own cost per call is most of it
   memory   the growth of the process's resident memory over ``--cycles`` (default 10,000)
            fmi2Instantiate/fmi2FreeInstance cycles of the lateral plant through FMPy in a fresh
            process, after 100 cycles of warm-up: native (target < 1 MB) and pythonfmu
@@ -163,6 +164,43 @@ def bench_chost(fmus: dict[str, Path], out: Path, steps: int, repeats: int) -> d
     return rate
 
 
+def bench_calls(fmus: dict[str, Path], calls: int, repeats: int) -> dict[str, list[float]]:
+    """Microseconds of one fmi2GetReal (the 4 outputs) and one fmi2DoStep of the lateral plant
+    through FMPy's FMU2Slave: what a step of ``simulate_fmu`` costs beside FMPy's own loop."""
+    import fmpy
+    from fmpy.fmi2 import FMU2Slave
+
+    out: dict[str, list[float]] = {}
+    slaves = {}
+    for key, name in (("native", "native:DroneFlyLateral"), ("pythonfmu", "DroneFlyLateral")):
+        md = fmpy.read_model_description(str(fmus[name]))
+        s = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmus[name])),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=key)
+        s.instantiate()
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.exitInitializationMode()
+        slaves[key] = (s, [v.valueReference for v in md.modelVariables
+                           if v.causality == "output"], [0.0])
+    for r in range(repeats):
+        for key in (list(slaves) if r % 2 == 0 else list(slaves)[::-1]):
+            s, vrs, t = slaves[key]
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                s.getReal(vrs)
+            t1 = time.perf_counter()
+            for _ in range(calls):
+                s.doStep(t[0], H)
+                t[0] += H
+            t2 = time.perf_counter()
+            out.setdefault(f"{key}:get", []).append((t1 - t0) / calls * 1e6)
+            out.setdefault(f"{key}:step", []).append((t2 - t1) / calls * 1e6)
+    for s, _, _ in slaves.values():
+        s.terminate()
+        s.freeInstance()
+    return out
+
+
 def bench_simulate(fmus: dict[str, Path], repeats: int) -> dict[str, list[float]]:
     import fmpy
 
@@ -193,12 +231,14 @@ md = read_model_description(path)
 folder = extract(path)
 fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder,
                 modelIdentifier=md.coSimulation.modelIdentifier, instanceName="m")
+# the library stays loaded; each cycle is fmi2Instantiate ... fmi2FreeInstance
 def cycle():
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     fmu.exitInitializationMode()
-    fmu.freeInstance()
+    fmu.terminate()
+    fmu.fmi2FreeInstance(fmu.component)  # the FMI call alone: fmpy's freeInstance also unloads
 for _ in range(100):
     cycle()
 before = rss_kb()
@@ -295,6 +335,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"{1e3 * med(t['pythonfmu']):.2f}; pythonfmu/native {ratio:.2f} "
                   f"(target >= {TARGET_SIMULATE:g})")
             ok &= ratio >= TARGET_SIMULATE
+            c = bench_calls(fmus, 3000, args.repeats)
+            print("  through FMPy's FMU2Slave, us per call (median of "
+                  f"{args.repeats} x 3000): fmi2GetReal native {med(c['native:get']):.2f}, "
+                  f"pythonfmu {med(c['pythonfmu:get']):.2f}; fmi2DoStep native "
+                  f"{med(c['native:step']):.2f}, pythonfmu {med(c['pythonfmu:step']):.2f}")
         if "memory" in only:
             m = bench_memory(fmus, args.cycles)
             print(f"resident memory over {args.cycles} instantiate/free cycles of DroneFlyLateral:")

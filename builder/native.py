@@ -21,13 +21,12 @@ from __future__ import annotations
 
 import hashlib
 import re
-import shutil
-import subprocess
 import tempfile
 import uuid
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
@@ -39,11 +38,13 @@ from .closedloop import write_container
 from .entry import HOST_REQUIREMENT
 from .modeldescription import model_description
 from .modeldescription3 import model_description3
+from .toolchain import (FMI2_PLATFORMS, FMI3_PLATFORMS, PLATFORMS, Toolchain, ToolchainError,
+                        find_toolchain, fmi_include_dir, host_platform)
 
-__all__ = ["GENERATION_TOOL", "NATIVE_FMUS", "NATIVE_OUT", "NativeBuildError", "Compiler",
+__all__ = ["GENERATION_TOOL", "NATIVE_FMUS", "NATIVE_HOST", "NATIVE_OUT", "NativeBuildError",
            "build_native", "build_native_all", "build_native_container", "c_name", "ensure_native",
-           "native_pair", "fmi_headers", "gcc_compiler",
-           "native_model_description", "native_sources", "vars_c"]
+           "native_model_description", "native_pair", "native_platforms", "native_sources",
+           "vars_c"]
 
 #: where ``dronefly build`` writes the native FMUs, below its output folder (FMI 3.0 in
 #: ``native/fmi3``)
@@ -51,9 +52,6 @@ NATIVE_OUT = "native"
 GENERATION_TOOL = "dronefly-fmu (native C)"
 NATIVE_HOST = ("Host requirements: none (native code; binaries for the platforms in binaries/, "
                "C sources in sources/ for any other)")
-#: C compiler flags of every build: warnings as errors, no contraction of a * b + c into a
-#: fused multiply-add (the same floats as the pythonfmu FMUs on every platform)
-CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off")
 
 _ROOT = Path(__file__).resolve().parents[1]
 _NAMESPACE = uuid.UUID("0b7f0a36-5c43-4e59-9b1e-0d8a3c1f4e21")
@@ -84,21 +82,6 @@ NATIVE_FMUS: dict[str, _NativeSpec] = {
     "StateFeedbackLongitudinal": _NativeSpec("controller.slave", "StateFeedbackLongitudinal",
                                              "controller", _CONTROLLER_C),
 }
-
-#: a compiler: (sources folder, C files, defines, output binary, FMI platform) -> None, raising
-#: NativeBuildError; the platforms it builds for per FMI version
-Compiler = Callable[[Path, Sequence[str], dict[str, str], Path, str], None]
-
-
-def fmi_headers() -> Path:
-    """The folder of the FMI 2.0 and 3.0 headers of the installed fmpy package."""
-    import fmpy  # the build's own dependency, imported by the build only
-
-    path = Path(fmpy.__file__).resolve().parent / "c-code"
-    if not (path / "fmi2Functions.h").is_file() or not (path / "fmi3Functions.h").is_file():
-        raise NativeBuildError(f"no FMI headers in {path}: reinstall fmpy")
-    return path
-
 
 def c_name(name: str) -> str:
     """A variable name as a C identifier suffix: ``A[1,2]`` -> ``A_1_2``."""
@@ -260,44 +243,8 @@ def native_sources(name: str, fmi: int) -> tuple[str, dict[str, bytes]]:
     return token, files
 
 
-#: FMI 2.0 and 3.0 platform folder names of the host this gcc builds for
-_HOST_PLATFORM = {2: "linux64", 3: "x86_64-linux"}
-
-
-def gcc_compiler() -> tuple[Compiler, dict[int, tuple[str, ...]]] | None:
-    """The host's gcc for linux64 / x86_64-linux (None: no gcc), until the toolchain module
-    (zig cc, cross-compiling) replaces it."""
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        return None
-
-    def compile_(src: Path, c_files: Sequence[str], defines: dict[str, str], out: Path,
-                 platform: str) -> None:
-        cmd = [gcc, *CFLAGS, "-shared", "-fPIC", "-fvisibility=default", f"-I{src}",
-               f"-I{fmi_headers()}", *(f"-D{k}={v}" for k, v in defines.items()),
-               *(str(src / f) for f in c_files), "-o", str(out), "-lm"]
-        run = subprocess.run(cmd, capture_output=True, text=True)
-        if run.returncode != 0:
-            raise NativeBuildError(f"gcc failed for {out.name} ({platform}): "
-                                   f"{run.stderr.strip()[:2000]}")
-
-    return compile_, {2: (_HOST_PLATFORM[2],), 3: (_HOST_PLATFORM[3],)}
-
-
-_SUFFIX = {"linux": ".so", "win": ".dll", "windows": ".dll", "darwin": ".dylib"}
-
-
-def _suffix(platform: str) -> str:
-    for key, suffix in _SUFFIX.items():
-        if key in platform:
-            return suffix
-    raise NativeBuildError(f"unknown platform {platform!r}")
-
-
 def _is_native(path: Path) -> bool:
     """Whether ``path`` is a native FMU that this build wrote (it is then rebuilt)."""
-    import zipfile
-
     try:
         with zipfile.ZipFile(path) as z:
             return GENERATION_TOOL.encode() in z.read("modelDescription.xml") and \
@@ -313,39 +260,72 @@ def _refuse_foreign(target: Path) -> None:
                                "another folder)")
 
 
-def build_native(name: str, out_dir: str | Path, fmi: int = 2,
-                 toolchain: tuple[Compiler, dict[int, tuple[str, ...]]] | None | bool = True,
-                 ) -> tuple[Path, tuple[str, ...]]:
+def native_platforms(fmi: int, toolchain: Toolchain | None) -> tuple[str, ...]:
+    """The platforms ``toolchain`` builds the FMI ``fmi`` binaries for: every one the
+    standard names with zig cc (FMI 2.0: linux64, win64, darwin64; FMI 3.0 also aarch64), the
+    host's own with the host's compiler; none without a toolchain."""
+    if toolchain is None:
+        return ()
+    names = FMI2_PLATFORMS if fmi == 2 else FMI3_PLATFORMS
+    return tuple(n for n in names if toolchain.can_build(n))
+
+
+def _default_toolchain() -> Toolchain | None:
+    return find_toolchain()
+
+
+def build_native(name: str, out_dir: str | Path, fmi: int = 2, toolchain: Any = True,
+                 platforms: Sequence[str] | None = None, *,
+                 sanitize: bool = False) -> tuple[Path, tuple[str, ...]]:
     """Build the native FMU ``name`` into ``out_dir``: its path and the platforms it has
-    binaries for (``()``: a source-code FMU). ``toolchain`` True: the default compiler
-    (:func:`gcc_compiler`); None or False: sources only.
+    binaries for (``()``: a source-code FMU).
+
+    Parameters
+    ----------
+    toolchain : Toolchain, True, None or False
+        True: :func:`dronefly.builder.toolchain.find_toolchain` (zig cc, else the host's
+        compiler); None or False: sources only.
+    platforms : sequence of str, optional
+        Only these platforms (default: every one the toolchain builds for,
+        :func:`native_platforms`).
+    sanitize : bool
+        Build the binaries with ``-fsanitize=address,undefined`` (the host's compiler; for the
+        tests).
 
     Raises
     ------
     NativeBuildError
-        Unknown FMU, or the compiler failed (a bug: the sources compile warning-free).
+        Unknown FMU, a file at the target that the build did not write, a platform the
+        toolchain cannot build for, or the compiler failed (a bug: the sources compile
+        warning-free).
     """
     if fmi not in (2, 3):
         raise NativeBuildError(f"FMI version {fmi!r}: 2 or 3")
-    _refuse_foreign(Path(out_dir) / f"{name}.fmu")
+    target = Path(out_dir) / f"{name}.fmu"
+    _refuse_foreign(target)
     token, files = native_sources(name, fmi)
-    chain = gcc_compiler() if toolchain is True else (toolchain or None)
-    platforms: tuple[str, ...] = ()
-    if chain is not None:
-        compile_, targets = chain
-        platforms = targets.get(fmi, ())
+    chain = _default_toolchain() if toolchain is True else (toolchain or None)
+    targets = native_platforms(fmi, chain) if platforms is None else tuple(platforms)
+    if chain is not None and targets:
         with tempfile.TemporaryDirectory(prefix="dronefly-native-") as tmp:
             src = Path(tmp) / "sources"
             src.mkdir()
             for rel, data in files.items():
                 if rel.startswith("sources/"):
                     (src / rel[len("sources/"):]).write_bytes(data)
-            c_files = sorted(p.name for p in src.glob("*.c"))
-            for platform in platforms:
-                out = Path(tmp) / f"{platform}{_suffix(platform)}"
-                compile_(src, c_files, {"FMI_VERSION": str(fmi)}, out, platform)
-                files[f"binaries/{platform}/{name}{_suffix(platform)}"] = out.read_bytes()
-    return write_zip(Path(out_dir) / f"{name}.fmu", files), platforms
+            c_files = sorted(src.glob("*.c"))
+            for platform in targets:
+                suffix = PLATFORMS[platform].suffix
+                out = Path(tmp) / f"{platform}{suffix}"
+                try:
+                    chain.compile(c_files, out, platform, include_dirs=(src, fmi_include_dir()),
+                                  defines={"FMI_VERSION": str(fmi)}, sanitize=sanitize)
+                except ToolchainError as e:
+                    raise NativeBuildError(f"cannot build {name} for {platform}: {e}") from e
+                files[f"binaries/{platform}/{name}{suffix}"] = out.read_bytes()
+    else:
+        targets = ()
+    return write_zip(target, files), targets
 
 
 def ensure_native(name: str, out_dir: str | Path, fmi: int = 2) -> Path:
@@ -359,18 +339,19 @@ def ensure_native(name: str, out_dir: str | Path, fmi: int = 2) -> Path:
     """
     target = Path(out_dir) / f"{name}.fmu"
     if _is_native(target):
-        import zipfile
-
         token = native_sources(name, fmi)[0]
+        host = host_platform("2.0" if fmi == 2 else "3.0")
         with zipfile.ZipFile(target) as z:
             current = token.encode() in z.read("modelDescription.xml")
-            binary = any(n.startswith(f"binaries/{_HOST_PLATFORM[fmi]}/") for n in z.namelist())
+            binary = any(n.startswith(f"binaries/{host}/") for n in z.namelist())
         if current and binary:
             return target
-    if gcc_compiler() is None:
-        raise NativeBuildError(f"no C compiler (gcc) to build the native {name} FMU; install "
-                               "one, or run the pythonfmu FMUs (without --native)")
-    return build_native(name, out_dir, fmi)[0]
+    host = host_platform("2.0" if fmi == 2 else "3.0")
+    chain = _default_toolchain()
+    if chain is None or host is None or not chain.can_build(host):
+        raise NativeBuildError(f"no C compiler to build the native {name} FMU for this machine; "
+                               "pip install ziglang, or run the pythonfmu FMUs (without --native)")
+    return build_native(name, out_dir, fmi, chain, (host,))[0]
 
 
 def native_pair(build_dir: str | Path = "build") -> tuple[Path, Path]:
@@ -392,13 +373,14 @@ def build_native_container(out_dir: str | Path) -> Path:
         raise NativeBuildError(f"cannot build the native closed-loop container: {e}") from e
 
 
-def build_native_all(out_dir: str | Path, fmi: int = 2,
-                     toolchain: Any = True) -> tuple[list[Path], tuple[str, ...]]:
+def build_native_all(out_dir: str | Path, fmi: int = 2, toolchain: Any = True,
+                     platforms: Sequence[str] | None = None) -> tuple[list[Path], tuple[str, ...]]:
     """Every native FMU into ``out_dir``; the paths and the platforms of their binaries."""
-    paths, platforms = [], ()
+    paths: list[Path] = []
+    built: tuple[str, ...] = ()
     for name in NATIVE_FMUS:  # every target checked before anything is written
         _refuse_foreign(Path(out_dir) / f"{name}.fmu")
     for name in NATIVE_FMUS:
-        path, platforms = build_native(name, out_dir, fmi, toolchain)
+        path, built = build_native(name, out_dir, fmi, toolchain, platforms)
         paths.append(path)
-    return paths, platforms
+    return paths, built

@@ -70,7 +70,7 @@ _EPILOG = {
              "--disturbances directions\n"
              "exit codes: 0 ok, 1 some cases failed (recorded in the CSV), 2 bad input, "
              "130 interrupted (rerun to resume)" + _UNITS,
-    "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus",
+    "build": "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus\n  dronefly build --native",
     "aero": "examples:\n  dronefly aero\n  dronefly aero --json --coefficients wang2004\n"
             "  dronefly aero forces --state delta_v=0.1 --control delta_Phi_a=0.2 --json\n"
             "  dronefly aero --no-rotational --added-mass-form sane2001\n"
@@ -110,9 +110,12 @@ def _parser() -> argparse.ArgumentParser:
                             formatter_class=argparse.RawDescriptionHelpFormatter)
         return sp
 
-    b = add("build", "build every FMU of the project: pythonfmu in DIR (FMI 3.0 in DIR/fmi3), "
-            "native in DIR/native (DIR/native/fmi3)")
+    b = add("build", "build every FMU of the project: FMI 2.0 in DIR, FMI 3.0 in DIR/fmi3")
     b.add_argument("--out", default="build", metavar="DIR", help="output folder (default: build/)")
+    b.add_argument("--native", action="store_true",
+                   help="also the native (C) FMUs in DIR/native and DIR/native/fmi3, with binaries "
+                        "for every platform the toolchain builds for (zig cc: Linux, Windows, "
+                        "macOS; a minute or more) and the closed-loop container (docs/native.md)")
 
     s = add("simulate", "simulate the open-loop plant FMU with fmpy from a roll disturbance")
     s.add_argument("--stop", type=positive, default=30.0, help="stop time in wing beats (default 30)")

@@ -109,14 +109,6 @@ def hosts(zig, tmp_path_factory):
     return {"linux64": linux, "win64": win}
 
 
-def _zig_compiler(tc):
-    """builder.native's compiler signature over the project's toolchain."""
-    def compile_(src: Path, c_files, defines, out: Path, platform: str) -> None:
-        tc.compile([src / f for f in c_files], out, platform, include_dirs=[src, fmi_include_dir()],
-                   defines=defines)
-    return compile_
-
-
 @pytest.fixture(scope="module")
 def native_pair(zig, tmp_path_factory):
     """The native FMI 2.0 plant and controller with linux64 and win64 binaries, extracted:
@@ -126,8 +118,7 @@ def native_pair(zig, tmp_path_factory):
     out = tmp_path_factory.mktemp("native")
     pair = {}
     for name in ("DroneFlyLateral", "StateFeedback"):
-        fmu, platforms = native.build_native(name, out, 2,
-                                             (_zig_compiler(zig), {2: ("linux64", "win64")}))
+        fmu, platforms = native.build_native(name, out, 2, zig, ("linux64", "win64"))
         assert platforms == ("linux64", "win64")
         d = out / name
         with zipfile.ZipFile(fmu) as z:

@@ -1,5 +1,5 @@
-"""``dronefly build``: every FMU of the project, FMI 2.0 and 3.0, pythonfmu and native, and its
-systems."""
+"""``dronefly build``: every FMU of the project, FMI 2.0 and 3.0, and its systems; with
+``--native`` also the native FMUs for every platform the toolchain builds for."""
 
 from __future__ import annotations
 
@@ -18,6 +18,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     for path in [*build_all(out), *build_all(out / FMI3_OUT, fmi=3)]:
         print(path)
+    if not getattr(args, "native", False):
+        return EXIT_OK
     native = out / NATIVE_OUT
     paths2, platforms = build_native_all(native, 2)
     paths3, _ = build_native_all(native / FMI3_OUT, 3)
@@ -27,5 +29,5 @@ def run(args: argparse.Namespace) -> int:
         print(build_native_container(native))
     else:
         print(f"no C compiler: the native FMUs in {native} are source-code FMUs (sources/ only, "
-              "no closed-loop container; install a C compiler for binaries)")
+              "no closed-loop container; pip install ziglang for binaries)")
     return EXIT_OK

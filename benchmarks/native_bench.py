@@ -77,7 +77,7 @@ def _build(out: Path) -> dict[str, Path]:
     for name in ("NullPlant", "NullController"):
         fmus[name] = Path(FmuBuilder.build_FMU(HERE / "null_fmus" / f"{name}.py", dest=out))
     for name in ("DroneFlyLateral", "StateFeedback"):
-        path, platforms = native.build_native(name, out / "native", 2)
+        path, platforms = native.build_native(name, out / "native", 2, True, ("linux64",))
         if not platforms:
             sys.exit(f"native_bench: no C compiler: {name} is a source-code FMU")
         fmus[f"native:{name}"] = path

@@ -20,6 +20,7 @@ source-code FMU.
 from __future__ import annotations
 
 import hashlib
+import importlib
 import re
 import tempfile
 import uuid
@@ -81,6 +82,10 @@ NATIVE_FMUS: dict[str, _NativeSpec] = {
                                         "fmu_src/longitudinal", _PLANT_C),
     "StateFeedbackLongitudinal": _NativeSpec("controller.slave", "StateFeedbackLongitudinal",
                                              "controller", _CONTROLLER_C),
+    "StateFeedbackDelayed": _NativeSpec("controller.slave", "StateFeedbackDelayed", "controller",
+                                        _CONTROLLER_C),
+    "StateFeedbackLongitudinalDelayed": _NativeSpec(
+        "controller.slave", "StateFeedbackLongitudinalDelayed", "controller", _CONTROLLER_C),
 }
 
 def c_name(name: str) -> str:
@@ -165,8 +170,6 @@ def vars_c(cls: Any, token: str) -> tuple[str, str]:
 
 
 def _slave_class(name: str) -> Any:
-    import importlib
-
     spec = NATIVE_FMUS[name]
     return getattr(importlib.import_module(f"..{spec.module}", __package__), spec.cls)
 

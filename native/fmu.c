@@ -244,8 +244,10 @@ static int refuse(Instance *c, int status, const char *msg) {
 }
 
 static int do_step(Instance *c, double t, double h) {
-    /* the times as text only for a message: formatting them costs more than a step */
     char msg[2 * FMU_WHY], why[FMU_WHY], a[32], b[32], d[32];
+    /* the step's time and size as text, for a refusal only (formatting costs more than the
+     * step itself) */
+#define TEXTS() (fmu_repr(a, sizeof a, t), fmu_repr(b, sizeof b, h))
     if (c->s.mode != MODE_STEPPING) {
         snprintf(msg, sizeof msg, "%sDoStep is not allowed in state '%s' (%s co-simulation call "
                  "sequence: only after %sExitInitializationMode and before %sTerminate)", FMI,
@@ -253,15 +255,14 @@ static int do_step(Instance *c, double t, double h) {
         return refuse(c, ILLEGAL, msg);
     }
     if (c->s.pending[0]) {
-        fmu_repr(a, sizeof a, t);
+        TEXTS();
         snprintf(msg, sizeof msg, "step refused at t = %s s: %s", a, c->s.pending);
         c->s.pending[0] = '\0';
         return refuse(c, ILLEGAL, msg);
     }
     double end = t + h;
     if (!(isfinite(t) && isfinite(end) && h > 0.0)) {
-        fmu_repr(a, sizeof a, t);
-        fmu_repr(b, sizeof b, h);
+        TEXTS();
         if (!isfinite(t))
             snprintf(msg, sizeof msg, "currentCommunicationPoint = %s s must be finite", a);
         else
@@ -274,15 +275,14 @@ static int do_step(Instance *c, double t, double h) {
         /* float accumulation of the master's time: relative to the times, never the step */
         double tol = 1e-9 * (fabs(t) + fabs(last)) + 1e-300;
         if (!(fabs(t - last) <= tol)) {
-            fmu_repr(a, sizeof a, t);
+            TEXTS();
             fmu_repr(d, sizeof d, last);
             snprintf(msg, sizeof msg, "currentCommunicationPoint = %s s does not continue from "
                      "the last communication point %s s", a, d);
             return refuse(c, ILLEGAL, msg);
         }
         if (c->s.has_stop && end > c->s.stop_time + tol) {
-            fmu_repr(a, sizeof a, t);
-            fmu_repr(b, sizeof b, h);
+            TEXTS();
             fmu_repr(d, sizeof d, c->s.stop_time);
             snprintf(msg, sizeof msg, "a step of %s s from %s s goes past stopTime = %s s "
                      "(%s)", b, a, d, FMI_VERSION == 3 ? "fmi3EnterInitializationMode"
@@ -306,9 +306,10 @@ static int do_step(Instance *c, double t, double h) {
         return ST_OK;
     }
 refused:
-    fmu_repr(a, sizeof a, t);
+    TEXTS();
     snprintf(msg, sizeof msg, "step refused at t = %s s: %s", a, why);
     return refuse(c, ST_DISCARD, msg);
+#undef TEXTS
 }
 
 static void update_if_stale(Instance *c) {

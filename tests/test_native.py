@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import ctypes
 import math
-import shutil
+import os
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -26,27 +28,45 @@ from dronefly.harness.compliance.reference import REFERENCES, check_reference, r
 pytestmark = pytest.mark.integration
 
 _EPS = np.finfo(float).eps
+#: set by test_native_cases_under_address_and_undefined_behaviour_sanitizers for the run of this
+#: file's native cases that it starts: every binary built with -fsanitize=address,undefined
+_SANITIZE = os.environ.get("DRONEFLY_NATIVE_SANITIZE") == "1"
+
+
+class _Built(dict):
+    """FMUs by (model, FMI version), each built on first use (a test that needs two builds two)."""
+
+    def __init__(self, make):
+        super().__init__()
+        self._make = make
+
+    def __missing__(self, key):
+        self[key] = path = self._make(*key)
+        return path
+
+    def all(self) -> list[Path]:
+        return [self[name, fmi] for fmi in (2, 3) for name in NATIVE_FMUS]
 
 
 @pytest.fixture(scope="session")
-def native_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
-    """Every native FMU, FMI 2.0 and 3.0, built once for this machine: (model, version) ->
-    path."""
-    why = missing_reason()
+def native_fmus(tmp_path_factory: pytest.TempPathFactory) -> _Built:
+    """The native FMUs, FMI 2.0 and 3.0, for this machine: (model, version) -> path, each built
+    once on first use, by the host's compiler where there is one (the quickest), else zig cc."""
+    why = missing_reason(sanitize=_SANITIZE)
     if why is not None:
         pytest.skip(why)
     out = tmp_path_factory.mktemp("native")
-    return {(name, fmi): build_native(name, out / f"fmi{fmi}", fmi,
-                                      platforms=(host_platform(f"{fmi}.0"),))[0]
-            for fmi in (2, 3) for name in NATIVE_FMUS}
+    tc = find_toolchain(sanitize=True) or find_toolchain()
+    return _Built(lambda name, fmi: build_native(name, out / f"fmi{fmi}", fmi, tc,
+                                                 (host_platform(f"{fmi}.0"),),
+                                                 sanitize=_SANITIZE)[0])
 
 
 @pytest.fixture(scope="session")
-def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[tuple[str, int], Path]:
-    """The pythonfmu twins of the native FMUs."""
+def python_fmus(tmp_path_factory: pytest.TempPathFactory) -> _Built:
+    """The pythonfmu twins of the native FMUs, each built on first use."""
     out = tmp_path_factory.mktemp("pythonfmu")
-    return {(name, fmi): build_fmu(name, out / f"fmi{fmi}", fmi)
-            for fmi in (2, 3) for name in NATIVE_FMUS}
+    return _Built(lambda name, fmi: build_fmu(name, out / f"fmi{fmi}", fmi))
 
 
 def _md(path: Path) -> ET.Element:
@@ -139,9 +159,9 @@ def _exported_expm(path: Path, tmp: Path):
     that exports it (the FMU's binary exports the FMI functions only)."""
     with zipfile.ZipFile(path) as z:
         z.extractall(tmp / "fmu")
-    target = find_toolchain().compile([tmp / "fmu" / "sources" / "expm.c"], tmp / "expm.so",
-                                      host_platform("3.0"),
-                                      extra_flags=("-fvisibility=default",))
+    target = (find_toolchain(sanitize=True) or find_toolchain()).compile(
+        [tmp / "fmu" / "sources" / "expm.c"], tmp / "expm.so", host_platform("3.0"),
+        extra_flags=("-fvisibility=default",), sanitize=_SANITIZE)
     lib = ctypes.CDLL(str(target))
     f = lib.fmu_expm
     f.argtypes = [ctypes.POINTER(ctypes.c_double), ctypes.c_int, ctypes.POINTER(ctypes.c_double)]
@@ -320,7 +340,7 @@ def test_dronefly_check_passes_every_native_fmu(native_fmus, profile):
     from dronefly.harness.compliance.checker import CheckOptions
     from dronefly.harness.compliance.suite import check_fmus
 
-    paths = sorted(native_fmus.values())
+    paths = sorted(native_fmus.all())
     reports = check_fmus(paths, jobs=2, fuzz=True, options=CheckOptions(profile=profile))
     for r in reports:
         assert r.passed, (r.path, [(c.name, c.detail) for c in r.checks if not c.passed])
@@ -379,3 +399,133 @@ def test_build_without_a_compiler_writes_source_code_fmus(tmp_path, monkeypatch,
         with zipfile.ZipFile(path) as z:
             names = z.namelist()
         assert "sources/fmu.c" in names and not any(n.startswith("binaries/") for n in names)
+
+
+_CANARY = b"""
+#include <stdlib.h>
+int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a[0]; free(a);
+                    return v; }
+"""
+#: this file's cases that run native code, rerun on sanitized binaries
+#: (the cases that also run the pythonfmu twins run them in a Python whose every allocation goes
+#: through the sanitizer: a few only)
+_SANITIZED_CASES = ("expm or state_get or delay_line or reproduces and DroneFlyLateral or "
+                    "variants and sampled and integral and 2")
+
+
+@pytest.mark.skipif(_SANITIZE, reason="(this is the run the test starts)")
+def test_native_cases_under_address_and_undefined_behaviour_sanitizers(tmp_path):
+    """This file's native cases (reference runs, the matrix exponential, refusals, FMU states
+    with corrupt bytes, the closed loop) on binaries built with -fsanitize=address,undefined
+    (the host's compiler; undefined behaviour aborts), in a pytest run with the sanitizer
+    runtimes preloaded into Python. A canary with a heap overflow, built the same way, aborts
+    in that setup: the sanitizers are live."""
+    why = missing_reason(sanitize=True)
+    if why is not None or not sys.platform.startswith("linux"):
+        pytest.skip(why or "sanitizer runtimes are preloaded on Linux only")
+    tc = find_toolchain(sanitize=True)
+    runtimes = []
+    for lib in ("libasan.so", "libubsan.so"):
+        r = subprocess.run([tc.command[0], f"-print-file-name={lib}"], capture_output=True,
+                           text=True)
+        path = r.stdout.strip()
+        if not os.path.isabs(path):
+            pytest.skip(f"{tc.command[0]} has no {lib} (the sanitizer runtime) on this machine")
+        runtimes.append(path)
+    env = dict(os.environ, LD_PRELOAD=" ".join(runtimes), ASAN_OPTIONS="detect_leaks=0",
+               UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1", DRONEFLY_NATIVE_SANITIZE="1")
+    (tmp_path / "canary.c").write_bytes(_CANARY)
+    canary = tc.compile([tmp_path / "canary.c"], tmp_path / "canary.so", host_platform("3.0"),
+                        sanitize=True, extra_flags=("-fvisibility=default",))
+    r = subprocess.run([sys.executable, "-c", f"import ctypes; ctypes.CDLL({str(canary)!r})"
+                        ".canary(4)"], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and ("AddressSanitizer" in r.stderr
+                                  or "runtime error" in r.stderr), r.stderr[-2000:]
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:randomly", "-p",
+                        "no:cacheprovider", __file__, "-k", _SANITIZED_CASES],
+                       env=env, capture_output=True, text=True, timeout=600,
+                       cwd=Path(__file__).parent)
+    tail = (r.stdout + r.stderr)[-3000:]
+    assert r.returncode == 0, tail
+    assert "passed" in r.stdout and "skipped" not in r.stdout.splitlines()[-1], tail
+
+
+def _controller_run(path: Path, params: dict, steps: list[float]):
+    """A controller stepped with changing inputs and steps: every output before and after
+    each step, and the messages logged."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    out = []
+    with FMU(path) as fmu, fmu.instantiate("c") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        for k, v in params.items():
+            (s.setBoolean if isinstance(v, bool) else s.setReal)([fmu.vr(k)], [v])
+        s.exitInitializationMode()
+        xs = [fmu.vr(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
+        us = [fmu.vr(n) for n in ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")]
+        t = 0.0
+        for k, h in enumerate(steps):
+            s.setReal(xs, [0.01 * math.sin(k), 0.3 * math.cos(0.7 * k), 0.2 * math.sin(0.3 * k),
+                           0.05 * math.cos(0.1 * k)])
+            out.append(s.getReal(us) + [s.getBoolean([fmu.vr("saturated")])[0]])
+            s.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            t += h
+            out.append(s.getReal(us))
+        return out, [m.message.split(": ", 1)[1] for m in inst.messages]
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+@pytest.mark.parametrize("name, params", [
+    ("StateFeedback", {"sample_period": 4.1e-4, "KI[1,4]": -0.3, "KI[2,2]": 0.01}),
+    ("StateFeedback", {"sample_period": 7.3e-4, "sensing_delay": 2.9e-3, "KI[1,1]": 0.2}),
+    ("StateFeedback", {"sensing_delay": 1.7e-3, "limit_enabled": True, "u_max": 0.01}),
+    ("StateFeedbackDelayed", {"sample_period": 3e-4, "sensing_delay": 1.1e-3, "KI[3,3]": 0.5}),
+    ("StateFeedbackDelayed", {"sensing_delay": 6.1e-3}),
+], ids=("sampled-finer-than-the-step-integral", "sampled-delayed-integral", "delayed-limited",
+        "delayed-variant-sampled-integral", "delayed-variant"))
+def test_controller_variants_step_as_the_pythonfmu_ones(native_fmus, python_fmus, fmi, name,
+                                                        params):
+    """Sensing delay, sampling (also several sample instants in one step), integral action and
+    the limit, on 400 random steps of 0.2 to 1.5 ms with changing inputs: every output equals
+    the pythonfmu controller's bit for bit, and the warning about instants inside a step is
+    its text."""
+    steps = list(np.random.default_rng(1).uniform(2e-4, 1.5e-3, 400))
+    got = _controller_run(native_fmus[name, fmi], params, steps)
+    want = _controller_run(python_fmus[name, fmi], params, steps)
+    assert got[0] == want[0]
+    assert got[1] == want[1]
+
+
+def test_the_delay_line_bound_is_the_documented_one(native_fmus):
+    """docs/native.md's bound of the native controllers' delay line is CTRL_LINE of
+    controller/model.h; a delay that needs more samples is refused naming the values, one that
+    needs fewer runs (and equals the pythonfmu controller, which holds 100,000)."""
+    import re as _re
+
+    root = Path(__file__).resolve().parents[1]
+    bound = int(_re.search(r"#define CTRL_LINE (\d+)", (root / "controller" / "model.h")
+                           .read_text()).group(1))
+    doc = (root / "docs" / "native.md").read_text()
+    assert f"holds at most {bound} samples" in doc
+    h = 1e-3
+    for delay_steps, refused in ((bound - 2, False), (bound + 2, True)):
+        from dronefly.harness.cosim.fmu import FMU
+        from dronefly.harness.compliance.fuzzkit import status_of
+
+        with FMU(native_fmus["StateFeedbackDelayed", 2]) as fmu, fmu.instantiate("d") as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.setReal([fmu.vr("sensing_delay")], [delay_steps * h])
+            s.exitInitializationMode()
+            statuses = [status_of(lambda k=k: s.doStep(currentCommunicationPoint=k * h,
+                                                       communicationStepSize=h))
+                        for k in range(bound + 1)]
+            if refused:
+                assert statuses[-1] == 2 and statuses[:-1] == [0] * bound
+                assert f"more than {bound} samples" in inst.messages[-1].message
+                assert f"sensing_delay = {delay_steps * h!r} s" in inst.messages[-1].message
+            else:
+                assert statuses == [0] * (bound + 1)

@@ -457,11 +457,19 @@ def test_failures_name_the_fmi_versions_call(call, version, name):
 
 
 def test_a_step_longer_than_the_run_is_a_failed_experiment(ref, capsys):
-    """--step 100 on Dahlquist (0 s to 10 s): one failed line naming the step, no FMI call
-    past the stop time; a step that does not divide the run ends at the last whole step."""
-    assert main(["check", "--step", "100", str(ref / "fmi2" / "Dahlquist.fmu")]) == 1
-    out = capsys.readouterr().out
-    assert "[FAIL] experiment     step 100.0 s is longer than the run from 0.0 s to 10.0 s" in out
+    """--step 100 on Dahlquist (0 s to 10 s): the user's option leaves no step, bad input
+    (exit 2, one line naming the option, the FMU and the run), refused before any check; the
+    same step from the FMU's own default experiment is a failed ``experiment`` check, with no
+    FMI call past the stop time; a step that does not divide the run ends at the last whole
+    step."""
+    assert main(["check", "--step", "100", str(ref / "fmi2" / "Dahlquist.fmu")]) == 2
+    err = capsys.readouterr().err
+    assert "--step 100.0 on " in err and "step 100.0 s is longer than the run from 0.0 s to " \
+        "10.0 s" in err and err.count("\n") == 1
+    report = check_fmu(ref / "fmi2" / "Dahlquist.fmu", fuzz=False, isolate=False,
+                       options=CheckOptions(step=100.0))
+    assert [(c.name, c.passed, c.detail) for c in report.checks] == [
+        ("experiment", False, "step 100.0 s is longer than the run from 0.0 s to 10.0 s")]
     report = _check(ref, "fmi2/Dahlquist.fmu", step=6.0, only=("call-sequence",))
     assert report.passed
     assert report.checks[0].detail.startswith("1 steps of 6 s to 6 s (the stop time 10 s")

@@ -57,13 +57,14 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
+from ...core.interrupt import pending
 from ..cosim.fmu import FMU, FMUError, Instance
 from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES, FMI3_RULES
 from .fuzzkit import status_of
 from .reference import REFERENCES, check_reference
 
 __all__ = ["CHECK_NAMES", "PROFILES", "RULES", "CheckOptions", "CheckResult", "CheckSkipped",
-           "FMUReport", "profile_for", "rule_of", "run_checks"]
+           "FMUReport", "experiment", "profile_for", "rule_of", "run_checks"]
 
 #: the profiles a check can run under (see the module text)
 PROFILES = ("standard", "dronefly")
@@ -237,22 +238,7 @@ class _Context:
         self.instances: list[Instance] = []
         self.fatal: str | None = None  # the check in which the FMU returned Fatal
         self.fmi = f"fmi{fmu.fmi_version}"
-        de = fmu.model_description.defaultExperiment
-        start = float(de.startTime) if de is not None and de.startTime is not None else 0.0
-        stop = (options.stop_time if options.stop_time is not None
-                else float(de.stopTime) if de is not None and de.stopTime is not None
-                else start + 1.0)
-        if stop <= start:
-            raise FMUError(f"stop time {stop!r} s is not after the start time {start!r} s")
-        step = (options.step if options.step is not None
-                else float(de.stepSize) if de is not None and de.stepSize is not None
-                else (stop - start) / 100)
-        self.start, self.stop, self.step = start, stop, step
-        # whole steps that end at or before the stop time (never past it: FMI 2.0 4.2.2)
-        self.n = int(math.floor((stop - start) / step * (1 + 1e-12)))
-        if self.n < 1:
-            raise FMUError(f"step {step!r} s is longer than the run from {start!r} s to "
-                           f"{stop!r} s")
+        self.start, self.stop, self.step, self.n = experiment(fmu.model_description, options)
         vs = [v for v in fmu.model_description.modelVariables if v.type in _KINDS]
         self.inputs = [_Var(v.name, _KINDS[v.type], v.valueReference, v) for v in vs
                        if v.causality == "input"]
@@ -288,6 +274,33 @@ class _Context:
         bad = [m for m, st in zip(msgs, status) if not isinstance(st, int) or st > 0] or msgs
         return "; ".join(f"{getattr(m, 'category', '') or 'log'}: "
                          f"{str(getattr(m, 'message', '')).strip()}" for m in bad[-k:])
+
+
+def experiment(md: Any, options: CheckOptions) -> tuple[float, float, float, int]:
+    """The run the checks make: start, stop and step (s), and the number of whole steps
+    that end at or before the stop time (never past it: FMI 2.0 4.2.2).
+
+    ``options.stop_time`` / ``options.step`` replace the default experiment's (of the model
+    description ``md``). Raises :class:`FMUError` naming the values if the run has no step:
+    the caller says whose values they are (the user's options: bad input; the FMU's default
+    experiment: a failed check).
+    """
+    de = md.defaultExperiment
+    start = float(de.startTime) if de is not None and de.startTime is not None else 0.0
+    stop = (options.stop_time if options.stop_time is not None
+            else float(de.stopTime) if de is not None and de.stopTime is not None
+            else start + 1.0)
+    if stop <= start:
+        raise FMUError(f"stop time {float(stop)!r} s is not after the start time "
+                       f"{float(start)!r} s")
+    step = (options.step if options.step is not None
+            else float(de.stepSize) if de is not None and de.stepSize is not None
+            else (stop - start) / 100)
+    n = int(math.floor((stop - start) / step * (1 + 1e-12)))
+    if n < 1:
+        raise FMUError(f"step {float(step)!r} s is longer than the run from {float(start)!r} s "
+                       f"to {float(stop)!r} s")
+    return start, stop, step, n
 
 
 class _Tee(list):
@@ -698,7 +711,8 @@ def _expect_discard(ctx: _Context, inst: Instance, t: float, h: float, fragment:
     status = status_of(lambda: inst.slave.doStep(currentCommunicationPoint=t,
                                                   communicationStepSize=h))
     _require(status != 0, f"{fragment}: {ctx.fmi}DoStep returned OK")
-    _require(status in (2, 3), f"{fragment}: {ctx.fmi}DoStep returned status {status}")
+    _require(status in (2, 3), f"{fragment}: {ctx.fmi}DoStep returned "
+                               f"{ctx.fmi}{_STATUS_NAMES[status]}")
     if named:
         logged = " ".join(m.message for m in inst.messages[before:])
         _require(fragment in logged, f"{fragment}: not named in the log ({logged!r})")
@@ -763,8 +777,8 @@ def _bad_input_standard(ctx: _Context) -> str:
             try:
                 s.reset()
             except FMICallException as e:
-                raise _CheckFailed(f"{what}: {ctx.fmi}Reset after it failed with status "
-                                   f"{e.status}") from None
+                raise _CheckFailed(f"{what}: {ctx.fmi}Reset after it returned "
+                                   f"{ctx.fmi}{_STATUS_NAMES[e.status]}") from None
         _init(ctx, inst)
         _do_step(ctx, inst, ctx.start, ctx.step)
     return "; ".join(cases) + f"; {ctx.fmi}Reset recovered the instance"
@@ -877,12 +891,26 @@ def run_checks(path: Path, progress: Callable[[dict], None] | None = None,
         for name, fn in _iter_checks(ctx):
             if not options.wants(name):
                 continue
+            if pending():  # Ctrl-C between two checks (in-process runs)
+                raise KeyboardInterrupt
             if progress:
                 progress({"begin": name})
             result = _one(ctx, name, fn) if ctx.fatal is None else CheckResult(
                 name, True, f"not run: the FMU returned {ctx.fmi}Fatal in {ctx.fatal}, after "
                 f"which no function of any of its instances may be called ({_FATAL_RULE[ctx.fmi]})",
                 rule_of(name, fmu.fmi_version, ctx.profile), skipped=True)
+            report.checks.append(result)
+            if progress:
+                progress(asdict(result))
+        ran = {c.name for c in report.checks}
+        for name in options.only:  # selected by name, but not for this FMU: said why
+            if name in ran or name == "fuzz" or not options.wants(name):
+                continue
+            why = (f"{name} is an FMI 3.0 check; this FMU is FMI 2.0" if fmu.fmi_version == 2
+                   else f"{name} is the dronefly profile's check (--profile dronefly runs it); "
+                        f"this FMU is checked under the {ctx.profile} profile")
+            result = CheckResult(name, True, f"not applicable: {why}",
+                                 rule_of(name, fmu.fmi_version, ctx.profile), skipped=True)
             report.checks.append(result)
             if progress:
                 progress(asdict(result))

@@ -31,6 +31,7 @@ __all__ = ["FMI3_CHECKS", "FMI3_PROFILES", "FMI3_RULES", "Fmi3CheckFailed", "che
            "check_state_machine", "check_state_refusal"]
 
 _ERROR, _DISCARD, _FATAL = 3, 2, 4
+_NAMES = ("fmi3OK", "fmi3Warning", "fmi3Discard", "fmi3Error", "fmi3Fatal")
 
 
 class Fmi3CheckFailed(AssertionError):
@@ -64,7 +65,7 @@ def _expect(inst: Any, call: Callable[[], Any], status: int, fragment: str, what
     before = len(inst.messages)
     got = status_of(call)
     _require(got != _FATAL, f"{what}: fmi3Fatal")
-    _require(got == status, f"{what}: status {got}, expected {status}")
+    _require(got == status, f"{what}: {_NAMES[got]}, expected {_NAMES[status]}")
     logged = " ".join(m.message for m in inst.messages[before:])
     _require(fragment in logged, f"{what}: {fragment!r} not in the log ({logged[:200]!r})")
 
@@ -121,8 +122,7 @@ def _state_machine_standard(fmu: Any) -> str:
             before = len(inst.messages)
             got = status_of(_step(inst, start, h))
             _require(got != _FATAL, f"fmi3DoStep {when}: fmi3Fatal")
-            _require(got == _ERROR, f"fmi3DoStep {when}: status {got}, expected {_ERROR} "
-                                    "(fmi3Error)")
+            _require(got == _ERROR, f"fmi3DoStep {when}: {_NAMES[got]}, expected fmi3Error")
             # 2.2.4: "Function logMessage must be called by the FMU with further information
             # before returning this status" (logging is on)
             _require(len(inst.messages) > before, f"fmi3DoStep {when}: fmi3Error without a "

@@ -13,7 +13,6 @@ from ...builder.build import FMUS, build_all, build_fmu
 from ...core.errors import DroneflyError
 from ...core.files import write_text_atomic
 from ...harness.compliance.checker import CHECK_NAMES, CheckOptions, experiment
-from ...harness.compliance.fmi3checks import FMI3_CHECKS
 from ...harness.compliance.suite import (CheckInterrupted, check_fmus, format_reports,
                                          reports_json, reports_junit)
 from ...harness.cosim.fmu import FMUError
@@ -23,7 +22,7 @@ __all__ = ["run"]
 
 
 def _check_names(values: list[str], option: str) -> tuple[str, ...]:
-    known = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS), "fuzz"]
+    known = [*CHECK_NAMES, "fuzz"]
     names = tuple(n.strip() for v in values for n in v.split(",") if n.strip())
     for n in names:
         if n not in known:

@@ -25,8 +25,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict
 from pathlib import Path
 
-from .checker import CHECK_NAMES, CheckOptions, CheckResult, FMUReport, rule_of, run_checks
-from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
+from .checker import CHECKS, CheckOptions, CheckResult, FMUReport, listed, rule_of, run_checks
 from ...core.interrupt import pending
 from .child import run_child
 from .fuzz import describe_exit, fuzz_fmu
@@ -211,8 +210,8 @@ def _not_run(path: Path, report: FMUReport, crashed: str | None,
     """One failed row listing the checks a crash left out (none if it left none out)."""
 
     profile = report.profile or "standard"
-    names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS
-                             if _fmi_version(path) == "3.0" and profile in FMI3_PROFILES[n])]
+    fmi = 3 if _fmi_version(path) == "3.0" else 2
+    names = [c.name for c in CHECKS if listed(c, fmi, profile)]
     done = {c.name for c in report.checks}
     rest = [n for n in names if n not in done and options.wants(n)]
     where = f"in {crashed}" if crashed else "between checks"

@@ -1,0 +1,267 @@
+"""Check family: runtime semantics of an FMU (``dronefly check``).
+
+``call-sequence``, ``start-values``, ``dependencies``, ``reset``, ``two-instances``, ``state``,
+``reference``: each is ``check(ctx) -> detail`` for FMI 2.0 and 3.0 alike (see
+:mod:`.rules` for the rule each enforces, :mod:`.driver` for the calls).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from .driver import (KINDS, Context, Run, Var, bounded, do_step, excite, initialize, read_now, reader,
+                     run_steps, same, whole_run, write)
+from .reference import REFERENCES
+from .reference import check_reference as cross_check
+from .rules import CheckFailed, CheckSkipped, require
+
+__all__ = ["check_call_sequence", "check_dependencies", "check_reference", "check_reset",
+           "check_start_values", "check_state", "check_two_instances"]
+
+
+def check_call_sequence(ctx: Context) -> str:
+    with ctx.instantiate("check") as inst:
+        whole = whole_run(ctx, inst)
+    data = whole.rows
+    bad = [v.name for j, v in enumerate(ctx.outputs) if not np.isfinite(data[:, j]).all()]
+    if bad:
+        msg = f"non-finite values returned with OK: {', '.join(bad[:5])}"
+        require(not ctx.ours, msg)
+        ctx.warnings.append(msg)
+    if ctx.ours and ctx.outputs:
+        require(float(np.ptp(data)) > 0.0, "outputs do not respond to the inputs")
+    steps = len(data) - 1
+    if whole.ended_at is not None:
+        return (f"{steps} steps of {ctx.step:.6g} s; the FMU ended the run at "
+                f"t = {whole.ended_at:.6g} s (before the stop time {ctx.stop:.6g} s)")
+    end = ctx.start + steps * ctx.step
+    short = ("" if end >= ctx.stop * (1 - 1e-12) - 1e-300 else
+             f" (the stop time {ctx.stop:.6g} s is not a whole number of steps)")
+    return f"{steps} steps of {ctx.step:.6g} s to {end:.6g} s{short}"
+
+
+def _exact(ctx: Context) -> list[tuple[Var, float, bool]]:
+    """(variable, declared start, is Float32) of every variable with initial exact."""
+    md3 = ctx.fmu.model_description3
+    f32 = ({v.valueReference for v in md3.modelVariables if v.type == "Float32"}
+           if md3 is not None else set())
+    out = []
+    for v in ctx.fmu.model_description.modelVariables:
+        if v.type not in KINDS or v.start is None or v.causality == "independent":
+            continue
+        initial = v.initial or ("exact" if v.variability == "constant" else None)
+        if initial != "exact" or v.type == "Enumeration" and not str(v.start).strip():
+            continue
+        text = str(v.start).strip()
+        if KINDS[v.type] == "Boolean":
+            value = 1.0 if text in ("true", "1") else 0.0
+        else:
+            value = float(text)
+        element = ctx.fmu.elements.get(v.valueReference)
+        base = element.array_vr if element else v.valueReference
+        out.append((Var(v.name, KINDS[v.type], v.valueReference, v), value, base in f32))
+    return out
+
+
+def check_start_values(ctx: Context) -> str:
+    exact = _exact(ctx)
+    if not exact:
+        raise CheckSkipped("no variable with initial=\"exact\"")
+    with ctx.instantiate("check") as inst:
+        initialize(ctx, inst)
+        held = read_now(inst, [v for v, _, _ in exact])
+    wrong = []
+    for (v, declared, f32), x in zip(exact, held):
+        # the declared text and the value the FMU holds differ at most by the writer's
+        # decimal-to-binary rounding: a few ulp of a double, or one of a Float32
+        tol = 1e-6 if f32 else 4 * np.finfo(float).eps
+        if not (x == declared or abs(x - declared) <= tol * abs(declared)):
+            wrong.append(f"{v.name}: declared start {declared!r}, holds {x!r}")
+    require(not wrong, "; ".join(wrong[:5]) + (" ..." if len(wrong) > 5 else ""))
+    return f"{len(exact)} variable(s) with initial=\"exact\" hold their start values"
+
+
+def _declared(ctx: Context) -> dict[str, set[str] | None]:
+    """Output name (as in ``ctx.outputs``) -> the input names its initial value is declared
+    to depend on (ModelStructure InitialUnknowns; None: not declared, on every one)."""
+    md = ctx.fmu.model_description3 or ctx.fmu.model_description
+
+    def members(name: str, pool: list[Var]) -> list[str]:
+        return [v.name for v in pool if v.name == name or v.name.startswith(name + "[")]
+
+    out: dict[str, set[str] | None] = {}
+    for unknown in md.initialUnknowns or []:
+        deps = unknown.dependencies
+        names = (None if deps is None else
+                 {n for d in deps for n in members(d.name, ctx.inputs)})
+        for o in members(unknown.variable.name, ctx.outputs):
+            out[o] = names
+    return out
+
+
+def _perturbed(var: Var, x: float) -> float | None:
+    if var.kind == "Boolean":
+        return 0.0 if x else 1.0
+    if var.var.type == "Enumeration":
+        return None
+    for delta in (1.0, -1.0, 0.5, -0.5):
+        y = bounded(var, x + delta)
+        if y != x:
+            return y
+    return None
+
+
+#: the change of an output that counts as round-off, in units of its magnitude: an output that
+#: does not depend on an input may still be computed through it (a + d - d, a mean of two
+#: angles that both move by d) and differ in its last bits; a real dependency moves it by far
+#: more when the input changes by a whole unit (:func:`_perturbed`)
+_ROUND_OFF = 4 * sys.float_info.epsilon
+
+
+def _moved(a: float, b: float) -> bool:
+    """Whether an output read as ``a`` and then as ``b`` changed by more than round-off
+    (integers and booleans: changed at all; NaN equals NaN; an infinity is a change)."""
+    if a == b or (math.isnan(a) and math.isnan(b)):
+        return False
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return True
+    return abs(a - b) > _ROUND_OFF * max(abs(a), abs(b))
+
+
+def check_dependencies(ctx: Context) -> str:
+    # In Initialization Mode the importer may set inputs and get outputs in any order, the FMU
+    # evaluating its equations in between (FMI 2.0 4.2.4, FMI 3.0 Initialization Mode); in
+    # Step Mode a get after a set without a step is not allowed, so the dependencies are
+    # tested here, against the InitialUnknowns that declare them for these values.
+    declared = _declared(ctx)
+    if not ctx.inputs or not ctx.outputs:
+        raise CheckSkipped("no inputs or no outputs")
+    if not declared:
+        raise CheckSkipped("no output among the ModelStructure InitialUnknowns")
+    seen: dict[str, set[str]] = {o.name: set() for o in ctx.outputs}
+    tried: set[str] = set()
+    with ctx.instantiate("check") as inst:
+        s = inst.slave
+        ctx.event(call=f"{ctx.fmi}EnterInitializationMode(startTime={ctx.start!r})")
+        s.setupExperiment(startTime=ctx.start, stopTime=ctx.stop)
+        s.enterInitializationMode()
+        outs = [o for o in ctx.outputs if o.name in declared]
+        read = reader(outs)
+        before = read(inst)
+        for u in ctx.inputs:
+            x = read_now(inst, [u])[0]
+            p = _perturbed(u, x)
+            if p is None:
+                continue
+            tried.add(u.name)
+            write(inst, u, p)
+            after = read(inst)
+            write(inst, u, x)
+            for o, a, b in zip(outs, before, after):
+                if _moved(a, b):
+                    seen[o.name].add(u.name)
+        s.exitInitializationMode()
+        s.terminate()
+    lies, unseen = [], []
+    for o, deps in declared.items():
+        if deps is None:
+            continue
+        for u in sorted(seen.get(o, set()) - deps):
+            what = "no dependency" if not deps else f"dependencies on {', '.join(sorted(deps))}"
+            lies.append(f"{o} (declared with {what} among the inputs) changed when only {u} was "
+                        "set, in Initialization Mode")
+        unseen += [f"{o} on {u}" for u in sorted((deps & tried) - seen.get(o, set()))]
+    require(not lies, "; ".join(lies[:4]) + (" ..." if len(lies) > 4 else ""))
+    if unseen:
+        ctx.warnings.append("declared dependencies not seen (a dependency may be conditional, "
+                            "e.g. on a gain that is zero): " + ", ".join(unseen[:6])
+                            + (" ..." if len(unseen) > 6 else ""))
+    n = sum(deps is not None for deps in declared.values())
+    return (f"{n} output(s) with declared initial dependencies, {len(tried)} input(s) set one "
+            "at a time in Initialization Mode: no undeclared dependency")
+
+
+def check_reset(ctx: Context) -> str:
+    with ctx.instantiate("check") as inst:
+        first = whole_run(ctx, inst)
+        ctx.event(call=f"{ctx.fmi}Reset()")
+        inst.slave.reset()
+        second = whole_run(ctx, inst)
+    reset = f"{ctx.fmi}Reset"
+    if first.ended_at != second.ended_at:
+        def end(r: Run) -> str:
+            return f"t = {r.ended_at:.6g} s" if r.ended_at is not None else "the stop time"
+
+        raise CheckFailed(f"the run after {reset} differs from the first: the FMU ended it at "
+                           f"{end(second)}, the first at {end(first)}")
+    require(same(first.rows, second.rows), f"the run after {reset} differs from the first")
+    return f"identical after {reset}"
+
+
+def check_two_instances(ctx: Context) -> str:
+    if ctx.fmu.model_description.coSimulation.canBeInstantiatedOnlyOncePerProcess:
+        raise CheckSkipped("canBeInstantiatedOnlyOncePerProcess is declared")
+    with ctx.instantiate("single") as one:
+        initialize(ctx, one)
+        ref = run_steps(ctx, one).rows
+    with ctx.instantiate("left") as a, ctx.instantiate("right") as b:
+        initialize(ctx, a)
+        initialize(ctx, b)
+        ra, rb = [read_now(a, ctx.outputs)], [read_now(b, ctx.outputs)]
+        ended = [False, False]
+        for k in range(len(ref) - 1):
+            for j, (inst, rec) in enumerate(((a, ra), (b, rb))):
+                if not ended[j]:
+                    excite(ctx, inst, k)
+                    ended[j] = do_step(ctx, inst, ctx.start + k * ctx.step, ctx.step)
+                    rec.append(read_now(inst, ctx.outputs))
+    require(same(np.array(ra), ref) and same(np.array(rb), ref),
+             "interleaved instances differ from a single run")
+    return "independent"
+
+
+def check_state(ctx: Context) -> str:
+    cs = ctx.fmu.model_description.coSimulation
+    if not cs.canGetAndSetFMUstate:
+        raise CheckSkipped("canGetAndSetFMUstate is not declared")
+    half = ctx.n // 2
+    parts = []
+    with ctx.instantiate("check") as inst:
+        s = inst.slave
+        initialize(ctx, inst)
+        if run_steps(ctx, inst, range(half)).ended_at is not None:
+            raise CheckSkipped(f"the FMU ended the run before t = "
+                               f"{ctx.start + half * ctx.step:.6g} s")
+        state = s.getFMUstate()
+        blob = s.serializeFMUstate(state) if cs.canSerializeFMUstate else None
+        cont = run_steps(ctx, inst, range(half, ctx.n)).rows
+        s.setFMUstate(state)
+        again = run_steps(ctx, inst, range(half, ctx.n)).rows
+        require(same(cont, again), f"continuation after {ctx.fmi}SetFMUstate differs")
+        parts.append("get/set")
+        if blob is not None:
+            restored = s.deSerializeFMUstate(blob)
+            s.setFMUstate(restored)
+            third = run_steps(ctx, inst, range(half, ctx.n)).rows
+            s.freeFMUstate(restored)
+            require(same(cont, third),
+                     f"continuation after {ctx.fmi}DeSerializeFMUstate differs")
+            parts.append(f"serialized ({len(blob)} bytes)")
+        s.freeFMUstate(state)
+    return (f"bit-for-bit continuation from t = {ctx.start + half * ctx.step:.6g} s: "
+            + ", ".join(parts))
+
+
+def check_reference(ctx: Context) -> str:
+    if not ctx.ours:
+        raise CheckSkipped("reference results are the project's FMUs' (dronefly profile)")
+
+    if ctx.fmu.name not in REFERENCES:
+        raise CheckSkipped("no reference result for this model")
+    r = cross_check(ctx.fmu.name, ctx.fmu.path)
+    require(r.passed, f"{r.cross_check_outliers:.1%} outliers, max relative error "
+                       f"{r.max_rel_error:.2e}")
+    return f"cross-check: no outliers, max relative error {r.max_rel_error:.1e}"

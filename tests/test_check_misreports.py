@@ -233,3 +233,66 @@ def test_dependent_checks_are_not_run_after_their_dependency_failed(monkeypatch)
         assert checks[name].skipped and checks[name].detail == (
             "not run: it depends on call-sequence, which failed (the finding is reported "
             "there)"), checks[name]
+
+
+# -- the static rules beyond FMPy's validation: one seeded defect each ----------------------------
+_BB_E = b'<Real start="0.7" min="0.5" max="1"/>'
+_BB_H = b'<Real start="1" reinit="true" declaredType="Position"/>'
+#: (FMU, [(old, new)], the problem validate lists, with its section)
+STATIC = {
+    "start below min": ("fmi2/BouncingBall.fmu", [(_BB_E, b'<Real start="0.7" min="0.8" max="1"/>')],
+                        "FMI 2.0 2.2.7: variable 'e': start 0.7 < min 0.8"),
+    "nominal not positive": ("fmi2/BouncingBall.fmu",
+                             [(_BB_E, b'<Real start="0.7" min="0.5" max="1" nominal="-1"/>')],
+                             "FMI 2.0 2.2.7: variable 'e': nominal -1.0 is not > 0"),
+    "unit not defined": ("fmi2/BouncingBall.fmu",
+                         [(b'<Real start="0.7" min="0.5"', b'<Real unit="km" start="0.7" min="0.5"')],
+                         "FMI 2.0 2.2.2: variable 'e': unit 'km' is not among the "
+                         "UnitDefinitions"),
+    "display unit not of the unit": (
+        "fmi2/BouncingBall.fmu", [(_BB_H, _BB_H.replace(b"/>", b' displayUnit="ft"/>'))],
+        "FMI 2.0 2.2.2: variable 'h': displayUnit 'ft' is not a DisplayUnit of unit 'm'"),
+    "start of a calculated variable": (
+        "fmi2/BouncingBall.fmu", [(b'<Real derivative="2" declaredType="Velocity"/>',
+                                   b'<Real derivative="2" declaredType="Velocity" start="0"/>')],
+        "FMI 2.0 2.2.7: variable 'der(h)': a start value with initial 'calculated'"),
+    "outputs out of order": (
+        "fmi2/BouncingBall.fmu", [(b'<Unknown index="2" dependencies=""/>\n      <Unknown '
+                                   b'index="4" dependencies=""/>',
+                                   b'<Unknown index="4" dependencies=""/>\n      <Unknown '
+                                   b'index="2" dependencies=""/>')],
+        "FMI 2.0 2.2.8: ModelStructure/Outputs: indices not in ascending order or repeated "
+        "(4, 2)"),
+    "derivative that is a state": (
+        "fmi2/BouncingBall.fmu", [(b'<Derivatives>\n      <Unknown index="3"',
+                                   b'<Derivatives>\n      <Unknown index="2"')],
+        "FMI 2.0 2.2.8: ModelStructure/Derivatives: 'h' is not the derivative of a state"),
+    "aliases of two variabilities": (
+        "fmi2/BouncingBall.fmu", [(b"  </ModelVariables>",
+                                   b'    <ScalarVariable name="h_alias" valueReference="1" '
+                                   b'causality="local" variability="discrete" initial='
+                                   b'"calculated">\n      <Real/>\n    </ScalarVariable>\n'
+                                   b"  </ModelVariables>")],
+        "FMI 2.0 2.2.7: aliases 'h', 'h_alias' (value reference 1) differ in variability"),
+    "fmi3 start above max": (
+        "fmi3/BouncingBall.fmu", [(b'start="0.7" min="0.5" max="1"', b'start="0.7" min="0.5" '
+                                                                     b'max="0.6"')],
+        "FMI 3.0 2.4.7: variable 'e': start 0.7 > max 0.6"),
+    "fmi3 dimension of a plain parameter": (
+        "fmi3/StateSpace.fmu", [(b'name="m" valueReference="1" description="Number of inputs" '
+                                 b'causality="structuralParameter"',
+                                 b'name="m" valueReference="1" description="Number of inputs" '
+                                 b'causality="parameter"')],
+        "FMI 3.0 2.4.7: variable 'B': a dimension given by 'm', not a structural parameter or "
+        "constant of an unsigned integer type"),
+}
+
+
+@pytest.mark.parametrize("defect", list(STATIC))
+def test_a_static_defect_fails_validate_only_with_its_section(tmp_path, defect):
+    src, edits, problem = STATIC[defect]
+    fmu = _copy(REF / src, tmp_path / Path(src).name, tuple(edits))
+    report = check_fmu(fmu, fuzz=False, isolate=False)
+    failed = _failed(report)
+    assert set(failed) == {"validate"}, report.checks
+    assert problem in failed["validate"].detail, failed["validate"].detail

@@ -60,8 +60,9 @@ def test_bad_options_are_refused_before_any_check(no_work, capsys, tmp_path, mon
     (DAHLQUIST3, ["--check", "discard"],
      "not applicable: discard is the dronefly profile's check (--profile dronefly runs it); this "
      "FMU is checked under the standard profile"),
-    (DAHLQUIST3, ["--check", "logger-format"],
-     "not applicable: FMI 3.0's log message is plain text, not a format"),
+    (DAHLQUIST3, ["--check", "state-refusal"],
+     "not applicable: state-refusal is the dronefly profile's check (--profile dronefly runs "
+     "it); this FMU is checked under the standard profile"),
 ])
 def test_a_selected_check_that_does_not_apply_is_skipped_with_its_reason(capsys, fmu, argv,
                                                                           detail):

@@ -207,7 +207,7 @@ def test_an_fmu_that_crashes_on_an_unknown_value_reference_passes(tmp_path):
                    edits)
     report = check_fmu(fmu, fuzz=False)
     assert report.passed, report.checks
-    assert _by_name(report)["logger-format"].detail.startswith("instance '%s%s%s%s%n'")
+    assert "instance '%s%s%s%s%n'" in _by_name(report)["logger-format"].detail
 
 
 def test_dependent_checks_are_not_run_after_their_dependency_failed(monkeypatch):
@@ -296,3 +296,74 @@ def test_a_static_defect_fails_validate_only_with_its_section(tmp_path, defect):
     failed = _failed(report)
     assert set(failed) == {"validate"}, report.checks
     assert problem in failed["validate"].detail, failed["validate"].detail
+
+
+# -- the binary: exported functions, version strings, what the logger gets ------------------------
+BINARY = {
+    "a function not exported": (
+        {"fmi2Functions.c": [("fmi2Status fmi2CancelStep(fmi2Component c) {",
+                              "static fmi2Status notExported(fmi2Component c) {")]},
+        "not exported: fmi2CancelStep"),
+    "a wrong version string": (
+        {"fmi2Functions.c": [("const char* fmi2GetVersion(void) {\n    return fmi2Version;",
+                              "const char* fmi2GetVersion(void) {\n    return \"2.1\";")]},
+        "fmi2GetVersion() returned '2.1', not '2.0'"),
+    "a logger given another instance name": (
+        {"cosimulation.c": [("comp->logger(comp->componentEnvironment, comp->instanceName, "
+                             "status, category, buf);",
+                             "comp->logger(comp->componentEnvironment, \"someone\", status, "
+                             "category, buf);")]},
+        "the logger got instance name 'someone', not 'dronefly binary check'"),
+    "a logger given another environment": (
+        {"cosimulation.c": [("comp->logger(comp->componentEnvironment, comp->instanceName, "
+                             "status, category, buf);",
+                             "comp->logger(NULL, comp->instanceName, status, category, buf);")]},
+        "the logger got componentEnvironment None, not the 0x5eed the host passed"),
+}
+#: the check each defect of BINARY fails
+BINARY_CHECK = {"a function not exported": "binary", "a wrong version string": "binary",
+                "a logger given another instance name": "logger-format",
+                "a logger given another environment": "logger-format"}
+
+
+@needs_gcc
+@pytest.mark.parametrize("defect", list(BINARY))
+def test_a_binary_defect_fails_binary_only(tmp_path, defect):
+    """Dahlquist rebuilt from its sources with one defect of its binary: ``binary`` (exports,
+    version strings) or ``logger-format`` (what the logger is given) fails, naming it, and no
+    other check."""
+    edits, detail = BINARY[defect]
+    fmu = _rebuilt(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+                   edits)
+    report = check_fmu(fmu, fuzz=False)
+    failed = _failed(report)
+    check = BINARY_CHECK[defect]
+    assert set(failed) == {check}, report.checks
+    assert failed[check].detail.startswith(detail), failed[check].detail
+
+
+# -- the Outputs dependency lie, caught in Step Mode ------------------------------------------------
+OUTPUTS_LIE = {
+    "fmi2": (b'<Unknown index="5" dependencies="4" dependenciesKind="constant"/>',
+             b'<Unknown index="5" dependencies=""/>'),
+    "fmi3": (b'<Output valueReference="8" dependencies="7" dependenciesKind="constant"/>',
+             b'<Output valueReference="8" dependencies=""/>'),
+}
+
+
+@pytest.mark.parametrize("version", list(OUTPUTS_LIE))
+def test_an_outputs_dependency_lie_fails_dependencies_only(tmp_path, version):
+    """Feedthrough with Float64_continuous_output declared in <Outputs> without a dependency
+    (InitialUnknowns left truthful) while it follows Float64_continuous_input directly: two
+    continuations from one saved FMU state, with the input as it was and moved, differ by O(1)
+    over a step of 1e-3 and of 1e-4 of the run's: ``dependencies`` fails, only it, FMI 2.0
+    and 3.0 alike."""
+    fmu = _copy(REF / version / "Feedthrough.fmu", tmp_path / "Feedthrough.fmu",
+                (OUTPUTS_LIE[version],))
+    report = check_fmu(fmu, fuzz=False, isolate=False)
+    failed = _failed(report)
+    assert set(failed) == {"dependencies"}, report.checks
+    assert failed["dependencies"].detail.startswith(
+        "Float64_continuous_output (declared in Outputs with no dependency among the inputs) "
+        "changed when only Float64_continuous_input was set, in Step Mode"), \
+        failed["dependencies"].detail

@@ -393,7 +393,9 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     assert [line for line in out.splitlines() if line.startswith("  [  ok]")] == [
         "  [  ok] validate       no problems (FMPy's validation and the rules of "
         "docs/compliance.md) [FMI 3.0 2.4]",
-        "  [  ok] archive        binaries for x86_64-linux, x86_64-windows [FMI 3.0 2.5]"], out
+        "  [  ok] archive        binaries for x86_64-linux, x86_64-windows [FMI 3.0 2.5]",
+        "  [  ok] binary         44 required functions exported; fmi3GetVersion right "
+        "[FMI 3.0 2.2.1]"], out
     # The first check that steps gets fmi3Fatal and is reported so; every later check is
     # then "not run". The use after free may instead kill the checking process, in that step
     # or in any later check (up to the heap): the check it died in is reported with the

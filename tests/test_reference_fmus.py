@@ -205,9 +205,9 @@ SEEDED = {
     "dependency-lie": ("fmi2/Feedthrough.fmu",
                        b'<Unknown index="5" dependencies="4" dependenciesKind="constant"/>',
                        b'<Unknown index="5" dependencies=""/>', "dependencies",
-                       "Float64_continuous_output (declared with no dependency among the "
-                       "inputs) changed when only Float64_continuous_input was set, in "
-                       "Initialization Mode"),
+                       "Float64_continuous_output (declared in InitialUnknowns with no "
+                       "dependency among the inputs) changed when only Float64_continuous_input "
+                       "was set, in Initialization Mode"),
     # a state the FMU does not declare it can restore: not applicable, not failed
 }
 

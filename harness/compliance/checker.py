@@ -4,6 +4,7 @@ The runner. The checks live in their families, one home each, every one a functi
 ``check(ctx) -> detail`` for FMI 2.0 and 3.0 alike:
 
 * :mod:`.static` (the FMU without running it): ``validate``, ``archive``;
+* :mod:`.binary` (the shared library as a host links and calls it): ``binary``;
 * :mod:`.runtime` (runtime semantics): ``call-sequence``, ``start-values``, ``dependencies``,
   ``reset``, ``two-instances``, ``state``, ``reference``;
 * :mod:`.refusals` (calls to refuse or survive): ``bad-input``, ``state-machine``,
@@ -26,7 +27,7 @@ from typing import Callable
 
 from ...core.interrupt import pending
 from ..cosim.fmu import FMU, FMUError
-from . import refusals, runtime, static
+from . import binary, refusals, runtime, static
 from .driver import Context, experiment, profile_for
 from .rules import (PROFILES, RULES, CheckFailed, CheckOptions, CheckResult, CheckSkipped,
                     FMUReport, rule_of)
@@ -55,6 +56,7 @@ _RUN = ("call-sequence",)
 CHECKS: tuple[Check, ...] = (
     Check("validate", static.check_validate, runs=False),
     Check("archive", static.check_archive, runs=False),
+    Check("binary", binary.check_binary),
     Check("call-sequence", runtime.check_call_sequence),
     Check("start-values", runtime.check_start_values),
     Check("dependencies", runtime.check_dependencies),
@@ -146,6 +148,8 @@ def _not_run(ctx: Context, check: Check) -> str | None:
                 f"any of its instances may be called ({_FATAL_RULE[ctx.fmi]})")
     if check.runs and ctx.cannot_run:
         return ctx.cannot_run
+    if check.runs and ctx.unusable:
+        return ctx.unusable
     failed = [n for n in check.needs if n in ctx.failed]
     if failed:
         return (f"it depends on {', '.join(failed)}, which failed (the finding is reported "

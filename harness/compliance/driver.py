@@ -59,6 +59,8 @@ class Context:
         self.fatal: str | None = None  # the check in which the FMU returned Fatal
         #: why the FMU cannot run here (no binary for this platform), or None
         self.cannot_run: str | None = None
+        #: why a host cannot use the FMU's binary (found by the binary check), or None
+        self.unusable: str | None = None
         #: the checks that failed so far, by name (what a later check depends on)
         self.failed: set[str] = set()
         self.fmi = f"fmi{fmu.fmi_version}"

@@ -46,6 +46,12 @@ RULES: dict[str, tuple[str, str, str]] = {
         "FMI 3.0 2.5 (FMU Distribution): the archive holds an implementation (a binary "
         "binaries/<platform tuple>/<modelIdentifier> or sources/), platform folders named "
         "<arch>-<sys>", ""),
+    "binary": (
+        "FMI 2.0 2.1.1, 2.1.4 (the binary): every function the interface and the declared "
+        "capabilities require is exported; fmi2GetVersion is \"2.0\" and fmi2GetTypesPlatform "
+        "\"default\"",
+        "FMI 3.0 2.2.1, 2.2.4 (the binary): every function the interface and the declared "
+        "capabilities require is exported; fmi3GetVersion is \"3.0\"", ""),
     "call-sequence": (
         "FMI 2.0 4.2.4 (state machine of the calling sequence): instantiate, initialize, "
         "fmi2DoStep to the stop time, terminate, free succeed; 4.2.3: a slave may end the run "
@@ -57,12 +63,13 @@ RULES: dict[str, tuple[str, str, str]] = {
         "FMI 3.0 2.4.7 (initial = \"exact\"): the variable is initialized with its start value",
         ""),
     "dependencies": (
-        "FMI 2.0 2.2.8 (ModelStructure InitialUnknowns dependencies): in Initialization Mode "
-        "an output depends only on the inputs listed (\"\": on none); tested there because "
-        "4.2.4 forbids a get after a set without a step in Step Mode",
-        "FMI 3.0 2.4.8 (ModelStructure InitialUnknown dependencies): in Initialization Mode an "
-        "output depends only on the inputs listed; tested there because Step Mode forbids a "
-        "get after a set without a step", ""),
+        "FMI 2.0 2.2.8 (ModelStructure dependencies): an output depends only on the inputs "
+        "listed (\"\": on none); InitialUnknowns tested in Initialization Mode, Outputs in Step "
+        "Mode by two continuations from one saved FMU state over a small step (4.2.4 forbids a "
+        "get after a set without a step)",
+        "FMI 3.0 2.4.8 (ModelStructure dependencies): an output depends only on the inputs "
+        "listed; InitialUnknown tested in Initialization Mode, Output in Step Mode by two "
+        "continuations from one saved FMU state over a small step", ""),
     "reset": (
         "FMI 2.0 2.1.6 (fmi2Reset): the FMU goes into the same state as after fmi2Instantiate",
         "FMI 3.0 2.3 (FMU states, fmi3Reset): the FMU goes into the same state as after "
@@ -89,10 +96,11 @@ RULES: dict[str, tuple[str, str, str]] = {
         "FMI cross-check rules (the project's FMUs: reference results)",
         "FMI cross-check rules (the project's FMUs: reference results)", ""),
     "logger-format": (
-        "FMI 2.0 2.1.5 (fmi2CallbackLogger): message is a printf format string, so text the "
-        "FMU does not mean as a directive (an instance name with %) must reach it escaped (%%)",
-        "FMI 3.0 (fmi3LogMessageCallback): message is plain text, no format: not applicable",
-        ""),
+        "FMI 2.0 2.1.5 (fmi2CallbackLogger): the logger gets the componentEnvironment and the "
+        "instance name the host passed; message is a printf format string, so text the FMU "
+        "does not mean as a directive (an instance name with %) must reach it escaped (%%)",
+        "FMI 3.0 (fmi3LogMessageCallback): the callback gets the instanceEnvironment the host "
+        "passed; the message is plain text, no format", ""),
     "state-machine": (
         "", "FMI 3.0 2.2.4 (status returned by functions) and 2.3 (FMU states): a call not "
             "allowed in the current state returns fmi3Error; after it fmi3Reset recovers",

@@ -11,12 +11,13 @@ import math
 import sys
 
 import numpy as np
+from fmpy.fmi1 import FMICallException
 
 from .driver import (KINDS, Context, Run, Var, bounded, do_step, excite, initialize, read_now, reader,
                      run_steps, same, whole_run, write)
 from .reference import REFERENCES
 from .reference import check_reference as cross_check
-from .rules import CheckFailed, CheckSkipped, require
+from .rules import CheckFailed, CheckSkipped, require, status_name
 
 __all__ = ["check_call_sequence", "check_dependencies", "check_reference", "check_reset",
            "check_start_values", "check_state", "check_two_instances"]
@@ -84,22 +85,38 @@ def check_start_values(ctx: Context) -> str:
     return f"{len(exact)} variable(s) with initial=\"exact\" hold their start values"
 
 
-def _declared(ctx: Context) -> dict[str, set[str] | None]:
-    """Output name (as in ``ctx.outputs``) -> the input names its initial value is declared
-    to depend on (ModelStructure InitialUnknowns; None: not declared, on every one)."""
+def _declared(ctx: Context, which: str = "initialUnknowns") -> dict[str, set[str] | None]:
+    """Output name (as in ``ctx.outputs``) -> the input names it is declared to depend on, in
+    ModelStructure ``which`` (``initialUnknowns`` or ``outputs``; None: not declared, on every
+    one)."""
     md = ctx.fmu.model_description3 or ctx.fmu.model_description
 
     def members(name: str, pool: list[Var]) -> list[str]:
         return [v.name for v in pool if v.name == name or v.name.startswith(name + "[")]
 
     out: dict[str, set[str] | None] = {}
-    for unknown in md.initialUnknowns or []:
+    for unknown in getattr(md, which) or []:
         deps = unknown.dependencies
         names = (None if deps is None else
                  {n for d in deps for n in members(d.name, ctx.inputs)})
         for o in members(unknown.variable.name, ctx.outputs):
             out[o] = names
     return out
+
+
+def _nudged(var: Var, x: float) -> float | None:
+    """A small change of an input (a real by 1e-3 of its size, at least 1e-3; an integer or a
+    boolean as :func:`_perturbed`): the Step Mode probe compares how outputs respond to it over
+    two step sizes, so its size does not matter, and a small one stays where the FMU accepts
+    it."""
+    if var.kind != "Real":
+        return _perturbed(var, x)
+    delta = 1e-3 * max(1.0, abs(x))
+    for d in (delta, -delta):
+        y = bounded(var, x + d)
+        if y != x:
+            return y
+    return None
 
 
 def _perturbed(var: Var, x: float) -> float | None:
@@ -131,16 +148,31 @@ def _moved(a: float, b: float) -> bool:
     return abs(a - b) > _ROUND_OFF * max(abs(a), abs(b))
 
 
-def check_dependencies(ctx: Context) -> str:
-    # In Initialization Mode the importer may set inputs and get outputs in any order, the FMU
-    # evaluating its equations in between (FMI 2.0 4.2.4, FMI 3.0 Initialization Mode); in
-    # Step Mode a get after a set without a step is not allowed, so the dependencies are
-    # tested here, against the InitialUnknowns that declare them for these values.
-    declared = _declared(ctx)
-    if not ctx.inputs or not ctx.outputs:
-        raise CheckSkipped("no inputs or no outputs")
-    if not declared:
-        raise CheckSkipped("no output among the ModelStructure InitialUnknowns")
+#: the two small communication steps of the Step Mode probe, in units of the run's step: an
+#: output that follows an input directly differs by O(1) between two continuations with
+#: different inputs, whatever the step; one that follows it through a state differs by O(h)
+_PROBE_STEPS = (1e-3, 1e-4)
+#: the ratio of the two differences above which the difference does not shrink with the step
+#: (O(1)): 1 for a direct dependency, 0.1 for one through a state (the steps' ratio)
+_DIRECT = 0.5
+
+
+def _lies(declared: dict[str, set[str] | None], seen: dict[str, set[str]], where: str,
+          which: str) -> list[str]:
+    out = []
+    for o, deps in declared.items():
+        if deps is None:
+            continue
+        for u in sorted(seen.get(o, set()) - deps):
+            what = "no dependency" if not deps else f"dependencies on {', '.join(sorted(deps))}"
+            out.append(f"{o} (declared in {which} with {what} among the inputs) changed when "
+                       f"only {u} was set, {where}")
+    return out
+
+
+def _initialization_probe(ctx: Context, declared: dict[str, set[str] | None]
+                          ) -> tuple[dict[str, set[str]], set[str]]:
+    """Which inputs move which outputs in Initialization Mode (set, get in any order)."""
     seen: dict[str, set[str]] = {o.name: set() for o in ctx.outputs}
     tried: set[str] = set()
     with ctx.instantiate("check") as inst:
@@ -165,23 +197,100 @@ def check_dependencies(ctx: Context) -> str:
                     seen[o.name].add(u.name)
         s.exitInitializationMode()
         s.terminate()
-    lies, unseen = [], []
-    for o, deps in declared.items():
-        if deps is None:
-            continue
-        for u in sorted(seen.get(o, set()) - deps):
-            what = "no dependency" if not deps else f"dependencies on {', '.join(sorted(deps))}"
-            lies.append(f"{o} (declared with {what} among the inputs) changed when only {u} was "
-                        "set, in Initialization Mode")
-        unseen += [f"{o} on {u}" for u in sorted((deps & tried) - seen.get(o, set()))]
+    return seen, tried
+
+
+def _step_probe(ctx: Context, declared: dict[str, set[str] | None]) -> dict[str, set[str]]:
+    """Which inputs move which outputs directly in Step Mode: from one saved FMU state, two
+    continuations over a small step, one with the input as it was and one with it moved, at
+    two step sizes; a difference that does not shrink with the step (O(1), not O(h)) is a
+    direct dependency. Only the outputs declared independent of some input are probed."""
+    seen: dict[str, set[str]] = {o: set() for o in declared}
+    outs = [o for o in ctx.outputs if declared.get(o.name) is not None]
+    read = reader(outs)
+    with ctx.instantiate("check") as inst:
+        s = inst.slave
+        initialize(ctx, inst)
+        t = ctx.start
+        excite(ctx, inst, 0)
+        if do_step(ctx, inst, t, ctx.step):
+            raise CheckSkipped("the FMU ended the run after one step")
+        t += ctx.step
+        state = s.getFMUstate()
+        try:
+            refused = []
+            for u in ctx.inputs:
+                x = read_now(inst, [u])[0]
+                p = _nudged(u, x)
+                if p is None or all(u.name in (declared[o.name] or ()) for o in outs):
+                    continue
+                diffs = []
+                try:
+                    for frac in _PROBE_STEPS:
+                        h = frac * ctx.step
+                        rows = []
+                        for value in (x, p):
+                            s.setFMUstate(state)
+                            write(inst, u, value)
+                            do_step(ctx, inst, t, h)
+                            rows.append(read(inst))
+                        diffs.append(rows)
+                except FMICallException as e:  # a step the FMU refuses: this input not probed
+                    refused.append(f"{u.name} ({ctx.fmi}DoStep: "
+                                   f"{status_name(e.status, ctx.fmu.fmi_version)})")
+                    continue
+                for j, o in enumerate(outs):
+                    (a1, b1), (a2, b2) = ([r[0][j], r[1][j]] for r in diffs)
+                    if _moved(a2, b2) and abs(b2 - a2) > _DIRECT * abs(b1 - a1):
+                        seen[o.name].add(u.name)
+        finally:
+            s.setFMUstate(state)
+            s.freeFMUstate(state)
+    if refused:
+        ctx.warnings.append("not probed in Step Mode (a step refused): " + ", ".join(refused))
+    return seen
+
+
+def check_dependencies(ctx: Context) -> str:
+    # In Initialization Mode the importer may set inputs and get outputs in any order, the FMU
+    # evaluating its equations in between (FMI 2.0 4.2.4, FMI 3.0 Initialization Mode): the
+    # InitialUnknowns are tested there. In Step Mode a get after a set without a step is not
+    # allowed: the Outputs' dependencies are tested by two continuations from one saved FMU
+    # state over a small step (where the FMU can save its state).
+    if not ctx.inputs or not ctx.outputs:
+        raise CheckSkipped("no inputs or no outputs")
+    initial = _declared(ctx, "initialUnknowns")
+    outputs = _declared(ctx, "outputs")
+    can_probe = bool(ctx.fmu.model_description.coSimulation.canGetAndSetFMUstate)
+    probed = {o: d for o, d in outputs.items() if d is not None}
+    if not initial and not (can_probe and probed):
+        raise CheckSkipped("no output among the ModelStructure InitialUnknowns, and no Outputs "
+                           "dependencies to probe in Step Mode" + ("" if can_probe else
+                           " (canGetAndSetFMUstate is not declared)"))
+    lies, parts = [], []
+    if initial:
+        seen, tried = _initialization_probe(ctx, initial)
+        lies += _lies(initial, seen, "in Initialization Mode", "InitialUnknowns")
+        unseen = [f"{o} on {u}" for o, deps in initial.items() if deps is not None
+                  for u in sorted((deps & tried) - seen.get(o, set()))]
+        if unseen:
+            ctx.warnings.append("declared dependencies not seen (a dependency may be "
+                                "conditional, e.g. on a gain that is zero): "
+                                + ", ".join(unseen[:6]) + (" ..." if len(unseen) > 6 else ""))
+        n = sum(deps is not None for deps in initial.values())
+        parts.append(f"{n} output(s) with declared initial dependencies, {len(tried)} input(s) "
+                     "set one at a time in Initialization Mode")
+    if can_probe and probed and not lies:
+        lies += _lies(outputs, _step_probe(ctx, outputs), "in Step Mode (two continuations "
+                      "from one saved FMU state differ by O(1), not O(h), over a small step)",
+                      "Outputs")
+        parts.append(f"{len(probed)} output(s) with declared Outputs dependencies probed in "
+                     "Step Mode from a saved FMU state")
+    elif probed and not can_probe:
+        parts.append("Outputs dependencies not probed in Step Mode (canGetAndSetFMUstate is not "
+                     "declared)")
     require(not lies, "; ".join(lies[:4]) + (" ..." if len(lies) > 4 else ""))
-    if unseen:
-        ctx.warnings.append("declared dependencies not seen (a dependency may be conditional, "
-                            "e.g. on a gain that is zero): " + ", ".join(unseen[:6])
-                            + (" ..." if len(unseen) > 6 else ""))
-    n = sum(deps is not None for deps in declared.values())
-    return (f"{n} output(s) with declared initial dependencies, {len(tried)} input(s) set one "
-            "at a time in Initialization Mode: no undeclared dependency")
+    return "; ".join(parts) + ": no undeclared dependency"
 
 
 def check_reset(ctx: Context) -> str:

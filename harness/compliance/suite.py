@@ -30,11 +30,13 @@ from ...core.interrupt import pending
 from .child import run_child
 from .fuzz import describe_exit, fuzz_fmu
 
-__all__ = ["JSON_SCHEMA", "CheckInterrupted", "check_fmu", "check_fmus", "format_reports", "not_checked",
+__all__ = ["JSON_SCHEMA", "JSON_SCHEMA_FILE", "CheckInterrupted", "check_fmu", "check_fmus", "format_reports", "not_checked",
            "reports_json", "reports_junit"]
 
 #: the version of the ``--json`` document (``{"schema": JSON_SCHEMA, "fmus": [...]}``)
 JSON_SCHEMA = "dronefly-check/2"
+#: the JSON Schema (draft 2020-12) of that document, shipped with the package
+JSON_SCHEMA_FILE = Path(__file__).with_name("check-schema.json")
 
 
 def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,

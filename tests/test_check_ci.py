@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import tomllib
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -48,8 +47,8 @@ def test_json_output_validates_against_the_shipped_schema(tmp_path, capsys):
 
 
 def test_the_schema_ships_with_the_package():
-    data = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
-    assert "*.json" in data["tool"]["setuptools"]["package-data"]["dronefly.harness.compliance"]
+    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")  # tomllib: Python 3.11+
+    assert '"dronefly.harness.compliance" = ["*.json"]' in text
     assert JSON_SCHEMA_FILE.parent == ROOT / "harness" / "compliance"
 
 
@@ -86,3 +85,52 @@ def test_pre_commit_hook_runs_dronefly_check():
     assert "- id: dronefly-check\n" in text
     assert "  entry: dronefly check\n" in text
     assert "  files: \\.fmu$\n" in text and "  language: python\n" in text
+
+
+# -- reference results for anyone's FMU -----------------------------------------------------------
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+@pytest.mark.parametrize("model", ["BouncingBall", "Dahlquist", "VanDerPol"])
+def test_reference_fmus_match_their_reference_results(capsys, model, version):
+    """--ref with the Reference-FMUs' own results (results/<Model>_out.csv, written by fmusim):
+    every output within FMPy's validation band."""
+    ref = REF / "results" / f"{model}_out.csv"
+    assert main(["check", "--check", "reference", "--ref", str(ref),
+                 str(REF / version / f"{model}.fmu")]) == 0
+    out = capsys.readouterr().out
+    assert f"output(s) within FMPy's validation band of {model}_out.csv" in out
+
+
+def test_cross_check_layout_beside_the_fmu_and_a_wrong_reference(tmp_path, capsys):
+    """<Model>_ref.csv and <Model>_ref.opt beside the FMU are found without --ref; a reference
+    whose values are 1.5 times the FMU's (Dahlquist's x) fails ``reference`` with the share of
+    samples outside the band and where."""
+    import shutil
+
+    shutil.copy(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu")
+    lines = (REF / "results" / "Dahlquist_out.csv").read_text().splitlines()
+    (tmp_path / "Dahlquist_ref.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "Dahlquist_ref.opt").write_text("StartTime,0\nStopTime,10\nStepSize,0.1\n"
+                                                "RelTol,1e-4\n")
+    assert main(["check", "--check", "reference", str(tmp_path / "Dahlquist.fmu")]) == 0
+    assert "within FMPy's validation band of Dahlquist_ref.csv" in capsys.readouterr().out
+    scaled = [lines[0]] + [f"{t},{1.5 * float(x)!r}" for t, x in (ln.split(",") for ln in lines[1:])]
+    (tmp_path / "Dahlquist_ref.csv").write_text("\n".join(scaled) + "\n")
+    assert main(["check", "--check", "reference", str(tmp_path / "Dahlquist.fmu")]) == 1
+    out = capsys.readouterr().out
+    assert "of the samples outside FMPy's validation band of Dahlquist_ref.csv (first outside: " \
+           "x at t = " in out, out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--ref", "r.csv", "A.fmu", "B.fmu"], "--ref 'r.csv' is the reference result of one FMU; "
+                                           "2 given"),
+    (["--in", "i.csv", "A.fmu"], "--in 'i.csv' needs --ref"),
+    (["--ref", "missing.csv", "A.fmu"], "--ref 'missing.csv': no such file"),
+])
+def test_reference_options_refused_before_the_work(tmp_path, monkeypatch, capsys, argv, message):
+    monkeypatch.chdir(tmp_path)
+    for name in ("A.fmu", "B.fmu", "r.csv", "i.csv"):
+        (tmp_path / name).write_bytes(b"")
+    assert main(["check", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1, err

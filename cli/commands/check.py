@@ -59,6 +59,20 @@ def _experiments(paths: list[Path], options: CheckOptions) -> None:
             raise DroneflyError(f"{given} on {str(p)!r}: {e}") from None
 
 
+def _reference(args: argparse.Namespace) -> None:
+    """Refuse --ref / --in that cannot take effect: not one FMU, --in alone, a missing file."""
+    if args.ref is None and args.inputs is None:
+        return
+    if args.ref is None:
+        raise DroneflyError(f"--in {args.inputs!r} needs --ref (the reference result of that run)")
+    if len(args.fmus) != 1:
+        raise DroneflyError(f"--ref {args.ref!r} is the reference result of one FMU; "
+                            f"{len(args.fmus)} given")
+    for option, path in (("--ref", args.ref), ("--in", args.inputs)):
+        if path is not None and not Path(path).is_file():
+            raise DroneflyError(f"{option} {path!r}: no such file")
+
+
 def _junit_target(junit: str | None) -> None:
     if not junit:
         return
@@ -76,8 +90,10 @@ def run(args: argparse.Namespace) -> int:
     options = CheckOptions(profile=None if args.profile == "auto" else args.profile,
                            stop_time=args.stop_time, step=args.step,
                            only=_check_names(args.check, "--check"),
-                           skip=_check_names(args.skip, "--skip"))
+                           skip=_check_names(args.skip, "--skip"),
+                           ref=args.ref, inputs=args.inputs)
     _selection(args, options)
+    _reference(args)
     _junit_target(args.junit)
     paths = [Path(p) for p in args.fmus]
     for p in paths:

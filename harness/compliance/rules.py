@@ -93,8 +93,10 @@ RULES: dict[str, tuple[str, str, str]] = {
         "a NaN input and bad arguments answered Discard with a logged message naming the value; "
         "the instance continues"),
     "reference": (
-        "FMI cross-check rules (the project's FMUs: reference results)",
-        "FMI cross-check rules (the project's FMUs: reference results)", ""),
+        "FMI cross-check rules (reference results: <Model>_ref.csv, _in.csv, _ref.opt): the "
+        "outputs within FMPy's validation band (fmpy.util.validate_signal) of the reference",
+        "FMI cross-check rules (reference results: <Model>_ref.csv, _in.csv, _ref.opt): the "
+        "outputs within FMPy's validation band (fmpy.util.validate_signal) of the reference", ""),
     "logger-format": (
         "FMI 2.0 2.1.5 (fmi2CallbackLogger): the logger gets the componentEnvironment and the "
         "instance name the host passed; message is a printf format string, so text the FMU "
@@ -159,6 +161,8 @@ class CheckOptions:
         The run's stop time and communication step (s); None: the default experiment's.
     only, skip : tuple of str
         Run only these checks / not these (names of :data:`RULES` and ``fuzz``).
+    ref, inputs : str or None
+        The reference result and its inputs (CSV files) of the ``reference`` check.
     """
 
     profile: str | None = None
@@ -166,6 +170,10 @@ class CheckOptions:
     step: float | None = None
     only: tuple[str, ...] = ()
     skip: tuple[str, ...] = ()
+    #: a reference result (CSV, the cross-check layout: time first, one column per output) and
+    #: the inputs of its run; None: ``<Model>_ref.csv`` / ``_in.csv`` / ``_ref.opt`` beside the FMU
+    ref: str | None = None
+    inputs: str | None = None
 
     def wants(self, name: str) -> bool:
         """Whether check ``name`` is selected."""

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
+import fmpy
 import numpy as np
 from fmpy.fmi1 import FMICallException
+from fmpy.util import read_csv, read_ref_opt_file, validate_result, validate_signal
 
 from .driver import (KINDS, Context, Run, Var, bounded, do_step, excite, initialize, read_now, reader,
                      run_steps, same, whole_run, write)
@@ -364,13 +367,66 @@ def check_state(ctx: Context) -> str:
             + ", ".join(parts))
 
 
-def check_reference(ctx: Context) -> str:
-    if not ctx.ours:
-        raise CheckSkipped("reference results are the project's FMUs' (dronefly profile)")
+def reference_files(ctx: Context) -> tuple[Path, Path | None, Path | None] | None:
+    """(reference CSV, inputs CSV or None, .opt or None) of the run to compare: the options'
+    (``--ref``, ``--in``), or the cross-check layout beside the FMU (``<Model>_ref.csv``,
+    ``<Model>_in.csv``, ``<Model>_ref.opt``, Model the FMU file's name); None if neither."""
+    folder, stem = ctx.fmu.path.parent, ctx.fmu.path.stem
+    if ctx.options.ref is not None:
+        ref = Path(ctx.options.ref)
+    elif (folder / f"{stem}_ref.csv").is_file():
+        ref = folder / f"{stem}_ref.csv"
+    else:
+        return None
+    inputs = (Path(ctx.options.inputs) if ctx.options.inputs is not None
+              else folder / f"{stem}_in.csv" if ctx.options.ref is None
+              and (folder / f"{stem}_in.csv").is_file() else None)
+    opt = ref.with_name(ref.name[: -len("_ref.csv")] + "_ref.opt") \
+        if ref.name.endswith("_ref.csv") else None
+    return ref, inputs, opt if opt is not None and opt.is_file() else None
 
+
+def _against_reference(ctx: Context, ref: Path, inputs: Path | None, opt: Path | None) -> str:
+    reference = read_csv(str(ref))
+    names = list(reference.dtype.names[1:])
+    known = {v.name for v in ctx.fmu.model_description.modelVariables}
+    unknown = [n for n in names if n not in known]
+    require(not unknown, f"{ref.name}: {', '.join(unknown[:4])} name no variable of the FMU")
+    t_ref = np.asarray(reference[reference.dtype.names[0]], float)
+    o = read_ref_opt_file(str(opt)) if opt is not None else {}
+    start = float(o.get("StartTime", t_ref[0]))
+    stop = float(o.get("StopTime", t_ref[-1]))
+    step = float(o.get("StepSize", (t_ref[-1] - t_ref[0]) / max(len(t_ref) - 1, 1)))
+    ctx.event(call=f"fmpy.simulate_fmu(start_time={start!r}, stop_time={stop!r}, "
+                   f"output_interval={step!r})")
+    result = fmpy.simulate_fmu(str(ctx.fmu.path), fmi_type="CoSimulation", start_time=start,
+                               stop_time=stop, output_interval=step, output=names,
+                               input=read_csv(str(inputs)) if inputs is not None else None)
+    outliers = float(validate_result(result, reference, stop_time=stop))
+    worst = []
+    for name in names:
+        _, _, _, out = validate_signal(t=result["time"], y=result[name], t_ref=t_ref.copy(),
+                                       y_ref=reference[name])
+        if np.any(out):
+            k = int(np.argmax(out))
+            worst.append(f"{name} at t = {float(result['time'][k]):.6g} s: "
+                         f"{float(result[name][k]):.6g}")
+    source = f"{ref.name}" + (f" with {inputs.name}" if inputs is not None else "")
+    require(outliers == 0.0, f"{outliers:.1%} of the samples outside FMPy's validation band "
+                             f"of {source} (first outside: {'; '.join(worst[:3])})")
+    return f"{len(names)} output(s) within FMPy's validation band of {source}"
+
+
+def check_reference(ctx: Context) -> str:
+    files = reference_files(ctx)
+    if files is not None:
+        return _against_reference(ctx, *files)
+    if not ctx.ours:
+        raise CheckSkipped("no reference result (--ref FILE.csv, or <Model>_ref.csv beside "
+                           "the FMU)")
     if ctx.fmu.name not in REFERENCES:
         raise CheckSkipped("no reference result for this model")
     r = cross_check(ctx.fmu.name, ctx.fmu.path)
     require(r.passed, f"{r.cross_check_outliers:.1%} outliers, max relative error "
-                       f"{r.max_rel_error:.2e}")
+                      f"{r.max_rel_error:.2e}")
     return f"cross-check: no outliers, max relative error {r.max_rel_error:.1e}"

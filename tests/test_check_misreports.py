@@ -367,3 +367,32 @@ def test_an_outputs_dependency_lie_fails_dependencies_only(tmp_path, version):
         "Float64_continuous_output (declared in Outputs with no dependency among the inputs) "
         "changed when only Float64_continuous_input was set, in Step Mode"), \
         failed["dependencies"].detail
+
+
+# -- Model Exchange -----------------------------------------------------------------------------
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+@pytest.mark.parametrize("model", ["BouncingBall", "Dahlquist", "Stair", "VanDerPol"])
+def test_reference_fmus_pass_through_model_exchange(model, version):
+    """The Reference-FMUs with both interfaces pass ``model-exchange`` (FMPy's Model Exchange
+    simulation with CVODE and its event handling; Stair's terminateSimulation at 9 s ends it)."""
+    c = _by_name(check_fmu(REF / version / f"{model}.fmu", fuzz=False, isolate=False,
+                           options=CheckOptions(only=("model-exchange",))))["model-exchange"]
+    assert c.passed and not c.skipped, c
+    assert "event iteration at initialization: 1 iteration(s); FMPy's Model Exchange " \
+           "simulation (CVODE) to t = " in c.detail
+
+
+@needs_gcc
+def test_an_event_iteration_that_never_ends_fails_model_exchange(tmp_path):
+    """Dahlquist rebuilt so that fmi2NewDiscreteStates always asks for another iteration:
+    ``model-exchange`` fails (the event iteration must terminate), no other check."""
+    edits = {"fmi2Functions.c": [
+        ("    eventInfo->newDiscreteStatesNeeded           = S->newDiscreteStatesNeeded;",
+         "    eventInfo->newDiscreteStatesNeeded           = fmi2True;")]}
+    fmu = _rebuilt(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+                   edits)
+    report = check_fmu(fmu, fuzz=False)
+    failed = _failed(report)
+    assert set(failed) == {"model-exchange"}, report.checks
+    assert failed["model-exchange"].detail.startswith(
+        "the event iteration of initialization did not terminate in 1000 iterations")

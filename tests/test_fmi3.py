@@ -408,8 +408,8 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     assert len(fatal) + len(died) >= 1 and len(fatal) <= 1 and len(died) <= 1, out
     accounted = fatal + died + skipped + (left.group(1).split(", ") if left else [])
     order = ["call-sequence", "start-values", "dependencies", "reset", "two-instances", "state",
-             "bad-input", "reference", "logger-format", "state-machine", "discard",
-             "state-refusal"]
+             "model-exchange", "bad-input", "reference", "logger-format", "state-machine",
+             "discard", "state-refusal"]
     assert sorted(accounted) == sorted(order), out
 
 

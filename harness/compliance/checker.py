@@ -7,6 +7,7 @@ The runner. The checks live in their families, one home each, every one a functi
 * :mod:`.binary` (the shared library as a host links and calls it): ``binary``;
 * :mod:`.runtime` (runtime semantics): ``call-sequence``, ``start-values``, ``dependencies``,
   ``reset``, ``two-instances``, ``state``, ``reference``;
+* :mod:`.exchange` (the Model Exchange interface): ``model-exchange``;
 * :mod:`.refusals` (calls to refuse or survive): ``bad-input``, ``state-machine``,
   ``discard``, ``state-refusal``, ``logger-format``.
 
@@ -27,7 +28,7 @@ from typing import Callable
 
 from ...core.interrupt import pending
 from ..cosim.fmu import FMU, FMUError
-from . import binary, refusals, runtime, static
+from . import binary, exchange, refusals, runtime, static
 from .driver import Context, experiment, profile_for
 from .rules import (PROFILES, RULES, CheckFailed, CheckOptions, CheckResult, CheckSkipped,
                     FMUReport, rule_of)
@@ -63,6 +64,7 @@ CHECKS: tuple[Check, ...] = (
     Check("reset", runtime.check_reset, needs=_RUN),
     Check("two-instances", runtime.check_two_instances, needs=_RUN),
     Check("state", runtime.check_state, needs=_RUN),
+    Check("model-exchange", exchange.check_model_exchange),
     Check("bad-input", refusals.check_bad_input),
     Check("reference", runtime.check_reference, needs=_RUN),
     Check("state-machine", refusals.check_state_machine, versions=(3,)),

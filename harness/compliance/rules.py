@@ -84,6 +84,11 @@ RULES: dict[str, tuple[str, str, str]] = {
         "continues as the original did",
         "FMI 3.0 2.2.6.4 (Getting and Setting the Complete FMU State): a restored state "
         "continues as the original did", ""),
+    "model-exchange": (
+        "FMI 2.0 3.2.3 (Model Exchange state machine): the event iteration of initialization "
+        "terminates; FMPy's Model Exchange simulation (CVODE, events) runs to the stop time",
+        "FMI 3.0 3.2 (Model Exchange state machine): the event iteration of initialization "
+        "terminates; FMPy's Model Exchange simulation (CVODE, events) runs to the stop time", ""),
     "bad-input": (
         "FMI 2.0 4.2.2 (fmi2DoStep: communicationStepSize > 0, the communication point "
         "continues the last) and 2.1.3 (after fmi2Error only fmi2Reset, fmi2FreeInstance or "

@@ -7,7 +7,7 @@
   ``canGetAndSetFMUstate`` / ``canSerializeFMUstate`` are declared, the directional derivative
   where ``providesDirectionalDerivative`` is;
 * answers ``fmi2GetVersion`` "2.0" and ``fmi2GetTypesPlatform`` "default" (FMI 2.0 2.1.4),
-  ``fmi3GetVersion`` "3.0" (FMI 3.0 2.2.4);
+  ``fmi3GetVersion`` "3.0";
 
 and, for ``logger-format`` (:mod:`.refusals`, the last check: a crash there leaves no other
 check out), :func:`logger_passes_back`: what the host gave it reaches its logger, FMI 2.0 the

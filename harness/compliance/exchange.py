@@ -4,8 +4,8 @@
 
 * the event iteration of initialization terminates: after fmi2ExitInitializationMode,
   fmi2NewDiscreteStates (FMI 3.0: fmi3UpdateDiscreteStates) stops asking for another iteration
-  within :data:`MAX_EVENT_ITERATIONS` (FMI 2.0 3.2.3, FMI 3.0 3.2: the event iteration must
-  converge);
+  within :data:`MAX_EVENT_ITERATIONS` (FMI 2.0 3.2.3, FMI 3.0 chapter 3: the event iteration
+  must converge);
 * the calling sequence of Model Exchange's state machine runs to the stop time under FMPy's
   Model Exchange simulation (its CVODE solver and event handling: state and time events,
   terminateSimulation), with finite outputs (non-finite: a warning).

@@ -50,7 +50,7 @@ RULES: dict[str, tuple[str, str, str]] = {
         "FMI 2.0 2.1.1, 2.1.4 (the binary): every function the interface and the declared "
         "capabilities require is exported; fmi2GetVersion is \"2.0\" and fmi2GetTypesPlatform "
         "\"default\"",
-        "FMI 3.0 2.2.1, 2.2.4 (the binary): every function the interface and the declared "
+        "FMI 3.0 2.2.1 (the binary): every function the interface and the declared "
         "capabilities require is exported; fmi3GetVersion is \"3.0\"", ""),
     "call-sequence": (
         "FMI 2.0 4.2.4 (state machine of the calling sequence): instantiate, initialize, "
@@ -87,7 +87,7 @@ RULES: dict[str, tuple[str, str, str]] = {
     "model-exchange": (
         "FMI 2.0 3.2.3 (Model Exchange state machine): the event iteration of initialization "
         "terminates; FMPy's Model Exchange simulation (CVODE, events) runs to the stop time",
-        "FMI 3.0 3.2 (Model Exchange state machine): the event iteration of initialization "
+        "FMI 3.0 3 (Model Exchange, its state machine): the event iteration of initialization "
         "terminates; FMPy's Model Exchange simulation (CVODE, events) runs to the stop time", ""),
     "bad-input": (
         "FMI 2.0 4.2.2 (fmi2DoStep: communicationStepSize > 0, the communication point "

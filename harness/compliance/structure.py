@@ -19,7 +19,7 @@
 * aliases (variables sharing a value reference) agree in type and variability and at most one
   of them has a start value (2.2.7 / FMI 3.0: value references are unique, 2.4.7);
 * FMI 3.0: a dimension given by a value reference names a structural parameter (or constant) of
-  an unsigned integer type; a ``clocks`` attribute names Clock variables (2.4.7, 2.4.7.6).
+  an unsigned integer type; a ``clocks`` attribute names Clock variables (2.4.7).
 """
 
 from __future__ import annotations
@@ -154,7 +154,7 @@ def structure_problems(md: Any, fmi_version: int) -> list[tuple[str, str]]:
                                        "integer type"))
             for clock in getattr(v, "clocks", None) or []:
                 if getattr(clock, "type", None) != "Clock":
-                    out.append(("2.4.7.6", f"{what}: clocks names {clock.name!r}, not a Clock"))
+                    out.append(("2.4.7", f"{what}: clocks names {clock.name!r}, not a Clock"))
     # aliases: variables sharing a value reference (per type family in FMI 2.0)
     by_vr: dict[Any, list[Any]] = defaultdict(list)
     for v in variables:

@@ -172,8 +172,9 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
 
     k = add("check", "FMI 2.0 and 3.0 co-simulation compliance checks, each naming its rule of "
-            "the standard (validate, call sequence, start values, dependencies, reset, state, "
-            "bad input; for the project's FMUs also the dronefly profile and the fuzz)")
+            "the standard (validate, archive, binary, call sequence, start values, dependencies, "
+            "reset, state, Model Exchange, bad input, reference results, logger; for the "
+            "project's FMUs also the dronefly profile and the fuzz)")
     k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
                    "into --build, FMI 2.0 and FMI 3.0, and check every FMU there)")
     k.add_argument("--build", default="build", metavar="DIR",

@@ -82,7 +82,7 @@ def check_model_exchange(ctx: Context) -> str:
     outputs = [v.name for v in ctx.outputs if v.kind == "Real"]
     ctx.event(call=f"fmpy.simulate_fmu(fmi_type='ModelExchange', solver='CVode', "
                    f"stop_time={ctx.stop!r})")
-    result = fmpy.simulate_fmu(str(ctx.fmu.path), fmi_type="ModelExchange", solver="CVode",
+    result = fmpy.simulate_fmu(str(ctx.fmu._unzipdir), fmi_type="ModelExchange", solver="CVode",
                                start_time=ctx.start, stop_time=ctx.stop,
                                # at most 100 rows: the run is checked, not recorded
                                output_interval=max(ctx.step, (ctx.stop - ctx.start) / 100),

@@ -4,6 +4,7 @@ not apply, Ctrl-C within one FMU's check, and no temporary folder left at any en
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -178,3 +179,39 @@ def test_no_temporary_folder_survives(hanging, private_tmp, tmp_path, case):
                              timeout_s=3.0 if case == "timed out" else 120.0)
     assert report.passed == (case == "passed"), report.checks
     assert list(private_tmp.iterdir()) == [], case
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc and pgrep: Linux")
+def test_sigterm_stops_the_checking_process_and_removes_its_folder(hanging, tmp_path):
+    """SIGTERM to `dronefly check` (a CI job's timeout) while an FMU's step hangs: exit 143,
+    the checking process does not outlive it, and no temporary folder is left."""
+    import signal
+    import subprocess
+
+    folder = tmp_path / "tmp"
+    folder.mkdir()
+    env = {**os.environ, "TMPDIR": str(folder)}
+    proc = subprocess.Popen([sys.executable, "-m", "dronefly", "check", "--no-fuzz", "--skip",
+                             "validate", str(hanging)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    rows = None
+    while time.monotonic() < deadline:  # until the checking process is in the hanging step
+        rows = next(folder.glob("dronefly_check_*/checks.jsonl"), None)
+        if rows is not None and "fmi2DoStep(currentCommunicationPoint=0.05" in rows.read_text():
+            break
+        time.sleep(0.1)
+    else:
+        proc.kill()
+        pytest.fail(f"the check did not reach the hanging step: {proc.communicate()}")
+    children = subprocess.run(["pgrep", "-f", f"compliance.suite {hanging}"],
+                              capture_output=True, text=True).stdout.split()
+    assert children
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=60) == 143
+    for _ in range(50):  # the child is killed with its parent
+        if not any(Path(f"/proc/{pid}").exists() for pid in children):
+            break
+        time.sleep(0.1)
+    assert not any(Path(f"/proc/{pid}").exists() for pid in children), children
+    assert list(folder.iterdir()) == []

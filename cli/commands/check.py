@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import signal
 import sys
+import threading
 from pathlib import Path
+from typing import Iterator
 
 import fmpy
 
@@ -85,6 +89,24 @@ def _junit_target(junit: str | None) -> None:
                             + ("is a file" if folder.exists() else "does not exist"))
 
 
+@contextlib.contextmanager
+def _sigterm_exits() -> Iterator[None]:
+    """SIGTERM (a CI job's timeout, ``kill``) ends the checks as SystemExit(143), so that the
+    checking processes are stopped and their temporary folders removed on the way out."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signal.SIGTERM)
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``dronefly check`` with the parsed arguments; returns the exit code."""
     options = CheckOptions(profile=None if args.profile == "auto" else args.profile,
@@ -106,8 +128,9 @@ def run(args: argparse.Namespace) -> int:
         paths += [build_fmu(name, Path(args.build) / "fmi3", fmi=3) for name in FMUS]
         _experiments(paths, options)
     try:
-        reports = check_fmus(paths, jobs=args.jobs, fuzz=not args.no_fuzz, options=options,
-                             timeout_s=args.timeout)
+        with _sigterm_exits():
+            reports = check_fmus(paths, jobs=args.jobs, fuzz=not args.no_fuzz, options=options,
+                                 timeout_s=args.timeout)
     except CheckInterrupted as stop:  # the finished FMUs shown; no report file claims more
         if not args.json and stop.reports:
             print(format_reports(stop.reports, verbose=args.verbose))

@@ -5,14 +5,18 @@ runs one with its own temporary folder as ``TMPDIR`` (where the FMU is extracted
 whatever the end: success, failure, a crash of the FMU, the timeout, Ctrl-C. The child is in
 a session of its own (a Ctrl-C typed in the terminal reaches only ``dronefly check``); the
 parent asks :func:`dronefly.core.interrupt.pending` while it waits and, on Ctrl-C, kills the
-child and raises :class:`KeyboardInterrupt` within one poll.
+child and raises :class:`KeyboardInterrupt` within one poll. On Linux the child also dies with
+the parent (SIGKILL when the parent ends), whatever ends it.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
 import shutil
+import signal
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -20,10 +24,11 @@ from typing import Sequence
 
 from ...core.interrupt import pending
 
-__all__ = ["ChildRun", "POLL_S", "run_child"]
+__all__ = ["ChildRun", "POLL_S", "die_with_parent", "run_child"]
 
 #: how often the parent asks whether Ctrl-C came while a child works [s]
 POLL_S = 0.05
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 @dataclass(frozen=True)
@@ -39,6 +44,21 @@ def _text(b: bytes | str | None) -> str:
     if isinstance(b, bytes):
         return b.decode("utf-8", "replace")
     return b or ""
+
+
+def die_with_parent() -> None:
+    """Called first in a checking process (Linux): it gets SIGKILL when the thread of
+    ``dronefly check`` that started it ends, whatever ends it (a signal it cannot handle): no
+    checking process outlives ``dronefly check``."""
+    if not sys.platform.startswith("linux"):
+        return
+    parent = os.getppid()
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL))
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent ended before the request was made
+        os._exit(1)
 
 
 def run_child(cmd: Sequence[str], timeout_s: float, tmp: str | None = None) -> ChildRun:

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .checker import CHECKS, CheckOptions, CheckResult, FMUReport, listed, rule_of, run_checks
 from ...core.interrupt import pending
-from .child import run_child
+from .child import die_with_parent, run_child
 from .fuzz import describe_exit, fuzz_fmu
 
 __all__ = ["JSON_SCHEMA", "JSON_SCHEMA_FILE", "CheckInterrupted", "check_fmu", "check_fmus", "format_reports", "not_checked",
@@ -308,4 +308,5 @@ def reports_junit(reports: list[FMUReport]) -> str:
 
 
 if __name__ == "__main__":  # the child process of check_fmu
+    die_with_parent()
     _child(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else "{}")

@@ -61,6 +61,7 @@ _EPILOG = {
     "demo": "examples:\n  dronefly demo\n  dronefly demo --native --no-plot\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
             "exit codes: 0 ok, 1 a run's cross-check failed (outputs kept), 2 bad input",
     "check": "examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
+             "  dronefly check Model.fmu --ref Model_ref.csv --in Model_in.csv\n"
              "exit codes: 0 all checks passed, 1 a check failed, 2 bad input",
     "analyze": "examples:\n  dronefly analyze\n  dronefly analyze --json\n"
                "  dronefly analyze --markdown --out docs/reproduction.md\n"
@@ -193,8 +194,9 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--no-plot", action="store_true", help="do not write the PNG")
 
     k = add("check", "FMI 2.0 and 3.0 co-simulation compliance checks, each naming its rule of "
-            "the standard (validate, call sequence, start values, dependencies, reset, state, "
-            "bad input; for the project's FMUs also the dronefly profile and the fuzz)")
+            "the standard (validate, archive, binary, call sequence, start values, dependencies, "
+            "reset, state, Model Exchange, bad input, reference results, logger; for the "
+            "project's FMUs also the dronefly profile and the fuzz)")
     k.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
                    "into --build, FMI 2.0 and FMI 3.0, and check every FMU there)")
     k.add_argument("--build", default="build", metavar="DIR",
@@ -224,6 +226,12 @@ def _parser() -> argparse.ArgumentParser:
     k.add_argument("--timeout", type=positive, default=600.0, metavar="S",
                    help="how long the checks of one FMU may take before it is reported as hung "
                         "(default 600 s)")
+    k.add_argument("--ref", default=None, metavar="CSV",
+                   help="reference result of the one FMU given (FMI cross-check CSV: time, then "
+                        "outputs), compared by the reference check (default: <Model>_ref.csv "
+                        "beside the FMU, if there)")
+    k.add_argument("--in", dest="inputs", default=None, metavar="CSV",
+                   help="with --ref: the inputs of the reference run (cross-check CSV)")
 
     d = add("demo", "open loop and closed loop with the paper's gains: the verdict table")
     d.add_argument("--out", type=out_dir, default="build/cosim", metavar="DIR", help="folder of CSVs and plots")

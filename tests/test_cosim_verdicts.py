@@ -372,9 +372,9 @@ def test_the_installed_package_holds_every_module_of_the_checkout():
                if not p.relative_to(ROOT).parts[0].startswith(".")
                and p.relative_to(ROOT).parts[0] not in skip}
     assert set(config["packages"]) == {".".join(("dronefly", *f.parts)) for f in folders}
-    for pkg in config["package-data"]:  # the README and reference files of each FMU folder
-        assert (ROOT / Path(*pkg.split(".")[1:]) / "README.md").is_file() or \
-            list((ROOT / Path(*pkg.split(".")[1:])).glob("*_ref.csv")), pkg
+    for pkg, patterns in config["package-data"].items():  # the README and reference files
+        folder = ROOT / Path(*pkg.split(".")[1:])        # of each FMU folder, check's schema
+        assert any(list(folder.glob(p)) for p in patterns), pkg
 
 
 def test_a_checkout_named_dronefly_is_the_package(tmp_path):

@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
 import sys
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from .child import run_child
 
 __all__ = ["FuzzCase", "FuzzReport", "GROUP_NAMES", "describe_exit", "fuzz_fmu"]
 
@@ -124,12 +125,10 @@ def _run(path: Path, groups: tuple[str, ...], seed: int, random_calls: int, inst
            ",".join(groups), str(seed), str(random_calls), str(instances), str(start),
            "1" if logging else "0"]
     label = "" if logging else " (logging off)"
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
-        out, died = proc.stdout, (None if proc.returncode == 0 else describe_exit(proc.returncode))
-    except subprocess.TimeoutExpired as e:
-        out = e.stdout.decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
-        died = f"hung for more than {timeout_s:g} s"
+    proc = run_child(cmd, timeout_s)  # its temporary files removed at any end; Ctrl-C raises
+    out = proc.stdout
+    died = (f"hung for more than {timeout_s:g} s" if proc.returncode is None
+            else None if proc.returncode == 0 else describe_exit(proc.returncode))
     done: list[FuzzCase] = []
     current: tuple[str, str] | None = None
     for line in out.splitlines():

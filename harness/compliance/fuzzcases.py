@@ -27,6 +27,7 @@ import random
 import sys
 from typing import Any, Callable
 
+from .child import die_with_parent
 from .fuzzkit import (BAD_VALUES, ERROR, LOGGING, OK, PRINTED, STATES, Case, experiment,
     instantiate, reals, to_state)
 from .fuzzrandom import group_churn, group_random
@@ -226,5 +227,6 @@ def run_groups(path: str, groups: list[str], seed: int, random_calls: int, insta
 
 
 if __name__ == "__main__":
+    die_with_parent()  # a fuzz process never outlives dronefly check
     run_groups(sys.argv[1], sys.argv[2].split(","), int(sys.argv[3]), int(sys.argv[4]),
                int(sys.argv[5]), int(sys.argv[6]), sys.argv[7] == "1")

@@ -15,26 +15,28 @@ from __future__ import annotations
 import json
 import os
 import re
-import subprocess
 import sys
 import tempfile
 import time
 import traceback
 import xml.etree.ElementTree as ET
 import zipfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict
 from pathlib import Path
 
-from .checker import CHECK_NAMES, CheckOptions, CheckResult, FMUReport, rule_of, run_checks
-from .fmi3checks import FMI3_CHECKS, FMI3_PROFILES
+from .checker import CHECKS, CheckOptions, CheckResult, FMUReport, listed, rule_of, run_checks
+from ...core.interrupt import pending
+from .child import die_with_parent, run_child
 from .fuzz import describe_exit, fuzz_fmu
 
-__all__ = ["JSON_SCHEMA", "check_fmu", "check_fmus", "format_reports", "not_checked",
+__all__ = ["JSON_SCHEMA", "JSON_SCHEMA_FILE", "CheckInterrupted", "check_fmu", "check_fmus", "format_reports", "not_checked",
            "reports_json", "reports_junit"]
 
 #: the version of the ``--json`` document (``{"schema": JSON_SCHEMA, "fmus": [...]}``)
 JSON_SCHEMA = "dronefly-check/2"
+#: the JSON Schema (draft 2020-12) of that document, shipped with the package
+JSON_SCHEMA_FILE = Path(__file__).with_name("check-schema.json")
 
 
 def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
@@ -56,12 +58,20 @@ def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
     """
     path = Path(path)
     options = options or CheckOptions()
+    if pending():
+        raise KeyboardInterrupt
     t0 = time.perf_counter()
     reason = not_checked(path)
     if reason is not None:
         return FMUReport(path, skipped=reason)
     report = (_check_isolated(path, options, timeout_s) if isolate
               else run_checks(path, options=options))
+    if fuzz and "fuzz" in options.only and options.wants("fuzz") and report.profile \
+            and report.profile != "dronefly":
+        report.checks.append(CheckResult(
+            "fuzz", True, "not applicable: fuzz is the dronefly profile's check (--profile "
+            f"dronefly runs it); this FMU is checked under the {report.profile} profile",
+            rule="dronefly profile: the fuzz", skipped=True))
     if fuzz and options.wants("fuzz") and report.profile == "dronefly":
         if _fmi_version(path) == "3.0":
             report.checks.append(CheckResult(
@@ -78,13 +88,44 @@ def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
     return report
 
 
+class CheckInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped :func:`check_fmus`; ``reports`` holds the FMUs whose checks finished
+    (in the order of the paths), none of the FMU it was checking."""
+
+    def __init__(self, reports: list[FMUReport]) -> None:
+        super().__init__()
+        self.reports = reports
+
+
 def check_fmus(paths: list[Path], *, jobs: int = 1, **kwargs) -> list[FMUReport]:
     """:func:`check_fmu` on each FMU, ``jobs`` at a time (each in its child process); the
-    reports in the order of ``paths``."""
+    reports in the order of ``paths``.
+
+    Raises
+    ------
+    CheckInterrupted
+        Ctrl-C (a deferred SIGINT, :mod:`dronefly.core.interrupt`): the FMUs being checked are
+        stopped within one poll of their child process, the finished ones are returned in it.
+    """
+    done: dict[int, FMUReport] = {}
     if jobs <= 1 or len(paths) <= 1:
-        return [check_fmu(p, **kwargs) for p in paths]
-    with ThreadPoolExecutor(max_workers=jobs) as pool:
-        return list(pool.map(lambda p: check_fmu(p, **kwargs), paths))
+        try:
+            for k, p in enumerate(paths):
+                done[k] = check_fmu(p, **kwargs)
+        except KeyboardInterrupt:
+            raise CheckInterrupted([done[k] for k in sorted(done)]) from None
+        return [done[k] for k in range(len(paths))]
+    pool = ThreadPoolExecutor(max_workers=jobs)
+    try:
+        futures = {pool.submit(check_fmu, p, **kwargs): k for k, p in enumerate(paths)}
+        for f in as_completed(futures):
+            done[futures[f]] = f.result()
+    except KeyboardInterrupt:
+        pool.shutdown(wait=True, cancel_futures=True)  # the running ones stop at their poll
+        raise CheckInterrupted([done[k] for k in sorted(done)]) from None
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return [done[k] for k in range(len(paths))]
 
 
 def _model_description_head(path: Path) -> str | None:
@@ -121,16 +162,14 @@ def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUR
     with tempfile.TemporaryDirectory(prefix="dronefly_check_") as tmp:
         rows = Path(tmp, "checks.jsonl")
         opts = json.dumps(asdict(options))
-        try:
-            proc = subprocess.run([sys.executable, "-m", "dronefly.harness.compliance.suite",
-                                   str(path), str(rows), opts], capture_output=True, text=True,
-                                  timeout=timeout_s)
-            died = None if proc.returncode == 0 else describe_exit(proc.returncode)
-            output = (proc.stdout + proc.stderr).strip()
-        except subprocess.TimeoutExpired as e:
+        # the child's own temporary files (the extracted FMU) go to tmp: removed at any end
+        proc = run_child([sys.executable, "-m", "dronefly.harness.compliance.suite",
+                          str(path), str(rows), opts], timeout_s, tmp=tmp)
+        if proc.returncode is None:
             died = f"hung for more than {timeout_s:g} s"
-            output = ((e.stdout or b"").decode("utf-8", "replace") if isinstance(e.stdout, bytes)
-                      else (e.stdout or "")).strip()
+        else:
+            died = None if proc.returncode == 0 else describe_exit(proc.returncode)
+        output = (proc.stdout + proc.stderr).strip()
         report = FMUReport(path)
         current, call, logged, internal = None, None, [], None
         text = rows.read_text(encoding="utf-8", errors="replace") if rows.exists() else ""
@@ -173,8 +212,8 @@ def _not_run(path: Path, report: FMUReport, crashed: str | None,
     """One failed row listing the checks a crash left out (none if it left none out)."""
 
     profile = report.profile or "standard"
-    names = [*CHECK_NAMES, *(n for n, _ in FMI3_CHECKS
-                             if _fmi_version(path) == "3.0" and profile in FMI3_PROFILES[n])]
+    fmi = 3 if _fmi_version(path) == "3.0" else 2
+    names = [c.name for c in CHECKS if listed(c, fmi, profile)]
     done = {c.name for c in report.checks}
     rest = [n for n in names if n not in done and options.wants(n)]
     where = f"in {crashed}" if crashed else "between checks"
@@ -269,4 +308,5 @@ def reports_junit(reports: list[FMUReport]) -> str:
 
 
 if __name__ == "__main__":  # the child process of check_fmu
+    die_with_parent()
     _child(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else "{}")

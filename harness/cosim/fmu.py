@@ -100,13 +100,14 @@ def column_units(names: Sequence[str], fmus: Mapping[str, "FMU"],
     return out
 
 
-def check_archive(path: Path) -> None:
+def check_archive(path: Path, require_binary: bool = True) -> None:
     """Refuse an FMU that could not be loaded safely, before anything of it is loaded.
 
     Checks that the file is a zip with a modelDescription.xml of FMI version 2.0 or 3.0, a
-    co-simulation binary for this platform, and, for a pythonfmu FMU (``slavemodule.txt``,
-    also nested ones), the Python module it names: pythonfmu crashes the host on a missing
-    one. Raises :class:`FMUError` with one line naming what is missing.
+    co-simulation binary for this platform (unless ``require_binary`` is false), and, for a
+    pythonfmu FMU (``slavemodule.txt``, also nested ones), the Python module it names:
+    pythonfmu crashes the host on a missing one. Raises :class:`FMUError` with one line
+    naming what is missing.
     """
 
     try:
@@ -125,7 +126,7 @@ def check_archive(path: Path) -> None:
         raise FMUError(f"{str(path)!r} is an FMI {found} FMU; dronefly co-simulates FMI 2.0 "
                        "and 3.0 co-simulation FMUs")
     ident = re.search(r'<CoSimulation[^>]*modelIdentifier\s*=\s*"([^"]*)"', head)
-    if ident is not None:
+    if ident is not None and require_binary:
         folder = platform if version.group(1) == "2.0" else platform_tuple
         lib = f"binaries/{folder}/{ident.group(1)}{sharedLibraryExtension}"
         if lib not in names:
@@ -137,6 +138,19 @@ def check_archive(path: Path) -> None:
                            "is missing (the FMU's Python sources)")
 
 
+def _one_line(e: Exception) -> str:
+    """fmpy's error in one line, every problem it lists kept: ``Failed to validate
+    modelDescription.xml: - a; - b`` becomes ``modelDescription.xml: a; b``."""
+    lines = [ln.strip() for ln in str(e).strip().splitlines() if ln.strip()]
+    if not lines:
+        return repr(e)
+    head, items = lines[0], [ln.lstrip("- ").strip() for ln in lines[1:]]
+    if head.startswith("Failed to validate ") and items:
+        what = head[len("Failed to validate "):].rstrip(":")
+        return f"{what} breaks {len(items)} rule(s): " + "; ".join(items)
+    return "; ".join([head, *items])
+
+
 class FMU:
     """An FMI 2.0 CS FMU, read and extracted once.
 
@@ -144,24 +158,31 @@ class FMU:
     ----------
     path : str or Path
         The ``.fmu`` file.
+    validate : bool
+        Refuse a modelDescription.xml that fmpy's validation finds problems in (default);
+        ``dronefly check`` reads it unvalidated and lists every problem in its own checks.
+    require_binary : bool
+        Refuse an FMU without a binary for this platform (default).
 
     Raises
     ------
     FMUError
-        Missing file, not a zip, no valid modelDescription.xml, no co-simulation.
+        Missing file, not a zip, no valid modelDescription.xml (every problem fmpy names, in
+        one line), no co-simulation.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, validate: bool = True,
+                 require_binary: bool = True) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise FMUError(f"FMU file {str(self.path)!r} " + (
                 "is a folder, not an FMU file" if self.path.is_dir() else "does not exist"))
-        check_archive(self.path)
+        check_archive(self.path, require_binary=require_binary)
         try:
-            self.model_description = fmpy.read_model_description(str(self.path))
-        except Exception as e:  # fmpy's schema errors span many lines: the first says it
-            first = str(e).strip().splitlines()[0] if str(e).strip() else repr(e)
-            raise FMUError(f"{str(self.path)!r} is not a readable FMU: {first}") from e
+            self.model_description = fmpy.read_model_description(str(self.path),
+                                                                  validate=validate)
+        except Exception as e:  # fmpy lists its problems one a line: every one kept
+            raise FMUError(f"{str(self.path)!r} is not a readable FMU: {_one_line(e)}") from e
         md = self.model_description
         if md.coSimulation is None:
             raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU (model exchange only)")

@@ -30,6 +30,9 @@ _SMALLER = {"sweep": ["--grid", "2", "--slices", "dgamma:dv", "--lhs", "4", "--d
 #: examples not run as they are: why, and the exit code they give as run
 _NEEDS = {"dronefly sweep --scheduler tcp://10.0.0.5:8786": ("a Dask cluster and the sweep "
                                                              "extra: refused, naming it", 2),
+          # placeholders for the user's FMU and its results: refused, naming the missing file
+          "dronefly check Model.fmu --ref Model_ref.csv --in Model_in.csv": (
+              "the user's FMU and CSV files: refused, naming the missing --ref file", 2),
           # every check of every FMU, built for FMI 2.0 and 3.0 (minutes): run on one FMU
           "dronefly check": ("run as: dronefly check build/DroneFlyFlapping.fmu", 0)}
 

@@ -2,12 +2,14 @@
 # Prepare a fresh Debian/Ubuntu machine for the C-host test of tests/test_interop.py:
 # a C compiler, and a shared libpython of the interpreter's major.minor version (pythonfmu's
 # binary needs the Python C API symbols from the host process; a C host gets them by
-# LD_PRELOAD of that library). Installs only what is missing; a no-op on a prepared machine.
+# LD_PRELOAD of that library); and valgrind, for the exit double-free test of
+# tests/test_reliability.py. Installs only what is missing; a no-op on a prepared machine.
 # Usage: .ci/setup-c-host.sh [python]   (default: $PYTHON or python3, the interpreter of the venv)
 set -euo pipefail
 PY="${1:-${PYTHON:-python3}}"
 need=()
 command -v gcc >/dev/null 2>&1 || need+=(gcc libc6-dev)
+command -v valgrind >/dev/null 2>&1 || need+=(valgrind)
 lib="$("$PY" - <<'PYEOF'
 import ctypes.util, os, sys, sysconfig
 libdir = sysconfig.get_config_var("LIBDIR") or ""
@@ -30,5 +32,5 @@ if [ "${#need[@]}" -gt 0 ]; then
   $SUDO apt-get update -q
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${need[@]}"
 else
-  echo "setup-c-host: gcc and libpython present"
+  echo "setup-c-host: gcc, libpython and valgrind present"
 fi

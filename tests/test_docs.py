@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pytest
 from docnumbers import NumericText, same_numbers
+from shared_files import provided_on_ci
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -84,7 +85,7 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path, request):
         from dronefly.harness.interop.libcosim import libpython_path
 
         if shutil.which("gcc") is None or libpython_path() is None:
-            pytest.skip("no gcc or no shared libpython (.ci/setup-c-host.sh installs them)")
+            provided_on_ci("no gcc or no shared libpython (.ci/setup-c-host.sh installs them)")
     if mark.startswith("needs ecospy"):
         from dronefly.harness.interop.ecos import ecos_available
 

@@ -71,7 +71,10 @@ def test_docs_in_box_numbers_through_the_fmus(systems, tmp_path):
     r = _compare(systems, spec, tmp_path / "box", workers=2)
     c = compare_summary(r.rows)
     n, stay = c["in_box_cases"], c["in_box_staying_cases"]
-    assert n == c["cases"] == 283
+    # every case starts in the box (extent 1): a 9 x 9 grid on each of the 3 slices and
+    # 4 amplitudes along each of the 10 directions (+/- the four axes and mode 1), none lost
+    assert (len(spec.slices), len(spec.directions)) == (3, 10)
+    assert n == c["cases"] == 3 * 9 ** 2 + 10 * 4  # = 283
     assert f"Of the {n} initial states inside the box, the {stay} whose" in TEXT
     assert f"at most {_pct(c['in_box_staying_max_err_lateral'])} of the bounds in the lateral" \
            in TEXT

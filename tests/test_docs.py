@@ -31,14 +31,22 @@ _FENCE = re.compile(r"(?:^<!-- doc-test: (?P<mark>[^\n]*?) -->\n)?^```(?P<lang>s
                     r"(?P<body>.*?)^```$", re.M | re.S)
 
 
+#: what a document says a block prints, right after the block: "prints" and a fenced block
+#: (possibly under a generated-block marker), or "prints `...`" inline
+_PRINTS = re.compile(r"\n*prints\n\n(?:<!-- [^\n]* -->\n)?```(?:text)?\n(?P<block>.*?)\n```"
+                     r"|\n*prints `(?P<inline>[^`]*)`", re.S)
+
+
 def _blocks() -> list:
     out = []
     for doc in DOCS:
         text = doc.read_text(encoding="utf-8")
         for k, m in enumerate(_FENCE.finditer(text)):
             line = text[:m.start("body")].count("\n")
+            shown = _PRINTS.match(text, m.end())
+            printed = None if shown is None else (shown.group("block") or shown.group("inline"))
             out.append(pytest.param(doc, m.group("lang"), m.group("body"), m.group("mark") or "",
-                                    id=f"{doc.name}:{line}"))
+                                    printed, id=f"{doc.name}:{line}"))
     return out
 
 
@@ -74,8 +82,8 @@ def test_every_block_is_run_or_skipped_with_a_reason():
 
 
 @pytest.mark.integration
-@pytest.mark.parametrize("doc, lang, body, mark", _blocks())
-def test_block_runs_verbatim(doc, lang, body, mark, tmp_path, request):
+@pytest.mark.parametrize("doc, lang, body, mark, printed", _blocks())
+def test_block_runs_verbatim(doc, lang, body, mark, printed, tmp_path, request):
     if mark.startswith("skip ("):
         pytest.skip(mark)
     # the core install unless the block says what more it needs
@@ -103,6 +111,10 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path, request):
                            capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{doc.name}: exit {r.returncode}\n{r.stdout[-1500:]}\n{r.stderr[-1500:]}"
     assert _status() == before, f"{doc.name}: the block changed the checkout"
+    if printed is not None:  # what the document says it prints: words exactly, numbers to a
+        # unit of their last printed digit (tests/docnumbers.py)
+        diff = same_numbers(" ".join(printed.split()), " ".join(r.stdout.split()))
+        assert diff is None, f"{doc.name}: the block prints other than the document says: {diff}"
 
 
 def test_readme_is_short_and_its_layout_names_every_folder():

@@ -89,12 +89,6 @@ def test_nan_is_our_promise_not_the_standards(ref):
                                                "returned OK")
 
 
-def test_integer_only_outputs(ref):
-    """C: Resource has one Integer output; it is read with fmi2GetInteger and recorded."""
-    report = _check(ref, "fmi2/Resource.fmu")
-    assert _by_name(report)["call-sequence"].passed
-
-
 @pytest.mark.parametrize("version", ["fmi2", "fmi3"])
 def test_stair_ends_its_run_and_its_reset_keeps_the_end(ref, version):
     """D, H: Stair asks to stop at t = 9 s (FMI 2.0: fmi2Discard with fmi2Terminated, 4.2.3;

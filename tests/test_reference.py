@@ -6,8 +6,14 @@ import shutil
 
 import numpy as np
 import pytest
+from fmpy.util import read_csv
+from scipy.integrate import solve_ivp
 
 from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
+from dronefly.harness.paper.analysis import lateral_system, longitudinal_system
+from dronefly.models.feedback import default_gains
+from dronefly.models.lateral import LATERAL, N_HZ, U_M_PER_S
+from dronefly.models.longitudinal import LONGITUDINAL
 
 pytestmark = pytest.mark.integration
 
@@ -53,3 +59,50 @@ def test_a_wrong_reference_is_detected(built_fmus, tmp_path):
     ref.write_text("\n".join([head, *(",".join(r) for r in rows)]) + "\n")
     check = check_reference(model, built_fmus[model], folder=tmp_path)
     assert check.cross_check_outliers > 0 and not check.passed
+
+
+def _columns(data) -> np.ndarray:
+    return np.column_stack([data[n] for n in data.dtype.names[1:]])
+
+
+# The stored references are written by the FMUs themselves (write_reference): each is checked
+# here against a computation that does not use the FMU or its stepper.
+@pytest.mark.parametrize("model, system, axes", [
+    ("DroneFlyLateral", lateral_system, LATERAL),
+    ("DroneFlyLongitudinal", longitudinal_system, LONGITUDINAL),
+])
+def test_linear_plant_references_are_the_papers_equations_integrated(model, system, axes):
+    """The plant's _ref.csv is dx+/dt+ = A x+ + B u of the paper (Eq. (9); Sect. 3.5 as
+    printed) from rest, each input of _in.csv held over its communication step, integrated by
+    scipy's DOP853 (rtol 1e-12) step by step and scaled to SI (x = x+ * (U or n or 1)): the
+    FMU's exact zero-order hold and an adaptive Runge-Kutta method agree to their round-off
+    and DOP853's tolerance, 1e-12 of each state's range (measured 2e-14)."""
+    inp, _, ref = reference_paths(model)
+    u, y = read_csv(str(inp)), read_csv(str(ref))
+    assert inp.exists() and np.array_equal(u["time"], y["time"])
+    A, B = system()
+    controls, want = _columns(u), _columns(y)
+    scale = np.array(axes.scale_vector(U_M_PER_S, N_HZ))
+    t_wb = y["time"] * N_HZ
+    x, got = np.zeros(4), [np.zeros(4)]
+    for k in range(len(t_wb) - 1):
+        uk = controls[k]
+        sol = solve_ivp(lambda t, z: A @ z + B @ uk, (t_wb[k], t_wb[k + 1]), x,
+                        method="DOP853", rtol=1e-12, atol=1e-14)
+        x = sol.y[:, -1]
+        got.append(x * scale)
+    err = np.max(np.abs(np.array(got) - want), axis=0) / np.max(np.abs(want), axis=0)
+    assert np.all(err < 1e-12), err
+
+
+def test_controller_reference_is_eq27_applied_to_its_inputs():
+    """StateFeedback's _ref.csv: after each step the controls are K x+ of the inputs set
+    before it (x+ = x / scale, K of Eq. (27), no saturation): one product, round-off 1e-15."""
+    inp, _, ref = reference_paths("StateFeedback")
+    u, y = read_csv(str(inp)), read_csv(str(ref))
+    x_plus = _columns(u) / np.array(LATERAL.scale_vector(U_M_PER_S, N_HZ))
+    want = x_plus @ np.array(default_gains()).T
+    got = _columns(y)
+    assert y.dtype.names[-1] == "saturated" and not got[:, -1].any()
+    np.testing.assert_allclose(got[1:, :3], want[:-1], rtol=0,
+                               atol=1e-15 * np.max(np.abs(want)))

@@ -13,8 +13,11 @@ from scipy.linalg import expm
 from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
 from dronefly.harness.paper.analysis import lateral_system, longitudinal_system
 from dronefly.models.feedback import default_gains
+from dronefly.models.lateral import CONTROL_NAMES as LATERAL_CONTROLS
 from dronefly.models.lateral import LATERAL, N_HZ, U_M_PER_S
+from dronefly.models.longitudinal import CONTROL_NAMES as LONGITUDINAL_CONTROLS
 from dronefly.models.longitudinal import LONGITUDINAL
+from test_hover6dof import _oracle_outputs, newton_euler
 
 pytestmark = pytest.mark.integration
 
@@ -131,3 +134,33 @@ def test_closed_loop_container_reference_is_the_sampled_data_loop():
     want = np.array(want)
     err = np.max(np.abs(got - want), axis=0) / np.maximum(np.max(np.abs(want), axis=0), 1e-300)
     assert np.all(err < 1e-13), err
+
+
+def test_hover6dof_reference_is_newton_euler_integrated():
+    """DroneFlyHover6DOF's _ref.csv (both plants' doublets and pulses from rest, 60 wing beats)
+    against the Newton-Euler equations written in tests/test_hover6dof.py, integrated by
+    DOP853 (rtol 1e-12) step by step with each input of _in.csv held over its step, the
+    outputs (Euler angles, earth axes) computed there too: within 1e-9 of each output's peak,
+    the bound of test_hover6dof.py::test_fmu_outputs_against_solve_ivp (the FMU's sub-steps)."""
+    inp, _, ref = reference_paths("DroneFlyHover6DOF")
+    u, y = read_csv(str(inp)), read_csv(str(ref))
+    names = list(y.dtype.names[1:])
+    f = newton_euler()
+    lat_in, lon_in = LATERAL_CONTROLS, LONGITUDINAL_CONTROLS
+    t_wb = y["time"] * N_HZ
+    x = np.array([0.0] * 6 + [1.0, 0.0, 0.0, 0.0] + [0.0] * 3)  # at rest, level, the origin
+    controls = np.column_stack([u[n] for n in (*lat_in, *lon_in)])
+    # one integration per stretch of held controls (they change a few times), through its
+    # communication points
+    change = [0, *(k for k in range(1, len(t_wb) - 1) if (controls[k] != controls[k - 1]).any()),
+              len(t_wb) - 1]
+    states = [x]
+    for a, b in zip(change[:-1], change[1:]):
+        c = controls[a]
+        sol = solve_ivp(f, (t_wb[a], t_wb[b]), states[-1], method="DOP853", rtol=1e-12,
+                        atol=1e-14, t_eval=t_wb[a + 1:b + 1], args=(c[:3], c[3:]))
+        states.extend(sol.y.T)
+    want = np.array([[_oracle_outputs(z)[n] for n in names] for z in states])
+    got = _columns(y)
+    err = np.abs(got - want) / np.maximum(np.abs(want).max(axis=0), 1e-300)
+    assert err.max() <= 1e-9, dict(zip(names, err.max(axis=0)))

@@ -12,6 +12,7 @@ import pytest
 
 from dronefly.harness.aero import QuasiSteadyModel, Terms, Trim, WingGeometry
 from dronefly.harness.aero.compare import ackermann, derivatives, eigenvalues, parity_report
+from dronefly.models import lateral_dynamics as lat
 from dronefly.models.quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES
 from dronefly.cli.app import main
 from dronefly.core.errors import DroneflyError
@@ -197,7 +198,25 @@ def test_report_json_has_the_schema(model):
                                                 abs=1e-9)
     assert len(r["derivatives"]) == 9 + 9 + 9 + 12
     assert set(r["eigenvalues"]) == {"lateral", "longitudinal"}
-    assert len(r["eigenvalues"]["lateral"]["quasi_steady"]) == 4
+    # the oracles of the eigenvalues it reports: the paper's column is Eq. (19)'s modal
+    # diagonal (0.0786, -0.0890 +/- 0.0568i, -0.5097: printed to 1e-4, from derivatives
+    # printed to their own digits, so within one unit of the last digit); the quasi-steady
+    # column is eig(A) of Eq. (9) with the derivatives this same report gives
+    lateral = r["eigenvalues"]["lateral"]
+    def order(zs):
+        return sorted((complex(z) for z in zs), key=lambda z: (z.real, z.imag))
+
+    paper = order(complex(*z) for z in lateral["paper"])
+    printed = order([0.0786, complex(-0.0890, 0.0568), complex(-0.0890, -0.0568), -0.5097])
+    diff = np.array(paper) - np.array(printed)
+    assert max(np.abs(diff.real).max(), np.abs(diff.imag).max()) <= 1e-4, diff
+    qs = {k: v["quasi_steady"] for k, v in r["derivatives"].items()}
+    params = lat.default_parameters()
+    params = replace(params, **{k: qs[k] for k in lat.LateralParameters.names() if k in qs})
+    A, _ = lat.system_matrices(params)
+    want = order(np.linalg.eigvals(A))
+    got = order(complex(*z) for z in lateral["quasi_steady"])
+    assert np.max(np.abs(np.array(got) - np.array(want))) < 1e-12
 
 
 def test_cli_forces_json_and_bad_input(capsys):

@@ -71,7 +71,7 @@ def test_every_block_is_run_or_skipped_with_a_reason():
     blocks = _blocks()
     skipped: dict[str, int] = {}
     for p in blocks:
-        doc, _, _, mark = p.values
+        doc, _, _, mark, _ = p.values
         if mark and not mark.startswith(("skip (", "needs ")):
             raise AssertionError(f"{p.id}: unknown doc-test mark {mark!r}")
         if mark.startswith("skip ("):

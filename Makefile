@@ -22,10 +22,10 @@ demo: $(STAMP)
 	$(BIN)/dronefly demo --out build/cosim
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 -q -rs
 
 test-numeric: $(STAMP)
-	$(BIN)/python -m pytest -n 2 -q -m numeric
+	$(BIN)/python -m pytest -n 2 -q -rs -m numeric
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py

@@ -10,6 +10,7 @@
 # - zig's cache of the C libraries of every FMI platform (its first build for Windows compiles
 #   mingw-w64's runtime: minutes on 2 cores), filled by building a probe for each, when the
 #   interpreter has the ziglang package (the test extra).
+# - valgrind, for the exit double-free test of tests/test_reliability.py.
 # Installs only what is missing; on a prepared machine it only checks, in seconds.
 # Usage: .ci/setup-c-host.sh [python]   (default: $PYTHON or python3, the interpreter of the venv)
 set -euo pipefail
@@ -17,6 +18,7 @@ PY="${1:-${PYTHON:-python3}}"
 need=()
 command -v gcc >/dev/null 2>&1 || need+=(gcc libc6-dev)
 command -v file >/dev/null 2>&1 || need+=(file)
+command -v valgrind >/dev/null 2>&1 || need+=(valgrind)
 lib="$("$PY" - <<'PYEOF'
 import ctypes.util, os, sys, sysconfig
 libdir = sysconfig.get_config_var("LIBDIR") or ""
@@ -47,7 +49,7 @@ if [ "${#need[@]}" -gt 0 ]; then
   $SUDO apt-get update -q
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${need[@]}"
 else
-  echo "setup-c-host: gcc, file, libpython and Wine present"
+  echo "setup-c-host: gcc, file, valgrind, libpython and Wine present"
 fi
 # Debian's wine64 puts its loader in /usr/lib/wine/ (the `wine` package adds /usr/bin/wine)
 if [ -z "$wine" ] && [ "$(uname -s)-$(uname -m)" = "Linux-x86_64" ]; then

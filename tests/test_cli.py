@@ -14,9 +14,19 @@ from dronefly.harness.stability.simulate import exact_open_loop
 
 
 def test_help_lists_subcommands(capsys):
+    """The commands --help lists are the ones the CLI runs: each answers its own --help, and
+    a name it does not list is refused as bad input (exit 2)."""
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
-    assert "build" in out and "examples:" in out
+    listing = out.split("COMMAND\n", 1)[1].split("\n\n", 1)[0]
+    listed = [line.split()[0] for line in listing.splitlines() if line.startswith("    ")
+              and not line.startswith("      ")]
+    assert {"build", "simulate", "cosim", "check", "sweep"} <= set(listed), listed
+    for name in listed:
+        assert main([name, "--help"]) == 0, name
+        assert capsys.readouterr().out.startswith(f"usage: dronefly {name} "), name
+    assert main(["nosuchcommand"]) == 2
+    assert "examples:" in out
 
 
 @pytest.mark.integration

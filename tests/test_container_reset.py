@@ -11,6 +11,7 @@ a child process (FMPy's container can take the host down).
 from __future__ import annotations
 
 import json
+import platform
 import subprocess
 import sys
 import textwrap
@@ -20,6 +21,7 @@ import pytest
 
 from dronefly.builder.closedloop import write_container
 from dronefly.builder.nestedshim import REAL_SUFFIX, shim_library
+from shared_files import provided_on_ci
 
 pytestmark = pytest.mark.integration
 
@@ -79,7 +81,11 @@ def _run(fmu, logging: str) -> dict:
 @pytest.fixture(scope="module")
 def shim():
     if shim_library() is None:
-        pytest.skip("the nested-FMU shim is built only on x86_64 Linux with a C compiler")
+        if sys.platform.startswith("linux") and platform.machine() in ("x86_64", "AMD64"):
+            provided_on_ci("no C compiler for the nested-FMU shim (.ci/setup-c-host.sh "
+                           "installs gcc)")
+        pytest.skip(f"the nested-FMU shim is built only on x86_64 Linux (this is "
+                    f"{sys.platform}/{platform.machine()})")
 
 
 @pytest.mark.parametrize("logging", ["0", "1"])

@@ -12,17 +12,30 @@ from numpy.testing import assert_allclose
 from dronefly.models import feedback as L
 
 from controller_common import ROOT, dimensional, random_gains
+from shared_files import need_shared
+
+PAPER = ROOT.parent / "shared" / "paper" / "zhang-sun-lateral-stabilization-control.md"
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
 
-def test_paper_gains_and_defaults():
-    """Eq. (27) in row 1 (its digits are checked against the paper's own inputs in
-    test_analysis.py::test_eq27_recovered_from_the_papers_targets), zeros elsewhere."""
+def test_default_gains_are_the_papers_eq27():
+    """The default law is Eq. (27) as the paper prints it: delta_Phi_a = -0.3192 dv+ - 0.2879
+    dp+ - 0.1969 dr+ - 0.0643 dgamma (u = K x+, so the row of delta_Phi_a holds the printed
+    coefficients with their signs), read from the paper's text; no other control is fed back,
+    and the paper's law is linear (no limit). The digits' precision is checked against the
+    paper's own targets in test_analysis.py::test_eq27_recovered_from_the_papers_targets."""
+    need_shared(PAPER, "the paper's text")
+    text = PAPER.read_text(encoding="utf-8")
+    eq = text[text.rindex("\\begin{align*}", 0, text.index("\\tag{27}")):text.index("\\tag{27}")]
+    printed = {axis: float(c.replace(" ", "")) for c, axis in
+               re.findall(r"([-+]\s*\d+\.\d+)\s*\\delta\s*(v|p|r|\\gamma)", eq)}
+    assert list(printed) == ["v", "p", "r", "\\gamma"], eq
     K = np.array(L.default_gains())
-    assert K.shape == (3, 4)
-    assert_allclose(K[0], L.PAPER_GAINS_EQ27, rtol=0, atol=0)
-    assert not K[1:].any()
+    row = L.CONTROL_NAMES.index("delta_Phi_a")
+    assert K.shape == (len(L.CONTROL_NAMES), len(L.STATE_NAMES))
+    assert list(K[row]) == list(printed.values())  # the printed digits, exactly
+    assert not np.delete(K, row, axis=0).any()
     assert L.FeedbackLaw(L.default_gains()).limit_enabled is False
 
 

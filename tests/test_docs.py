@@ -5,10 +5,12 @@ bash, and every ``python`` block in a fresh interpreter, each in a scratch folde
 ``DRONEFLY_REPO`` = the checkout, for the one block that compiles a source file of it). A block
 runs in the core install (``pip install dronefly-fmu`` without extras: tests/core_install.py, its
 bin first on PATH), so every documented example is shown to need no optional package; a block
-marked ``<!-- doc-test: needs ... -->`` (an extra, gcc, Ecos) runs in this environment, with
-everything installed. Each must exit 0 and leave the checkout as it was. A block
-is skipped only with a reason: a ``<!-- doc-test: skip (why) -->`` line right before it, counted
-below, so a new block runs by default. The numbers the README and docs quote are compared with
+marked ``<!-- doc-test: needs ... -->`` (an extra, gcc, Ecos, ../shared) runs in this
+environment, with everything installed (``needs ../shared``: beside a link to the checkout's
+../shared, which CI provides). Each must exit 0, print what the document says it prints where
+it says so ("prints" and a block, or "prints `...`", right after it), and leave the checkout as
+it was. A block is left out only with a reason: a ``<!-- doc-test: skip (why) -->`` line right
+before it, counted below, so a new block runs by default. The numbers the README and docs quote are compared with
 what the code computes.
 """
 
@@ -23,11 +25,19 @@ from pathlib import Path
 
 import pytest
 from docnumbers import NumericText, same_numbers
+from shared_files import need_shared, provided_on_ci
+from test_interop_ecos import require_ecos
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 _FENCE = re.compile(r"(?:^<!-- doc-test: (?P<mark>[^\n]*?) -->\n)?^```(?P<lang>sh|bash|console|python)\n"
                     r"(?P<body>.*?)^```$", re.M | re.S)
+
+
+#: what a document says a block prints, right after the block: "prints" and a fenced block
+#: (possibly under a generated-block marker), or "prints `...`" inline
+_PRINTS = re.compile(r"\n*prints\n\n(?:<!-- [^\n]* -->\n)?```(?:text)?\n(?P<block>.*?)\n```"
+                     r"|\n*prints `(?P<inline>[^`]*)`", re.S)
 
 
 def _blocks() -> list:
@@ -36,8 +46,10 @@ def _blocks() -> list:
         text = doc.read_text(encoding="utf-8")
         for k, m in enumerate(_FENCE.finditer(text)):
             line = text[:m.start("body")].count("\n")
+            shown = _PRINTS.match(text, m.end())
+            printed = None if shown is None else (shown.group("block") or shown.group("inline"))
             out.append(pytest.param(doc, m.group("lang"), m.group("body"), m.group("mark") or "",
-                                    id=f"{doc.name}:{line}"))
+                                    printed, id=f"{doc.name}:{line}"))
     return out
 
 
@@ -55,14 +67,14 @@ def _env(bin_dir: Path) -> dict[str, str]:
 
 
 # The blocks marked skip, by document: a new skip must be added here on purpose.
-SKIPPED = {"README.md": 1, "compliance.md": 1, "latency.md": 1, "sweep.md": 1, "usage.md": 1}
+SKIPPED = {"README.md": 1, "latency.md": 1, "sweep.md": 1, "usage.md": 1}
 
 
 def test_every_block_is_run_or_skipped_with_a_reason():
     blocks = _blocks()
     skipped: dict[str, int] = {}
     for p in blocks:
-        doc, _, _, mark = p.values
+        doc, _, _, mark, _ = p.values
         if mark and not mark.startswith(("skip (", "needs ")):
             raise AssertionError(f"{p.id}: unknown doc-test mark {mark!r}")
         if mark.startswith("skip ("):
@@ -73,10 +85,17 @@ def test_every_block_is_run_or_skipped_with_a_reason():
 
 
 @pytest.mark.integration
-@pytest.mark.parametrize("doc, lang, body, mark", _blocks())
-def test_block_runs_verbatim(doc, lang, body, mark, tmp_path, request):
-    if mark.startswith("skip ("):
-        pytest.skip(mark)
+@pytest.mark.parametrize("doc, lang, body, mark, printed",
+                         [p for p in _blocks() if not p.values[3].startswith("skip (")])
+def test_block_runs_verbatim(doc, lang, body, mark, printed, tmp_path, request):
+    """Every block not marked skip (those never run here, each with its reason, counted by
+    test_every_block_is_run_or_skipped_with_a_reason: they are not cases)."""
+    cwd = tmp_path
+    if mark.startswith("needs ../shared"):  # a block that names files beside the checkout:
+        need_shared(ROOT.parent / "shared", "../shared")  # run beside a link to them
+        (tmp_path / "shared").symlink_to(ROOT.parent / "shared", target_is_directory=True)
+        cwd = tmp_path / "work"
+        cwd.mkdir()
     # the core install unless the block says what more it needs
     bin_dir = (Path(sys.executable).parent if mark.startswith("needs ")
                else request.getfixturevalue("core_env"))
@@ -84,24 +103,26 @@ def test_block_runs_verbatim(doc, lang, body, mark, tmp_path, request):
         from dronefly.harness.interop.libcosim import libpython_path
 
         if shutil.which("gcc") is None or libpython_path() is None:
-            pytest.skip("no gcc or no shared libpython (.ci/setup-c-host.sh installs them)")
+            provided_on_ci("no gcc or no shared libpython (.ci/setup-c-host.sh installs them)")
     if mark.startswith("needs ecospy"):
         from dronefly.harness.interop.ecos import ecos_available
 
-        why = ecos_available()
-        if why:
-            pytest.skip(why)
+        require_ecos(ecos_available())  # fails where the test extra installs it (Linux x86_64)
     before = _status()
     if lang == "python":
         script = tmp_path / "block.py"
         script.write_text(body)
-        r = subprocess.run([str(bin_dir / "python"), str(script)], cwd=tmp_path,
+        r = subprocess.run([str(bin_dir / "python"), str(script)], cwd=cwd,
                            env=_env(bin_dir), capture_output=True, text=True, timeout=300)
     else:
-        r = subprocess.run(["bash", "-c", body], cwd=tmp_path, env=_env(bin_dir),
+        r = subprocess.run(["bash", "-c", body], cwd=cwd, env=_env(bin_dir),
                            capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{doc.name}: exit {r.returncode}\n{r.stdout[-1500:]}\n{r.stderr[-1500:]}"
     assert _status() == before, f"{doc.name}: the block changed the checkout"
+    if printed is not None:  # what the document says it prints: words exactly, numbers to a
+        # unit of their last printed digit (tests/docnumbers.py)
+        diff = same_numbers(" ".join(printed.split()), " ".join(r.stdout.split()))
+        assert diff is None, f"{doc.name}: the block prints other than the document says: {diff}"
 
 
 def test_readme_is_short_and_its_layout_names_every_folder():

@@ -48,12 +48,21 @@ def test_flapping_doc_is_what_the_code_computes():
     assert ans in NumericText((ROOT / "README.md").read_text(encoding="utf-8")), \
         "README does not quote the answer"
     # what the answer says in words: every mode keeps its type and stability, and the error
-    # falls as 1/frequency (halves, within 10 %, as the frequency doubles)
+    # falls as 1/frequency
     for axis, pairs in report.pairs().items():
         for f, a in pairs:
             assert _same_kind(f, a), (axis, f, a)
-    for (_, lat0, lon0), (_, lat1, lon1) in zip(rows[:-1], rows[1:]):
-        assert 1.8 < lat0 / lat1 < 2.2 and 1.4 < lon0 / lon1 < 2.2
+    lat = [r0[1] / r1[1] for r0, r1 in zip(rows[:-1], rows[1:])]
+    lon = [r0[2] / r1[2] for r0, r1 in zip(rows[:-1], rows[1:])]
+    # the ratios the text quotes, and what it says of them: the lateral error halves (within
+    # 5 %: first-order averaging, its error c/s + O(1/s^2); measured 2.7 % off at worst), the
+    # longitudinal ratio grows towards 2 from below
+    prose = NumericText(text)
+    for kind, ratios in (("lateral", lat), ("longitudinal", lon)):
+        quoted = "(ratios " + ", ".join(f"{r:.2f}" for r in ratios) + ")"
+        assert quoted in prose, (kind, quoted)
+    assert all(abs(r / 2 - 1) < 0.05 for r in lat), lat
+    assert all(a < b < 2 for a, b in zip(lon[:-1], lon[1:])), lon
 
 
 def test_flapping_doc_closed_loop_is_what_the_code_computes():

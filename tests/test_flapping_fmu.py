@@ -111,9 +111,16 @@ def test_floquet_command_json(built_fmus, capsys):
     assert main(["floquet", "--plant", str(built_fmus["DroneFlyLateral"]), "--period",
                  repr(1.0 / N_HZ), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) >= {"period_s", "floquet_exponents", "averaged_eigenvalues"}
-    assert out["averaged_eigenvalues"] == []
-    assert len(out["floquet_exponents"]) == 4
+    # the linear lateral plant (no averaged model to compare): its exponents as [re, im] are
+    # eig(A) of Eq. (9) (as test_floquet_of_a_linear_fmu_is_its_eigenvalues, 1e-8), its orbit
+    # the origin, the period the one asked for
+    A, _ = lat.system_matrices(lat.default_parameters())
+    ev = sort_eigenvalues(np.linalg.eigvals(np.array(A)))
+    got = [complex(re, im) for re, im in out["floquet_exponents"]]
+    assert np.max(np.abs(np.array(got) - np.array(ev))) < 1e-8
+    assert out["period_s"] == 1.0 / N_HZ and out["averaged_eigenvalues"] == []
+    assert out["orbit_start"] == dict.fromkeys(("delta_v", "delta_p", "delta_r", "delta_gamma"),
+                                               0.0)
 
 
 @pytest.mark.numeric

@@ -168,7 +168,7 @@ def test_cli_incomplete_run_exits_1(fmus, tmp_path, capsys):
 
 
 def test_plot_is_written(fmus, tmp_path):
-    pytest.importorskip("matplotlib")
+    import matplotlib  # noqa: F401  (the test extra installs it: a broken install fails)
     r = cosimulate(*fmus, gains="paper", stop_wingbeats=20, out_dir=tmp_path)
     assert r.plot is not None and r.plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -234,7 +234,7 @@ def test_record_adds_columns_and_leaves_the_default_ones_bit_for_bit(fmus, tmp_p
 def test_plot_draws_the_controls_by_name_not_the_recorded_columns(fmus, tmp_path, monkeypatch):
     """The controls panel holds the plant's three inputs (each its run column in degrees),
     whatever else is recorded after them."""
-    plt = pytest.importorskip("matplotlib.pyplot")
+    import matplotlib.pyplot as plt  # the test extra installs it
     figures, close = [], plt.close
     monkeypatch.setattr(plt, "close", figures.append)
     r = cosimulate(*fmus, stop_wingbeats=5, out_dir=tmp_path, record=["plant.n",

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from shared_files import provided_on_ci
 
 from dronefly.harness.paper import values as pv
 from dronefly.models.lateral import scale_vector
@@ -283,10 +284,10 @@ def c_host(tmp_path_factory, fmus):
         pytest.skip("the C host test uses dlopen and linux64 binaries")
     cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
     if cc is None:
-        pytest.skip("no C compiler (.ci/setup-c-host.sh installs gcc)")
+        provided_on_ci("no C compiler (.ci/setup-c-host.sh installs gcc)")
     if libpython_path() is None:
-        pytest.skip("this Python has no shared libpython (Py_ENABLE_SHARED = 0) and none of the "
-                    "same version is installed; .ci/setup-c-host.sh installs Debian's")
+        provided_on_ci("this Python has no shared libpython (Py_ENABLE_SHARED = 0) and none of "
+                       "the same version is installed; .ci/setup-c-host.sh installs Debian's")
     import fmpy
 
     inc = Path(fmpy.__file__).parent / "c-code"

@@ -25,6 +25,7 @@ from dronefly.models.longitudinal import CONTROL_NAMES, IY_PLUS, LONGITUDINAL, S
 from dronefly.models import longitudinal_dynamics as M
 
 from fmu_helpers import model_description, set_values, start
+from shared_files import need_shared
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
@@ -39,8 +40,7 @@ PHIBAR, ALPHA2 = CONTROLS.index("delta_phibar"), CONTROLS.index("delta_alpha_2")
 # --- the paper's text ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def paper() -> str:
-    if not PAPER.is_file():
-        pytest.skip(f"the paper's text is not beside the checkout ({PAPER})")
+    need_shared(PAPER, "the paper's text")
     return PAPER.read_text(encoding="utf-8")
 
 
@@ -531,7 +531,7 @@ def test_single_input_designs_equal_ackermann_and_python_control(designs, AB):
         d = designs[(kind, ("delta_phibar",))]
         k = _ackermann(A, B[:, PHIBAR], _targets(A, kind))
         assert_allclose(d.K[PHIBAR], k, rtol=1e-9, atol=1e-12)
-    control = pytest.importorskip("control")
+    import control  # the test extra installs it: a broken install fails
     for kind in ("neutral", "mirror"):
         k = -np.asarray(control.acker(A, B[:, [PHIBAR]], _targets(A, kind))).ravel()
         assert_allclose(designs[(kind, ("delta_phibar",))].K[PHIBAR], k, rtol=1e-8, atol=1e-12)

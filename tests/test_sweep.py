@@ -8,10 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.linalg import expm
 
 from dronefly.harness.sweep.run import COLUMNS, SweepSettings, read_rows, run_sweep
 from dronefly.harness.sweep.cases import (STATE_BOUNDS_SECT36, Case, SweepInputError, SweepSpec,
     gain_matrix)
+from dronefly.models.lateral_dynamics import default_parameters, system_matrices
 
 pytestmark = pytest.mark.integration
 
@@ -53,8 +55,6 @@ def test_cases_are_deterministic_and_cover_the_box() -> None:
     for j in range(4):  # a Latin hypercube: one sample per stratum in every dimension
         assert sorted(np.floor((u[:, j] + 1.0) / 2.0 * 50).astype(int)) == list(range(50))
     K = gain_matrix("stabilising")
-    from dronefly.models.lateral_dynamics import default_parameters, system_matrices
-
     A, B = system_matrices(default_parameters())
     assert np.max(np.linalg.eigvals(A + B @ K).real) < -0.05
 
@@ -94,7 +94,7 @@ def test_process_pool_gives_the_same_rows(fmus, reference, tmp_path: Path) -> No
 
 
 def test_dask_local_cluster_gives_the_same_rows(fmus, reference, tmp_path: Path) -> None:
-    distributed = pytest.importorskip("distributed")
+    import distributed  # the test extra installs it: a broken install fails
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
                                   dashboard_address=":0") as cluster:  # a free port
         r = run_sweep(SMALL, tmp_path, scheduler=cluster.scheduler_address, plot=False,
@@ -181,6 +181,26 @@ def test_cli_sweep(fmus, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert code == 0, text
     assert "within bounds:" in text and "map: " in text
     assert {p.name for p in out.iterdir()} == {"sweep.csv", "sweep.json", "map_dgamma_dv.png"}
+    # the oracle: the sampled-data loop of Eq. (9)'s A, B and Eq. (27) in closed form (the
+    # plant's zero-order-hold map from scipy's expm, the control held over each 1-wing-beat
+    # step from the state at its start): each case's peak over the bounds and its final state
+    # (round-off of 20 products of matrices of order 1: 1e-12)
+    A, B = system_matrices(default_parameters())
+    M = expm(np.block([[A, B], [np.zeros((3, 7))]]))
+    phi, gamma, K = M[:4, :4], M[:4, 4:], gain_matrix("paper")
+    box = np.array(STATE_BOUNDS_SECT36)
+    rows = read_rows(out / "sweep.csv")
+    assert len(rows) == 3 * 3 + 2
+    for r in rows:
+        x = np.array([float(r[f"x0_{a}"]) for a in ("dv", "dp", "dr", "dgamma")])
+        peak = np.max(np.abs(x) / box)
+        for _ in range(20):
+            x = phi @ x + gamma @ (K @ x)
+            peak = max(peak, np.max(np.abs(x) / box))
+        assert float(r["peak"]) == pytest.approx(peak, rel=1e-12, abs=1e-15), r["case"]
+        assert (r["verdict"] == "within") == (peak <= 1.0)
+        final = [float(r[f"final_{a}"]) for a in ("dv", "dp", "dr", "dgamma")]
+        np.testing.assert_allclose(final, x, rtol=1e-10, atol=1e-15)
 
 
 @pytest.mark.parametrize("args, named", [

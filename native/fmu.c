@@ -385,7 +385,7 @@ static int get_values(Instance *c, const unsigned *vr, size_t nvr, int kind, dou
         const int *rows;
 #if FMI_VERSION == 3
         if (vr[i] == 0 && kind == KIND_REAL) { /* time */
-            if (k >= nout) return ST_ERROR;
+            if (k >= nout) goto too_few;
             out[k++] = c->s.time;
             continue;
         }
@@ -405,11 +405,11 @@ static int get_values(Instance *c, const unsigned *vr, size_t nvr, int kind, dou
                          type_name(type), type_name(kind));
             report(c, ST_ERROR, msg);
             int count = n < 0 ? 1 : n;
-            if (k + (size_t)count > nout) return ST_ERROR;
+            if (k + (size_t)count > nout) goto too_few;
             for (int j = 0; j < count; j++) out[k++] = kind == KIND_REAL ? NAN : 0.0;
             continue;
         }
-        if (k + (size_t)n > nout) return ST_ERROR;
+        if (k + (size_t)n > nout) goto too_few;
         for (int j = 0; j < n; j++) out[k++] = c->s.r[ROW(vr[i], rows, j)];
     }
     if (k != nout) {
@@ -419,6 +419,12 @@ static int get_values(Instance *c, const unsigned *vr, size_t nvr, int kind, dou
         return ST_ERROR;
     }
     return status;
+too_few: /* the host's buffer is shorter than the variables asked for: nothing written past it */
+    snprintf(msg, sizeof msg, "%sGet%s: nValues = %zu is fewer than the values of the %zu value "
+             "references asked for (an array counts all its elements)", FMI, type_name(kind), nout,
+             nvr);
+    report(c, ST_ERROR, msg);
+    return ST_ERROR;
 }
 
 static void reject(Instance *c, int kind, unsigned vr, double value, const char *why) {

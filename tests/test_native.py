@@ -563,3 +563,32 @@ def test_fmi3_takes_the_start_and_stop_time(native_fmus):
         assert step(5.0, 0.1) == 3 and "5.0 s does not continue" in inst.messages[-1].message
         assert step(0.0, 2.0) == 3 and "past stopTime = 1.0 s" in inst.messages[-1].message
         assert step(0.0, 0.5) == 0
+
+
+def test_fmi3_get_with_too_few_values_is_refused_with_a_message(native_fmus, tmp_path):
+    """A host whose nValues is smaller than the arrays it asks for hold (OMSimulator's command
+    line asks for one value of the 4 x 4 array A) gets fmi3Error and a logged message naming
+    nValues, not a silent refusal; with the right nValues the same call answers."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi3 import FMU3Slave
+
+    path = native_fmus["DroneFlyLateral", 3]
+    md = read_model_description(str(path))
+    a = next(v for v in md.modelVariables if v.name == "A")
+    size = int(a.dimensions[0].start) * int(a.dimensions[1].start)
+    messages: list[str] = []
+    slave = FMU3Slave(guid=md.guid, unzipDirectory=extract(str(path), unzipdir=tmp_path / "x"),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="probe")
+    slave.instantiate(loggingOn=True, logMessage=lambda env, status, category, message:
+                      messages.append(message.decode()))
+    try:
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        with pytest.raises(FMICallException):
+            slave.getFloat64([a.valueReference], nValues=1)
+        assert any("nValues = 1 " in m and "GetFloat64" in m for m in messages), messages
+        assert len(slave.getFloat64([a.valueReference], nValues=size)) == size == 16
+    finally:
+        slave.terminate()
+        slave.freeInstance()

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import subprocess
 import zipfile
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
+
+import fmpy
 
 
 __all__ = ["build_crashing_fmu", "model_description", "set_values", "start"]
@@ -69,3 +72,61 @@ def build_crashing_fmu(folder: Path) -> Path:
     src.write_text(_CRASHING)
     return Path(FmuBuilder.build_FMU(src, dest=folder))
 
+
+
+_HANGING = '''
+import time
+
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+
+
+class Hanging(Fmi2Slave):
+    """y = u; its step from t >= 0.05 s never returns (sleeps an hour)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.u = 0.0
+        self.register_variable(Real("u", causality=Fmi2Causality.input,
+                                    variability=Fmi2Variability.continuous))
+        self.register_variable(Real("y", causality=Fmi2Causality.output,
+                                    variability=Fmi2Variability.continuous,
+                                    getter=lambda: self.u))
+
+    def do_step(self, t, h):
+        if t >= 0.05:
+            time.sleep(3600)
+        return True
+'''
+
+
+def build_hanging_fmu(folder: Path) -> Path:
+    """A pythonfmu FMU (not ours) whose fmi2DoStep from t >= 0.05 s never returns."""
+    from pythonfmu import FmuBuilder
+
+    src = folder / "Hanging.py"
+    src.write_text(_HANGING)
+    return Path(FmuBuilder.build_FMU(src, dest=folder))
+
+
+def rebuilt_reference_fmu(src: Path, dst: Path, work: Path, edits: dict[str, list[tuple[str, str]]]) -> Path:
+    """A copy of an FMI 2.0 Reference-FMU whose linux64 binary is rebuilt with gcc from its own
+    sources after the edits (file -> [(old, new)], each old found once)."""
+    with zipfile.ZipFile(src) as z:
+        z.extractall(work)
+    for source, pairs in edits.items():
+        path = work / "sources" / source
+        text = path.read_text()
+        for old, new in pairs:
+            assert text.count(old) == 1, old
+            text = text.replace(old, new)
+        path.write_text(text)
+    (lib,) = (work / "binaries" / "linux64").glob("*.so")
+    headers = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run(["gcc", "-shared", "-fPIC", "-O1", f"-I{work / 'sources'}", f"-I{headers}",
+                    "-o", str(lib), str(work / "sources" / "all.c"), "-lm"], check=True,
+                   capture_output=True, timeout=120)
+    with zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(work.rglob("*")):
+            if f.is_file():
+                z.write(f, f.relative_to(work).as_posix())
+    return dst

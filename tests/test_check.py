@@ -12,7 +12,7 @@ from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
 from dronefly.harness.compliance.suite import check_fmu, format_reports
 from dronefly.models.lateral import N_HZ
-from fmu_helpers import build_crashing_fmu
+from fmu_helpers import build_crashing_fmu, build_hanging_fmu
 
 pytestmark = pytest.mark.integration
 
@@ -163,38 +163,10 @@ def test_the_fmus_own_log_message_is_shown(tmp_path, monkeypatch, capsys):
     assert "fmi2DoStep" in check["detail"]
 
 
-_HANGING = '''
-import time
-
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
-
-
-class Hanging(Fmi2Slave):
-    """y = u; its step from t >= 0.05 s never returns (sleeps an hour)."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.u = 0.0
-        self.register_variable(Real("u", causality=Fmi2Causality.input,
-                                    variability=Fmi2Variability.continuous))
-        self.register_variable(Real("y", causality=Fmi2Causality.output,
-                                    variability=Fmi2Variability.continuous,
-                                    getter=lambda: self.u))
-
-    def do_step(self, t, h):
-        if t >= 0.05:
-            time.sleep(3600)
-        return True
-'''
-
-
 def test_a_hanging_fmu_is_reported_with_the_call(tmp_path, capsys):
     """A step that never returns: after --timeout the check is failed, naming the call, its
     arguments (the time) and the rest not run; exit 1."""
-    from pythonfmu import FmuBuilder
-
-    (tmp_path / "Hanging.py").write_text(_HANGING)
-    fmu = Path(FmuBuilder.build_FMU(tmp_path / "Hanging.py", dest=tmp_path))
+    fmu = build_hanging_fmu(tmp_path)
     assert main(["check", "--no-fuzz", "--timeout", "3", "--skip", "validate", str(fmu)]) == 1
     out = capsys.readouterr().out
     assert ("[FAIL] call-sequence  the checking process died (hung for more than 3 s) in "

@@ -14,7 +14,7 @@ import pytest
 from dronefly.cli.app import main
 from dronefly.harness.compliance import suite
 from dronefly.harness.compliance.checker import CheckOptions
-from fmu_helpers import build_crashing_fmu
+from fmu_helpers import build_crashing_fmu, build_hanging_fmu
 from sigint_at import install_at_check
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -76,38 +76,9 @@ def test_a_selected_check_that_does_not_apply_is_skipped_with_its_reason(capsys,
     assert out.splitlines()[-1] == "1 of 1 FMUs passed"
 
 
-_HANGING = '''
-import time
-
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
-
-
-class Hanging(Fmi2Slave):
-    """y = u; its step from t >= 0.05 s never returns (sleeps an hour)."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.u = 0.0
-        self.register_variable(Real("u", causality=Fmi2Causality.input,
-                                    variability=Fmi2Variability.continuous))
-        self.register_variable(Real("y", causality=Fmi2Causality.output,
-                                    variability=Fmi2Variability.continuous,
-                                    getter=lambda: self.u))
-
-    def do_step(self, t, h):
-        if t >= 0.05:
-            time.sleep(3600)
-        return True
-'''
-
-
 @pytest.fixture(scope="module")
 def hanging(tmp_path_factory) -> Path:
-    from pythonfmu import FmuBuilder
-
-    folder = tmp_path_factory.mktemp("hanging")
-    (folder / "Hanging.py").write_text(_HANGING)
-    return Path(FmuBuilder.build_FMU(folder / "Hanging.py", dest=folder))
+    return build_hanging_fmu(tmp_path_factory.mktemp("hanging"))
 
 
 @pytest.fixture

@@ -6,19 +6,18 @@ edit that seeds one defect."""
 from __future__ import annotations
 
 import shutil
-import subprocess
 import sys
 import zipfile
 from dataclasses import replace
 from pathlib import Path
 
-import fmpy
 import pytest
 
 from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
 from dronefly.harness.compliance.suite import check_fmu
 from dronefly.harness.cosim.fmu import FMU, FMUError
+from fmu_helpers import rebuilt_reference_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 REF = ROOT.parent / "shared" / "reference-fmus"
@@ -49,30 +48,6 @@ def _copy(src: Path, dst: Path, md_edits: tuple[tuple[bytes, bytes], ...] = (),
                     assert old in data, old
                     data = data.replace(old, new_text, 1)
             zout.writestr(name, data)
-    return dst
-
-
-def _rebuilt(src: Path, dst: Path, work: Path, edits: dict[str, list[tuple[str, str]]]) -> Path:
-    """A copy of an FMI 2.0 Reference-FMU whose linux64 binary is rebuilt with gcc from its own
-    sources after the edits (file -> [(old, new)], each old found once)."""
-    with zipfile.ZipFile(src) as z:
-        z.extractall(work)
-    for source, pairs in edits.items():
-        path = work / "sources" / source
-        text = path.read_text()
-        for old, new in pairs:
-            assert text.count(old) == 1, old
-            text = text.replace(old, new)
-        path.write_text(text)
-    (lib,) = (work / "binaries" / "linux64").glob("*.so")
-    headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run(["gcc", "-shared", "-fPIC", "-O1", f"-I{work / 'sources'}", f"-I{headers}",
-                    "-o", str(lib), str(work / "sources" / "all.c"), "-lm"], check=True,
-                   capture_output=True, timeout=120)
-    with zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as z:
-        for f in sorted(work.rglob("*")):
-            if f.is_file():
-                z.write(f, f.relative_to(work).as_posix())
     return dst
 
 
@@ -146,7 +121,7 @@ def test_a_reset_refused_after_error_fails_bad_input_only(tmp_path):
          "        logError(S, \"Communication step size must be > 0 but was %g.\", "
          "communicationStepSize);\n        refusedStep = 1;\n"),
     ]}
-    fmu = _rebuilt(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+    fmu = rebuilt_reference_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
                    edits)
     report = check_fmu(fmu, fuzz=False)
     failed = _failed(report)
@@ -203,7 +178,7 @@ def test_an_fmu_that_crashes_on_an_unknown_value_reference_passes(tmp_path):
         ("    BEGIN_FUNCTION(GetReal)\n",
          "    for (size_t k = 0; k < nvr; k++) if (vr[k] > 1000) *(volatile int *)0 = 0;\n"
          "    BEGIN_FUNCTION(GetReal)\n")]}
-    fmu = _rebuilt(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+    fmu = rebuilt_reference_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
                    edits)
     report = check_fmu(fmu, fuzz=False)
     assert report.passed, report.checks
@@ -333,7 +308,7 @@ def test_a_binary_defect_fails_binary_only(tmp_path, defect):
     version strings) or ``logger-format`` (what the logger is given) fails, naming it, and no
     other check."""
     edits, detail = BINARY[defect]
-    fmu = _rebuilt(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+    fmu = rebuilt_reference_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
                    edits)
     report = check_fmu(fmu, fuzz=False)
     failed = _failed(report)
@@ -389,7 +364,7 @@ def test_an_event_iteration_that_never_ends_fails_model_exchange(tmp_path):
     edits = {"fmi2Functions.c": [
         ("    eventInfo->newDiscreteStatesNeeded           = S->newDiscreteStatesNeeded;",
          "    eventInfo->newDiscreteStatesNeeded           = fmi2True;")]}
-    fmu = _rebuilt(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
+    fmu = rebuilt_reference_fmu(REF / "fmi2" / "Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
                    edits)
     report = check_fmu(fmu, fuzz=False)
     failed = _failed(report)

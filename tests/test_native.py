@@ -23,7 +23,7 @@ from dronefly.builder import native
 from dronefly.builder.build import build_fmu
 from dronefly.builder.native import NATIVE_FMUS, build_native
 from dronefly.builder.toolchain import find_toolchain, host_platform, missing_reason
-from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
+from dronefly.harness.compliance.reference import check_reference, reference_paths
 
 pytestmark = pytest.mark.integration
 

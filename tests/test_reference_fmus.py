@@ -9,16 +9,15 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-import fmpy
 
 import pytest
 from shared_files import ON_CI, need_shared
+from fmu_helpers import rebuilt_reference_fmu
 
 from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
@@ -220,22 +219,7 @@ def test_seeded_defect_fails_only_its_check(ref, tmp_path, defect):
 def _rebuilt(src: Path, dst: Path, work: Path, source: str, old: str, new: str) -> Path:
     """A copy of a Reference-FMU (FMI 2.0, linux64) whose binary is rebuilt with gcc from its
     own ``sources/`` after one edit of ``source`` (the FMI headers are fmpy's)."""
-    with zipfile.ZipFile(src) as z:
-        z.extractall(work)
-    path = work / "sources" / source
-    text = path.read_text()
-    assert text.count(old) == 1
-    path.write_text(text.replace(old, new))
-    (lib,) = (work / "binaries" / "linux64").glob("*.so")
-    headers = Path(fmpy.__file__).parent / "c-code"
-    subprocess.run(["gcc", "-shared", "-fPIC", "-O1", f"-I{work / 'sources'}", f"-I{headers}",
-                    "-o", str(lib), str(work / "sources" / "all.c"), "-lm"], check=True,
-                   capture_output=True, timeout=120)
-    with zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as z:
-        for f in sorted(work.rglob("*")):
-            if f.is_file():
-                z.write(f, f.relative_to(work).as_posix())
-    return dst
+    return rebuilt_reference_fmu(src, dst, work, {source: [(old, new)]})
 
 
 @pytest.mark.skipif(sys.platform != "linux" or shutil.which("gcc") is None and not ON_CI,

@@ -64,14 +64,18 @@ class Crashing(Fmi2Slave):
 """
 
 
-def build_crashing_fmu(folder: Path) -> Path:
-    """A pythonfmu FMU (not ours) whose fmi2DoStep segfaults the host."""
+def _pythonfmu_fmu(folder: Path, name: str, source: str) -> Path:
+    """The pythonfmu FMU of the slave class ``name`` written in ``source``, built in ``folder``."""
     from pythonfmu import FmuBuilder
 
-    src = folder / "Crashing.py"
-    src.write_text(_CRASHING)
+    src = folder / f"{name}.py"
+    src.write_text(source)
     return Path(FmuBuilder.build_FMU(src, dest=folder))
 
+
+def build_crashing_fmu(folder: Path) -> Path:
+    """A pythonfmu FMU (not ours) whose fmi2DoStep segfaults the host."""
+    return _pythonfmu_fmu(folder, "Crashing", _CRASHING)
 
 
 _HANGING = '''
@@ -101,11 +105,7 @@ class Hanging(Fmi2Slave):
 
 def build_hanging_fmu(folder: Path) -> Path:
     """A pythonfmu FMU (not ours) whose fmi2DoStep from t >= 0.05 s never returns."""
-    from pythonfmu import FmuBuilder
-
-    src = folder / "Hanging.py"
-    src.write_text(_HANGING)
-    return Path(FmuBuilder.build_FMU(src, dest=folder))
+    return _pythonfmu_fmu(folder, "Hanging", _HANGING)
 
 
 def rebuilt_reference_fmu(src: Path, dst: Path, work: Path, edits: dict[str, list[tuple[str, str]]]) -> Path:

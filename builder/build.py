@@ -38,7 +38,7 @@ from .modeldescription import model_description_bytes
 from .modeldescription3 import model_description3_bytes
 
 __all__ = ["FMI3_FILES", "FMI3_OUT", "FMUS", "NEEDS_NUMPY", "BuildError", "build_all", "build_closed_loop", "build_fmu", "ensure_fmu",
-           "fmu_sources", "project_fmus", "project_systems"]
+           "fmu_sources", "project_fmus", "project_systems", "report_built", "reporting"]
 
 #: the pythonfmu versions the FMUs are built with (FMI 2.0: pythonfmu's binary; FMI 3.0:
 #: pythonfmu3's; both ship pythonfmu's Python facade)
@@ -236,7 +236,8 @@ def reporting(callback: Callable[[Path], None]) -> Iterator[None]:
         _REPORTERS.remove(callback)
 
 
-def _built(path: Path) -> Path:
+def report_built(path: Path) -> Path:
+    """Tell every :func:`reporting` callback that the build wrote ``path``; returns it."""
     for callback in list(_REPORTERS):
         callback(path)
     return path
@@ -267,7 +268,7 @@ def build_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> Path:
         files["modelDescription.xml"] = _model_description(name, guid, fmi)
     except (OSError, ImportError) as e:
         raise BuildError(f"cannot build {name}: {e}") from e
-    return _built(write_zip(target, files))
+    return report_built(write_zip(target, files))
 
 
 def ensure_fmu(name: str, out_dir: str | Path = "build", fmi: int = 2) -> tuple[Path, bool]:
@@ -382,7 +383,7 @@ def build_all(out_dir: str | Path = "build", fmi: int = 2) -> list[Path]:
         except (OSError, ValueError) as e:
             raise BuildError(f"cannot build {name}.ssp: {e}") from e
     for path in [*loop, *systems]:
-        _built(path)
+        report_built(path)
     return [*fmus.values(), *loop, *systems]
 
 

@@ -35,6 +35,7 @@ from ..core.errors import DroneflyError
 from ..core.files import write_zip
 from ..fmi.fmi3 import fmi3_class
 from ..fmi.table3 import fmi3_table
+from .build import report_built
 from .closedloop import write_container
 from .entry import HOST_REQUIREMENT
 from .modeldescription import model_description
@@ -328,7 +329,7 @@ def build_native(name: str, out_dir: str | Path, fmi: int = 2, toolchain: Any = 
                 files[f"binaries/{platform}/{name}{suffix}"] = out.read_bytes()
     else:
         targets = ()
-    return write_zip(target, files), targets
+    return report_built(write_zip(target, files)), targets
 
 
 def ensure_native(name: str, out_dir: str | Path, fmi: int = 2) -> Path:

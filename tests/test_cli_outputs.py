@@ -119,7 +119,9 @@ def test_analyze_input_without_targets_is_refused(capsys, monkeypatch):
      "dgamma:dp", "--disturbances", "grid", "--gains", "paper", "--steps", "1", "--stop", "2"],
     ["sweep", "--compare", "nonlinear", "--workers", "1", "--no-plot", "--no-progress",
      "--disturbances", "directions", "--directions", "+dv", "--amplitudes", "1", "--stop", "1"],
-], ids=["demo", "floquet", "sweep", "sweep-compare-nonlinear"])
+    ["cosim", "--native", "--no-plot", "--stop", "2"],
+    ["demo", "--native", "--no-plot"],
+], ids=["demo", "floquet", "sweep", "sweep-compare-nonlinear", "cosim-native", "demo-native"])
 def test_a_command_that_builds_fmus_says_what_it_built_and_where(argv, tmp_path, monkeypatch,
                                                                   capsys):
     """In an empty folder each builds the project's FMUs into build/: one line on stderr per

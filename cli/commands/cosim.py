@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ...builder.build import reporting
 from ...builder.native import native_pair
 from ...core.errors import DroneflyError
 from ...harness.stability.run import cosimulate
@@ -29,7 +30,10 @@ def run(args: argparse.Namespace) -> int:
         if given:
             raise DroneflyError(f"--native cannot be combined with {', '.join(given)} (it runs "
                                 "the project's native plant and controller)")
-        args.plant, args.controller = native_pair(args.build)
+        # the summary names what cosimulate builds; what --native builds is said here
+        with reporting(lambda p: print(f"dronefly cosim: built {p}", file=sys.stderr,
+                                       flush=True)):
+            args.plant, args.controller = native_pair(args.build)
     if args.system is not None:
         return _cosim_system(args)
     if args.open_loop:

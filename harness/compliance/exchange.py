@@ -31,44 +31,44 @@ MAX_EVENT_ITERATIONS = 1000
 
 
 def _event_iterations(ctx: Context) -> int:
+    """Iterations of the event update after initialization until no new one is needed (or the
+    FMU asks to terminate); ``MAX_EVENT_ITERATIONS + 1``: it never ended."""
     md = ctx.fmu.model_description3 or ctx.fmu.model_description
     ident = md.modelExchange.modelIdentifier
     if ctx.fmu.fmi_version == 2:
         model = FMU2Model(guid=md.guid, unzipDirectory=ctx.fmu._unzipdir, modelIdentifier=ident,
                           instanceName="me-check")
-        ctx.event(call="fmi2Instantiate(fmi2ModelExchange)")
-        model.instantiate()
-        try:
+        instantiate, update = "fmi2Instantiate(fmi2ModelExchange)", "fmi2NewDiscreteStates"
+
+        def initialize() -> None:
             model.setupExperiment(startTime=ctx.start, stopTime=ctx.stop)
             model.enterInitializationMode()
-            model.exitInitializationMode()
-            for k in range(1, MAX_EVENT_ITERATIONS + 1):
-                ctx.event(call=f"fmi2NewDiscreteStates() (iteration {k})")
-                needed, terminate = model.newDiscreteStates()[:2]
-                if not needed or terminate:
-                    model.terminate()
-                    return k
-            return MAX_EVENT_ITERATIONS + 1
-        finally:
-            model.freeInstance()
-            model.freeLibrary()
-    model3 = FMU3Model(guid=md.instantiationToken, unzipDirectory=ctx.fmu._unzipdir,
-                       modelIdentifier=ident, instanceName="me-check")
-    ctx.event(call="fmi3InstantiateModelExchange()")
-    model3.instantiate()
+
+        next_event = model.newDiscreteStates
+    else:
+        model = FMU3Model(guid=md.instantiationToken, unzipDirectory=ctx.fmu._unzipdir,
+                          modelIdentifier=ident, instanceName="me-check")
+        instantiate, update = "fmi3InstantiateModelExchange()", "fmi3UpdateDiscreteStates"
+
+        def initialize() -> None:
+            model.enterInitializationMode(startTime=ctx.start, stopTime=ctx.stop)
+
+        next_event = model.updateDiscreteStates
+    ctx.event(call=instantiate)
+    model.instantiate()
     try:
-        model3.enterInitializationMode(startTime=ctx.start, stopTime=ctx.stop)
-        model3.exitInitializationMode()
+        initialize()
+        model.exitInitializationMode()
         for k in range(1, MAX_EVENT_ITERATIONS + 1):
-            ctx.event(call=f"fmi3UpdateDiscreteStates() (iteration {k})")
-            needed, terminate = model3.updateDiscreteStates()[:2]
+            ctx.event(call=f"{update}() (iteration {k})")
+            needed, terminate = next_event()[:2]
             if not needed or terminate:
-                model3.terminate()
+                model.terminate()
                 return k
         return MAX_EVENT_ITERATIONS + 1
     finally:
-        model3.freeInstance()
-        model3.freeLibrary()
+        model.freeInstance()
+        model.freeLibrary()
 
 
 def check_model_exchange(ctx: Context) -> str:

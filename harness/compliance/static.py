@@ -16,9 +16,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fmpy import platform, platform_tuple, sharedLibraryExtension
-from fmpy.validation import validate_fmu
 
 from .driver import Context
+from .names import validate_fmu
 from .rules import require
 from .structure import structure_problems
 

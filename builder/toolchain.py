@@ -17,11 +17,18 @@ headers declare exported. The FMI headers do that for every FMI function (``FMI2
 ``FMI3_Export``: default visibility, or ``__declspec(dllexport)`` on Windows), so a C file that
 includes ``fmi2Functions.h`` or ``fmi3Functions.h`` and defines the functions exports them and
 nothing else. :func:`fmi_include_dir` is where fmpy keeps those headers.
+
+Compiled binaries are kept in a cache addressed by everything that decides their bytes: the
+compiler and its version, the platform, every flag, the contents of the sources and of every
+header in the include folders (:func:`cache_dir`; ``DRONEFLY_CACHE_DIR`` moves it, ``0`` turns it
+off). A build whose inputs have not changed copies the binary instead of compiling it again, as
+ccache does; any change of a byte of its inputs compiles it anew.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
 import importlib.util
 import os
 import platform as _pyplatform
@@ -37,7 +44,7 @@ from pathlib import Path
 from ..core.errors import DroneflyError
 
 __all__ = ["FMI2_PLATFORMS", "FMI3_PLATFORMS", "PLATFORMS", "Platform", "Toolchain",
-           "ToolchainError", "binary_platform", "find_toolchain", "fmi_include_dir",
+           "ToolchainError", "binary_platform", "cache_dir", "find_toolchain", "fmi_include_dir",
            "host_platform", "missing_reason"]
 
 
@@ -270,6 +277,10 @@ class Toolchain:
             flags.append(f"-D{k}" if v is None else f"-D{k}={v}")
         flags += list(extra_flags)
         link = [f"-l{lib}" for lib in libs] + ([] if p.fmt == "PE" else ["-lm"])
+        cached = _cached(self, platform, flags, srcs, include_dirs, link, out.suffix)
+        if cached is not None and cached.is_file():
+            shutil.copyfile(cached, out)
+            return out
         with tempfile.TemporaryDirectory(prefix="dronefly-cc-") as tmp:
             target = Path(tmp) / (out.stem + out.suffix)
             cmd = [*self.command, *flags, "-o", str(target), *map(str, srcs), *link]
@@ -284,8 +295,61 @@ class Toolchain:
                 raise ToolchainError(f"{self.kind} compiler for {platform} failed on "
                                      f"{', '.join(s.name for s in srcs)} (exit {r.returncode}): "
                                      + " | ".join(lines[:6]))
+            if cached is not None:
+                _keep(target, cached)
             shutil.move(str(target), out)
         return out
+
+
+def cache_dir() -> Path | None:
+    """The folder of compiled binaries kept between builds: ``$DRONEFLY_CACHE_DIR`` (``0``:
+    none), else ``dronefly-fmu/native`` in ``$XDG_CACHE_HOME`` (default ``~/.cache``)."""
+    env = os.environ.get("DRONEFLY_CACHE_DIR")
+    if env == "0":
+        return None
+    if env:
+        return Path(env)
+    home = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(home) / "dronefly-fmu" / "native"
+
+
+def _cached(tc: Toolchain, platform: str, flags: Sequence[str], srcs: Sequence[Path],
+            include_dirs: Iterable[str | os.PathLike[str]], link: Sequence[str],
+            suffix: str) -> Path | None:
+    """Where the binary of these inputs is kept (None: no cache). The key hashes the compiler
+    and its version, the platform, the flags less the include paths, and the names and bytes of
+    the sources and of every file in the include folders."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    h = hashlib.sha256()
+    for part in (tc.kind, tc.version, platform, *(f for f in flags if not f.startswith("-I")),
+                 *link):
+        h.update(part.encode() + b"\0")
+    for src in srcs:
+        h.update(src.name.encode() + b"\0" + src.read_bytes() + b"\0")
+    for d in include_dirs:
+        for f in sorted(Path(d).resolve().rglob("*")):
+            if f.is_file() and f.suffix in (".h", ".c"):
+                h.update(str(f.relative_to(Path(d).resolve())).encode() + b"\0"
+                         + f.read_bytes() + b"\0")
+    return folder / f"{h.hexdigest()}{suffix}"
+
+
+def _keep(binary: Path, cached: Path) -> None:
+    """Copy ``binary`` into the cache, atomically; a cache that cannot be written is no cache."""
+    try:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        fd, part = tempfile.mkstemp(dir=cached.parent, prefix=".part-")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(binary.read_bytes())
+            os.replace(part, cached)
+        finally:
+            if os.path.exists(part):
+                os.unlink(part)
+    except OSError:
+        pass
 
 
 def _compiler_env() -> dict[str, str]:

@@ -41,6 +41,13 @@ FILE_SAYS = {("ELF", "x86_64"): "ELF 64-bit LSB shared object, x86-64",
              ("Mach-O", "aarch64"): "Mach-O 64-bit arm64 dynamically linked shared library"}
 
 
+@pytest.fixture(autouse=True)
+def fresh_cache(tmp_path, monkeypatch):
+    """Each test compiles for real: its own, empty binary cache."""
+    monkeypatch.setenv("DRONEFLY_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
 @pytest.fixture(scope="module")
 def zig():
     tc = find_toolchain("win64")
@@ -195,3 +202,43 @@ def test_a_times_b_plus_c_is_not_fused(zig, tmp_path):
     lib.f.restype = ctypes.c_double
     lib.f.argtypes = [ctypes.c_double] * 3
     assert lib.f(1 + 2**-30, 1 - 2**-30, -1.0) == 0.0
+
+
+def test_a_binary_is_compiled_once_per_inputs_and_anew_when_a_byte_changes(
+        zig, probe_c, tmp_path, fresh_cache, monkeypatch):
+    """The cache gives back the binary of the same inputs without the compiler, and any changed
+    byte (a define, a source, a header of an include folder) compiles anew; ``0`` turns it off."""
+    inc = tmp_path / "inc"
+    shutil.copytree(fmi_include_dir(), inc)
+    first = zig.compile([probe_c], tmp_path / "a.so", "linux64", include_dirs=[inc],
+                        defines={"SCALE": "1.0"})
+    assert len(list(fresh_cache.iterdir())) == 1
+    calls = []
+
+    def compiler(cmd, *args, **kwargs):
+        calls.append(cmd)
+        return real(cmd, *args, **kwargs)
+
+    real = subprocess.run
+    monkeypatch.setattr(tcmod.subprocess, "run", compiler)
+    again = zig.compile([probe_c], tmp_path / "b.so", "linux64", include_dirs=[inc],
+                        defines={"SCALE": "1.0"})
+    assert calls == [] and again.read_bytes() == first.read_bytes()
+    zig.compile([probe_c], tmp_path / "c.so", "linux64", include_dirs=[inc],
+                defines={"SCALE": "2.0"})
+    assert len(calls) == 1
+    (inc / "fmi2Functions.h").write_text((inc / "fmi2Functions.h").read_text() + "\n")
+    zig.compile([probe_c], tmp_path / "d.so", "linux64", include_dirs=[inc],
+                defines={"SCALE": "1.0"})
+    assert len(calls) == 2
+    probe_c.write_text(probe_c.read_text() + "\n")
+    try:
+        zig.compile([probe_c], tmp_path / "e.so", "linux64", include_dirs=[inc],
+                    defines={"SCALE": "1.0"})
+    finally:
+        probe_c.write_text(SOURCE)
+    assert len(calls) == 3
+    monkeypatch.setenv("DRONEFLY_CACHE_DIR", "0")
+    zig.compile([probe_c], tmp_path / "f.so", "linux64", include_dirs=[inc],
+                defines={"SCALE": "1.0"})
+    assert len(calls) == 4 and len(list(fresh_cache.iterdir())) == 4

@@ -157,8 +157,8 @@ _HYGIENE = textwrap.dedent("""
     with FMU(sys.argv[1]) as f:
         # warm-up: fills the bounded caches (256 freed-state tombstones; the 6-DOF model's
         # compiled equations per parameter set, made at initialization)
-        for _ in range(260):
-            with f.instantiate("x", logging=False) as inst:
+        with f.instantiate("x", logging=False) as inst:  # (the tombstones are per process)
+            for _ in range(260):
                 inst.slave.freeFMUstate(inst.slave.getFMUstate())
         for _ in range(3):
             cycle(f)

@@ -75,7 +75,7 @@ from pathlib import Path
 if importlib.util.find_spec("ziglang") is None or importlib.util.find_spec("dronefly") is None:
     print("setup-c-host: no ziglang or dronefly in this interpreter: zig's cache not filled")
     sys.exit(0)
-from dronefly.builder.toolchain import PLATFORMS, find_toolchain, fmi_include_dir
+from dronefly.harness.builder.toolchain import PLATFORMS, find_toolchain, fmi_include_dir
 tc = find_toolchain("win64")
 if tc is None or tc.kind != "zig":
     print("setup-c-host: zig cc does not start: zig's cache not filled")

@@ -21,10 +21,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from dronefly.builder.build import build_fmu
+from dronefly.harness.builder.build import build_fmu
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.flapping import fmi_floquet
-from dronefly.models.lateral import N_HZ
+from dronefly.models.lateral_interface import N_HZ
 from dronefly.models.quasisteady import CONTROLS
 
 TARGET_MS_PER_BEAT = 10.0

@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         if args.fmus is None:
-            from dronefly.builder.build import FMUS, build_fmu
+            from dronefly.harness.builder.build import FMUS, build_fmu
 
             fmus = sorted((build_fmu(name, tmp) for name in FMUS), key=lambda p: p.stem)
         else:

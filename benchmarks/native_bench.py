@@ -9,7 +9,7 @@ Measures, interleaved repeat by repeat (the machine is shared and noisy):
   chost    steps per second of the native closed loop in the C host of tests/c_host (no Python
            in the process; the loop alone, wall time, printed by the host's ``-t``) against the
            physical limit: the 4 x 7 product of the plant and the 3 x 4 law and nothing else
-           (``native_limit.c``), both built by zig cc (builder/toolchain.py)
+           (``native_limit.c``), both built by zig cc (harness/builder/toolchain.py)
   simulate ``fmpy.simulate_fmu`` of the lateral plant alone over its default experiment
            (300 steps of 0.1 wing beat), native against pythonfmu, wall time (target: the
            native plant at least 3 times faster), and what one fmi2GetReal and one fmi2DoStep
@@ -70,8 +70,8 @@ def _build(out: Path) -> dict[str, Path]:
     """The pythonfmu pair, the do-nothing pair and the native pair (FMI 2.0)."""
     from pythonfmu import FmuBuilder
 
-    from dronefly.builder import native
-    from dronefly.builder.build import build_fmu
+    from dronefly.harness.builder import native
+    from dronefly.harness.builder.build import build_fmu
 
     fmus = {name: build_fmu(name, out) for name in ("DroneFlyLateral", "StateFeedback")}
     for name in ("NullPlant", "NullController"):
@@ -115,7 +115,7 @@ def bench_step(fmus: dict[str, Path], steps: int, repeats: int) -> dict[str, lis
 
 
 def _compile_c(out: Path) -> tuple[Path, Path]:
-    from dronefly.builder.toolchain import find_toolchain, fmi_include_dir, missing_reason
+    from dronefly.harness.builder.toolchain import find_toolchain, fmi_include_dir, missing_reason
 
     tc = find_toolchain("linux64")
     if tc is None:

@@ -6,7 +6,7 @@
  *
  *   native_limit N_STEPS     prints "loop_s=<seconds> steps=<n> check=<x[3]>" on stdout
  *
- * Built by benchmarks/native_bench.py with the project's toolchain (builder/toolchain.py) and
+ * Built by benchmarks/native_bench.py with the project's toolchain (harness/builder/toolchain.py) and
  * the same flags as the native FMUs; the printed state keeps the compiler from dropping work.
  */
 #define _POSIX_C_SOURCE 200809L

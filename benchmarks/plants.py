@@ -70,13 +70,13 @@ class PlantBench:
 
     def __init__(self, fmus: dict[str, Path], stack: contextlib.ExitStack) -> None:
         from dronefly.harness.cosim.fmu import FMU
-        from dronefly.models import lateral_dynamics as lat
+        from dronefly.models import lateral_dynamics
         from dronefly.models.rigid_body import Hover6DOF, quaternion_from_euler
-        from dronefly.models import longitudinal_dynamics as lon
+        from dronefly.models import longitudinal_dynamics
 
-        lp, np_ = lat.default_parameters(), lon.default_parameters()
+        lp, np_ = lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters()
         self._nl = Hover6DOF(lp, np_)
-        self._lat, self._lon = lat.LateralModel(lp), lon.LongitudinalModel(np_)
+        self._lat, self._lon = lateral_dynamics.LateralModel(lp), longitudinal_dynamics.LongitudinalModel(np_)
         self._x6 = [0.0, 0.0, 0.0, 0.15, 0.0, 0.0, *quaternion_from_euler(0.22, 0.0, 0.0),
                     0.0, 0.0, 0.0]
         self._x4 = [0.0, 0.15, 0.0, 0.22]
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.steps < 2 or args.repeats < 1:
         ap.error("--steps must be >= 2 and --repeats >= 1")
-    from dronefly.builder.build import build_fmu
+    from dronefly.harness.builder.build import build_fmu
 
     start = datetime.now(timezone.utc)
     print(f"started {start:%Y-%m-%d %H:%M} UTC, {os.cpu_count()} cores, {_load()}")

@@ -57,7 +57,7 @@ from plants import TARGET_RATIO, PlantBench, report as plants_report, steps_for 
 def _build(out: Path) -> dict[str, Path]:
     from pythonfmu import FmuBuilder
 
-    from dronefly.builder.build import build_all
+    from dronefly.harness.builder.build import build_all
 
     fmus = {p.stem: p for p in build_all(out) if p.suffix == ".fmu"}  # not DroneFlyHover6DOF.ssp
     for name in ("NullPlant", "NullController"):

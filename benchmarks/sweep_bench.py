@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print JSON")
     args = ap.parse_args(argv)
 
-    from dronefly.builder.build import build_all
+    from dronefly.harness.builder.build import build_all
     from dronefly.harness.sweep.run import run_sweep
     from dronefly.harness.sweep.cases import DEFAULT_DIRECTIONS, SweepSpec
 

@@ -22,7 +22,7 @@ from types import ModuleType
 from typing import Callable, Sequence
 
 from .. import __version__
-from ..builder.build import reporting
+from ..harness.builder.build import reporting
 from .commands import COMMANDS, EXIT_FAILED, EXIT_USAGE
 from .args import (converter, finite, floats_arg, int_arg, out_dir, out_file, parse_gains,
     parse_names, parse_setting, parse_x0, positive)

@@ -90,7 +90,7 @@ def parse_names(text: str) -> list[str]:
 
 def parse_setting(text: str) -> tuple[str, str]:
     """``NAME=VALUE`` -> (NAME, VALUE as text): converted later to the variable's declared
-    type (:mod:`dronefly.harness.cosim.values`)."""
+    type (:mod:`dronefly.harness.cosim.typed_values`)."""
     name, sep, value = text.partition("=")
     if not sep or not name.strip() or not value.strip():
         raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=VALUE, e.g. "

@@ -18,8 +18,8 @@ from pythonfmu.enums import Fmi2Status
 
 from ..models.axes import Axis
 from ..fmi import SlaveBase
-from ..models.lateral import LATERAL, N_HZ
-from ..models.longitudinal import LONGITUDINAL
+from ..models.lateral_interface import LATERAL, N_HZ
+from ..models.longitudinal_interface import LONGITUDINAL
 from .delay import Sensor, Timing
 from ..models.feedback import FeedbackLaw, default_gains, default_longitudinal_gains
 from .variables import LAW_PARAMETERS, TIMING, all_gains, all_integral_gains, controller_variables

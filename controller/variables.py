@@ -11,7 +11,7 @@ from typing import Callable
 
 from ..models.axes import Axis
 from ..fmi import Var
-from ..models.lateral import N_HZ, U_M_PER_S
+from ..models.lateral_interface import N_HZ, U_M_PER_S
 from ..models.feedback import U_MAX_LINEAR_RANGE, Gains, gain_name, integral_gain_name
 
 __all__ = ["LAW_PARAMETERS", "TIMING", "all_gains", "all_integral_gains", "controller_variables"]

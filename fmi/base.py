@@ -4,7 +4,7 @@ pythonfmu 0.7.0 provides the C wrapper and :class:`pythonfmu.Fmi2Slave`; this
 module replaces the parts that the FMI 2.0 standard and our users need and
 pythonfmu does not give: a declarative variable table with units, display
 units and ModelStructure dependencies; a model description that passes
-``fmpy validate`` (generated from it by :mod:`dronefly.builder.modeldescription`, which
+``fmpy validate`` (generated from it by :mod:`dronefly.harness.builder.modeldescription`, which
 the FMUs do not ship); value storage by value reference; full-state get/set and
 serialisation (:mod:`.state`); the FMI 2.0 co-simulation state machine;
 and error containment (no Python exception ever reaches the wrapper, where it
@@ -23,7 +23,7 @@ Every logged message passes through :meth:`SlaveBase._report`, which escapes
 ``%`` (the importer's logger treats the message as a printf format) and any
 character that is not UTF-8.
 
-The FMI 3.0 FMUs run the same class behind :class:`~dronefly.fmi.fmi3.Fmi3Side`, which
+The FMI 3.0 FMUs run the same class behind :class:`~dronefly.fmi.base3.Fmi3Side`, which
 changes only the FMI-facing names and statuses (class attributes ``FMI``, ``FMI_TEXT``,
 ``TYPE_NAMES``, ``STATE_API``, ``ILLEGAL_STATUS``, ``PRINTF_LOGGER``).
 
@@ -43,7 +43,7 @@ from .calls import (MODES, do_step_status, enter, exit_initialization_mode, in_s
     setup_experiment, step_refused)
 from .host import finalize_at_exit, inside_fmpy_container, leave_sys_path
 from .state import get_fmu_state, set_fmu_state, snapshot, state_from_bytes, state_to_bytes
-from .values import (get_boolean, get_integer, get_real, get_string, set_boolean, set_integer,
+from .access import (get_boolean, get_integer, get_real, get_string, set_boolean, set_integer,
     set_real, set_string)
 from .vars import UNITS, Var
 

@@ -131,7 +131,7 @@ def binary_folder3(resources: str | None, model: str) -> str:
 
 
 #: Nested in a container built by dronefly, ``<model>.so`` is a forwarding shim and pythonfmu's
-#: library sits beside it under this name (see ``builder/nestedshim.py``). The shim
+#: library sits beside it under this name (see ``harness/builder/nestedshim.py``). The shim
 #: may be unloaded (the container frees its components) while pythonfmu's library stays
 #: loaded, so the guard is released through pythonfmu's library itself whenever it is there.
 PYTHONFMU_BESIDE_SHIM = ".pythonfmu.so"

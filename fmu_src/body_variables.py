@@ -10,8 +10,8 @@ from typing import Callable
 
 from ..fmi import Var
 from ..models.hover6dof import EARTH_OUTPUTS, EULER_OUTPUTS, EXTRA_STARTS, OUTPUT_NAMES
-from ..models.lateral import LATERAL
-from ..models.longitudinal import LONGITUDINAL
+from ..models.lateral_interface import LATERAL
+from ..models.longitudinal_interface import LONGITUDINAL
 
 __all__ = ["AXES", "ATTITUDE_STARTS", "VELOCITY_STARTS", "control_inputs", "rows",
            "start_parameters", "state_outputs"]

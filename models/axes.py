@@ -5,8 +5,8 @@ longitudinal part (Sect. 3.5); each is a 4-state linear system with its own
 state, controls and non-dimensionalisation. An :class:`Axis` holds those for
 one of them: the variable names, SI units with display units, descriptions,
 and which reference scale (U [m/s], n [Hz] or none) makes each state
-component non-dimensional. :mod:`dronefly.models.lateral` and
-:mod:`dronefly.models.longitudinal` define the two instances.
+component non-dimensional. :mod:`dronefly.models.lateral_interface` and
+:mod:`dronefly.models.longitudinal_interface` define the two instances.
 
 Pure Python (no numpy): the FMUs ship this module.
 """

@@ -2,7 +2,7 @@
 
 This module is the single home of the controller's numbers: the gains of
 Eq. (27) and the default longitudinal gains are defined here and nowhere else. The reference scales (n, U) and
-the variable names come from :mod:`dronefly.models.lateral`, the interface the plant
+the variable names come from :mod:`dronefly.models.lateral_interface`, the interface the plant
 shares, so that the controller and the plant agree on the
 non-dimensionalisation of Sect. 2.1:
 
@@ -13,7 +13,7 @@ K is 3x4 and non-dimensional (rad per unit of x+). Eq. (22) is its first row. KI
 (same shape, default 0) weighs the integral state z = integral of x+ over the
 non-dimensional time t+ = t n (a proportional-integral law); with KI = 0
 the law is u = K x+, bit for bit.
-The same law serves the longitudinal axis (:data:`dronefly.models.longitudinal.LONGITUDINAL`,
+The same law serves the longitudinal axis (:data:`dronefly.models.longitudinal_interface.LONGITUDINAL`,
 x+ = (delta_u/U, delta_w/U, delta_q t_w, delta_theta), four controls, K 4x4).
 An optional actuator limit clips each control to [-u_max, u_max].
 """
@@ -28,7 +28,7 @@ from typing import Any, Callable, List, Sequence, Tuple
 
 from .axes import Axis, dot
 from ..core.errors import DroneflyError
-from .lateral import CONTROL_NAMES, LATERAL, N_HZ, STATE_NAMES, U_M_PER_S
+from .lateral_interface import CONTROL_NAMES, LATERAL, N_HZ, STATE_NAMES, U_M_PER_S
 
 __all__ = [
     "CONTROL_NAMES",

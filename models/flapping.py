@@ -16,7 +16,7 @@ Equations (x = (V+, omega+, e, P+), R(e) body -> earth):
 - de/dt+ = e * (0, omega+) / 2, dP+/dt+ = R V+
 
 with m+, J+ (the full tensor, Ixz+) and g+ from the Sect. 2.4 flight data
-(:func:`dronefly.models.lateral.reference_scales`), the same data whose weight the
+(:func:`dronefly.models.lateral_interface.reference_scales`), the same data whose weight the
 quasi-steady trim balances (so the trimmed wing motion holds the insect up on average).
 
 Wing inertia: each wing (m_w = 0.56 mg, 0.6 % of the insect) is a point mass at 0.35 R along
@@ -81,7 +81,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from ..core.errors import DroneflyError
-from .lateral import FLIGHT_DATA, reference_scales
+from .lateral_interface import FLIGHT_DATA, reference_scales
 from .quasisteady import CONTROLS, QuasiSteadyModel
 from .rigid_body import euler_from_quaternion, quaternion_from_euler
 
@@ -198,7 +198,7 @@ class FlappingModel:
         (:meth:`QuasiSteadyModel.forces_vector`, the kinematics of the beat's controls) and
         leave out the wing inertia (zero on average): the averaged model, for comparison.
     data : mapping
-        Flight data (default :data:`dronefly.models.lateral.FLIGHT_DATA`).
+        Flight data (default :data:`dronefly.models.lateral_interface.FLIGHT_DATA`).
     frequency_factor : float
         The averaging experiment (default 1, the insect): the wing beat is ``frequency_factor``
         times faster while the forces at each phase stay what they are, so their cycle average,

@@ -1,7 +1,7 @@
 """Interface of the six-degree-of-freedom plant ``DroneFlyHover6DOF``: names, units, texts.
 
-A drop-in for both linear plants: the lateral states and controls of :mod:`dronefly.models.lateral`
-and the longitudinal ones of :mod:`dronefly.models.longitudinal`, with the same names, units and
+A drop-in for both linear plants: the lateral states and controls of :mod:`dronefly.models.lateral_interface`
+and the longitudinal ones of :mod:`dronefly.models.longitudinal_interface`, with the same names, units and
 causalities, plus the attitude as Euler angles and the motion in earth axes (north-east-down,
 origin at the initial position).
 
@@ -16,8 +16,8 @@ Pure Python (no numpy).
 
 from __future__ import annotations
 
-from .lateral import LATERAL
-from .longitudinal import LONGITUDINAL
+from .lateral_interface import LATERAL
+from .longitudinal_interface import LONGITUDINAL
 
 __all__ = ["EARTH_OUTPUTS", "EULER_OUTPUTS", "EXTRA_STARTS", "OUTPUT_NAMES", "STATE_OUTPUTS"]
 

@@ -3,7 +3,7 @@
 This module is the single home of the model's equations and of its printed
 coefficients (Eq. 12, Sect. 2.1, Table 1). The plant FMU and the analysis
 import it; names, units and reference scales (Sect. 2.4) live in
-:mod:`dronefly.models.lateral`, which the controller shares without this module.
+:mod:`dronefly.models.lateral_interface`, which the controller shares without this module.
 
 Non-dimensionalisation (end of Sect. 2.1): reference length c (mean chord),
 velocity U = 2 Phi n r2, time t_w = 1/n. The state is
@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping
 
-from .lateral import INERTIAS_SECT21
+from .lateral_interface import INERTIAS_SECT21
 from .linear import ModelParameterError, PlantParameters, Rows, ZohModel, as_arrays, finite_rows
 
 __all__ = [

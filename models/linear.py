@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple, TypeVar
 
 from ..core.errors import DroneflyError
 from .axes import dot
-from .lateral import sort_eigenvalues
+from .lateral_interface import sort_eigenvalues
 from .linear_algebra import expm, norm1
 
 if TYPE_CHECKING:

@@ -1,11 +1,11 @@
 """Linearized longitudinal dynamics of the hovering model drone fly (Zhang & Sun, Sect. 3.5).
 
 The single home of the longitudinal equations and of Sect. 3.5's printed A and B.
-Names, units and scales live in :mod:`dronefly.models.longitudinal`.
+Names, units and scales live in :mod:`dronefly.models.longitudinal_interface`.
 
 State x+ = (du+, dw+, dq+, dtheta) = (du/U, dw/U, dq t_w, dtheta), control
 u = (dPhi, dalpha_1, dphibar, dalpha_2) [rad] in the order of B's columns (Eq. 30; see
-:mod:`dronefly.models.longitudinal`), time t+ = t/t_w in wing beats. The equations of the
+:mod:`dronefly.models.longitudinal_interface`), time t+ = t/t_w in wing beats. The equations of the
 averaged model linearised about hover (body x-axis horizontal, no equilibrium
 velocity; the form of Refs. [7, 16, 17]):
 
@@ -16,7 +16,7 @@ velocity; the form of Refs. [7, 16, 17]):
 
 A (4x4) and B (4x4) are these coefficients. The paper prints A and B but not the
 derivatives; they are recovered by inverting the equations with the printed m+ and g+
-(end of Sect. 2.1) and Iy+ (:data:`dronefly.models.longitudinal.IY_PLUS`): X = m+ A[0, :],
+(end of Sect. 2.1) and Iy+ (:data:`dronefly.models.longitudinal_interface.IY_PLUS`): X = m+ A[0, :],
 Z = m+ A[1, :], M = Iy+ A[2, :]. The printed A[0, 3] = -0.0158 is -g+, as the
 equations require; A[1, 3] = 0 because gravity has no component along z for a small
 pitch from a horizontal x-axis.
@@ -27,9 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Sequence
 
-from .lateral import INERTIAS_SECT21
+from .lateral_interface import INERTIAS_SECT21
 from .linear import ModelParameterError, PlantParameters, Rows, ZohModel, as_arrays, finite_rows
-from .longitudinal import CONTROL_NAMES, IY_PLUS
+from .longitudinal_interface import CONTROL_NAMES, IY_PLUS
 
 __all__ = [
     "A_SECT35",

@@ -55,7 +55,7 @@ Omega x r, the spanwise component removed. Terms (each can be switched off, :cla
   cycle, exactly. ``"sane2001"`` (Sane & Dickinson 2001) is -m_a dV_n/dt n: it drops
   m_a V_n dn/dt, the turning of the wing normal, and so averages to m_a mean(V_n dn/dt), a
   net force of no physical origin (an upward force carrying 31 % of the weight at its trim,
-  :func:`dronefly.harness.aero.compare.trim_table`); it is kept for comparison with the literature
+  :func:`dronefly.harness.aero.beside_paper.trim_table`); it is kept for comparison with the literature
   that uses it.
 
 All forces act on the pitch axis of their element; the body's own aerodynamic force is not
@@ -85,7 +85,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.errors import DroneflyError
-from .lateral import FLIGHT_DATA, reference_scales
+from .lateral_interface import FLIGHT_DATA, reference_scales
 
 __all__ = [
     "BODY_DATA",
@@ -114,7 +114,7 @@ CONTROLS: tuple[str, ...] = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a", 
 #: The cycle-averaged forces and moments, in this order.
 FORCES: tuple[str, ...] = ("X", "Y", "Z", "L", "M", "N")
 
-#: Sect. 2.4 data that :data:`dronefly.models.lateral.FLIGHT_DATA` does not hold (lengths in m,
+#: Sect. 2.4 data that :data:`dronefly.models.lateral_interface.FLIGHT_DATA` does not hold (lengths in m,
 #: angles in deg, the rotation as a fraction of the cycle).
 BODY_DATA: dict[str, float] = {
     "l_b": 14.11e-3,  # m, body length

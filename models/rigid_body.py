@@ -43,8 +43,8 @@ from operator import mul
 from typing import Any, Callable, Protocol, Sequence
 
 from ..core.errors import DroneflyError
-from . import lateral_dynamics as lateral
-from . import longitudinal_dynamics as longitudinal
+from . import lateral_dynamics
+from . import longitudinal_dynamics
 
 __all__ = ["CycleAveragedForces", "MAX_SUBSTEP_QS_WB", "MAX_SUBSTEP_WB",
            "MAX_TURN_PER_SUBSTEP_QS_RAD", "MAX_TURN_PER_SUBSTEP_RAD", "Hover6DOF",
@@ -266,8 +266,8 @@ class Hover6DOF:
         :data:`MAX_TURN_PER_SUBSTEP_QS_RAD`.
     """
 
-    lateral_params: lateral.LateralParameters
-    longitudinal_params: longitudinal.LongitudinalParameters
+    lateral_params: lateral_dynamics.LateralParameters
+    longitudinal_params: longitudinal_dynamics.LongitudinalParameters
     terms: frozenset = TERMS
     aerodynamics: CycleAveragedForces | None = None
 
@@ -280,7 +280,7 @@ class Hover6DOF:
         unknown = set(self.terms) - TERMS
         if unknown:
             raise Hover6DOFError(f"terms {sorted(unknown)!r}: choose from {sorted(TERMS)}")
-        for name, axis, params in (("_lat", lateral, lp), ("_lon", longitudinal, np_)):
+        for name, axis, params in (("_lat", lateral_dynamics, lp), ("_lon", longitudinal_dynamics, np_)):
             object.__setattr__(self, name, _aero_rows(*axis.system_rows(params), (0, 1, 2), 3))
         G = _gyroscopic(lp.Ix_plus, np_.Iy_plus, lp.Iz_plus, lp.Ixz_plus)
         qs = self.aerodynamics is not None

@@ -5,7 +5,7 @@
  * co-simulation state machine, and the model's own state (ModelState, declared by the
  * model's model.h). The model implements the hooks declared at the end of this file; the glue
  * (fmu.c) maps both FMI versions onto them. vars.h is generated at build time from the same
- * variable table as the pythonfmu FMUs (dronefly.builder.native).
+ * variable table as the pythonfmu FMUs (dronefly.harness.builder.native).
  */
 #ifndef DRONEFLY_FMU_H
 #define DRONEFLY_FMU_H

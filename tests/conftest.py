@@ -80,7 +80,7 @@ def sigint_as_in_a_terminal():
 def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Every artefact of ``dronefly build``, freshly built: FMUs by model name
     (``"DroneFlyLateral"``), other files by file name (``"DroneFlyClosedLoop.ssp"``)."""
-    from dronefly.builder.build import build_all
+    from dronefly.harness.builder.build import build_all
 
     out = tmp_path_factory.mktemp("fmus")
     return {(p.stem if p.suffix == ".fmu" else p.name): p for p in build_all(out)}
@@ -90,7 +90,7 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 def built_fmus3(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The FMI 3.0 artefacts of ``dronefly build`` (``build/fmi3/``), freshly built: FMUs by
     model name, the hover system SSPs by file name."""
-    from dronefly.builder.build import build_all
+    from dronefly.harness.builder.build import build_all
 
     out = tmp_path_factory.mktemp("fmus3")
     return {(p.stem if p.suffix == ".fmu" else p.name): p for p in build_all(out, fmi=3)}

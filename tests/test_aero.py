@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from dronefly.harness.aero import QuasiSteadyModel, Terms, Trim, WingGeometry
-from dronefly.harness.aero.compare import ackermann, derivatives, eigenvalues, parity_report
-from dronefly.models import lateral_dynamics as lat
+from dronefly.harness.aero.beside_paper import ackermann, derivatives, eigenvalues, parity_report
+from dronefly.models import lateral_dynamics
 from dronefly.models.quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES
 from dronefly.cli.app import main
 from dronefly.core.errors import DroneflyError
@@ -168,7 +168,7 @@ def test_derivatives_against_a_finer_grid_and_richardson(model):
 
 
 def test_paper_derivatives_give_the_papers_eigenvalues():
-    from dronefly.harness.paper.values import table2_eigenvalues
+    from dronefly.harness.paper.printed import table2_eigenvalues
     from dronefly.models.lateral_dynamics import default_parameters
     from dronefly.models.longitudinal_dynamics import default_parameters as lon
 
@@ -211,9 +211,9 @@ def test_report_json_has_the_schema(model):
     diff = np.array(paper) - np.array(printed)
     assert max(np.abs(diff.real).max(), np.abs(diff.imag).max()) <= 1e-4, diff
     qs = {k: v["quasi_steady"] for k, v in r["derivatives"].items()}
-    params = lat.default_parameters()
-    params = replace(params, **{k: qs[k] for k in lat.LateralParameters.names() if k in qs})
-    A, _ = lat.system_matrices(params)
+    params = lateral_dynamics.default_parameters()
+    params = replace(params, **{k: qs[k] for k in lateral_dynamics.LateralParameters.names() if k in qs})
+    A, _ = lateral_dynamics.system_matrices(params)
     want = order(np.linalg.eigvals(A))
     got = order(complex(*z) for z in lateral["quasi_steady"])
     assert np.max(np.abs(np.array(got) - np.array(want))) < 1e-12
@@ -255,7 +255,7 @@ def reports(model):
 
 
 def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
-    from dronefly.harness.aero.compare import answer, linearity_summary, trim_table
+    from dronefly.harness.aero.beside_paper import readme_paragraph, linearity_summary, trim_table
 
     text = DOC.read_text(encoding="utf-8")
     default, sane = reports
@@ -268,7 +268,7 @@ def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
     assert_same_numbers(_block(text, "sane2001"), sane.table(), "aero:sane2001")
     assert_same_numbers(_block(text, "trim"), trim_table(), "aero:trim")
     assert_same_numbers(_block(text, "linearity"), linearity_summary(model), "aero:linearity")
-    ans = answer(default, model)
+    ans = readme_paragraph(default, model)
     assert_same_numbers(_block(text, "answer"), ans, "aero:answer")
     readme = NumericText((ROOT / "README.md").read_text(encoding="utf-8"))
     for line in ans.splitlines():
@@ -277,7 +277,7 @@ def test_aerodynamics_doc_blocks_are_what_the_code_renders(model, reports):
 
 def test_aerodynamics_doc_prose_numbers(model, reports):
     """The numbers the prose quotes beside the generated blocks, recomputed."""
-    from dronefly.harness.aero.compare import linearity_scan, pair_scan, LATERAL_PAIRS
+    from dronefly.harness.aero.beside_paper import linearity_scan, pair_scan, LATERAL_PAIRS
 
     text = NumericText(DOC.read_text(encoding="utf-8"))
     default, sane_report = reports
@@ -393,7 +393,7 @@ def test_aerodynamics_doc_prose_numbers(model, reports):
 
 
 def derivative_rows(m):
-    from dronefly.harness.aero.compare import derivative_table
+    from dronefly.harness.aero.beside_paper import derivative_table
 
     return derivative_table(m)
 
@@ -406,8 +406,8 @@ def translational_share(m):
 def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
     """Axes and signs as the paper's: Eq. (10) with the model's derivatives has +g+ in its first
     row and the sign of Eq. (12) in every aerodynamic entry the paper prints as nonzero."""
-    from dronefly.harness.aero.compare import system_matrices
-    from dronefly.models.lateral import INERTIAS_SECT21
+    from dronefly.harness.aero.beside_paper import system_matrices
+    from dronefly.models.lateral_interface import INERTIAS_SECT21
     from dronefly.models.lateral_dynamics import A1_EQ12
 
     values = {r.parameter: r.quasi_steady for r in reports[0].rows}

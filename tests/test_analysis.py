@@ -1,6 +1,6 @@
 """Tests of the analysis of Zhang & Sun: the table's coverage, the API, the CLI, the designs.
 
-Every printed value comes from ``dronefly.harness.paper.values`` (one place). The rows themselves
+Every printed value comes from ``dronefly.harness.paper.printed`` (one place). The rows themselves
 (match, reason, errata, rounding) are checked in ``test_reproduction_rows.py``.
 """
 
@@ -17,12 +17,12 @@ from docnumbers import same_numbers
 
 from dronefly.cli.app import main
 from dronefly.harness.paper import analysis as an
-from dronefly.harness.paper import values as pv
+from dronefly.harness.paper import printed as pv
 from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabilising_designs
 from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze, reproduction_table
-from dronefly.models import lateral_dynamics as model
-from dronefly.models import lateral as lateral_interface
+from dronefly.models import lateral_dynamics
+from dronefly.models import lateral_interface
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
@@ -80,12 +80,12 @@ def test_json_output_has_rows_matrices_and_exact_gains(capsys: pytest.CaptureFix
 
 def test_eq24_b_interval_by_vertices() -> None:
     """The first-order interval of b(2) agrees with all 2^7 corners of the input box (Sect. 2.1, Table 1)."""
-    p0 = model.default_parameters()
+    p0 = lateral_dynamics.default_parameters()
     decimals = {**pv.SECT21_DECIMALS, "Y_Phi_a_plus": pv.TABLE1_DECIMALS, "L_Phi_a_plus": pv.TABLE1_DECIMALS,
                 "N_Phi_a_plus": pv.TABLE1_DECIMALS}
     names = list(decimals)
     h = [0.5 * 10.0 ** -decimals[n] for n in names]
-    vals = [model.system_matrices(p0.with_values(**{n: getattr(p0, n) + s * d for n, s, d in zip(names, sg, h)}))
+    vals = [lateral_dynamics.system_matrices(p0.with_values(**{n: getattr(p0, n) + s * d for n, s, d in zip(names, sg, h)}))
             [1][1, 0] for sg in itertools.product((-1, 1), repeat=7)]
     lo, hi = ROWS[("Eq. (24)", "b(2) [B1 column of delta_Phi_a]")].interval
     assert_allclose([min(vals), max(vals)], [lo, hi], rtol=0, atol=2e-5)
@@ -175,7 +175,7 @@ def test_repeated_targets_are_placed_and_said_so(targets):
     from dronefly.harness.paper.design import analysis_report
 
     c = analysis_report(targets, "delta_Phi_a")["custom_design"]
-    A, B = model.system_matrices(model.default_parameters())
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     k = np.array(c["gains"])
     want = np.poly([complex(t) for t in targets.split(",")]).real
     assert_allclose(np.poly(A + np.outer(B[:, 0], k)), want, atol=1e-12)

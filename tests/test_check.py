@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.builder.build import FMUS
+from dronefly.harness.builder.build import FMUS
 from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
 from dronefly.harness.compliance.suite import check_fmu, format_reports
-from dronefly.models.lateral import N_HZ
+from dronefly.models.lateral_interface import N_HZ
 from fmu_helpers import build_crashing_fmu, build_hanging_fmu
 
 pytestmark = pytest.mark.integration
@@ -58,7 +58,7 @@ def test_broken_model_description_fails_validate(built_fmus, tmp_path, capsys):
 
 def test_state_that_is_not_captured_fails(tmp_path, monkeypatch):
     """A plant whose FMU state forgets the integrator state: continuation differs."""
-    import dronefly.builder.build as build
+    import dronefly.harness.builder.build as build
 
     original = build._source_path
 
@@ -139,7 +139,7 @@ def test_the_fmus_own_log_message_is_shown(tmp_path, monkeypatch, capsys):
     or not (the failure line: what the FMU logged)."""
     import json
 
-    import dronefly.builder.build as build
+    import dronefly.harness.builder.build as build
 
     original = build._source_path
 

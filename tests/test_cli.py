@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.builder.build import FMUS
+from dronefly.harness.builder.build import FMUS
 from dronefly.cli.app import main
 from dronefly.harness.stability.simulate import exact_open_loop
 

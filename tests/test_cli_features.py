@@ -21,8 +21,8 @@ from dronefly.cli.app import main
 from dronefly.core.errors import DroneflyError
 from dronefly.harness.paper.gains import parse_gains
 from dronefly.harness.stability.run import cosimulate
-from dronefly.models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, sort_eigenvalues
-from dronefly.models import lateral_dynamics as model
+from dronefly.models.lateral_interface import CONTROL_NAMES, N_HZ, STATE_NAMES, U_M_PER_S, sort_eigenvalues
+from dronefly.models import lateral_dynamics
 
 pytestmark = pytest.mark.integration
 
@@ -33,7 +33,7 @@ def fmus(built_fmus):
 
 
 def _expected(K: np.ndarray, **params: float) -> np.ndarray:
-    A, B = model.system_matrices(model.default_parameters().with_values(**params))
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters().with_values(**params))
     return np.array(sort_eigenvalues(np.linalg.eigvals(A + B @ K)))
 
 
@@ -54,7 +54,7 @@ def test_full_gain_matrix_on_all_three_controls(fmus, tmp_path):
     eigenvalues of A1 + B1 K (computed here with scipy, not by the FMUs)."""
     from scipy.signal import place_poles
 
-    A, B = model.system_matrices(model.default_parameters())
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     K = -place_poles(A, B, [-0.2, -0.25, -0.3, -0.35]).gain_matrix
     path = tmp_path / "K.json"
     path.write_text(json.dumps({"K": K.tolist()}))

@@ -3,7 +3,7 @@
 Without a shim one refused step (K[1,1] = NaN) stops FMPy's container for good: pythonfmu
 answers fmi2Terminated with true after any fmi2Discard, and the container keeps that answer
 through fmi2Reset ("Expected currentCommunicationPoint=0 but was 0.00061"). The build puts a
-shim in front of the nested FMUs' Linux library (``dronefly.builder.nestedshim``); fmi2Reset and a
+shim in front of the nested FMUs' Linux library (``dronefly.harness.builder.nestedshim``); fmi2Reset and a
 new initialization then give a container that runs exactly like a new instance. Each case runs in
 a child process (FMPy's container can take the host down).
 """
@@ -19,8 +19,8 @@ import zipfile
 
 import pytest
 
-from dronefly.builder.closedloop import write_container
-from dronefly.builder.nestedshim import REAL_SUFFIX, shim_library
+from dronefly.harness.builder.closedloop import write_container
+from dronefly.harness.builder.nestedshim import REAL_SUFFIX, shim_library
 from shared_files import provided_on_ci
 
 pytestmark = pytest.mark.integration

@@ -19,7 +19,7 @@ from dronefly.controller import timing as T
 from dronefly.models import feedback as L
 from dronefly.controller.slave import (StateFeedback, StateFeedbackDelayed,
     StateFeedbackLongitudinalDelayed)
-from dronefly.models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES
+from dronefly.models.lateral_interface import CONTROL_NAMES, N_HZ, STATE_NAMES
 from fmu_helpers import model_description
 
 WB = 1.0 / N_HZ  # one wing beat [s]

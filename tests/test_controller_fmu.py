@@ -12,8 +12,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.models import feedback as L
-from dronefly.models import lateral_dynamics as M
-from dronefly.models import lateral as lateral_interface
+from dronefly.models import lateral_dynamics
+from dronefly.models import lateral_interface
 
 from controller_common import (B1_COL1_EQ24, CONTROLS, EIG_EQ27, GAINS, H, STATES, dimensional,
                                expected_controls, random_gains)
@@ -44,7 +44,7 @@ def test_fmpy_validate_reports_no_problems(built_fmus):
 
 @pytest.mark.integration
 def test_reproducible_build_and_own_package(tmp_path, built_fmus):
-    from dronefly.builder.build import build_fmu, fmu_sources
+    from dronefly.harness.builder.build import build_fmu, fmu_sources
 
     again = build_fmu("StateFeedback", tmp_path)
     assert again.read_bytes() == built_fmus["StateFeedback"].read_bytes()
@@ -56,8 +56,8 @@ def test_reproducible_build_and_own_package(tmp_path, built_fmus):
                and not k.endswith("__init__.py")}
     assert shipped == {f"resources/{pkg_c}/{r}" for r in
                        ("core/errors.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
-                        "fmi/state.py", "fmi/values.py", "fmi/vars.py", "models/axes.py",
-                        "models/lateral.py", "models/longitudinal.py",
+                        "fmi/state.py", "fmi/access.py", "fmi/vars.py", "models/axes.py",
+                        "models/lateral_interface.py", "models/longitudinal_interface.py",
                         "models/feedback.py", "controller/delay.py", "controller/timing.py",
                         "controller/variables.py",
                         "controller/slave.py")}
@@ -338,7 +338,7 @@ def test_closed_loop_cosimulation_with_the_plant(plant, controller):
             p.slave.setReal(p.vrs(CONTROLS), u)
             p.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
             c.slave.doStep(currentCommunicationPoint=k * h, communicationStepSize=h)
-    A, B = M.system_matrices(M.default_parameters())
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     # the exact one-wing-beat transition by the eigendecomposition of A1 (independent of the
     # FMU's matrix exponential): Phi = V e^(Lambda) V^-1, Gamma = V (e^Lambda - 1)/Lambda V^-1 B
     lam, V = np.linalg.eig(A)

@@ -22,10 +22,10 @@ import pytest
 from dronefly.cli.app import main
 from dronefly.models.feedback import integral_gain_name
 from dronefly.harness.stability.run import RATE_TOL_PER_WINGBEAT, cosimulate
-from dronefly.harness.cosim.stability import classify
+from dronefly.harness.cosim.identification import classify
 from dronefly.harness.latency.designs import DESIGNS, design
 from dronefly.harness.latency.sampled import sampled_margin, sampled_rates
-from dronefly.models.lateral import N_HZ
+from dronefly.models.lateral_interface import N_HZ
 
 pytestmark = pytest.mark.integration
 
@@ -173,9 +173,9 @@ def _sampled_rates_oracle(K: np.ndarray, h: float) -> np.ndarray:
     matrix, not the harness's discretisation), per wing beat, sorted by real part."""
     from scipy.linalg import expm
 
-    from dronefly.models import lateral_dynamics as model
+    from dronefly.models import lateral_dynamics
 
-    A, B = model.system_matrices(model.default_parameters())
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     E = expm(np.block([[A, B], [np.zeros((3, 7))]]) * h)
     mu = np.linalg.eigvals(E[:4, :4] + E[:4, 4:] @ K)
     return np.sort_complex(np.log(mu.astype(complex)) / h)
@@ -385,7 +385,7 @@ def test_a_checkout_named_dronefly_is_the_package(tmp_path):
     import sys
 
     (tmp_path / "dronefly").symlink_to(ROOT, target_is_directory=True)
-    code = ("import dronefly.builder.build as b, dronefly.cli.app as m; "
+    code = ("import dronefly.harness.builder.build as b, dronefly.cli.app as m; "
             "print(b.__file__); print(m.__file__)")
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                        text=True, timeout=60,
@@ -402,7 +402,7 @@ def test_analyze_targets_prints_the_design_first(capsys):
     the JSON; they place the targets: eig(A1 + b k) with the model's A1, b (Table 1) equal
     the targets to 1e-9 (distinct, well-separated targets: the eigenvalues of the closed
     loop move by about cond(V) * 1e-15 * |k|, cond(V) < 1e3 here)."""
-    from dronefly.models import lateral_dynamics as model
+    from dronefly.models import lateral_dynamics
 
     targets = "--targets=-0.2,-0.089+0.057j,-0.089-0.057j,-0.51"
     assert main(["analyze", targets]) == 0
@@ -415,7 +415,7 @@ def test_analyze_targets_prints_the_design_first(capsys):
     # the printed line holds the same gains (6 decimals)
     printed = [float(v) for v in first.split("k = (")[1].rstrip(")").split(",")]
     np.testing.assert_allclose(printed, k, rtol=0, atol=5e-7)
-    A, B = model.system_matrices(model.default_parameters())
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     got = np.sort_complex(np.linalg.eigvals(A + np.outer(B[:, 0], k)))
     want = np.sort_complex(np.array([-0.2, -0.089 + 0.057j, -0.089 - 0.057j, -0.51]))
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 from docnumbers import doc_block
 
-from dronefly.builder.build import FMUS
+from dronefly.harness.builder.build import FMUS
 from dronefly.cli.app import _parser, main
-from dronefly.models.lateral import FLIGHT_DATA
+from dronefly.models.lateral_interface import FLIGHT_DATA
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"

@@ -163,7 +163,7 @@ def test_readme_numbers_of_the_demo_and_the_reproduction(tmp_path):
     from dronefly.harness.paper.rows import summary
 
     readme = NumericText((ROOT / "README.md").read_text(encoding="utf-8"))
-    from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
+    from dronefly.harness.cosim.identification import TOL_PER_WINGBEAT
 
     r = cosimulate(out_dir=None, plot=False, build_dir=tmp_path)
     assert f"leave {r.identification.dominant_growth_rate:.1e} per wing beat" in readme

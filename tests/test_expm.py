@@ -11,8 +11,8 @@ from scipy.linalg import expm as scipy_expm
 
 from dronefly.models.linear import zoh_rows
 from dronefly.models.linear_algebra import expm, matmul, solve
-from dronefly.models import lateral_dynamics as lateral
-from dronefly.models import longitudinal_dynamics as longitudinal
+from dronefly.models import lateral_dynamics
+from dronefly.models import longitudinal_dynamics
 
 U = 2.0 ** -53  # unit round-off of double precision
 #: Relative 1-norm error allowed between two backward-stable exponentials of M: each is off by
@@ -111,7 +111,7 @@ def _cases(model, n_cases: int, seed: int):
     return out
 
 
-@pytest.mark.parametrize("model", [lateral, longitudinal], ids=["lateral", "longitudinal"])
+@pytest.mark.parametrize("model", [lateral_dynamics, longitudinal_dynamics], ids=["lateral", "longitudinal"])
 def test_zero_order_hold_matches_scipy_over_the_parameter_range(model):
     """Phi and Gamma of the plants' exact zero-order hold (7 x 7 and 8 x 8 augmented matrices)
     against scipy.linalg.expm of the same augmented matrix, over 150 parameter sets and steps

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from dronefly.models import lateral_dynamics as lat
-from dronefly.models import longitudinal_dynamics as lon
+from dronefly.models import lateral_dynamics
+from dronefly.models import longitudinal_dynamics
 from dronefly.models.flapping import (WING_CM_OVER_R, FlappingError, FlappingModel, Flight,
                                       wing_beat_controls)
-from dronefly.models.lateral import FLIGHT_DATA, INERTIAS_SECT21
+from dronefly.models.lateral_interface import FLIGHT_DATA, INERTIAS_SECT21
 from dronefly.models.quasisteady import CONTROLS, QuasiSteadyModel, Terms
 from dronefly.models.rigid_body import Hover6DOF
 
@@ -150,7 +150,7 @@ def test_wing_inertia_averages_to_zero_and_peaks_at_four_weights(model):
 def test_rigid_body_is_the_6dof_plants_when_given_its_loads(monkeypatch):
     # the 6-DOF plant's rigid body (paper's inertias) with its linear aerodynamics: feed the
     # same accelerations to the flapping model's equations as loads; the derivatives agree
-    LP, NP = lat.default_parameters(), lon.default_parameters()
+    LP, NP = lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters()
     plant = Hover6DOF(LP, NP)
     fm = FlappingModel(steps_per_beat=20)
     m, g = INERTIAS_SECT21["m_plus"], INERTIAS_SECT21["g_plus"]
@@ -321,20 +321,20 @@ def test_the_averaged_twin_is_the_quasi_steady_linear_model():
     # the state; measured 6e-8 lateral, 1.4e-5 longitudinal, relative)
     from dataclasses import replace
 
-    from dronefly.harness.aero.compare import LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS
-    from dronefly.harness.aero.compare import derivative_table
+    from dronefly.harness.aero.beside_paper import LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS
+    from dronefly.harness.aero.beside_paper import derivative_table
     from dronefly.harness.flapping import averaged_exponents
-    from dronefly.models.lateral import reference_scales, sort_eigenvalues
+    from dronefly.models.lateral_interface import reference_scales, sort_eigenvalues
 
     fm = FlappingModel(steps_per_beat=20)
     qs = {r.parameter: r.quasi_steady for r in derivative_table(fm.qs)}
     s = reference_scales()
-    lp = replace(lat.default_parameters(), **{p: qs[p] for p, _, _ in LATERAL_PARAMETERS},
+    lp = replace(lateral_dynamics.default_parameters(), **{p: qs[p] for p, _, _ in LATERAL_PARAMETERS},
                  **{k: s[k] for k in ("m_plus", "Ix_plus", "Iz_plus", "Ixz_plus", "g_plus")})
-    np_ = replace(lon.default_parameters(), **{p: qs[p] for p, _, _ in LONGITUDINAL_PARAMETERS},
+    np_ = replace(longitudinal_dynamics.default_parameters(), **{p: qs[p] for p, _, _ in LONGITUDINAL_PARAMETERS},
                   **{k: s[k] for k in ("m_plus", "Iy_plus", "g_plus")})
     avg = averaged_exponents(fm)
-    for axis, params, module in (("lateral", lp, lat), ("longitudinal", np_, lon)):
+    for axis, params, module in (("lateral", lp, lateral_dynamics), ("longitudinal", np_, longitudinal_dynamics)):
         A, _ = module.system_matrices(params)
         ev = sort_eigenvalues(np.linalg.eigvals(np.array(A)))
         gap = max(abs(a - b) / abs(b) for a, b in zip(avg[axis], ev))
@@ -350,13 +350,13 @@ def test_with_averaged_forces_it_is_the_quasi_steady_6dof_plant():
     against finer ones), not the flapping model's 40 RK4 steps per beat; measured 3.3e-6."""
     from dataclasses import replace
 
-    from dronefly.models.lateral import reference_scales
+    from dronefly.models.lateral_interface import reference_scales
 
     fm = FlappingModel(averaged=True)
     s = reference_scales()
-    lp = replace(lat.default_parameters(),
+    lp = replace(lateral_dynamics.default_parameters(),
                  **{k: s[k] for k in ("m_plus", "Ix_plus", "Iz_plus", "Ixz_plus", "g_plus")})
-    np_ = replace(lon.default_parameters(), **{k: s[k] for k in ("m_plus", "Iy_plus", "g_plus")})
+    np_ = replace(longitudinal_dynamics.default_parameters(), **{k: s[k] for k in ("m_plus", "Iy_plus", "g_plus")})
     six = Hover6DOF(lp, np_, aerodynamics=fm.qs)
     x = [0.0, 0.02, 0.0, 0.03, 0.0, 0.01, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     a, b = np.array(x), list(x)

@@ -10,7 +10,7 @@ import pytest
 
 from docnumbers import NumericText, assert_same_numbers, doc_block
 
-from dronefly.harness.flapping import (answer, convergence, convergence_rows, flapping_trim,
+from dronefly.harness.flapping import (readme_paragraph, convergence, convergence_rows, flapping_trim,
                                        floquet_report, master_report)
 from dronefly.models.flapping import FlappingModel
 
@@ -43,7 +43,7 @@ def test_flapping_doc_is_what_the_code_computes():
     _same(_block(text, "report"), report.text(), "flapping:report")
     _same(_block(text, "no-inertia"), bare.text(), "flapping:no-inertia")
     _same(_block(text, "convergence"), convergence(rows), "flapping:convergence")
-    ans = answer(report, bare, rows)
+    ans = readme_paragraph(report, bare, rows)
     _same(_block(text, "answer"), ans, "flapping:answer")
     assert ans in NumericText((ROOT / "README.md").read_text(encoding="utf-8")), \
         "README does not quote the answer"

@@ -13,9 +13,9 @@ import pytest
 
 from dronefly.cli.app import main
 from dronefly.harness.flapping import fmi_floquet
-from dronefly.models import lateral_dynamics as lat
+from dronefly.models import lateral_dynamics
 from dronefly.models.flapping import Floquet, FlappingModel
-from dronefly.models.lateral import N_HZ, sort_eigenvalues
+from dronefly.models.lateral_interface import N_HZ, sort_eigenvalues
 
 pytestmark = pytest.mark.integration
 
@@ -82,7 +82,7 @@ def test_floquet_of_a_linear_fmu_is_its_eigenvalues(built_fmus):
     # the linear lateral plant with a period of one wing beat given: the map is exp(A), the
     # central differences of a linear map are exact but for round-off (1e-15 here)
     r = fmi_floquet(built_fmus["DroneFlyLateral"], 1.0 / N_HZ)
-    A, _ = lat.system_matrices(lat.default_parameters())
+    A, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     ev = sort_eigenvalues(np.linalg.eigvals(np.array(A)))
     assert np.max(np.abs(np.array(r.exponents) - np.array(ev))) < 1e-8
 
@@ -114,7 +114,7 @@ def test_floquet_command_json(built_fmus, capsys):
     # the linear lateral plant (no averaged model to compare): its exponents as [re, im] are
     # eig(A) of Eq. (9) (as test_floquet_of_a_linear_fmu_is_its_eigenvalues, 1e-8), its orbit
     # the origin, the period the one asked for
-    A, _ = lat.system_matrices(lat.default_parameters())
+    A, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     ev = sort_eigenvalues(np.linalg.eigvals(np.array(A)))
     got = [complex(re, im) for re, im in out["floquet_exponents"]]
     assert np.max(np.abs(np.array(got) - np.array(ev))) < 1e-8
@@ -132,8 +132,8 @@ def test_with_forces_averaged_the_fmu_flies_as_the_quasi_steady_6dof_fmu(built_f
     1e-5 of the disturbance in each state, the bound of the model-level test
     (tests/test_flapping.py): the 6-DOF plant's sub-steps, not round-off, set it (measured
     6.4e-6 of it, in delta_theta)."""
-    from dronefly.models.lateral import LATERAL, U_M_PER_S, reference_scales
-    from dronefly.models.longitudinal import LONGITUDINAL
+    from dronefly.models.lateral_interface import LATERAL, U_M_PER_S, reference_scales
+    from dronefly.models.longitudinal_interface import LONGITUDINAL
 
     s = reference_scales()
     body = {k: s[k] for k in ("m_plus", "Ix_plus", "Iy_plus", "Iz_plus", "Ixz_plus", "g_plus")}
@@ -172,7 +172,7 @@ def test_started_on_the_periodic_orbit_the_fmu_returns_to_its_start_after_a_wing
     (the body's oscillation within the beat), and from rest (state 0) the beat does not close
     (the orbit is not trivial)."""
     from dronefly.harness.cosim.ssp import flapping_starts, orbit_start
-    from dronefly.models.lateral import U_M_PER_S
+    from dronefly.models.lateral_interface import U_M_PER_S
 
     names = ("delta_u", "delta_v", "delta_w", "delta_p", "delta_q", "delta_r", "delta_gamma",
              "delta_theta")

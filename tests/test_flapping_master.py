@@ -12,13 +12,13 @@ import pytest
 
 from dronefly.cli.app import main
 from dronefly.harness.cosim.ssp import FLAPPING_FMUS, flapping_system
-from dronefly.harness.cosim.stability import RATE_TOL_PER_WINGBEAT, classify
+from dronefly.harness.cosim.identification import RATE_TOL_PER_WINGBEAT, classify
 from dronefly.harness.cosim.system import System
 from dronefly.harness.cosim.system_master import SystemMaster
 from dronefly.harness.flapping import closed_loop_report, master_report, write_flapping_ssp
 from dronefly.models.flapping import STEPS_PER_BEAT
-from dronefly.models.lateral import N_HZ
-from dronefly.models.longitudinal import LONGITUDINAL
+from dronefly.models.lateral_interface import N_HZ
+from dronefly.models.longitudinal_interface import LONGITUDINAL
 
 #: integration: real FMUs through the master; numeric: the exponents depend on the BLAS kernel
 pytestmark = [pytest.mark.integration, pytest.mark.numeric]

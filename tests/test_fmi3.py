@@ -19,7 +19,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
-from dronefly.builder.build import FMUS
+from dronefly.harness.builder.build import FMUS
 
 pytestmark = pytest.mark.integration
 
@@ -29,7 +29,7 @@ pytestmark = pytest.mark.integration
 @pytest.fixture
 def feedback3():
     from dronefly.controller.slave import StateFeedback
-    from dronefly.fmi.fmi3 import fmi3_class
+    from dronefly.fmi.base3 import fmi3_class
 
     return fmi3_class(StateFeedback)(instance_name="c3")
 
@@ -82,7 +82,7 @@ def test_slave_state_round_trip_and_foreign_state(feedback3):
 
 def test_slave_warns_off_the_grid_naming_fmi_3(feedback3):
     """The off-grid warning names the FMU's own standard: 'FMI 3.0 co-simulation'."""
-    from dronefly.models.lateral import N_HZ
+    from dronefly.models.lateral_interface import N_HZ
 
     s = feedback3
     s.enter_initialization_mode()
@@ -251,7 +251,7 @@ def test_hover_system_fmi3_ssp_and_mixed_equal_fmi2(built_fmus, built_fmus3):
     """The four-FMU hover system: from build/fmi3/DroneFlyHover.ssp (FMI 3.0 FMUs) and mixed
     (FMI 2.0 plants, FMI 3.0 controllers) equal to the FMI 2.0 system; same verdicts (the
     trajectories decide them: the mixed run's verdicts are not identified again)."""
-    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.stability.system_verdicts import cosimulate_system
     from dronefly.harness.cosim.ssp import hover_system
 
     kw = dict(stop_wingbeats=60, out_dir=None, plot=False)
@@ -275,11 +275,11 @@ def test_closed_loop_ssp_fmi3_equals_fmi2(built_fmus, built_fmus3, tmp_path):
     are the gains); gains other than the FMUs' defaults, bound in the FMI 2.0 SSP and set with
     --set controller.K[i,j] on the FMI 3.0 one, still agree, and differ from the default run."""
     from dronefly.models.feedback import default_gains
-    from dronefly.builder.closedloop import ClosedLoopSpec
+    from dronefly.harness.builder.closedloop import ClosedLoopSpec
     from dronefly.harness.cosim.master import CoSimError
-    from dronefly.builder.closedloop import write_ssp
+    from dronefly.harness.builder.closedloop import write_ssp
     from dronefly.harness.interop.ssp import run_ssp
-    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.stability.system_verdicts import cosimulate_system
 
     kw = dict(out_dir=None, plot=False)
     ref = cosimulate_system(built_fmus["DroneFlyClosedLoop.ssp"], verdicts=False, **kw)
@@ -317,7 +317,7 @@ def test_check_passes_on_fmi3(built_fmus3, name):
 def _broken_build(tmp_path, rel, old, new, name="StateFeedback"):
     """An FMI 3.0 FMU of ``name`` built with ``old`` replaced by ``new`` in its copy of the
     dronefly module ``rel`` (nothing else changed)."""
-    import dronefly.builder.build as build
+    import dronefly.harness.builder.build as build
 
     original = build._source_path
 
@@ -339,12 +339,12 @@ def _broken_build(tmp_path, rel, old, new, name="StateFeedback"):
 #: the start of each one's report line)
 BROKEN3 = {
     # illegal calls (doStep before initialization, after a refused set) answered Discard
-    "illegal-discard": ("fmi/fmi3.py", "ILLEGAL_STATUS: ClassVar[Fmi2Status] = Fmi2Status.error",
+    "illegal-discard": ("fmi/base3.py", "ILLEGAL_STATUS: ClassVar[Fmi2Status] = Fmi2Status.error",
                         "ILLEGAL_STATUS: ClassVar[Fmi2Status] = Fmi2Status.discard",
                         {"state-machine": "fmi3DoStep before initialization: fmi3Discard, "
                                           "expected fmi3Error"}),
     # a step refused for a bad value (NaN input) answered OK
-    "bad-value-ok": ("fmi/fmi3.py", "_RESULTS = {s: _StepResult(s) for s in (0, 1, 2, 3)}",
+    "bad-value-ok": ("fmi/base3.py", "_RESULTS = {s: _StepResult(s) for s in (0, 1, 2, 3)}",
                      "_RESULTS = {s: _StepResult(0 if s == 2 else s) for s in (0, 1, 2, 3)}",
                      {"bad-input": "delta_v = nan: fmi3DoStep returned fmi3OK",
                       "discard": "a NaN input: fmi3OK, expected fmi3Discard"}),
@@ -387,7 +387,7 @@ def test_check_fails_clearly_on_a_broken_fmi3_fmu(tmp_path, capsys):
     returned it and runs nothing more, unless the use after free kills it first."""
     from dronefly.cli.app import main
 
-    fmu = _broken_build(tmp_path, "fmi/fmi3.py", "        return _RESULTS[do_step_status(self, "
+    fmu = _broken_build(tmp_path, "fmi/base3.py", "        return _RESULTS[do_step_status(self, "
                         "current_time, step_size)]", "        raise RuntimeError('broken doStep')",
                         name="DroneFlyLateral")
     assert main(["check", "--no-fuzz", str(fmu)]) == 1

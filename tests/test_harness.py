@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.harness.paper import values as pv
+from dronefly.harness.paper import printed as pv
 from dronefly.cli.app import main
 from dronefly.core.errors import DroneflyError
 from dronefly.harness.stability.run import cosimulate
@@ -211,7 +211,7 @@ def test_record_adds_columns_and_leaves_the_default_ones_bit_for_bit(fmus, tmp_p
     (each line byte for byte); the recorded values against independent oracles: the
     controller's input as set equals the plant's output at the point (Gauss-Seidel), A[1,1]
     is Eq. (9)'s A1[1,1] from dronefly.models.lateral_dynamics, no limit means never saturated."""
-    from dronefly.models import lateral_dynamics as model
+    from dronefly.models import lateral_dynamics
 
     record = ["controller.delta_p", "plant.A[1,1]", "controller.saturated"]
     base = cosimulate(*fmus, stop_wingbeats=10, out_dir=tmp_path / "a", plot=False, name="r")
@@ -224,7 +224,7 @@ def test_record_adds_columns_and_leaves_the_default_ones_bit_for_bit(fmus, tmp_p
     assert more.run.names == [*base.run.names, *record]
     assert json.loads(more.csv.with_suffix(".json").read_text())["recorded"] == more.run.names
     assert np.array_equal(more.run.column("controller.delta_p"), more.run.column("delta_p"))
-    A, _ = model.system_matrices(model.default_parameters())
+    A, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     assert_allclose(more.run.column("plant.A[1,1]"), A[0, 0], rtol=1e-12)
     assert not more.run.column("controller.saturated").any()
     with pytest.raises(DroneflyError, match=r"cannot record 'delta_v': no instance 'delta_v'"):
@@ -333,11 +333,11 @@ def test_fmi3_adapter_sets_and_gets_integer_enumeration_and_string_values(monkey
     from ctypes import c_int, c_uint
     from types import SimpleNamespace as NS
 
-    from dronefly.harness.cosim import fmi3
-    from dronefly.harness.cosim.fmi3 import FMU3Adapter
-    from dronefly.harness.cosim.values import SETTER, typed_value
+    from dronefly.harness.cosim import fmu3
+    from dronefly.harness.cosim.fmu3 import FMU3Adapter
+    from dronefly.harness.cosim.typed_values import SETTER, typed_value
 
-    monkeypatch.setattr(fmi3, "FMU3Slave", _FakeSlave3)  # the adapter's base, where it looks
+    monkeypatch.setattr(fmu3, "FMU3Slave", _FakeSlave3)  # the adapter's base, where it looks
     kinds = ["String", "Enumeration", "Int8", "UInt16", "Int32", "UInt64", "Boolean"]
     variables = [NS(valueReference=vr, type=t) for vr, t in enumerate(kinds, start=1)]
     md = NS(guid="g", coSimulation=NS(modelIdentifier="m"), modelVariables=variables)

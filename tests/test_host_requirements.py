@@ -22,9 +22,9 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from dronefly.builder.build import FMUS, fmu_sources
-from dronefly.builder.entry import HOST_REQUIREMENT, NEWEST_TESTED_PYTHON, OLDEST_PYTHON
-from dronefly.models.lateral import N_HZ
+from dronefly.harness.builder.build import FMUS, fmu_sources
+from dronefly.harness.builder.entry import HOST_REQUIREMENT, NEWEST_TESTED_PYTHON, OLDEST_PYTHON
+from dronefly.models.lateral_interface import N_HZ
 
 pytestmark = pytest.mark.integration
 
@@ -159,7 +159,7 @@ def test_fmu_imports_only_the_standard_library(extracted, name, fmi):
     module outside the standard library besides its own package and pythonfmu's facade; its
     outputs are fmpy's for the same experiment in this interpreter (the same code and
     interpreter: equal but for the last bit, 1e-13 of the largest output)."""
-    from dronefly.builder.build import FMUS, NEEDS_NUMPY
+    from dronefly.harness.builder.build import FMUS, NEEDS_NUMPY
 
     # every FMU but the flapping plant, which needs numpy (its README says so)
     assert set(FMU_NAMES) == set(FMUS) - NEEDS_NUMPY

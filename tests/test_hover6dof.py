@@ -26,14 +26,14 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from dronefly.models.feedback import LONGITUDINAL_GAINS_DESIGN_B, PAPER_GAINS_EQ27
-from dronefly.models.lateral import N_HZ, U_M_PER_S
-from dronefly.models import lateral_dynamics as lat
+from dronefly.models.lateral_interface import N_HZ, U_M_PER_S
+from dronefly.models import lateral_dynamics
 from dronefly.models.rigid_body import Hover6DOF, initial_state, outputs
-from dronefly.models import longitudinal_dynamics as lon
+from dronefly.models import longitudinal_dynamics
 
-LP, NP = lat.default_parameters(), lon.default_parameters()
-A1, B1 = lat.system_matrices(LP)
-A2, B2 = lon.system_matrices(NP)
+LP, NP = lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters()
+A1, B1 = lateral_dynamics.system_matrices(LP)
+A2, B2 = longitudinal_dynamics.system_matrices(NP)
 #: the eight linear states: lateral (Eq. 12) then longitudinal (Sect. 3.5)
 EIGHT = ("delta_v", "delta_p", "delta_r", "delta_gamma", "delta_u", "delta_w", "delta_q",
          "delta_theta")
@@ -60,8 +60,8 @@ def newton_euler(lp=LP, np_=NP):
     """f(t, x, c_lat, c_lon): dV = a - w x V + g (R^T e_z - e_z), dw = J^-1 (M - w x J w),
     de = e (x) (0, w) / 2, dP = R V; a, J^-1 M from the linear models' A, B (not their
     gravity column)."""
-    a1, b1 = lat.system_matrices(lp)
-    a2, b2 = lon.system_matrices(np_)
+    a1, b1 = lateral_dynamics.system_matrices(lp)
+    a2, b2 = longitudinal_dynamics.system_matrices(np_)
     J = np.array([[lp.Ix_plus, 0.0, -lp.Ixz_plus], [0.0, np_.Iy_plus, 0.0],
                   [-lp.Ixz_plus, 0.0, lp.Iz_plus]])
     Jinv, g, ez = np.linalg.inv(J), lp.g_plus, np.array([0.0, 0.0, 1.0])
@@ -99,9 +99,9 @@ def _start(z) -> list[float]:
 
 def _zero_aero():
     """Parameters with every aerodynamic derivative zero (inertias and g+ kept)."""
-    return (replace(LP, **{k: 0.0 for k in lat.LateralParameters.names()
+    return (replace(LP, **{k: 0.0 for k in lateral_dynamics.LateralParameters.names()
                            if k not in _INERTIA_AND_GRAVITY}),
-            replace(NP, **{k: 0.0 for k in lon.LongitudinalParameters.names()
+            replace(NP, **{k: 0.0 for k in longitudinal_dynamics.LongitudinalParameters.names()
                            if k not in _INERTIA_AND_GRAVITY}))
 
 
@@ -541,7 +541,7 @@ def test_fmu_constant_roll_without_aerodynamics(hover6dof):
     attitude and rates do not change; to 1e-9 over 30 wing beats."""
     from fmu_helpers import start
 
-    zero = {k: 0.0 for k in (*lat.LateralParameters.names(), *lon.LongitudinalParameters.names())
+    zero = {k: 0.0 for k in (*lateral_dynamics.LateralParameters.names(), *longitudinal_dynamics.LongitudinalParameters.names())
             if k not in _INERTIA_AND_GRAVITY}
     assert len(zero) == 18 + 21
     phi0, T = 0.5, 30 * H_WB

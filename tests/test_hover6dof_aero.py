@@ -4,7 +4,7 @@ Both halves of Sect. 3.6 together: the rigid body of :mod:`dronefly.models.rigid
 cycle-averaged forces of :class:`dronefly.models.quasisteady.QuasiSteadyModel` as functions of
 the state. Checked: hover is an equilibrium (exactly: the forces at hover are subtracted as the
 trim), the Jacobian at hover is the linear model of the quasi-steady derivatives
-(:func:`dronefly.harness.aero.compare.derivatives`), a small disturbance follows that linear
+(:func:`dronefly.harness.aero.beside_paper.derivatives`), a small disturbance follows that linear
 model with an error of the order of the nonlinearity (it shrinks as the square of the
 amplitude), the sub-steps are accurate, and the FMU's parameter chooses the model.
 """
@@ -14,12 +14,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dronefly.harness.aero.compare import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS,
+from dronefly.harness.aero.beside_paper import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS,
                                            derivatives, system_matrices)
-from dronefly.models import lateral_dynamics as lat
-from dronefly.models import longitudinal_dynamics as lon
+from dronefly.models import lateral_dynamics
+from dronefly.models import longitudinal_dynamics
 from dronefly.models import rigid_body
-from dronefly.models.lateral import N_HZ
+from dronefly.models.lateral_interface import N_HZ
 from dronefly.models.linear import discretize_zoh
 from dronefly.models.quasisteady import FORCES, QuasiSteadyModel, gauss_jacobi
 from dronefly.models.rigid_body import Hover6DOF, gamma_from_quaternion
@@ -39,7 +39,7 @@ def qs() -> QuasiSteadyModel:
 
 @pytest.fixture(scope="module")
 def plant(qs) -> Hover6DOF:
-    return Hover6DOF(lat.default_parameters(), lon.default_parameters(), aerodynamics=qs)
+    return Hover6DOF(lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters(), aerodynamics=qs)
 
 
 @pytest.fixture(scope="module")

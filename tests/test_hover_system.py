@@ -19,11 +19,11 @@ from dronefly.cli.app import main
 from dronefly.models.feedback import PAPER_GAINS_EQ27, LONGITUDINAL_GAINS_DESIGN_B, gain_name
 from dronefly.harness.cosim.system import Connection, System
 from dronefly.harness.cosim.system_master import SystemMaster
-from dronefly.harness.stability.system import cosimulate_system
+from dronefly.harness.stability.system_verdicts import cosimulate_system
 from dronefly.harness.cosim.ssp import hover_system, write_system_ssp
-from dronefly.models.lateral import sort_eigenvalues
-from dronefly.models import lateral_dynamics as lateral_model
-from dronefly.models import longitudinal_dynamics as longitudinal_model
+from dronefly.models.lateral_interface import sort_eigenvalues
+from dronefly.models import lateral_dynamics
+from dronefly.models import longitudinal_dynamics
 
 pytestmark = [pytest.mark.integration, pytest.mark.numeric]
 
@@ -38,14 +38,14 @@ def _k(system_gains: dict[tuple[int, int], float], rows: int) -> np.ndarray:
 
 
 def _eig_lateral(K_row0: np.ndarray) -> list[complex]:
-    A, B = lateral_model.system_matrices(lateral_model.default_parameters())
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     K = np.zeros((3, 4))
     K[0] = K_row0
     return sort_eigenvalues(np.linalg.eigvals(np.asarray(A) + np.asarray(B) @ K))
 
 
 def _eig_longitudinal(K_phibar: np.ndarray) -> list[complex]:
-    A, B = longitudinal_model.system_matrices(longitudinal_model.default_parameters())
+    A, B = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     K = np.zeros((4, 4))
     K[PHIBAR_ROW] = K_phibar
     return sort_eigenvalues(np.linalg.eigvals(np.asarray(A) + np.asarray(B) @ K))
@@ -92,7 +92,7 @@ def test_hover_ssp_describes_four_fmus_both_loops(hover_ssp):
 
 
 def test_default_hover_system_lateral_neutral_longitudinal_stable(hover_ssp, monkeypatch):
-    import dronefly.harness.stability.system as run_module
+    import dronefly.harness.stability.system_verdicts as run_module
 
     def no_open_loop(*args, **kw):
         raise AssertionError("open-loop runs without open_loop")
@@ -107,7 +107,7 @@ def test_default_hover_system_lateral_neutral_longitudinal_stable(hover_ssp, mon
                 _eig_longitudinal(np.array(LONGITUDINAL_GAINS_DESIGN_B)))
     # design (b): the oscillatory pair mirrored, the others kept
     lon = _axes(r)["longitudinal"].continuous
-    A, _ = longitudinal_model.system_matrices(longitudinal_model.default_parameters())
+    A, _ = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     open_loop = sort_eigenvalues(np.linalg.eigvals(np.asarray(A)))
     pair = [z for z in open_loop if abs(z.imag) > 1e-9]
     assert sorted(-z.real for z in pair) == pytest.approx(
@@ -144,7 +144,7 @@ def test_open_loop_is_unstable_in_both_axes(hover_ssp, master):
             ("lateral", "neutral"), ("longitudinal", "stable")]
         assert set(r.continuous_deviation.values()) == {None}
     lat, lon = r.open_loop["lateral"], r.open_loop["longitudinal"]
-    for o, model, rows in ((lat, lateral_model, 3), (lon, longitudinal_model, 4)):
+    for o, model, rows in ((lat, lateral_dynamics, 3), (lon, longitudinal_dynamics, 4)):
         expected = _eig_open(model)
         assert o.verdict == "unstable"
         np.testing.assert_allclose(o.continuous, expected, atol=1e-12)
@@ -175,7 +175,7 @@ def test_open_loop_names_a_plant_without_gains_to_zero(built_fmus):
             "lateral to set to zero)") in r.summary().splitlines()
     lon = r.open_loop["longitudinal"]
     assert lon.verdict == "unstable" and lon.plant.gains == ()
-    np.testing.assert_allclose(lon.continuous, _eig_open(longitudinal_model), atol=1e-12)
+    np.testing.assert_allclose(lon.continuous, _eig_open(longitudinal_dynamics), atol=1e-12)
     assert r.open_loop_deviation["longitudinal"] <= 1e-6 and r.check_failures == []
 
 
@@ -203,7 +203,7 @@ def test_cli_a_failed_cross_check_exits_1_with_the_outputs(hover_ssp, tmp_path, 
 
 def test_cli_open_loop_cross_check_is_enforced_too(hover_ssp, tmp_path, capsys, monkeypatch):
     """With a tolerance no identification meets, every check fails, the open loop's too."""
-    import dronefly.harness.stability.system as run_module
+    import dronefly.harness.stability.system_verdicts as run_module
 
     monkeypatch.setattr(run_module, "CHECK_TOL_PER_WINGBEAT", 1e-14)
     code = main(["cosim", "--system", str(hover_ssp), "--stop", "2", "--no-plot", "--out",
@@ -336,7 +336,7 @@ def test_docs_systems_numbers_are_the_code_s(hover_ssp):
         # its tolerance, not the round-off-dominated deviation
         diff = same_numbers(r.summary(), "\n".join(ln for ln in printed if not ln.startswith("csv:")))
         assert diff is None, diff
-    from dronefly.harness.stability.system import CHECK_STEP_WB, CHECK_TOL_PER_WINGBEAT
+    from dronefly.harness.stability.system_verdicts import CHECK_STEP_WB, CHECK_TOL_PER_WINGBEAT
 
     assert "by more than 1e-6 per\nwing beat at the 1e-5 step" in doc
     assert (CHECK_TOL_PER_WINGBEAT, CHECK_STEP_WB) == (1e-6, 1e-5)
@@ -358,7 +358,7 @@ def test_recording_the_same_variables_of_fmi3_and_fmi2_fmus(hover_ssp, built_fmu
             runs.append(m.run(0.1 / 164, 10, record=names, values=values))
     assert runs[0].complete and runs[1].complete and not np.isnan(runs[1].signals).any()
     np.testing.assert_allclose(runs[1].signals, runs[0].signals, rtol=1e-12, atol=0)
-    A, _ = longitudinal_model.system_matrices(longitudinal_model.default_parameters())
+    A, _ = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     assert runs[1].signals[0, :3].tolist() == [PAPER_GAINS_EQ27[3], np.asarray(A)[0, 0], 1.0]
 
 
@@ -368,7 +368,7 @@ def test_values_given_as_text_reach_the_verdicts_typed(hover_ssp):
     r = cosimulate_system(hover_ssp, stop_wingbeats=10, out_dir=None,
                           set_values={"lateral.Lv_plus": "0.5", "lateral_controller.K[1,1]": "0.1",
                                       "lateral_controller.limit_enabled": "0"})
-    A, B = lateral_model.system_matrices(lateral_model.default_parameters().with_values(
+    A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters().with_values(
         Lv_plus=0.5))
     K = np.zeros((3, 4))
     K[0] = PAPER_GAINS_EQ27

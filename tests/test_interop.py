@@ -1,7 +1,7 @@
 """Interoperability: a second importer (libcosim), the SSP, the container FMU, a C host.
 
 Every run here gives a trajectory that is compared with ``harness.cosim.master.Loop`` under the
-same master algorithm, and a verdict classified by ``harness.cosim.stability.identify``.
+same master algorithm, and a verdict classified by ``harness.cosim.identification.identify``.
 """
 
 from __future__ import annotations
@@ -20,16 +20,16 @@ import pytest
 from numpy.testing import assert_allclose
 from shared_files import provided_on_ci
 
-from dronefly.harness.paper import values as pv
-from dronefly.models.lateral import scale_vector
-from dronefly.builder.closedloop import CLOSED_LOOP, fix_connection_types, write_container
+from dronefly.harness.paper import printed as pv
+from dronefly.models.lateral_interface import scale_vector
+from dronefly.harness.builder.closedloop import CLOSED_LOOP, fix_connection_types, write_container
 from dronefly.harness.interop.container import container_verdict, run_container
 from dronefly.harness.interop.ssp import run_ssp, ssp_parameter_set, ssp_verdict
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.interop.libcosim import (c_host_env, libcosim_available, libcosim_verdict,
     libpython_path, run_libcosim, step_ns)
 from dronefly.harness.cosim.master import Loop
-from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
+from dronefly.harness.cosim.identification import TOL_PER_WINGBEAT
 
 pytestmark = pytest.mark.integration
 
@@ -270,7 +270,7 @@ def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path
 
 
 def test_closed_loop_artefacts_are_reproducible(fmus, ssp, container, tmp_path):
-    from dronefly.builder.build import build_closed_loop
+    from dronefly.harness.builder.build import build_closed_loop
 
     again = build_closed_loop(tmp_path, *fmus)
     assert [p.read_bytes() for p in again] == [ssp.read_bytes(), container.read_bytes()]
@@ -354,8 +354,8 @@ def delayed_pair(built_fmus, tmp_path_factory):
     """The plant with StateFeedbackDelayed (one wing beat of sensing delay, ten steps of 0.1):
     a loop with a delay line that the importers' 4- and 8-state maps have no state for."""
     out = tmp_path_factory.mktemp("delayed_loop")
-    from dronefly.builder.closedloop import write_container
-    from dronefly.builder.closedloop import write_ssp
+    from dronefly.harness.builder.closedloop import write_container
+    from dronefly.harness.builder.closedloop import write_ssp
 
     plant, ctrl = built_fmus["DroneFlyLateral"], built_fmus["StateFeedbackDelayed"]
     return plant, ctrl, write_ssp(plant, ctrl, out), write_container(plant, ctrl, out)

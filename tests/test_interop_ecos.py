@@ -28,12 +28,12 @@ from numpy.testing import assert_allclose
 from dronefly.models.feedback import default_gains
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.master import CoSimError, Loop
-from dronefly.harness.cosim.stability import TOL_PER_WINGBEAT
+from dronefly.harness.cosim.identification import TOL_PER_WINGBEAT
 from dronefly.harness.interop.ecos import (ecos_available, ecos_env, ecos_verdict, run_ecos,
     tbb_library_dir)
 from dronefly.harness.interop.ssp import ssp_parameter_set
-from dronefly.harness.paper import values as pv
-from dronefly.models.lateral import scale_vector
+from dronefly.harness.paper import printed as pv
+from dronefly.models.lateral_interface import scale_vector
 
 pytestmark = pytest.mark.integration
 
@@ -197,7 +197,7 @@ def test_ecos_runs_the_fmi3_hover_system_as_our_jacobi_master(ecos, built_fmus3)
     """build/fmi3/DroneFlyHover.ssp (four FMI 3.0 FMUs): with every binding set (run_ecos) both
     axes' states over 60 wing beats equal our Jacobi master's; measured 0.0, tolerance 1e-12.
     The SSV values are not the FMUs' defaults (0.1 rad roll and pitch; defaults 0)."""
-    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.stability.system_verdicts import cosimulate_system
 
     ssp = built_fmus3["DroneFlyHover.ssp"]
     ours = cosimulate_system(ssp, master="jacobi", stop_wingbeats=60, verdicts=False,
@@ -335,7 +335,7 @@ def test_ecos_verdict_of_a_loop_it_does_not_model_is_refused(ecos, built_fmus, t
     8-state Jacobi map has no state for the delay line; its fit's residual is far above
     rounding, so ecos_verdict raises CrossCheckError instead of giving a verdict."""
     from dronefly.core.errors import CrossCheckError
-    from dronefly.builder.closedloop import write_ssp
+    from dronefly.harness.builder.closedloop import write_ssp
 
     delayed = write_ssp(built_fmus["DroneFlyLateral"], built_fmus["StateFeedbackDelayed"],
                         tmp_path)

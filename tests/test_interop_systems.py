@@ -73,7 +73,7 @@ def test_fmpy_ssp_runs_the_nonlinear_system_as_a_drop_in(built_fmus):
 
     from dronefly.harness.interop.ssp import ssp_parameter_set
     from dronefly.harness.sweep.cases import STATE_BOUNDS_SECT36
-    from dronefly.models.lateral import N_HZ, U_M_PER_S
+    from dronefly.models.lateral_interface import N_HZ, U_M_PER_S
 
     last = {}
     for name, plant in (("DroneFlyHover6DOF.ssp", "plant"), ("DroneFlyHover.ssp", "lateral")):

@@ -19,7 +19,7 @@ import pytest
 from docnumbers import NumericText, assert_same_numbers
 from scipy.linalg import expm
 
-from dronefly.harness.cosim.stability import rates_from_transition
+from dronefly.harness.cosim.identification import rates_from_transition
 from dronefly.harness.latency.continuous import (crossings, delay_margin, loop_gain,
     quasi_polynomial_residual)
 from dronefly.harness.latency.designs import PI_DOUBLE_ROOT, bryson_weights, design, pi_loop
@@ -254,7 +254,7 @@ def test_pi_returns_to_hover_through_the_fmus_where_eq27_drifts(plant, controlle
     way, settles instead: its deviation max_i |x_i| / bound_i stays at model (b)'s final
     offset (the neutral mode's share, 28 %) over the last 100 wing beats."""
     from dronefly.harness.latency.identify import cosimulate_runs
-    from dronefly.models.lateral import STATE_BOUNDS_SECT36
+    from dronefly.models.lateral_interface import STATE_BOUNDS_SECT36
 
     N, roll = 400, [0, 0, 0, 1.0]
     pi, p27 = loops["pi"], loops["eq27_exact"]
@@ -467,7 +467,7 @@ def test_final_offset_is_where_the_neutral_loop_goes(delay_ms):
     or 0.3549 at 20 ms depending on the BLAS kernel (the delay line's mu = 0 is defective)."""
     from dronefly.harness.latency.report import ROLL
     from dronefly.harness.latency.sampled import sampled_matrix
-    from dronefly.models.lateral import STATE_BOUNDS_SECT36
+    from dronefly.models.lateral_interface import STATE_BOUNDS_SECT36
 
     loop, tau = design("eq27_exact"), ms_to_wb(delay_ms)
     M = sampled_matrix(loop, 1.0, tau)

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from dronefly.models import lateral as L
-from dronefly.builder.build import fmu_sources
+from dronefly.models import lateral_interface
+from dronefly.harness.builder.build import fmu_sources
 from dronefly.controller.slave import StateFeedback
 from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
@@ -18,35 +18,35 @@ pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run
 
 def test_reference_scales_from_flight_data():
     # U = 2 Phi n r2 (Sect. 2.4), computed here from the printed flight data
-    d = L.FLIGHT_DATA
+    d = lateral_interface.FLIGHT_DATA
     U = 2 * d["Phi_deg"] * math.pi / 180 * d["n"] * d["r2_over_R"] * d["R"]
-    assert L.U_M_PER_S == pytest.approx(U, rel=1e-15)
-    assert L.N_HZ == d["n"]
+    assert lateral_interface.U_M_PER_S == pytest.approx(U, rel=1e-15)
+    assert lateral_interface.N_HZ == d["n"]
 
 
 def test_scale_vector_round_trip():
     x = (0.3, -12.0, 4.5, 0.1)
-    xp = L.to_nondimensional(x, 3.7, 164.0)
+    xp = lateral_interface.to_nondimensional(x, 3.7, 164.0)
     assert xp == pytest.approx((0.3 / 3.7, -12.0 / 164.0, 4.5 / 164.0, 0.1), rel=1e-15)
-    assert L.to_dimensional(xp, 3.7, 164.0) == pytest.approx(x, rel=1e-15)
-    assert np.allclose(np.array(xp) * L.scale_vector(3.7, 164.0), x, rtol=1e-15)
+    assert lateral_interface.to_dimensional(xp, 3.7, 164.0) == pytest.approx(x, rel=1e-15)
+    assert np.allclose(np.array(xp) * lateral_interface.scale_vector(3.7, 164.0), x, rtol=1e-15)
 
 
 def test_sort_eigenvalues_matches_lexsort():
     rng = np.random.default_rng(1)
     ev = np.linalg.eigvals(rng.normal(size=(7, 7)))
     ref = ev[np.lexsort((-ev.imag, -ev.real))]
-    assert np.array_equal(np.array(L.sort_eigenvalues(ev)), ref)
+    assert np.array_equal(np.array(lateral_interface.sort_eigenvalues(ev)), ref)
 
 
 @pytest.mark.parametrize("cls", [DroneFlyLateral, StateFeedback])
 def test_slaves_use_the_interface(cls):
     by_name = {v.name: v for v in cls.VARIABLES}
-    for name, (unit, disp) in zip(L.STATE_NAMES, L.STATE_UNITS):
+    for name, (unit, disp) in zip(lateral_interface.STATE_NAMES, lateral_interface.STATE_UNITS):
         assert (by_name[name].unit, by_name[name].display_unit) == (unit, disp)
-    for name in L.CONTROL_NAMES:
-        assert (by_name[name].unit, by_name[name].display_unit) == L.CONTROL_UNIT
-    assert by_name["n"].start == L.N_HZ and by_name["U"].start == L.U_M_PER_S
+    for name in lateral_interface.CONTROL_NAMES:
+        assert (by_name[name].unit, by_name[name].display_unit) == lateral_interface.CONTROL_UNIT
+    assert by_name["n"].start == lateral_interface.N_HZ and by_name["U"].start == lateral_interface.U_M_PER_S
 
 
 def test_controller_fmu_needs_no_numpy_or_scipy():

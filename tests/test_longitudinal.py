@@ -21,8 +21,8 @@ from numpy.testing import assert_allclose
 from dronefly.models import feedback as L
 from dronefly.core.errors import DroneflyError
 from dronefly.harness.paper import longitudinal as lon
-from dronefly.models.longitudinal import CONTROL_NAMES, IY_PLUS, LONGITUDINAL, STATE_NAMES
-from dronefly.models import longitudinal_dynamics as M
+from dronefly.models.longitudinal_interface import CONTROL_NAMES, IY_PLUS, LONGITUDINAL, STATE_NAMES
+from dronefly.models import longitudinal_dynamics
 
 from fmu_helpers import model_description, set_values, start
 from shared_files import need_shared
@@ -76,7 +76,7 @@ def AB():
     (``A_SECT35``, ``B_SECT35``), which test_model_matrices_are_the_printed_ones checks against
     the text wherever it is present. Only the tests that read the text itself skip without it."""
     if not PAPER.is_file():
-        return np.array(M.A_SECT35, dtype=float), np.array(M.B_SECT35, dtype=float)
+        return np.array(longitudinal_dynamics.A_SECT35, dtype=float), np.array(longitudinal_dynamics.B_SECT35, dtype=float)
     s = _section(PAPER.read_text(encoding="utf-8"), "### 3.5 The longitudinal motion", "### 3.6")
     return tuple(np.array([[float(t) for t in r] for r in _printed_matrix(s, label)])
                  for label in (r"\boldsymbol{A}", r"\boldsymbol{B}"))
@@ -96,26 +96,26 @@ def _sorted(ev):
 def test_model_matrices_are_the_printed_ones(printed, AB):
     """A and B of the model (derivatives recovered with m+, Iy+, then rebuilt) equal Sect. 3.5's
     printed matrices; every printed entry has at most 4 decimals."""
-    A, B = M.system_matrices(M.default_parameters())
+    A, B = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     assert A.shape == B.shape == (4, 4)
     for name, ours, theirs in (("A", A, printed["A"]), ("B", B, printed["B"])):
         for i, j in itertools.product(range(4), range(4)):
             token = theirs[i][j]
             assert _half_unit(token) in (0.0, 5e-5), (name, i, j, token)
             assert abs(ours[i, j] - float(token)) <= 1e-15, (name, i, j, token, ours[i, j])
-    assert_allclose(np.array(M.A_SECT35), AB[0], rtol=0, atol=0)
-    assert_allclose(np.array(M.B_SECT35), AB[1], rtol=0, atol=0)
+    assert_allclose(np.array(longitudinal_dynamics.A_SECT35), AB[0], rtol=0, atol=0)
+    assert_allclose(np.array(longitudinal_dynamics.B_SECT35), AB[1], rtol=0, atol=0)
 
 
 def test_model_equations_structure(AB):
     """dtheta' = dq+, A[1,4] = -g+ (Sect. 2.1's 0.0158), no control in the dtheta row."""
     A, B = AB
-    p = M.default_parameters()
+    p = longitudinal_dynamics.default_parameters()
     assert A[3].tolist() == [0.0, 0.0, 1.0, 0.0] and B[3].tolist() == [0.0] * 4
     assert A[0, 3] == -p.g_plus == -0.0158
     assert p.m_plus == 92.7
     # the derivatives are the printed rows times m+ (x, z) and Iy+ (pitch)
-    d = M.derive_derivatives()
+    d = longitudinal_dynamics.derive_derivatives()
     assert d["Mq_plus"] == pytest.approx(A[2, 2] * IY_PLUS, rel=1e-15)
     assert d["Z_alpha_1_plus"] == pytest.approx(B[1, 1] * 92.7, rel=1e-15)
 
@@ -166,7 +166,7 @@ def test_eigenvalues_against_eq31(printed, AB):
         real = np.sort(w[np.abs(w.imag) < 1e-14].real)
         return {"sigma": pair.real, "omega": pair.imag, "fast": real[0], "slow": real[1]}
 
-    A_model, _ = M.system_matrices(M.default_parameters())
+    A_model, _ = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     got = quantities(A_model)
     A = AB[0]
     spread = dict.fromkeys(got, 0.0)

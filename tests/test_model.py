@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.harness.paper import values as pv
-from dronefly.models import lateral_dynamics as M
-from dronefly.models import lateral
+from dronefly.harness.paper import printed as pv
+from dronefly.models import lateral_dynamics
+from dronefly.models import lateral_interface
 
 #: Eq. (24): first column of B1 as printed (the delta Phi_a column).
 B1_COL1_EQ24 = tuple(float(t) for t in pv.EQ24_B_COLUMN)
@@ -25,16 +25,16 @@ pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run
 
 def test_a1_from_parameters_equals_eq12():
     """Eq. (10) applied to the derived derivatives gives back Eq. (12) (round trip)."""
-    A, _ = M.system_matrices(M.default_parameters())
-    assert_allclose(A, np.array(M.A1_EQ12), rtol=0, atol=1e-14,
+    A, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
+    assert_allclose(A, np.array(lateral_dynamics.A1_EQ12), rtol=0, atol=1e-14,
                     err_msg="Eq. (12) round trip through derive_stability_derivatives")
 
 
 def test_derived_stability_derivatives_values():
     """Documented derivation: [L; N] = [[Ix, -Ixz], [-Ixz, Iz]] [A1 row 2; row 3], Y = m A1 row 1."""
-    d = M.derive_stability_derivatives()
-    a = np.array(M.A1_EQ12)
-    i = lateral.INERTIAS_SECT21
+    d = lateral_dynamics.derive_stability_derivatives()
+    a = np.array(lateral_dynamics.A1_EQ12)
+    i = lateral_interface.INERTIAS_SECT21
     # hand evaluation for the v column: Lv = Ix a21 - Ixz a31, Nv = -Ixz a21 + Iz a31
     assert_allclose(d["Lv_plus"], i["Ix_plus"] * a[1, 0] - i["Ixz_plus"] * a[2, 0], rtol=1e-14)
     assert_allclose(d["Nv_plus"], -i["Ixz_plus"] * a[1, 0] + i["Iz_plus"] * a[2, 0], rtol=1e-14)
@@ -55,14 +55,14 @@ def test_b1_first_column_agrees_with_eq24_within_rounding():
     moves Ix+ Iz+ - Ixz+^2 by 0.15 %. The authors evidently used unrounded inertias. Checked by
     evaluating Eq. (11) at every corner of the rounding box (Sect. 2.1 and Table 1 digits).
     """
-    _, B = M.system_matrices(M.default_parameters())
+    _, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     assert_allclose(B[:, 0], B1_COL1_EQ24, atol=6e-4, rtol=0,
                     err_msg="Eq. (24) B column: same to 6e-4")
-    boxes = {k: _rounding_box(lateral.INERTIAS_SECT21[k], d) for k, d in pv.SECT21_DECIMALS.items()}
-    boxes |= {k: _rounding_box(M.CONTROL_DERIVATIVES_TABLE1[k], pv.TABLE1_DECIMALS)
+    boxes = {k: _rounding_box(lateral_interface.INERTIAS_SECT21[k], d) for k, d in pv.SECT21_DECIMALS.items()}
+    boxes |= {k: _rounding_box(lateral_dynamics.CONTROL_DERIVATIVES_TABLE1[k], pv.TABLE1_DECIMALS)
               for k in ("Y_Phi_a_plus", "L_Phi_a_plus", "N_Phi_a_plus")}
-    base = M.default_parameters()
-    cols = np.array([M.system_matrices(base.with_values(**dict(zip(boxes, corner))))[1][:, 0]
+    base = lateral_dynamics.default_parameters()
+    cols = np.array([lateral_dynamics.system_matrices(base.with_values(**dict(zip(boxes, corner))))[1][:, 0]
                      for corner in itertools.product(*boxes.values())])
     lo, hi = cols.min(axis=0), cols.max(axis=0)
     printed = np.array(B1_COL1_EQ24)
@@ -72,7 +72,7 @@ def test_b1_first_column_agrees_with_eq24_within_rounding():
 
 def test_eigenvalues_match_table2():
     """Table 2, printed to 3 decimals: |error| <= 5e-4 per wing beat."""
-    ev = M.LateralModel(M.default_parameters()).eigenvalues()
+    ev = lateral_dynamics.LateralModel(lateral_dynamics.default_parameters()).eigenvalues()
     assert_allclose(ev, np.array(EIG_TABLE2), atol=5e-4, rtol=0, err_msg="Table 2")
 
 
@@ -89,16 +89,16 @@ def test_eigenvalues_match_table2():
     ("g_plus", 0.00241),
 ])
 def test_sect24_data_reproduce_sect21_values(name, computed_rel_diff):
-    printed = lateral.INERTIAS_SECT21[name]
-    computed = lateral.reference_scales()[name]
+    printed = lateral_interface.INERTIAS_SECT21[name]
+    computed = lateral_interface.reference_scales()[name]
     assert_allclose(computed / printed - 1.0, computed_rel_diff, atol=1e-5,
                     err_msg=f"{name}: documented difference from Sect. 2.4 data")
 
 
 def test_g_plus_within_printed_rounding():
     """g+ is printed to 4 decimals (Sect. 2.1; the same digits are A1(1,4) of Eq. 12)."""
-    lo, hi = _rounding_box(lateral.INERTIAS_SECT21["g_plus"], pv.EQ12_DECIMALS)
-    assert lo <= lateral.reference_scales()["g_plus"] <= hi
+    lo, hi = _rounding_box(lateral_interface.INERTIAS_SECT21["g_plus"], pv.EQ12_DECIMALS)
+    assert lo <= lateral_interface.reference_scales()["g_plus"] <= hi
 
 
 @pytest.mark.parametrize("change, fragment", [
@@ -110,16 +110,16 @@ def test_g_plus_within_printed_rounding():
     ({"N_alpha_2a_plus": math.inf}, "N_alpha_2a_plus = inf"),
 ])
 def test_invalid_parameters_are_named(change, fragment):
-    p = M.default_parameters().with_values(**change)
-    with pytest.raises(M.ModelParameterError, match=fragment.replace("+", r"\+")):
-        M.LateralModel(p)
-    assert issubclass(M.ModelParameterError, ValueError)
+    p = lateral_dynamics.default_parameters().with_values(**change)
+    with pytest.raises(lateral_dynamics.ModelParameterError, match=fragment.replace("+", r"\+")):
+        lateral_dynamics.LateralModel(p)
+    assert issubclass(lateral_dynamics.ModelParameterError, ValueError)
 
 
 @pytest.mark.parametrize("h1, h2", [(0.01, 0.02), (0.1, 0.9), (1.0, 3.0)])
 def test_zoh_steps_compose_exactly(h1, h2):
     """Exact ZOH: stepping h1 then h2 with the same held input equals one step h1 + h2."""
-    m = M.LateralModel(M.default_parameters())
+    m = lateral_dynamics.LateralModel(lateral_dynamics.default_parameters())
     x0, u = np.array([0.01, -0.02, 0.03, 0.1]), np.array([0.05, -0.01, 0.02])
     two = m.step(m.step(x0, u, h1), u, h2)
     one = m.step(x0, u, h1 + h2)
@@ -129,26 +129,26 @@ def test_zoh_steps_compose_exactly(h1, h2):
 def test_zoh_against_eigendecomposition():
     from dronefly.harness.stability.simulate import exact_open_loop
 
-    m = M.LateralModel(M.default_parameters())
+    m = lateral_dynamics.LateralModel(lateral_dynamics.default_parameters())
     x0_dim = np.array([0.1, 2.0, -1.0, 0.1])
     u = np.array([0.02, 0.0, -0.01])
-    scale = np.array([lateral.U_M_PER_S, lateral.N_HZ, lateral.N_HZ, 1.0])
+    scale = np.array([lateral_interface.U_M_PER_S, lateral_interface.N_HZ, lateral_interface.N_HZ, 1.0])
     x = x0_dim / scale
     for _ in range(50):
         x = m.step(x, u, 0.2)
-    ref = exact_open_loop(x0_dim, np.array([10.0 / lateral.N_HZ]), u)[0]
+    ref = exact_open_loop(x0_dim, np.array([10.0 / lateral_interface.N_HZ]), u)[0]
     assert_allclose(x * scale, ref, rtol=1e-11, err_msg="50 ZOH steps vs eigendecomposition")
 
 
 def test_transition_cache_is_bounded_and_reused():
-    m = M.LateralModel(M.default_parameters())
+    m = lateral_dynamics.LateralModel(lateral_dynamics.default_parameters())
     first = m.transition(0.1)
     assert m.transition(0.1) is first
     for k in range(40):
         m.transition(0.01 * (k + 1))
-    assert len(m._cache) <= M.LateralModel._CACHE_SIZE
+    assert len(m._cache) <= lateral_dynamics.LateralModel._CACHE_SIZE
 
 
 def test_dimensional_round_trip():
     x = np.array([0.3, 5.0, -2.0, 0.1])
-    assert_allclose(lateral.to_dimensional(lateral.to_nondimensional(x, 3.7, 164.0), 3.7, 164.0), x, rtol=1e-15)
+    assert_allclose(lateral_interface.to_dimensional(lateral_interface.to_nondimensional(x, 3.7, 164.0), 3.7, 164.0), x, rtol=1e-15)

@@ -19,10 +19,10 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
-from dronefly.builder import native
-from dronefly.builder.build import build_fmu
-from dronefly.builder.native import NATIVE_FMUS, build_native
-from dronefly.builder.toolchain import find_toolchain, host_platform, missing_reason
+from dronefly.harness.builder import native
+from dronefly.harness.builder.build import build_fmu
+from dronefly.harness.builder.native import NATIVE_FMUS, build_native
+from dronefly.harness.builder.toolchain import find_toolchain, host_platform, missing_reason
 from dronefly.harness.compliance.reference import check_reference, reference_paths
 
 pytestmark = pytest.mark.integration
@@ -129,7 +129,7 @@ def _growth(name: str, span_s: float) -> float:
     of eig(A) per wing beat x the wing beats) (lateral: 10.6 over 30 wing beats; longitudinal:
     17.9 over 60); 1 for a controller, whose outputs are each step's product alone."""
     from dronefly.models import lateral_dynamics, longitudinal_dynamics
-    from dronefly.models.lateral import N_HZ
+    from dronefly.models.lateral_interface import N_HZ
 
     module = {"DroneFlyLateral": lateral_dynamics,
               "DroneFlyLongitudinal": longitudinal_dynamics}.get(name)
@@ -369,7 +369,7 @@ def test_native_container_equals_the_pythonfmu_container(native_fmus, built_fmus
     for bit)."""
     import fmpy
 
-    from dronefly.builder.native import build_native_container
+    from dronefly.harness.builder.native import build_native_container
 
     folder = native_fmus["DroneFlyLateral", 2].parent
     assert native_fmus["StateFeedback", 2].parent == folder  # (built on first use)

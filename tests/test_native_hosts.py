@@ -1,7 +1,7 @@
 """Native FMUs in hosts that are not Python: the C host of tests/c_host, on Linux and under Wine.
 
 The C host (``tests/c_host/fmi2_host.c``) is compiled here with the project's toolchain
-(``zig cc``, builder/toolchain.py) for linux64 and, cross-compiled, for win64. It runs in a
+(``zig cc``, harness/builder/toolchain.py) for linux64 and, cross-compiled, for win64. It runs in a
 process started with no ``LD_PRELOAD``, ``PYTHONHOME`` or ``PYTHONPATH``; it copies its own
 ``/proc/self/maps`` after loading and initializing both FMUs, and the test reads there which
 libraries the process holds: the FMUs' binaries and no libpython. A second test preloads
@@ -9,7 +9,7 @@ libpython and sees it there, so the check can see what it looks for.
 
 - A Reference-FMU (VanDerPol, the Modelica Association's C) proves the path against FMPy.
 - The native FMI 2.0 closed loop (``DroneFlyLateral`` + ``StateFeedback``, built by
-  builder/native.py) equals the pythonfmu loop of ``dronefly cosim`` (the Gauss-Seidel master of
+  harness/builder/native.py) equals the pythonfmu loop of ``dronefly cosim`` (the Gauss-Seidel master of
   ``harness.cosim.master.Loop``) to 1e-12 over 300 steps, on Linux and, with the win64 binaries
   and the Windows build of the host, under Wine.
 
@@ -30,13 +30,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronefly.builder import native
-from dronefly.builder.toolchain import find_toolchain, fmi_include_dir, host_platform, \
+from dronefly.harness.builder import native
+from dronefly.harness.builder.toolchain import find_toolchain, fmi_include_dir, host_platform, \
     missing_reason
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.master import Loop
 from dronefly.harness.interop.libcosim import libpython_path
-from dronefly.models.lateral import scale_vector
+from dronefly.models.lateral_interface import scale_vector
 
 pytestmark = [pytest.mark.integration,
               pytest.mark.skipif(not (sys.platform.startswith("linux")

@@ -41,9 +41,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dronefly.builder import native
-from dronefly.builder.closedloop import write_ssp
-from dronefly.builder.toolchain import find_toolchain, host_platform, missing_reason
+from dronefly.harness.builder import native
+from dronefly.harness.builder.closedloop import write_ssp
+from dronefly.harness.builder.toolchain import find_toolchain, host_platform, missing_reason
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.master import Loop
 

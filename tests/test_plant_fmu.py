@@ -9,18 +9,18 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from dronefly.harness.paper import values as pv
-from dronefly.models import lateral_dynamics as M
-from dronefly.models import lateral
+from dronefly.harness.paper import printed as pv
+from dronefly.models import lateral_dynamics
+from dronefly.models import lateral_interface
 from dronefly.harness.stability.simulate import exact_open_loop
 from dronefly.harness.cosim.fmu import FMU
 from fmu_helpers import model_description, start
 
 pytestmark = pytest.mark.integration
 
-STATES = list(lateral.STATE_NAMES)
-CONTROLS = list(lateral.CONTROL_NAMES)
-DT_WB = 1.0 / lateral.N_HZ  # one wing beat in s
+STATES = list(lateral_interface.STATE_NAMES)
+CONTROLS = list(lateral_interface.CONTROL_NAMES)
+DT_WB = 1.0 / lateral_interface.N_HZ  # one wing beat in s
 
 
 def _outputs(inst):
@@ -34,7 +34,7 @@ def test_fmpy_validate_reports_no_problems(built_fmus):
 
 
 def test_reproducible_build(tmp_path, built_fmus):
-    from dronefly.builder.build import build_fmu
+    from dronefly.harness.builder.build import build_fmu
 
     again = build_fmu("DroneFlyLateral", tmp_path)
     first = built_fmus["DroneFlyLateral"]
@@ -98,7 +98,7 @@ def test_matrices_read_through_fmpy(plant):
                                                    for j in range(1, 5)]))).reshape(4, 4)
         B = np.array(inst.slave.getReal(inst.vrs([f"B[{i},{j}]" for i in range(1, 5)
                                                    for j in range(1, 4)]))).reshape(4, 3)
-    assert_allclose(A, np.array(M.A1_EQ12), atol=5e-5, rtol=0, err_msg="Eq. (12), 4 decimals")
+    assert_allclose(A, np.array(lateral_dynamics.A1_EQ12), atol=5e-5, rtol=0, err_msg="Eq. (12), 4 decimals")
     ev = np.linalg.eigvals(A)
     ev = ev[np.lexsort((-ev.imag, -ev.real))]
     assert_allclose(ev, pv.table2_eigenvalues(), atol=5e-4,
@@ -225,9 +225,9 @@ def test_state_get_set_and_serialize_continue_bit_for_bit(plant):
 
 def test_fmu_runs_the_code_it_ships(built_fmus, monkeypatch):
     """A host that imported (and changed) the project's model module does not affect the FMU."""
-    expected = [M.A1_EQ12[1][0], lateral.N_HZ]  # the printed A1(2,1) and n, unchanged
-    monkeypatch.setattr(M, "A1_EQ12", tuple(tuple(2 * a for a in row) for row in M.A1_EQ12))
-    monkeypatch.setattr(lateral, "N_HZ", 1.0)
+    expected = [lateral_dynamics.A1_EQ12[1][0], lateral_interface.N_HZ]  # the printed A1(2,1) and n, unchanged
+    monkeypatch.setattr(lateral_dynamics, "A1_EQ12", tuple(tuple(2 * a for a in row) for row in lateral_dynamics.A1_EQ12))
+    monkeypatch.setattr(lateral_interface, "N_HZ", 1.0)
     with FMU(built_fmus["DroneFlyLateral"]) as fmu, fmu.instantiate() as inst:
         start(inst)
         assert inst.slave.getReal([fmu.vr("A[2,1]"), fmu.vr("n")]) == expected
@@ -235,7 +235,7 @@ def test_fmu_runs_the_code_it_ships(built_fmus, monkeypatch):
 
 def test_module_names_are_content_addressed(tmp_path, monkeypatch, built_fmus):
     """Two versions of the plant in one process each run their own code."""
-    import dronefly.builder.build as build
+    import dronefly.harness.builder.build as build
 
     pkg, _ = build.fmu_sources("DroneFlyLateral")
     original = build._source_path
@@ -258,6 +258,6 @@ def test_module_names_are_content_addressed(tmp_path, monkeypatch, built_fmus):
             for inst in (a, b):
                 start(inst)
                 values.append(inst.slave.getReal([inst.fmu.vr("B[2,1]")])[0])
-    expected = [M.system_matrices(M.default_parameters().with_values(L_Phi_a_plus=L))[1][1, 0]
+    expected = [lateral_dynamics.system_matrices(lateral_dynamics.default_parameters().with_values(L_Phi_a_plus=L))[1][1, 0]
                 for L in (2.236, 4.472)]
     assert_allclose(values, expected, rtol=1e-15, err_msg="each FMU runs its own model.py")

@@ -9,8 +9,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from dronefly.fmi import UNITS
-from dronefly.models import lateral_dynamics as M
-from dronefly.models import lateral as lateral_interface
+from dronefly.models import lateral_dynamics
+from dronefly.models import lateral_interface
 from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 
 
@@ -43,7 +43,7 @@ def test_declared_matrix_dependencies_match_perturbation(slave):
     matrix = [v for v in DroneFlyLateral.VARIABLES if v.causality == "calculatedParameter"]
     base = dict(zip([v.name for v in matrix], _get(slave, *[v.name for v in matrix])))
     found: dict[str, set[str]] = {v.name: set() for v in matrix}
-    for name in M.LateralParameters.names():
+    for name in lateral_dynamics.LateralParameters.names():
         s = DroneFlyLateral(instance_name="perturbed")
         s.setup_experiment(0.0)
         s.enter_initialization_mode()
@@ -117,7 +117,7 @@ def test_state_serialization_round_trip(slave):
 def test_initial_unknowns_readable_in_initialization_mode(slave):
     """FMI 2.0: outputs and calculated parameters follow the start values before exit."""
     _set(slave, delta_gamma_start=0.2, m_plus=2 * lateral_interface.INERTIAS_SECT21["m_plus"])
-    assert _get(slave, "delta_gamma", "A[1,1]") == [0.2, M.A1_EQ12[0][0] / 2]
+    assert _get(slave, "delta_gamma", "A[1,1]") == [0.2, lateral_dynamics.A1_EQ12[0][0] / 2]
 
 
 def test_no_step_past_stop_time():

@@ -13,10 +13,10 @@ from scipy.linalg import expm
 from dronefly.harness.compliance.reference import REFERENCES, check_reference, reference_paths
 from dronefly.harness.paper.analysis import lateral_system, longitudinal_system
 from dronefly.models.feedback import default_gains
-from dronefly.models.lateral import CONTROL_NAMES as LATERAL_CONTROLS
-from dronefly.models.lateral import LATERAL, N_HZ, U_M_PER_S
-from dronefly.models.longitudinal import CONTROL_NAMES as LONGITUDINAL_CONTROLS
-from dronefly.models.longitudinal import LONGITUDINAL
+from dronefly.models.lateral_interface import CONTROL_NAMES as LATERAL_CONTROLS
+from dronefly.models.lateral_interface import LATERAL, N_HZ, U_M_PER_S
+from dronefly.models.longitudinal_interface import CONTROL_NAMES as LONGITUDINAL_CONTROLS
+from dronefly.models.longitudinal_interface import LONGITUDINAL
 from test_hover6dof import _oracle_outputs, newton_euler
 
 pytestmark = pytest.mark.integration

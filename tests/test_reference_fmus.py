@@ -354,7 +354,7 @@ def test_master_on_feedthrough_equals_fmpy_and_the_reference_result(ref, version
             master.run(h, 1, record=["m.String_output"])
         unrecordable = set(master.unrecordable)
     # every output of the reference result (of the FMI 3.0 build) is compared below or said
-    # not to be recorded (the run's summary lists them, harness.stability.system)
+    # not to be recorded (the run's summary lists them, harness.stability.system_verdicts)
     assert unrecordable <= {f"m.{n}" for n in heads[1:]}
     if version == "fmi3":
         assert {f"m.{n}" for n in heads[1:]} == unrecordable | set(run.names)

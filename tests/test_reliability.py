@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.builder.build import FMUS, NEEDS_NUMPY
+from dronefly.harness.builder.build import FMUS, NEEDS_NUMPY
 from dronefly.harness.compliance.fuzz import fuzz_fmu
 from fmu_helpers import build_crashing_fmu, model_description
 from shared_files import ON_CI

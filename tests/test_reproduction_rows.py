@@ -12,10 +12,10 @@ import itertools
 import numpy as np
 import pytest
 
-from dronefly.harness.paper import values as pv
+from dronefly.harness.paper import printed as pv
 from dronefly.harness.paper.reproduction import reproduction_table
-from dronefly.models import lateral_dynamics as model
-from dronefly.models import lateral
+from dronefly.models import lateral_dynamics
+from dronefly.models import lateral_interface
 
 pytestmark = pytest.mark.numeric  # also run under a second BLAS kernel (.ci/run)
 
@@ -161,8 +161,8 @@ def _modal_B(A: np.ndarray, B: np.ndarray, order: tuple[int, ...], signs: tuple[
 def _lateral_inputs() -> dict[str, tuple[float, float]]:
     out = {f"A{i}{j}": (pv.EQ12_A1[i][j], 0.5 * 10.0 ** -pv.EQ12_DECIMALS)
            for i in range(4) for j in range(4) if (i, j) not in pv.EQ12_STRUCTURAL}
-    out |= {k: (lateral.INERTIAS_SECT21[k], 0.5 * 10.0 ** -d) for k, d in pv.SECT21_DECIMALS.items()}
-    out |= {k: (v, 0.5 * 10.0 ** -pv.TABLE1_DECIMALS) for k, v in model.CONTROL_DERIVATIVES_TABLE1.items()}
+    out |= {k: (lateral_interface.INERTIAS_SECT21[k], 0.5 * 10.0 ** -d) for k, d in pv.SECT21_DECIMALS.items()}
+    out |= {k: (v, 0.5 * 10.0 ** -pv.TABLE1_DECIMALS) for k, v in lateral_dynamics.CONTROL_DERIVATIVES_TABLE1.items()}
     return out | {k: (float(t), pv.half_unit(t)) for k, t in pv.TABLE2.items() if k != "lambda1"}
 
 
@@ -171,9 +171,9 @@ def _lateral_quantities(x: dict[str, float]) -> dict[tuple[str, str], float]:
     for i, j in itertools.product(range(4), range(4)):
         A1[i, j] = x.get(f"A{i}{j}", A1[i, j])
     inertias = {k: x[k] for k in pv.SECT21_DECIMALS} | {"g_plus": A1[0, 3]}
-    p = model.LateralParameters(**inertias, **model.derive_stability_derivatives(A1, inertias),
-                                **{k: x[k] for k in model.CONTROL_DERIVATIVES_TABLE1})
-    A, B = model.system_matrices(p)
+    p = lateral_dynamics.LateralParameters(**inertias, **lateral_dynamics.derive_stability_derivatives(A1, inertias),
+                                **{k: x[k] for k in lateral_dynamics.CONTROL_DERIVATIVES_TABLE1})
+    A, B = lateral_dynamics.system_matrices(p)
     w, V = _eig_sorted(A)
     b = B[:, 0]
     c0 = np.poly(A)[1:]
@@ -185,7 +185,7 @@ def _lateral_quantities(x: dict[str, float]) -> dict[tuple[str, str], float]:
          ("Eq. (19)", "A_lnn(2,2)"): w[1].real, ("Eq. (19)", "A_lnn(3,3)"): w[1].real,
          ("Eq. (19)", "A_lnn(4,4)"): w[3].real}
     Bn = _modal_B(A, B, (0, 1, 2, 3), (-1, 1))
-    q |= {("Eq. (20)", f"B_ln({i + 1},{j + 1}) [{lateral.CONTROL_NAMES[j]}]"): Bn[i, j]
+    q |= {("Eq. (20)", f"B_ln({i + 1},{j + 1}) [{lateral_interface.CONTROL_NAMES[j]}]"): Bn[i, j]
           for i in range(4) for j in range(3)}
     q |= {("Eq. (24)", f"b({i + 1}) [B1 column of delta_Phi_a]"): b[i] for i in range(4)}
     for r, name in enumerate("bcde"):

@@ -65,7 +65,7 @@ def test_every_ssv_parameter_names_a_variable_of_its_fmu(built_fmus, built_fmus3
 def test_fmi3_closed_loop_with_other_gains_is_refused(built_fmus3, tmp_path):
     """SSP 1.0 binds scalars only: gains other than the FMI 3.0 controller's start values of
     its array K cannot be written into an SSV, so the SSP is refused, not written wrong."""
-    from dronefly.builder.closedloop import ClosedLoopSpec, write_ssp
+    from dronefly.harness.builder.closedloop import ClosedLoopSpec, write_ssp
     from dronefly.harness.cosim.master import CoSimError
     from dronefly.models.feedback import default_gains
 
@@ -119,7 +119,7 @@ def test_omsimulator_runs_the_closed_loop_ssp_as_our_master(built_fmus, built_fm
     why = _oms_missing()
     if why:
         pytest.skip(why)
-    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.stability.system_verdicts import cosimulate_system
 
     ssp = (built_fmus if fmi == 2 else built_fmus3)["DroneFlyClosedLoop.ssp"]
     ours = cosimulate_system(ssp, stop_wingbeats=10, out_dir=None, plot=False, verdicts=False)

@@ -119,7 +119,7 @@ def test_grid_timing_is_the_fmus_and_model_b_where_it_applies(fmus, tmp_path):
     the trajectories simulated from the timing alone; where the samples lie on the grid its
     periodic loop has model (b)'s rates."""
     from dronefly.harness.paper.gains import gain_matrix
-    from dronefly.harness.cosim.stability import rates_from_transition
+    from dronefly.harness.cosim.identification import rates_from_transition
     from dronefly.harness.latency.loop import FeedbackLoop
     from dronefly.harness.latency.sampled import sampled_rates
     from dronefly.harness.paper.analysis import lateral_system

@@ -66,7 +66,7 @@ def test_process_pool_on_a_system(built_fmus, tmp_path):
 def _phi_a_only_ssp(built_fmus, tmp_path) -> Path:
     """The lateral pair with only delta_Phi_a wired: gains on the other controls act nowhere."""
     from dronefly.harness.cosim.system import Connection
-    from dronefly.models.lateral import STATE_NAMES
+    from dronefly.models.lateral_interface import STATE_NAMES
 
     cons = [Connection("plant", s, "ctrl", s) for s in STATE_NAMES]
     cons.append(Connection("ctrl", "delta_Phi_a", "plant", "delta_Phi_a"))

@@ -23,7 +23,7 @@ from dronefly.harness.cosim.master import Loop
 from dronefly.harness.cosim.system import Connection, System, SystemSpecError
 from dronefly.harness.cosim.system_master import SystemMaster
 from dronefly.models.feedback import PAPER_GAINS_EQ27
-from dronefly.models.lateral import CONTROL_NAMES, STATE_NAMES, scale_vector
+from dronefly.models.lateral_interface import CONTROL_NAMES, STATE_NAMES, scale_vector
 
 pytestmark = pytest.mark.integration
 
@@ -210,7 +210,7 @@ def test_ssp_and_python_give_the_same_trajectory(built_fmus, gain, tmp_path):
 def test_algebraic_loop_is_refused_with_its_cycle_and_runs_under_jacobi(gain):
     """g1.u = 2 given (the input keeps it at initialization: its source g2 comes later in
     the loop), then every FMU answers from the previous point's inputs."""
-    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.stability.system_verdicts import cosimulate_system
 
     k1, k2, u0 = 0.5, -0.8, 2.0
     system = System({"g1": gain, "g2": gain},
@@ -335,7 +335,7 @@ def test_values_of_the_wrong_type_are_refused_naming_them(gain, name, value, fra
     with SystemMaster(System({"g": gain})) as sm, \
             pytest.raises(SystemSpecError, match=re.escape(fragment)):
         sm.run(0.1, 2, values={"g": {name: value}})
-    from dronefly.harness.stability.system import cosimulate_system
+    from dronefly.harness.stability.system_verdicts import cosimulate_system
 
     with pytest.raises(SystemSpecError, match=re.escape(fragment)):
         cosimulate_system(System({"g": gain}), set_values={f"g.{name}": value}, out_dir=None)
@@ -382,7 +382,7 @@ def test_a_huge_value_exits_2_naming_it(built_fmus, gain, tmp_path, capsys):
 def test_record_any_variable_of_any_instance(built_fmus, gain):
     """Inputs (as set for the step from each point), parameters, calculated parameters,
     Integer and Boolean outputs, array elements; the Real outputs unchanged by them."""
-    from dronefly.models import lateral_dynamics as model
+    from dronefly.models import lateral_dynamics
 
     states = [f"plant.{s}" for s in STATE_NAMES]
     extra = ["plant.delta_Phi_a", "gain.u", "gain.k", "gain.m", "gain.negate", "gain.steps",
@@ -399,7 +399,7 @@ def test_record_any_variable_of_any_instance(built_fmus, gain):
     assert np.all(col["gain.k"] == 1.0) and np.all(col["gain.m"] == 1.0)
     assert np.all(col["gain.negate"] == 0.0) and np.all(col["controller.saturated"] == 0.0)
     assert col["gain.steps"].tolist() == list(range(41))
-    A, _ = model.system_matrices(model.default_parameters())
+    A, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     assert np.all(col["plant.A[2,1]"] == np.asarray(A)[1, 0]) and np.asarray(A)[1, 0] != 0
     assert np.all(col["controller.K[1,4]"] == PAPER_GAINS_EQ27[3])
 
@@ -513,7 +513,7 @@ def test_ssv_enumeration_items_are_resolved_by_name(gain, tmp_path):
     naming it and the items (int('left') raised 'not a valid Enumeration')."""
     from types import SimpleNamespace as NS
 
-    from dronefly.harness.cosim.values import typed_value
+    from dronefly.harness.cosim.typed_values import typed_value
 
     ssv = ('<?xml version="1.0" encoding="UTF-8"?><ssv:ParameterSet version="1.0" name="g" '
            'xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">'

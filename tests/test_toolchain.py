@@ -1,4 +1,4 @@
-"""builder/toolchain.py: the C toolchain of the native FMUs and the C hosts.
+"""harness/builder/toolchain.py: the C toolchain of the native FMUs and the C hosts.
 
 One tiny C file is built for every FMI platform with ``zig cc`` (the ``ziglang`` package of the
 test extra: a missing one fails these tests, it does not skip them), and each binary's header is
@@ -16,8 +16,8 @@ import sys
 
 import pytest
 
-from dronefly.builder import toolchain as tcmod
-from dronefly.builder.toolchain import (FMI2_PLATFORMS, FMI3_PLATFORMS, PLATFORMS, ToolchainError,
+from dronefly.harness.builder import toolchain as tcmod
+from dronefly.harness.builder.toolchain import (FMI2_PLATFORMS, FMI3_PLATFORMS, PLATFORMS, ToolchainError,
                                         binary_platform, find_toolchain, fmi_include_dir,
                                         host_platform, missing_reason)
 from dronefly.core.errors import DroneflyError

@@ -19,7 +19,7 @@ from dronefly.cli.app import main
 from dronefly.harness.validity.terms import line_profile, linearisation_error, term_errors
 from dronefly.harness.sweep.cases import (STATE_BOUNDS_SECT36, SweepInputError, SweepSpec,
     direction_vector)
-from dronefly.harness.sweep.compare import LONGITUDINAL_AXES, compare_summary
+from dronefly.harness.sweep.two_systems import LONGITUDINAL_AXES, compare_summary
 from dronefly.harness.sweep.run import run_sweep
 
 pytestmark = [pytest.mark.integration, pytest.mark.numeric]

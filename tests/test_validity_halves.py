@@ -46,7 +46,7 @@ def test_linear_rigid_body_with_linear_forces_is_the_linear_model():
     beat has a local error of (lambda h)^5 / 120 for the fastest mode (|lambda| < 0.9 per wing
     beat here: 5e-6 of that mode per sub-step, on the fast roll subsidence, which decays);
     measured 7e-7 of the disturbance."""
-    from dronefly.harness.aero.compare import derivatives
+    from dronefly.harness.aero.beside_paper import derivatives
     from dronefly.models.quasisteady import CONTROLS, FORCES, STATES
 
     loops = quasi_steady_loops()

@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ...builder.build import FMI3_OUT, build_all
-from ...builder.native import NATIVE_OUT, build_native_all, build_native_container
+from ...harness.builder.build import FMI3_OUT, build_all
+from ...harness.builder.native import NATIVE_OUT, build_native_all, build_native_container
 from . import EXIT_OK
 
 __all__ = ["SAYS_WHAT_IT_BUILT", "run"]

@@ -13,7 +13,7 @@ from typing import Iterator
 
 import fmpy
 
-from ...builder.build import FMUS, build_all, build_fmu
+from ...harness.builder.build import FMUS, build_all, build_fmu
 from ...core.errors import DroneflyError
 from ...core.files import write_text_atomic
 from ...harness.compliance.checker import CHECK_NAMES, CheckOptions, experiment

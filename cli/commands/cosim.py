@@ -8,11 +8,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ...builder.build import reporting
-from ...builder.native import native_pair
+from ...harness.builder.build import reporting
+from ...harness.builder.native import native_pair
 from ...core.errors import DroneflyError
 from ...harness.stability.run import cosimulate
-from ...harness.stability.system import cosimulate_system
+from ...harness.stability.system_verdicts import cosimulate_system
 from . import EXIT_FAILED, EXIT_OK, feature
 
 __all__ = ["SAYS_WHAT_IT_BUILT", "run"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ...builder.native import native_pair
+from ...harness.builder.native import native_pair
 from ...harness.stability.demo import demo_runs, format_table
 from . import EXIT_FAILED, EXIT_OK, feature
 

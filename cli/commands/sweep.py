@@ -8,8 +8,8 @@ import os
 import sys
 from typing import Any
 
-from ...builder.build import project_systems
-from ...builder.native import native_pair
+from ...harness.builder.build import project_systems
+from ...harness.builder.native import native_pair
 from ...core.errors import DroneflyError
 from ...core.files import write_text_atomic
 from ...core.extras import require

@@ -27,7 +27,7 @@ from typing import Any
 from ...fmi import SlaveBase, Var
 from ...models.flapping import (STATE_SIZE, STEPS_PER_BEAT, FlappingError, FlappingModel, Flight)
 from ...models.hover6dof import EXTRA_STARTS, OUTPUT_NAMES, STATE_OUTPUTS
-from ...models.lateral import N_HZ, U_M_PER_S
+from ...models.lateral_interface import N_HZ, U_M_PER_S
 from ...models.quasisteady import CONTROLS
 from ...models.rigid_body import Hover6DOFError, initial_state, outputs
 from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs, rows,

@@ -22,20 +22,20 @@ from typing import Any
 from ... import models as _models
 from ...fmi import SlaveBase, Var
 from ...models.hover6dof import EXTRA_STARTS, OUTPUT_NAMES, STATE_OUTPUTS
-from ...models.lateral import LATERAL, N_HZ, U_M_PER_S
-from ...models.lateral import parameter_description as lateral_text
-from ...models.longitudinal import LONGITUDINAL
-from ...models.longitudinal import parameter_description as longitudinal_text
-from ...models import lateral_dynamics as lateral
-from ...models import longitudinal_dynamics as longitudinal
+from ...models.lateral_interface import LATERAL, N_HZ, U_M_PER_S
+from ...models.lateral_interface import parameter_description as lateral_text
+from ...models.longitudinal_interface import LONGITUDINAL
+from ...models.longitudinal_interface import parameter_description as longitudinal_text
+from ...models import lateral_dynamics
+from ...models import longitudinal_dynamics
 from ...models.rigid_body import STATE_SIZE, Hover6DOF, Hover6DOFError, initial_state, outputs
 from ..body_variables import (ATTITUDE_STARTS, VELOCITY_STARTS, control_inputs, rows,
                               start_parameters, state_outputs)
 
 __all__ = ["AERODYNAMICS", "DroneFlyHover6DOF"]
 
-_LAT_PARAMS = lateral.LateralParameters.names()
-_LON_PARAMS = longitudinal.LongitudinalParameters.names()
+_LAT_PARAMS = lateral_dynamics.LateralParameters.names()
+_LON_PARAMS = longitudinal_dynamics.LongitudinalParameters.names()
 _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS))
 #: the values of the parameter ``aerodynamics``
 AERODYNAMICS = {1: "linear", 2: "quasi_steady"}
@@ -83,7 +83,7 @@ def _initial_dependencies(name: str) -> tuple[str, ...]:
 
 def _variables() -> tuple[Var, ...]:
     out = [*control_inputs("; held over each step)"), *state_outputs(_initial_dependencies)]
-    defaults = (lateral.default_parameters(), longitudinal.default_parameters())
+    defaults = (lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters())
     for names, params, describe in ((_LAT_PARAMS, defaults[0], lateral_text),
                                     (_LON_PARAMS, defaults[1], longitudinal_text)):
         for name in names:
@@ -126,8 +126,8 @@ class DroneFlyHover6DOF(SlaveBase):
         self._U, self._n = U_M_PER_S, N_HZ
 
     def _refresh(self) -> None:
-        lp = lateral.LateralParameters(*self._values(_LAT_PARAMS))
-        np_ = longitudinal.LongitudinalParameters(*self._values(_LON_PARAMS))
+        lp = lateral_dynamics.LateralParameters(*self._values(_LAT_PARAMS))
+        np_ = longitudinal_dynamics.LongitudinalParameters(*self._values(_LON_PARAMS))
         aero = self._value("aerodynamics")
         if aero not in AERODYNAMICS:
             raise ValueError(f"aerodynamics = {aero!r}: expected 1 (linear) or 2 (quasi_steady)")

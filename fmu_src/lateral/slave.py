@@ -7,7 +7,7 @@ Outputs are the paper's disturbance states made dimensional with U and t_w.
 
 from __future__ import annotations
 
-from ...models.lateral import LATERAL, N_HZ, U_M_PER_S, parameter_description
+from ...models.lateral_interface import LATERAL, N_HZ, U_M_PER_S, parameter_description
 from ..linear_slave import LinearPlantSlave, plant_variables
 from ...models.lateral_dynamics import LateralModel, LateralParameters, default_parameters
 

@@ -7,9 +7,9 @@ Outputs are the disturbance states made dimensional with U and t_w.
 
 from __future__ import annotations
 
-from ...models.lateral import N_HZ, U_M_PER_S
+from ...models.lateral_interface import N_HZ, U_M_PER_S
 from ..linear_slave import LinearPlantSlave, plant_variables
-from ...models.longitudinal import LONGITUDINAL, parameter_description
+from ...models.longitudinal_interface import LONGITUDINAL, parameter_description
 from ...models.longitudinal_dynamics import (LongitudinalModel, LongitudinalParameters,
     default_parameters, parameter_dependencies)
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from ...core.extras import pyplot
 from ...models.quasisteady import FORCES, QuasiSteadyModel
-from .compare import (CONTROL_BOX_RAD, LATERAL_PAIRS, STATE_BOX, derivatives, linearity_scan,
+from .beside_paper import (CONTROL_BOX_RAD, LATERAL_PAIRS, STATE_BOX, derivatives, linearity_scan,
                       pair_scan)
 
 __all__ = ["plot_fig2", "plot_linearity_maps"]

@@ -1,7 +1,7 @@
 """The driver of ``dronefly check``: one FMU under one profile, its experiment, variables,
 instances, calls and the log of what it was asked (:class:`Context`).
 
-FMI 2.0 and 3.0 FMUs are driven through the same calls (:mod:`dronefly.harness.cosim.fmi3`
+FMI 2.0 and 3.0 FMUs are driven through the same calls (:mod:`dronefly.harness.cosim.fmu3`
 presents an FMI 3.0 FMU behind fmpy's FMU2Slave API); every check takes a :class:`Context`.
 """
 

@@ -21,9 +21,9 @@ from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
 from ...core.files import write_csv_atomic, write_text_atomic
 from ...fmu_src.flapping.slave import LOAD_OUTPUTS, WING_OUTPUTS
-from ...models import longitudinal as lon
+from ...models import longitudinal_interface
 from ...models.hover6dof import OUTPUT_NAMES
-from ...models.lateral import CONTROL_NAMES, N_HZ, STATE_NAMES
+from ...models.lateral_interface import CONTROL_NAMES, N_HZ, STATE_NAMES
 
 __all__ = ["REFERENCES", "ReferenceCheck", "check_reference", "reference_paths",
            "write_reference"]
@@ -114,13 +114,13 @@ REFERENCES: dict[str, _Setup] = {
     "DroneFlyLateral": _Setup("fmu_src/lateral", _plant_inputs, STATE_NAMES),
     "StateFeedback": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
     "DroneFlyLongitudinal": _Setup("fmu_src/longitudinal", _longitudinal_plant_inputs,
-                                   lon.STATE_NAMES, stop_wingbeats=60.0),
+                                   longitudinal_interface.STATE_NAMES, stop_wingbeats=60.0),
     "StateFeedbackLongitudinal": _Setup("controller", _longitudinal_controller_inputs,
-                                        (*lon.CONTROL_NAMES, "saturated"), stop_wingbeats=60.0),
+                                        (*longitudinal_interface.CONTROL_NAMES, "saturated"), stop_wingbeats=60.0),
     # the same inputs through the controllers with the default sensing delay of one wing beat
     "StateFeedbackDelayed": _Setup("controller", _controller_inputs, (*CONTROL_NAMES, "saturated")),
     "StateFeedbackLongitudinalDelayed": _Setup("controller", _longitudinal_controller_inputs,
-                                               (*lon.CONTROL_NAMES, "saturated"),
+                                               (*longitudinal_interface.CONTROL_NAMES, "saturated"),
                                                stop_wingbeats=60.0),
     "DroneFlyHover6DOF": _Setup("fmu_src/hover6dof", _hover6dof_inputs, OUTPUT_NAMES,
                                 stop_wingbeats=60.0),

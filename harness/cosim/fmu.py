@@ -28,7 +28,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 from fmpy.logging import addLoggerProxy
 
 from ...core.errors import DroneflyError
-from .fmi3 import FMU3Adapter, fmi2_view
+from .fmu3 import FMU3Adapter, fmi2_view
 
 __all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "column_units",
            "start_values", "variable_unit"]

@@ -13,7 +13,7 @@ import numpy as np
 from ...core.errors import DroneflyError
 from ...core.text import a_or_an
 from .system import SystemSpecError
-from .values import settable, typed_value
+from .typed_values import settable, typed_value
 
 __all__ = ["SHARED_SCALES", "ParameterError", "resolve_assignments", "scale_ratios"]
 
@@ -29,7 +29,7 @@ def resolve_assignments(values: Mapping[str, Any],
     A name is ``instance.NAME`` or a bare ``NAME`` that exactly one instance has. It must be
     a parameter (fixed or tunable) or an input; its value (a number, a boolean or text, as
     ``--set`` gives it) is converted as the system master converts every value
-    (:func:`dronefly.harness.cosim.values.typed_value`: Real a finite number, Integer a whole
+    (:func:`dronefly.harness.cosim.typed_values.typed_value`: Real a finite number, Integer a whole
     number, Boolean true/false/1/0, String text). Values are in the FMU's own (SI) unit.
 
     Raises

@@ -19,10 +19,10 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from ...core.files import write_zip
-from ...models import lateral, longitudinal
+from ...models import lateral_interface, longitudinal_interface
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.flapping import FlappingModel
-from .fmi3 import read_view
+from .fmu3 import read_view
 from .system import System, SystemSpecError
 
 __all__ = ["FLAPPING", "FLAPPING_FMUS", "HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS",
@@ -152,7 +152,7 @@ def _system(fmus: Mapping[str, str | Path], models: Mapping[str, str],
         raise SystemSpecError(f"the {name} system needs the FMUs {', '.join(missing)}")
     paths = {inst: Path(fmus[model]) for inst, model in models.items()}
     system = System.by_name(paths, parameters=params, name=name)
-    system.stop_s = stop_wb / lateral.N_HZ
+    system.stop_s = stop_wb / lateral_interface.N_HZ
     return system
 
 
@@ -179,9 +179,9 @@ def hover_system(fmus: Mapping[str, str | Path],
 
     models = HOVER_6DOF_FMUS if nonlinear else HOVER_FMUS
     params: dict[str, dict[str, object]] = {}
-    for inst, axis, x0 in (("lateral", lateral.LATERAL, x0_lateral),
-                           ("longitudinal", longitudinal.LONGITUDINAL, x0_longitudinal)):
-        scale = axis.scale_vector(lateral.U_M_PER_S, lateral.N_HZ)
+    for inst, axis, x0 in (("lateral", lateral_interface.LATERAL, x0_lateral),
+                           ("longitudinal", longitudinal_interface.LONGITUDINAL, x0_longitudinal)):
+        scale = axis.scale_vector(lateral_interface.U_M_PER_S, lateral_interface.N_HZ)
         params.setdefault("plant" if nonlinear else inst, {}).update(
             {f"{s}_start": float(v) * k for s, v, k in zip(axis.state_names, x0, scale)})
     return _system(fmus, models, params, HOVER_6DOF if nonlinear else HOVER, stop_wingbeats)
@@ -214,7 +214,7 @@ def flapping_starts(z: Sequence[float], roll0_rad: float = 0.0) -> dict[str, flo
     asin(sin phi cos theta), the paper's roll angle; :func:`dronefly.models.rigid_body.
     initial_state` inverts it): the same attitude to round-off.
     """
-    U, n = lateral.U_M_PER_S, lateral.N_HZ
+    U, n = lateral_interface.U_M_PER_S, lateral_interface.N_HZ
     u, v, w, p, q, r, phi, theta = (float(x) for x in z)
     phi += float(roll0_rad)
     return {"delta_u_start": u * U, "delta_v_start": v * U, "delta_w_start": w * U,
@@ -251,8 +251,8 @@ def flapping_system(fmus: Mapping[str, str | Path],
     z0 : sequence of 8 floats, optional
         The orbit's start (:func:`orbit_start`, computed if not given, some 1 s).
     """
-    if len(gains) != len(lateral.STATE_NAMES):
-        raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral.STATE_NAMES)} "
+    if len(gains) != len(lateral_interface.STATE_NAMES):
+        raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral_interface.STATE_NAMES)} "
                               "values (delta_Phi_a on dv+, dp+, dr+, dgamma)")
     z = orbit_start() if z0 is None else np.asarray(z0, dtype=float)
     params: dict[str, dict[str, object]] = {

@@ -42,7 +42,7 @@ from .plan import (RECORDABLE, Node, build_nodes, get_ops, put_ops, record_ops, 
                    start_ops)
 from .records import MASTERS, MAX_STEPS, LoopRun, StepFailure
 from .system import System, SystemSpecError
-from .values import SETTER, settable, typed_values
+from .typed_values import SETTER, settable, typed_values
 
 __all__ = ["SystemMaster", "call_name"]
 

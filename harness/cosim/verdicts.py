@@ -8,7 +8,7 @@ non-dimensionalisation of both axes, end of Sect. 2.1).
 
 For each plant, runs of the whole system from x+_0 = e_j of that plant (every other plant
 at its zero state) give the one-step transition F of its states as the system closes the
-loop, fitted by :func:`dronefly.harness.cosim.stability.identify`; its eigenvalues are
+loop, fitted by :func:`dronefly.harness.cosim.identification.identify`; its eigenvalues are
 the closed-loop rates, and their dominant real part the verdict. The axes being decoupled,
 each plant's runs show its own loop. Where the plant's inputs are driven by one controller
 with gains ``K[i,j]`` (the project's controllers) the verdict is cross-checked against the
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from .calculated import calculated_matrix
-from .stability import (Identification, identify, rates_from_transition, sampled_closed_loop,
+from .identification import (Identification, identify, rates_from_transition, sampled_closed_loop,
                         sort_eigenvalues)
 from .master import CoSimError
 from .system_master import SystemMaster

@@ -11,14 +11,14 @@ project's master.
 
 from __future__ import annotations
 
-from .floquet import (AXES, FloquetReport, answer, averaged_exponents, averaged_monodromy,
+from .floquet import (AXES, FloquetReport, readme_paragraph, averaged_exponents, averaged_monodromy,
                       convergence, convergence_rows, floquet_report)
 from .closed_loop import ClosedLoopReport, closed_loop_report
 from .fmi_floquet import FmiFloquet, FmiPeriodicMap, floquet_analysis, floquet_text, fmi_floquet
 from .master_run import MasterReport, master_report, write_flapping_ssp
 from .trim import FlappingTrim, flapping_trim
 
-__all__ = ["AXES", "ClosedLoopReport", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "answer",
+__all__ = ["AXES", "ClosedLoopReport", "FloquetReport", "FmiFloquet", "FmiPeriodicMap", "readme_paragraph",
            "closed_loop_report",
            "averaged_exponents", "averaged_monodromy", "convergence", "convergence_rows",
            "floquet_analysis", "floquet_report", "floquet_text", "fmi_floquet", "MasterReport",

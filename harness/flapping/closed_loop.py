@@ -6,7 +6,7 @@ delta_Phi_a = k x+ for that beat (:class:`dronefly.models.flapping.Flight`: the 
 taken at the beat's start). Two gain sets: Eq. (27), designed by the paper on its CFD
 derivatives, and the paper's method (coefficient matching, moving the unstable root onto the
 imaginary axis) applied to the quasi-steady averaged model
-(:func:`dronefly.harness.aero.compare.closed_loop`, ``matched_gains``).
+(:func:`dronefly.harness.aero.beside_paper.closed_loop`, ``matched_gains``).
 
 Closed-loop exponents per wing beat, three ways:
 
@@ -33,10 +33,10 @@ import numpy as np
 from ...core.text import complexes_text
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.flapping import FlappingModel, Flight, Floquet, PeriodicOrbit
-from ...models.lateral import sort_eigenvalues
+from ...models.lateral_interface import sort_eigenvalues
 from ...models.rigid_body import euler_from_quaternion, gamma_from_quaternion
-from ..aero.compare import closed_loop as qs_closed_loop
-from ..aero.compare import derivative_table
+from ..aero.beside_paper import closed_loop as qs_closed_loop
+from ..aero.beside_paper import derivative_table
 
 __all__ = ["ClosedLoopReport", "closed_loop_report", "lateral_state"]
 

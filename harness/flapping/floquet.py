@@ -15,7 +15,7 @@ Beside them, per axis:
   averaged theory gives for the same insect. The difference in per cent is the measured error of
   the averaged model;
 - ``quasi_steady``: the eigenvalues of the quasi-steady derivatives in the paper's linear
-  model (the paper's m+, inertias, g+; :func:`dronefly.harness.aero.compare.eigenvalues`);
+  model (the paper's m+, inertias, g+; :func:`dronefly.harness.aero.beside_paper.eigenvalues`);
 - ``paper``: Eq. (12)'s lateral A and Sect. 3.5's longitudinal A.
 """
 
@@ -29,10 +29,10 @@ import numpy as np
 
 from ...core.text import complex_text
 from ...models.flapping import Floquet, FlappingModel, PeriodicOrbit
-from ...models.lateral import sort_eigenvalues
-from ..aero.compare import derivative_table, eigenvalues
+from ...models.lateral_interface import sort_eigenvalues
+from ..aero.beside_paper import derivative_table, eigenvalues
 
-__all__ = ["AXES", "FloquetReport", "answer", "averaged_exponents", "averaged_monodromy",
+__all__ = ["AXES", "FloquetReport", "readme_paragraph", "averaged_exponents", "averaged_monodromy",
            "convergence", "convergence_rows", "floquet_report"]
 
 #: the reduced coordinates of each axis (indices into dronefly.models.flapping.Z_NAMES)
@@ -213,7 +213,7 @@ def convergence(rows: Sequence[tuple[float, float, float]] | None = None,
     return "\n".join(lines)
 
 
-def answer(report: FloquetReport, without_inertia: FloquetReport,
+def readme_paragraph(report: FloquetReport, without_inertia: FloquetReport,
            rows: Sequence[tuple[float, float, float]]) -> str:
     """The answer in three sentences (docs/averaging.md, README)."""
     o, o0 = report.oscillation, without_inertia.oscillation

@@ -25,11 +25,11 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ...builder.build import ensure_fmu
+from ..builder.build import ensure_fmu
 from ...core.errors import DroneflyError
 from ...core.interrupt import checkpoint
 from ...models.flapping import FlappingModel, shooting
-from ...models.lateral import sort_eigenvalues
+from ...models.lateral_interface import sort_eigenvalues
 from ..cosim.fmu import FMU
 from .floquet import averaged_exponents
 

@@ -9,15 +9,15 @@ beat, as flies do. For each gain set of :func:`.closed_loop.closed_loop_report`:
 
 - **the verdict identified from runs**: four runs of the system from the orbit with x+ = eps
   e_j added (eps = :data:`AMPLITUDE`), sampled once per wing beat, fitted by the project's one
-  identification (:func:`dronefly.harness.cosim.stability.verdict_of`, fit residual within
-  :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`; not from the run from the roll,
+  identification (:func:`dronefly.harness.cosim.identification.verdict_of`, fit residual within
+  :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`; not from the run from the roll,
   whose nonlinearity the fit would leave: 2.4e-6 of |z| at 1e-3 already). The loop's state is
   z = (x+_k, x+_(k-1)): a beat's stroke starts from the rear reversal the last beat reached,
   so the control of the last beat, K x+_(k-1), acts in this one (the Jacobi form of the fit;
   before the first beat the plant flapped with the controls of its initialization, 0, so
   x+_(-1) = 0). The identified exponents are cross-checked against the linearised wing-beat
   map's (:attr:`.closed_loop.ClosedLoopReport.flapping`): a difference beyond
-  :data:`~dronefly.harness.cosim.stability.RATE_TOL_PER_WINGBEAT`, or another verdict, is an
+  :data:`~dronefly.harness.cosim.identification.RATE_TOL_PER_WINGBEAT`, or another verdict, is an
   error (:class:`~dronefly.core.errors.CrossCheckError`), not a verdict;
 - **the recovery from a 0.1 rad roll**: gamma after 10, 20 and 30 beats, the largest
   |delta_Phi_a|;
@@ -48,9 +48,9 @@ from ...core.errors import CrossCheckError, DroneflyError
 from ...core.text import complexes_text
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.flapping import STEPS_PER_BEAT
-from ...models.lateral import N_HZ, STATE_NAMES, U_M_PER_S
+from ...models.lateral_interface import N_HZ, STATE_NAMES, U_M_PER_S
 from ..cosim.ssp import flapping_starts, flapping_system, write_system_ssp
-from ..cosim.stability import (RATE_TOL_PER_WINGBEAT, Verdict, classify, unit_start_values,
+from ..cosim.identification import (RATE_TOL_PER_WINGBEAT, Verdict, classify, unit_start_values,
                                verdict_of)
 from ..cosim.system_master import SystemMaster
 from .closed_loop import ClosedLoopReport, closed_loop_report

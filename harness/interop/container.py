@@ -1,5 +1,5 @@
 """The closed loop as fmpy's container FMU runs it (``DroneFlyClosedLoop.fmu``, written by
-:mod:`dronefly.builder.closedloop`): one run per unit initial state, and its verdict."""
+:mod:`dronefly.harness.builder.closedloop`): one run per unit initial state, and its verdict."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import fmpy
 import numpy as np
 from fmpy import read_model_description
 
-from ...builder.closedloop import plant_md_scales
-from ...models.lateral import STATE_NAMES
-from ..cosim.stability import Verdict, unit_start_values, verdict_of
+from ..builder.closedloop import plant_md_scales
+from ...models.lateral_interface import STATE_NAMES
+from ..cosim.identification import Verdict, unit_start_values, verdict_of
 
 __all__ = ["container_verdict", "run_container"]
 
@@ -42,7 +42,7 @@ def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:
     Raises
     ------
     CrossCheckError
-        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     md = read_model_description(fmu)

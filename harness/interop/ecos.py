@@ -48,12 +48,12 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from ...builder.closedloop import plant_md_scales
-from ...models.lateral import STATE_NAMES
-from ..cosim.fmi3 import read_view
+from ..builder.closedloop import plant_md_scales
+from ...models.lateral_interface import STATE_NAMES
+from ..cosim.fmu3 import read_view
 from ..cosim.master import CoSimError
 from ..cosim.ssp import SSD_NS
-from ..cosim.stability import Verdict, unit_start_values, verdict_of
+from ..cosim.identification import Verdict, unit_start_values, verdict_of
 from .libcosim import InteropRun
 from .ssp import ssp_parameter_set
 
@@ -274,7 +274,7 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
 
     One run per unit initial state x+_0 = e_i, all in one child process. Each run is
     [x_(-1); x_0; x_1; ...] with x_(-1) = x_0 (see the module text), the delayed (Jacobi) form
-    of :func:`dronefly.harness.cosim.stability.identify`; u_0 = u_1 (= K x_0) is checked.
+    of :func:`dronefly.harness.cosim.identification.identify`; u_0 = u_1 (= K x_0) is checked.
 
     Parameters
     ----------
@@ -293,7 +293,7 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
     Raises
     ------
     CrossCheckError
-        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`.
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`.
     """
     ssp = Path(ssp).resolve()
     n_hz, scale = _plant_scales(ssp, "plant")

@@ -5,7 +5,7 @@ with its own fixed-step master. :func:`run_libcosim` connects plant and controll
 (every controller input from the plant output of that name, every plant input from the
 controller output of that name), runs ``n_steps`` steps and returns the time series;
 :func:`libcosim_verdict` runs it from the unit initial states and classifies neutral stability
-with :func:`harness.cosim.stability.identify`.
+with :func:`harness.cosim.identification.identify`.
 
 libcosim's fixed-step master, measured (``tests/test_interop.py``)
 -------------------------------------------------------------------
@@ -45,11 +45,11 @@ from typing import Mapping, Sequence
 import fmpy
 import numpy as np
 
-from ...builder.closedloop import plant_md_scales
+from ..builder.closedloop import plant_md_scales
 from ...core.extras import optional
-from ...models.lateral import STATE_NAMES
+from ...models.lateral_interface import STATE_NAMES
 from ..cosim.master import CoSimError
-from ..cosim.stability import Verdict, unit_start_values, verdict_of
+from ..cosim.identification import Verdict, unit_start_values, verdict_of
 
 __all__ = ["InteropRun", "c_host_env", "libcosim_available", "libcosim_verdict", "libpython_path",
            "run_libcosim", "step_ns"]
@@ -220,7 +220,7 @@ def libcosim_verdict(plant: str | Path, controller: str | Path, *,
     Raises
     ------
     CrossCheckError
-        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     md = fmpy.read_model_description(str(plant))

@@ -32,12 +32,12 @@ import numpy as np
 from fmpy.ssp.simulation import simulate_ssp
 from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
 
-from ...builder.closedloop import CLOSED_LOOP, PLANT, plant_md_scales
-from ...models.lateral import STATE_NAMES
-from ..cosim.fmi3 import read_view
+from ..builder.closedloop import CLOSED_LOOP, PLANT, plant_md_scales
+from ...models.lateral_interface import STATE_NAMES
+from ..cosim.fmu3 import read_view
 from ..cosim.master import CoSimError
 from ..cosim.ssp import SSD_NS
-from ..cosim.stability import Verdict, unit_start_values, verdict_of
+from ..cosim.identification import Verdict, unit_start_values, verdict_of
 
 __all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict"]
 
@@ -128,12 +128,12 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
 
     One run per unit initial state x+_0 = e_i (the SSP's gains). By the master described in
     :func:`run_ssp` the rows hold x_1, x_2, ... and the controller's first input is 0, so each
-    run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.cosim.stability.identify``.
+    run is [0; x_1; x_2; ...] in the delayed (Jacobi) form of ``harness.cosim.identification.identify``.
 
     Raises
     ------
     CrossCheckError
-        The fit's residual exceeds :data:`~dronefly.harness.cosim.stability.FIT_RESIDUAL_TOL`
+        The fit's residual exceeds :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
     d_step, _ = _ssp_step_stop(ssp)

@@ -29,7 +29,7 @@ from ..paper.gains import STABILISING_LAMBDA1, gain_matrix
 from .loop import FeedbackLoop, LatencyInputError
 from ..paper.analysis import coefficient_matching_gains, lateral_system, ordered_eigen
 from ..paper.design import lqr_gains
-from ...models.lateral import CONTROL_NAMES, STATE_BOUNDS_SECT36
+from ...models.lateral_interface import CONTROL_NAMES, STATE_BOUNDS_SECT36
 
 __all__ = ["DESIGNS", "PI_DOUBLE_ROOT", "bryson_weights", "design", "designs", "pi_loop"]
 

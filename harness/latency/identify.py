@@ -10,7 +10,7 @@ past samples of the recorded x, so the augmented state of :mod:`.sampled`,
 is rebuilt from the record (x = 0 before t = 0, the controller's delay line starting at the
 equilibrium). Runs from the unit initial states x+_0 = e_j give pairs (X_k, X_(k+1)), and
 X_(k+1) = M X_k is fitted by least squares (each pair scaled to unit |X_k|, as
-:func:`dronefly.harness.cosim.stability.identify` does). The non-zero eigenvalues of M are
+:func:`dronefly.harness.cosim.identification.identify` does). The non-zero eigenvalues of M are
 the loop's; they are compared with those of the exact M of :func:`.sampled.sampled_matrix`.
 The zero eigenvalues are pure delay (Jordan chains, so the fit moves them by about the
 square root of the fit's rounding) and are reported apart.
@@ -28,10 +28,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...models.feedback import gain_name, integral_gain_name
-from ...models.lateral import plant_scales
+from ...models.lateral_interface import plant_scales
 from ..cosim.fmu import FMU
 from ..cosim.master import Loop
-from ..cosim.stability import unit_start_values
+from ..cosim.identification import unit_start_values
 from .loop import FeedbackLoop, LatencyInputError
 from .sampled import delay_split, sampled_matrix
 

@@ -26,7 +26,7 @@ __all__ = ["FeedbackLoop", "LatencyInputError", "NEUTRAL_RATE"]
 Array = NDArray[np.float64]
 
 #: |s| per wing beat below which a closed-loop eigenvalue of the delay-free loop is the
-#: neutral one (the verdict's tolerance, :data:`dronefly.harness.cosim.stability.TOL_PER_WINGBEAT`).
+#: neutral one (the verdict's tolerance, :data:`dronefly.harness.cosim.identification.TOL_PER_WINGBEAT`).
 NEUTRAL_RATE = 1e-3
 
 

@@ -19,11 +19,11 @@ from .continuous import DelayMargin, delay_margin
 from .designs import DESIGNS, bryson_weights, design, designs
 from .loop import FeedbackLoop, LatencyInputError
 from .sampled import Response, SampledMargin, excess_rate, response, sampled_margin, sampled_rates
-from ..cosim.stability import classify
+from ..cosim.identification import classify
 from ..paper.analysis import lateral_system
 from ..paper.design import lqr_gains
 from ..paper.rows import markdown_table
-from ...models.lateral import CONTROL_NAMES, N_HZ
+from ...models.lateral_interface import CONTROL_NAMES, N_HZ
 
 __all__ = ["COST_DELAYS_MS", "MarginRow", "ROLL", "Redesign", "TARGETS_MS", "cost", "cost_table",
            "margin_rows", "margin_table", "markdown", "ms_to_wb", "redesign_table", "redesigns",

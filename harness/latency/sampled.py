@@ -30,10 +30,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import eig
 
-from ..cosim.stability import classify, rates_from_transition
+from ..cosim.identification import classify, rates_from_transition
 from .loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
 from ...models.linear import discretize_zoh
-from ...models.lateral import STATE_BOUNDS_SECT36
+from ...models.lateral_interface import STATE_BOUNDS_SECT36
 
 __all__ = ["Response", "SampledMargin", "delay_split", "excess_rate", "response",
            "sampled_margin", "sampled_matrix", "sampled_rates", "verdict_map"]

@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ...core.errors import DroneflyError
-from ...models import lateral_dynamics as model
-from ...models import lateral
+from ...models import lateral_dynamics
+from ...models import lateral_interface
 from ...models.longitudinal_dynamics import A_SECT35, B_SECT35
 
 from .modal import (LATERAL_CONVENTION, LONGITUDINAL_CONVENTION, ModalConvention, ModalForm,
@@ -42,9 +42,9 @@ class UncontrollableError(AnalysisInputError):
     """The chosen control input cannot place the requested eigenvalues."""
 
 
-def lateral_system(params: model.LateralParameters | None = None) -> tuple[Array, Array]:
+def lateral_system(params: lateral_dynamics.LateralParameters | None = None) -> tuple[Array, Array]:
     """A1 (4x4) and B1 (4x3) of Eq. (9), per wing beat and per wing beat per rad."""
-    return model.system_matrices(params if params is not None else model.default_parameters())
+    return lateral_dynamics.system_matrices(params if params is not None else lateral_dynamics.default_parameters())
 
 
 def longitudinal_system() -> tuple[Array, Array]:
@@ -52,7 +52,7 @@ def longitudinal_system() -> tuple[Array, Array]:
     return np.array(A_SECT35, dtype=float), np.array(B_SECT35, dtype=float)
 
 
-def input_index(name: str, names: Sequence[str] = lateral.CONTROL_NAMES) -> int:
+def input_index(name: str, names: Sequence[str] = lateral_interface.CONTROL_NAMES) -> int:
     """Column of the control ``name`` in B (raises :class:`AnalysisInputError`)."""
     if name not in names:
         raise AnalysisInputError(f"input {name!r} is not one of {', '.join(names)}")

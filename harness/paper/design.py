@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import expm, solve_continuous_are
 
-from ...models import lateral_dynamics as model
-from ...models import lateral as lateral_interface
-from ...models.lateral import sort_eigenvalues
-from . import values as pv
+from ...models import lateral_dynamics
+from ...models import lateral_interface
+from ...models.lateral_interface import sort_eigenvalues
+from . import printed as pv
 from .analysis import (LONGITUDINAL_CONVENTION, AnalysisInputError, ModalConvention,
                        ackermann_gains, characteristic_affine, closed_loop_matrix,
                        coefficient_matching_gains, controllability, eigenvector_table, input_index,
@@ -122,7 +122,7 @@ def lqr_gains(A: ArrayLike, B: ArrayLike, u: str, q: Iterable[float] = (1.0, 1.0
 
 
 def stabilising_designs(lambda1: float = -0.1, gamma0: float = 0.5,
-                        params: model.LateralParameters | None = None,
+                        params: lateral_dynamics.LateralParameters | None = None,
                         extra: dict[str, Array] | None = None) -> list[Design]:
     """Designs for each input alone (move lambda_1, LQR), plus ``extra`` gains for dPhi_a.
 
@@ -131,7 +131,7 @@ def stabilising_designs(lambda1: float = -0.1, gamma0: float = 0.5,
     """
     if not math.isfinite(gamma0) or gamma0 == 0.0:
         raise AnalysisInputError(f"gamma0 = {gamma0!r} must be finite and nonzero")
-    A, B = model.system_matrices(params if params is not None else model.default_parameters())
+    A, B = lateral_dynamics.system_matrices(params if params is not None else lateral_dynamics.default_parameters())
     _, mag, ph = eigenvector_table(A)
     eta1 = mag[:, 0] * np.cos(np.radians(ph[:, 0]))
     x_roll, x_mode = np.array([0.0, 0.0, 0.0, gamma0]), gamma0 * eta1

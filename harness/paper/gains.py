@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from ...models import lateral_dynamics as model
+from ...models import lateral_dynamics
 from ...models.feedback import default_gains
-from ...models.lateral import CONTROL_NAMES, STATE_NAMES
+from ...models.lateral_interface import CONTROL_NAMES, STATE_NAMES
 from ..cosim.params import ParameterError
 
 __all__ = ["GAIN_SETS", "STABILISING_LAMBDA1", "as_gain_matrix", "gain_matrix", "parse_gains"]
@@ -41,7 +41,7 @@ def gain_matrix(name: str) -> np.ndarray:
         # gains (the CLI's converters, the sweep's cases and workers) starts without it
         from .design import move_lambda1_gains
 
-        A, B = model.system_matrices(model.default_parameters())
+        A, B = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
         K = np.zeros(_SHAPE)
         K[0] = move_lambda1_gains(A, B, CONTROL_NAMES[0], STABILISING_LAMBDA1)
         return K

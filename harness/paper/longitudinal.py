@@ -33,7 +33,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import place_poles
 
 from .analysis import AnalysisInputError, coefficient_matching_gains, ordered_eigen
-from ...models.longitudinal import CONTROL_NAMES, STATE_NAMES
+from ...models.longitudinal_interface import CONTROL_NAMES, STATE_NAMES
 from ...models.longitudinal_dynamics import default_parameters, system_matrices
 
 __all__ = ["INPUT_SETS", "TARGETS", "LongitudinalDesign", "design", "designs", "peak_controls",

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ...models.lateral import eigen_order
+from ...models.lateral_interface import eigen_order
 
 __all__ = ["LATERAL_CONVENTION", "LONGITUDINAL_CONVENTION", "ModalConvention", "ModalForm",
            "eigenvector_table", "modal_decomposition", "ordered_eigen"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import values as pv
+from . import printed as pv
 from .analysis import (ModalConvention, ackermann_gains, characteristic_affine,
     coefficient_matching_gains, modal_decomposition, place_poles_gains)
 from .rows import format_bound, format_vector

@@ -19,9 +19,9 @@ from typing import Callable
 
 import numpy as np
 
-from ...models import lateral_dynamics as model, longitudinal_dynamics as lon_model
-from ...models import lateral as lateral_interface
-from . import values as pv
+from ...models import lateral_dynamics, longitudinal_dynamics
+from ...models import lateral_interface
+from . import printed as pv
 from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, characteristic_affine,
                        coefficient_matching_gains, eigenvector_table, longitudinal_system,
                        modal_decomposition, ordered_eigen)
@@ -42,7 +42,7 @@ def lateral_inputs() -> list[tuple[str, float, float]]:
     out = [(f"A1({i + 1},{j + 1})", pv.EQ12_A1[i][j], 0.5 * 10.0 ** -pv.EQ12_DECIMALS)
            for i in range(4) for j in range(4) if (i, j) not in pv.EQ12_STRUCTURAL]
     out += [(k, lateral_interface.INERTIAS_SECT21[k], 0.5 * 10.0 ** -d) for k, d in pv.SECT21_DECIMALS.items()]
-    out += [(k, v, 0.5 * 10.0 ** -pv.TABLE1_DECIMALS) for k, v in model.CONTROL_DERIVATIVES_TABLE1.items()]
+    out += [(k, v, 0.5 * 10.0 ** -pv.TABLE1_DECIMALS) for k, v in lateral_dynamics.CONTROL_DERIVATIVES_TABLE1.items()]
     out += [(f"Table 2 {k}", float(t), pv.half_unit(t)) for k, t in pv.TABLE2.items() if k != "lambda1"]
     return out
 
@@ -62,9 +62,9 @@ def _lateral_ctx(x: np.ndarray) -> Ctx:
         for j in range(4):
             A[i, j] = val.get(f"A1({i + 1},{j + 1})", A[i, j])
     inertias = {k: val[k] for k in pv.SECT21_DECIMALS} | {"g_plus": A[0, 3]}
-    params = model.LateralParameters(**inertias, **model.derive_stability_derivatives(A, inertias),
-                                     **{k: val[k] for k in model.CONTROL_DERIVATIVES_TABLE1})
-    A, B = model.system_matrices(params)
+    params = lateral_dynamics.LateralParameters(**inertias, **lateral_dynamics.derive_stability_derivatives(A, inertias),
+                                     **{k: val[k] for k in lateral_dynamics.CONTROL_DERIVATIVES_TABLE1})
+    A, B = lateral_dynamics.system_matrices(params)
     re, im, l4 = (val[f"Table 2 {k}"] for k in ("lambda23_re", "lambda23_im", "lambda4"))
     return _ctx(A, B, [0.0, complex(re, im), complex(re, -im), l4])
 
@@ -86,9 +86,9 @@ def _longitudinal_ctx(x: np.ndarray) -> Ctx:
         i, j = int(name[2]) - 1, int(name[4]) - 1
         (A if name[0] == "A" else B)[i, j] = v
     # the longitudinal plant's A and B: derivatives recovered from the printed A, B, g+ = -A(1,4)
-    params = lon_model.default_parameters().with_values(g_plus=-A[0, 3],
-                                                        **lon_model.derive_derivatives(A, B))
-    return _ctx(*lon_model.system_matrices(params), None, LONGITUDINAL_CONVENTION)
+    params = longitudinal_dynamics.default_parameters().with_values(g_plus=-A[0, 3],
+                                                        **longitudinal_dynamics.derive_derivatives(A, B))
+    return _ctx(*longitudinal_dynamics.system_matrices(params), None, LONGITUDINAL_CONVENTION)
 
 
 def _intervals(ctx_of: Callable[[np.ndarray], Ctx], inputs: list[tuple[str, float, float]],

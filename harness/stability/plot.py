@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ...core.extras import MissingExtra, pyplot
-from ...models.lateral import CONTROL_NAMES, STATE_BOUNDS_SECT36, STATE_NAMES
+from ...models.lateral_interface import CONTROL_NAMES, STATE_BOUNDS_SECT36, STATE_NAMES
 
 __all__ = ["plot_loop"]
 

@@ -14,17 +14,17 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ...builder.build import project_fmus
+from ..builder.build import project_fmus
 from ...core.files import run_name, write_run_files
 from ...core.text import complex_text
 from ...models.feedback import default_gains, gain_name
-from ...models.lateral import STATE_NAMES
+from ...models.lateral_interface import STATE_NAMES
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU, column_units
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
 from ..cosim.pair import PairError, PairLayout, pair_layout
 from ..cosim.params import resolve_assignments, scale_ratios
-from ..cosim.stability import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
+from ..cosim.identification import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
                                TRAJECTORY_TOL, Identification, classify, cross_check_failures,
                                identify, rates_from_transition, relative_deviation,
                                sampled_closed_loop, sort_eigenvalues)

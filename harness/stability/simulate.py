@@ -9,13 +9,13 @@ from pathlib import Path
 import fmpy
 import numpy as np
 
-from ...builder.build import ensure_fmu
+from ..builder.build import ensure_fmu
 from ...core.errors import DroneflyError
 from ...core.files import write_csv_atomic
 from ...core.interrupt import checkpoint
 from ...core.interrupt import pending as interrupt_pending
 from ...core.text import status_name
-from ...models.lateral import N_HZ, STATE_NAMES, STATE_UNITS, scale_vector
+from ...models.lateral_interface import N_HZ, STATE_NAMES, STATE_UNITS, scale_vector
 from ...models.lateral_dynamics import LateralModel, default_parameters
 from ..cosim.master import step_count
 

@@ -36,9 +36,9 @@ import numpy as np
 
 from ...core.errors import DroneflyError
 from ...models.feedback import U_MAX_LINEAR_RANGE
-from ...models.lateral import STATE_BOUNDS_SECT36, eigen_order
+from ...models.lateral_interface import STATE_BOUNDS_SECT36, eigen_order
 from ..paper.gains import GAIN_SETS, STABILISING_LAMBDA1, gain_matrix, parse_gains
-from ...models import lateral_dynamics as model
+from ...models import lateral_dynamics
 from ..cosim.master import MASTERS, MAX_STEPS
 from .parse import (AXES, SweepInputError, one_line, parse_floats, parse_int, parse_names,
     parse_slices)
@@ -57,7 +57,7 @@ DEFAULT_DIRECTIONS: tuple[str, ...] = tuple(f"{s}{a}" for a in (*AXES, "mode1") 
 
 def _mode1_direction() -> np.ndarray:
     """Unstable open-loop eigenvector in box units (max component 1, dgamma > 0)."""
-    A, _ = model.system_matrices(model.default_parameters())
+    A, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     w, V = np.linalg.eig(A)
     v = np.real(V[:, eigen_order(w)[0]]) / np.array(STATE_BOUNDS_SECT36)
     v = v / np.max(np.abs(v))

@@ -34,9 +34,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from ...models.feedback import gain_name, integral_gain_name
-from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
+from ...models.lateral_interface import CONTROL_NAMES, STATE_NAMES, plant_scales
 from ..cosim.calculated import plant_matrices
-from ..cosim.stability import classify, rates_from_transition, unit_start_values
+from ..cosim.identification import classify, rates_from_transition, unit_start_values
 from ..latency.grid import GridTiming, grid_monodromy, timing_params
 from ..latency.identify import identify_delayed
 from ..latency.loop import FeedbackLoop, LatencyInputError

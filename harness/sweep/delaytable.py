@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...models.lateral import N_HZ
-from ..cosim.stability import classify
+from ...models.lateral_interface import N_HZ
+from ..cosim.identification import classify
 from ..latency.grid import GridTiming, grid_simulate
 from ..latency.loop import FeedbackLoop
 from ..latency.sampled import SampledMargin, sampled_margin, sampled_rates

@@ -24,7 +24,7 @@ import numpy as np
 from ...core.extras import optional
 from ...core.files import atomic_path, write_csv_atomic
 from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, SweepInputError
-from .compare import COMPARE_COLUMNS, format_comparison
+from .two_systems import COMPARE_COLUMNS, format_comparison
 from .delaymap import format_delay_groups, write_delay_map
 
 __all__ = ["COLUMNS", "DELAY_COLUMNS", "RESULT_COLUMNS", "column_units", "csv_header", "format_summary", "load_done", "read_rows", "result_row",

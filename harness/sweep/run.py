@@ -2,7 +2,7 @@
 
 Each case (see :mod:`harness.sweep.cases`) is one co-simulation of the real plant
 and controller FMUs through :class:`harness.cosim.master.Loop`, or of a whole system of
-FMUs (``system=FILE.ssp``, :mod:`harness.sweep.system`) on the system master. Bounds are checked at
+FMUs (``system=FILE.ssp``, :mod:`harness.sweep.system_cases`) on the system master. Bounds are checked at
 every communication point on the non-dimensional state (|x_i| / (scale bound_i))
 and on the controls (|u| / (scale 0.4 rad)).
 
@@ -28,12 +28,12 @@ from typing import Any, Callable, Mapping, Sequence
 
 from fmpy import read_model_description
 
-from ...builder.build import BuildError, project_fmus
+from ..builder.build import BuildError, project_fmus
 from ...core.errors import DroneflyError
 from ...core.extras import missing
 from ...core.files import check_output_dir, write_text_atomic
 from ...core.interrupt import checkpoint
-from ...models.lateral import CONTROL_NAMES, STATE_NAMES
+from ...models.lateral_interface import CONTROL_NAMES, STATE_NAMES
 from ..cosim.fmu import FMU, FMUError, start_values
 from ..cosim.master import CoSimError, Loop
 from ..cosim.pair import pair_layout
@@ -42,13 +42,13 @@ from ..cosim.system import System
 from .backends import (chunk_cases, connect_scheduler, make_progress_bar, run_dask, run_here,
                        run_pool, stderr_is_tty)
 from .cases import Case, SweepInputError, SweepSpec
-from .compare import compare_summary
+from .two_systems import compare_summary
 from .comparemaps import write_compare_maps
 from .delays import delay_results, delay_summary
 from .results import (COLUMNS, column_units, csv_header, load_done, read_rows, result_row,
                       summarize, write_maps,
                       write_results)
-from .system import SystemRef, check_system
+from .system_cases import SystemRef, check_system
 from .worker import FmuRef
 
 __all__ = ["COLUMNS", "FmuRef", "SweepInputError", "SweepResult", "SweepSettings", "read_rows",
@@ -198,10 +198,10 @@ class SweepSettings:
     system : path, optional
         An SSP file: every case runs the whole system on the system master, the lateral
         plant's initial state and its controller's gains set per case (see
-        :mod:`dronefly.harness.sweep.system`); not with ``plant``/``controller``.
+        :mod:`dronefly.harness.sweep.system_cases`); not with ``plant``/``controller``.
     compare : path, optional
         A second SSP: every case also runs on it, and the rows get the comparison
-        columns of :mod:`dronefly.harness.sweep.compare` (needs ``system``).
+        columns of :mod:`dronefly.harness.sweep.two_systems` (needs ``system``).
 
     Notes
     -----

@@ -27,14 +27,14 @@ import numpy as np
 from ...core.extras import MissingExtra, optional
 from ...core.interrupt import pending as interrupt_pending
 from ...models.feedback import gain_name
-from ...models.lateral import STATE_NAMES, plant_scales
+from ...models.lateral_interface import STATE_NAMES, plant_scales
 from ..cosim.fmu import FMU
 from ..cosim.master import Loop
 from ..latency.grid import timing_params
 from .cases import AXES, CONTROL_BOUND, STATE_BOUNDS_SECT36, Case, one_line
-from .compare import compare_runs
+from .two_systems import compare_runs
 from .results import RESULT_COLUMNS
-from .system import SystemRef, close_systems, open_system, run_system_case
+from .system_cases import SystemRef, close_systems, open_system, run_system_case
 
 __all__ = ["ChunkInterrupted", "FmuRef", "blas_single_thread", "close_all", "init_worker", "loop_for", "run_chunk",
            "warm"]

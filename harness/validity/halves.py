@@ -30,12 +30,12 @@ Why the quasi-steady halves have a reference of their own: the model's derivativ
 the paper's CFD ones (docs/aerodynamics.md), and against the paper's plants its error would
 be that difference, not the nonlinearity. The linear reference of the quasi-steady plant is
 the tangent of its forces at hover: the central-difference derivatives of
-:func:`dronefly.harness.aero.compare.derivatives` in the linear models' A and B (the paper's
+:func:`dronefly.harness.aero.beside_paper.derivatives` in the linear models' A and B (the paper's
 m+, g+ and inertias). Nor can the quasi-steady loops keep the paper's gains: Eq. (27) leaves
 the quasi-steady lateral loop unstable (+0.0741 per wing beat) and the longitudinal design
 (b) the longitudinal one (+0.248). They get the paper's method re-applied to the
 quasi-steady plant: laterally coefficient matching on dPhi_a moving the unstable eigenvalue
-to 0 and keeping the others (:func:`dronefly.harness.aero.compare.closed_loop`, as Eq. (27)
+to 0 and keeping the others (:func:`dronefly.harness.aero.beside_paper.closed_loop`, as Eq. (27)
 does on the CFD plant), longitudinally the gains on dphibar that give the quasi-steady plant
 the closed-loop eigenvalues of the paper's design (b) (Ackermann). So each half is a
 comparable measurement: a neutral lateral loop and a stable longitudinal one, in both the
@@ -51,13 +51,13 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ...models import lateral_dynamics as lateral
-from ...models import longitudinal_dynamics as longitudinal
+from ...models import lateral_dynamics
+from ...models import longitudinal_dynamics
 from ...models.feedback import LONGITUDINAL_GAINS_DESIGN_B
 from ...models.linear import discretize_zoh
 from ...models.quasisteady import FORCES, QuasiSteadyModel
 from ...models.rigid_body import Hover6DOF, gamma_from_quaternion, quasi_steady_rates
-from ..aero.compare import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS, ackermann, closed_loop,
+from ..aero.beside_paper import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS, ackermann, closed_loop,
                             derivatives, system_matrices)
 from ..sweep.cases import STATE_BOUNDS_SECT36, direction_vector
 from .terms import linearisation_error
@@ -92,8 +92,8 @@ class LinearRigidBody:
 
     def __init__(self, aerodynamics: Any, lateral_params: Any = None,
                  longitudinal_params: Any = None) -> None:
-        lp = lateral_params or lateral.default_parameters()
-        np_ = longitudinal_params or longitudinal.default_parameters()
+        lp = lateral_params or lateral_dynamics.default_parameters()
+        np_ = longitudinal_params or longitudinal_dynamics.default_parameters()
         self.aerodynamics = aerodynamics
         self.g = lp.g_plus
         self._F0 = [float(v) for v in aerodynamics.state_function((0.0,) * 7)((0.0,) * 6)]
@@ -152,14 +152,14 @@ def quasi_steady_loops(model: QuasiSteadyModel | None = None) -> QuasiSteadyLoop
     (A1, B1), (A2, B2) = tangent = system_matrices(values)
     Kl = np.zeros((3, 4))
     Kl[0] = closed_loop(values)["matched_gains"]
-    Ap, Bp = longitudinal.system_matrices(longitudinal.default_parameters())
+    Ap, Bp = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     targets = np.linalg.eigvals(Ap + np.outer(Bp[:, 2], LONGITUDINAL_GAINS_DESIGN_B))
     Kn = np.zeros((4, 4))
     Kn[2] = ackermann(A2, B2[:, 2], targets)
-    lp, np_ = lateral.default_parameters(), longitudinal.default_parameters()
-    lpq = lateral.LateralParameters(**{**lp.__dict__, **{
+    lp, np_ = lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters()
+    lpq = lateral_dynamics.LateralParameters(**{**lp.__dict__, **{
         p: values[p] for p, _, _ in LATERAL_PARAMETERS}})
-    npq = longitudinal.LongitudinalParameters(**{**np_.__dict__, **{
+    npq = longitudinal_dynamics.LongitudinalParameters(**{**np_.__dict__, **{
         p: values[p] for p, _, _ in LONGITUDINAL_PARAMETERS}})
     return QuasiSteadyLoops(qs, tangent, Kl, Kn, Hover6DOF(lp, np_, aerodynamics=qs),
                             LinearRigidBody(qs, lp, np_), Hover6DOF(lpq, npq))

@@ -23,7 +23,7 @@ import numpy as np
 from ...models.feedback import LONGITUDINAL_GAINS_DESIGN_B, PAPER_GAINS_EQ27
 from ...models.linear import discretize_zoh
 from ...models import lateral_dynamics as lateral
-from ...models import lateral as lateral_interface
+from ...models import lateral_interface
 from ...models.rigid_body import TERMS, Hover6DOF, gamma_from_quaternion
 from ...models import longitudinal_dynamics as longitudinal
 

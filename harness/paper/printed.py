@@ -19,7 +19,7 @@ import math
 from decimal import Decimal
 
 from ...models.feedback import PAPER_GAINS_EQ27
-from ...models.longitudinal import CONTROL_NAMES
+from ...models.longitudinal_interface import CONTROL_NAMES
 from ...models.lateral_dynamics import A1_EQ12
 from ...models.longitudinal_dynamics import A_SECT35, B_SECT35
 
@@ -97,7 +97,7 @@ SECT35_A = _as_printed(A_SECT35)
 SECT35_B = _as_printed(B_SECT35)
 #: Eq. (30) control vector order; the text lists dPhi, dphi_bar, dalpha1, dalpha2,
 #: but B_n's rows (slow subsidence ~ B row 2) show that B uses Eq. (30)'s order. The names
-#: live in the plant's interface (:mod:`dronefly.models.longitudinal`).
+#: live in the plant's interface (:mod:`dronefly.models.longitudinal_interface`).
 LONGITUDINAL_CONTROLS = CONTROL_NAMES
 #: Structural entries of the longitudinal A (dtheta' = dq; no theta in w, q rows)
 #: and B (no control in the dtheta row), 0-based; all other entries are rounded.

@@ -1,7 +1,7 @@
-"""modelDescription.xml (FMI 3.0) of an FMI 3.0 slave class (:func:`dronefly.fmi.fmi3.fmi3_class`).
+"""modelDescription.xml (FMI 3.0) of an FMI 3.0 slave class (:func:`dronefly.fmi.base3.fmi3_class`).
 
 Generated at build time from the same variable table as the FMI 2.0 one
-(:mod:`dronefly.builder.modeldescription`), replacing pythonfmu3's: the independent variable
+(:mod:`dronefly.harness.builder.modeldescription`), replacing pythonfmu3's: the independent variable
 ``time``, 2-D Float64 arrays with ``<Dimension>``, units and display units, descriptions,
 explicit variability, and a ModelStructure whose ``Output`` and ``InitialUnknown``
 elements list their dependencies by value reference (``""`` = none; an array depends on
@@ -14,7 +14,7 @@ from typing import Any
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
-from ..fmi.table3 import Var3, array_dependencies
+from ...fmi.table3 import Var3, array_dependencies
 from .entry import HOST_REQUIREMENT
 from .modeldescription import add_units_and_log_categories, format_value
 

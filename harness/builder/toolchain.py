@@ -41,7 +41,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..core.errors import DroneflyError
+from ...core.errors import DroneflyError
 
 __all__ = ["FMI2_PLATFORMS", "FMI3_PLATFORMS", "PLATFORMS", "Platform", "Toolchain",
            "ToolchainError", "binary_platform", "cache_dir", "find_toolchain", "fmi_include_dir",

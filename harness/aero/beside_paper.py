@@ -18,10 +18,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...core.text import complex_text
-from ...models import (lateral_dynamics as lateral_model,
-                       longitudinal_dynamics as longitudinal_model)
+from ...models import (lateral_dynamics,
+                       longitudinal_dynamics)
 from ...models.feedback import PAPER_GAINS_EQ27
-from ...models.lateral import STATE_BOUNDS_SECT36, sort_eigenvalues
+from ...models.lateral_interface import STATE_BOUNDS_SECT36, sort_eigenvalues
 from ...models.quasisteady import (COEFFICIENT_SETS, CONTROLS, FORCES, STATES, QuasiSteadyModel,
                                    Terms, Trim)
 
@@ -36,7 +36,7 @@ __all__ = [
     "STATE_BOX",
     "TRIM_VARIANTS",
     "ackermann",
-    "answer",
+    "readme_paragraph",
     "closed_loop",
     "derivative_table",
     "derivatives",
@@ -71,8 +71,8 @@ LONGITUDINAL_PARAMETERS: tuple[tuple[str, str, str], ...] = (
 
 
 def _paper_values() -> dict[str, float]:
-    out = dict(lateral_model.default_parameters().__dict__)
-    out.update(longitudinal_model.default_parameters().__dict__)
+    out = dict(lateral_dynamics.default_parameters().__dict__)
+    out.update(longitudinal_dynamics.default_parameters().__dict__)
     return out
 
 
@@ -175,12 +175,12 @@ def derivative_table(model: QuasiSteadyModel, step: float = 1e-3) -> list[Deriva
 def system_matrices(values: dict[str, float]) -> tuple[tuple[Array, Array], tuple[Array, Array]]:
     """Lateral (A1, B1) and longitudinal (A, B) with the derivatives of ``values`` and the
     paper's mass, inertias and gravity."""
-    lat = dict(lateral_model.default_parameters().__dict__)
+    lat = dict(lateral_dynamics.default_parameters().__dict__)
     lat.update({p: values[p] for p, _, _ in LATERAL_PARAMETERS if p in values})
-    lon = dict(longitudinal_model.default_parameters().__dict__)
+    lon = dict(longitudinal_dynamics.default_parameters().__dict__)
     lon.update({p: values[p] for p, _, _ in LONGITUDINAL_PARAMETERS if p in values})
-    return (lateral_model.system_matrices(lateral_model.LateralParameters(**lat)),
-            longitudinal_model.system_matrices(longitudinal_model.LongitudinalParameters(**lon)))
+    return (lateral_dynamics.system_matrices(lateral_dynamics.LateralParameters(**lat)),
+            longitudinal_dynamics.system_matrices(longitudinal_dynamics.LongitudinalParameters(**lon)))
 
 
 def eigenvalues(values: dict[str, float]) -> dict[str, list[complex]]:
@@ -216,7 +216,7 @@ def closed_loop(values: dict[str, float]) -> dict[str, object]:
         the others; ``matched_eigenvalues`` its closed loop.
     """
     (A1q, B1q), _ = system_matrices(values)
-    A1p, _ = lateral_model.system_matrices(lateral_model.default_parameters())
+    A1p, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     k = np.asarray(PAPER_GAINS_EQ27)
     b = B1q[:, 0]
     open_q = sort_eigenvalues(np.linalg.eigvals(A1q))
@@ -490,7 +490,7 @@ def trim_table() -> str:
     return "\n".join(lines)
 
 
-def answer(report: ParityReport, model: QuasiSteadyModel) -> str:
+def readme_paragraph(report: ParityReport, model: QuasiSteadyModel) -> str:
     """The answer to Sect. 3.6's aerodynamic half in three lines (README, docs)."""
     lat = {r.parameter: r for r in report.rows[:18]}
     stab = [lat[p] for p, _, _ in LATERAL_PARAMETERS[:9] if lat[p].paper != 0.0]

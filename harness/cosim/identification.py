@@ -22,7 +22,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ...models import lateral
+from ...models import lateral_interface
 from ...models.linear import discretize_zoh
 from ...core.errors import CrossCheckError
 
@@ -57,8 +57,8 @@ _DELAY_MODE = 1e-7
 
 
 def sort_eigenvalues(ev: np.ndarray) -> np.ndarray:
-    """As an array, in the order of :func:`dronefly.models.lateral.sort_eigenvalues`."""
-    return np.array(lateral.sort_eigenvalues(np.ravel(ev)), dtype=complex)
+    """As an array, in the order of :func:`dronefly.models.lateral_interface.sort_eigenvalues`."""
+    return np.array(lateral_interface.sort_eigenvalues(np.ravel(ev)), dtype=complex)
 
 
 def rates_from_transition(F: np.ndarray, step_wb: float) -> np.ndarray:
@@ -144,7 +144,7 @@ def sampled_closed_loop(A: np.ndarray, B: np.ndarray, K: np.ndarray, step_wb: fl
 
 
 def unit_start_values(scale: np.ndarray, prefix: str = "",
-                      states: Sequence[str] = lateral.STATE_NAMES) -> list[dict[str, float]]:
+                      states: Sequence[str] = lateral_interface.STATE_NAMES) -> list[dict[str, float]]:
     """The start values of the runs an identification needs: one per unit initial state
     x+_0 = e_i, dimensional (times ``scale``, e.g. [U, n, n, 1] for the lateral ``states``),
     named ``<prefix><state>_start``."""

@@ -32,7 +32,7 @@ _INT_RANGES = {"Integer": (-2 ** 31, 2 ** 31 - 1), "Enumeration": (-2 ** 31, 2 *
                **{f"{u}Int{b}": (0, 2 ** b - 1) if u else (-2 ** (b - 1), 2 ** (b - 1) - 1)
                   for u in ("", "U") for b in (8, 16, 32, 64)}}
 #: the setter of each type (``set<SETTER>`` of fmpy's FMU2Slave or of the FMI 3.0 adapter,
-#: :class:`~dronefly.harness.cosim.fmi3.FMU3Adapter`)
+#: :class:`~dronefly.harness.cosim.fmu3.FMU3Adapter`)
 SETTER = {"Real": "Real", **{t: "Integer" for t in _INT_RANGES}, "Boolean": "Boolean",
           "String": "String"}
 _BOOLS = (bool, np.bool_)

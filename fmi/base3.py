@@ -38,7 +38,7 @@ from pythonfmu.enums import Fmi2Status
 from .calls import do_step_status
 from .host import binary_folder3, finalize_at_exit
 from .table3 import Var3, fmi3_table
-from .values import set_rows
+from .access import set_rows
 
 __all__ = ["Fmi3Side", "fmi3_class"]
 

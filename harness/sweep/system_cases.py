@@ -27,8 +27,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ...models.feedback import gain_name
-from ...models.lateral import CONTROL_NAMES, STATE_NAMES, plant_scales
-from ...models.longitudinal import LONGITUDINAL
+from ...models.lateral_interface import CONTROL_NAMES, STATE_NAMES, plant_scales
+from ...models.longitudinal_interface import LONGITUDINAL
 from ..cosim.fmu import FMUError
 from ..cosim.system import System, SystemSpecError
 from ..cosim.system_master import SystemMaster
@@ -130,7 +130,7 @@ def check_system(ref: SystemRef, set_values: Mapping[str, Any] | None,
                  master: str = "gauss-seidel") -> tuple[LateralLoop, dict[str, Any]]:
     """Open the system here, before any file is written; apply ``--set`` values and find
     the lateral loop. Returns it and the ``--set`` values converted to their variables'
-    declared types (:mod:`dronefly.harness.cosim.values`), by ``instance.NAME``.
+    declared types (:mod:`dronefly.harness.cosim.typed_values`), by ``instance.NAME``.
 
     Raises
     ------

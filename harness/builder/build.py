@@ -27,11 +27,11 @@ from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
 from typing import Callable, Iterator
 
-from ..core.errors import DroneflyError
-from ..core.files import write_zip
-from ..core.interrupt import checkpoint
-from ..fmi.fmi3 import fmi3_class
-from ..harness.cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
+from ...core.errors import DroneflyError
+from ...core.files import write_zip
+from ...core.interrupt import checkpoint
+from ...fmi.base3 import fmi3_class
+from ..cosim.ssp import HOVER, HOVER_6DOF, hover_system, write_system_ssp
 from .closedloop import CLOSED_LOOP, CONTROLLER, PLANT, ClosedLoopSpec, write_container, write_ssp
 from .entry import entry2, entry3, host_documentation
 from .modeldescription import model_description_bytes
@@ -44,10 +44,10 @@ __all__ = ["FMI3_FILES", "FMI3_OUT", "FMUS", "NEEDS_NUMPY", "BuildError", "build
 #: pythonfmu3's; both ship pythonfmu's Python facade)
 _WRAPPERS = {"pythonfmu": "0.7.0", "pythonfmu3": "0.3.4"}
 #: the sources an FMI 3.0 FMU ships besides its FMI 2.0 twin's
-FMI3_FILES = ("fmi/fmi3.py", "fmi/table3.py")
+FMI3_FILES = ("fmi/base3.py", "fmi/table3.py")
 #: where ``dronefly build`` writes the FMI 3.0 FMUs, below its output folder
 FMI3_OUT = "fmi3"
-_PKG_ROOT = Path(__file__).resolve().parents[1]  # the package root: builder/..
+_PKG_ROOT = Path(__file__).resolve().parents[2]  # the package root: harness/builder/../..
 _NAMESPACE = uuid.UUID("6f1d3c52-1a0e-4b8f-9a58-2f4f3f7d1e10")
 
 
@@ -66,9 +66,9 @@ class _Spec:
 
 #: what every FMU ships: the exception base, the FMU runtime, the interface of both axes
 _FMI = ("core/errors.py", "fmi/__init__.py", "fmi/base.py", "fmi/calls.py", "fmi/host.py",
-        "fmi/state.py", "fmi/values.py", "fmi/vars.py", "models/axes.py", "models/lateral.py")
+        "fmi/state.py", "fmi/access.py", "fmi/vars.py", "models/axes.py", "models/lateral_interface.py")
 _PLANT = (*_FMI, "models/linear.py", "models/linear_algebra.py", "fmu_src/linear_slave.py")
-_CONTROLLER = (*_FMI, "models/longitudinal.py", "models/feedback.py", "controller/delay.py",
+_CONTROLLER = (*_FMI, "models/longitudinal_interface.py", "models/feedback.py", "controller/delay.py",
                "controller/timing.py", "controller/variables.py", "controller/slave.py")
 
 
@@ -91,20 +91,20 @@ FMUS: dict[str, _Spec] = {
                               "models/lateral_dynamics.py"),
     "StateFeedback": _controller("StateFeedback"),
     "DroneFlyLongitudinal": _plant("longitudinal", "DroneFlyLongitudinal", *_PLANT,
-                                   "models/longitudinal.py", "models/longitudinal_dynamics.py"),
+                                   "models/longitudinal_interface.py", "models/longitudinal_dynamics.py"),
     "StateFeedbackLongitudinal": _controller("StateFeedbackLongitudinal"),
     "StateFeedbackDelayed": _controller("StateFeedbackDelayed"),  # delay > 0, no feedthrough
     "StateFeedbackLongitudinalDelayed": _controller("StateFeedbackLongitudinalDelayed"),
     "DroneFlyHover6DOF": _plant(
         "hover6dof", "DroneFlyHover6DOF", *_FMI, "models/linear.py", "models/linear_algebra.py",
-        "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
+        "models/longitudinal_interface.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py",
         "models/quasisteady.py",  # imported (with numpy) only with aerodynamics = 2
         "fmu_src/body_variables.py"),
     # the one FMU that needs numpy in the host's Python (see NEEDS_NUMPY)
     "DroneFlyFlapping": _plant(
         "flapping", "DroneFlyFlapping", *_FMI, "models/linear.py", "models/linear_algebra.py",
-        "models/longitudinal.py", "models/hover6dof.py", "models/lateral_dynamics.py",
+        "models/longitudinal_interface.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py", "models/quasisteady.py",
         "models/flapping.py", "fmu_src/body_variables.py"),
 }
@@ -183,7 +183,7 @@ def _model_description(name: str, guid: str, fmi: int = 2) -> bytes:
     """
 
     spec = FMUS[name]
-    cls = getattr(importlib.import_module(f"..{spec.module}", __package__), spec.cls)
+    cls = getattr(importlib.import_module(f"...{spec.module}", __package__), spec.cls)
     if fmi == 3:  # the FMI 3.0 class the wrapper instantiates
         return model_description3_bytes(fmi3_class(cls), guid)
     return model_description_bytes(cls, guid)

@@ -26,7 +26,7 @@ the fixed container runs.
 pythonfmu 0.7.0 in fmpy's container stops the container for good after one refused component
 step, fmi2Reset included, so on Linux the nested FMUs' library is pythonfmu's behind a small
 forwarding shim that answers ``fmi2Terminated`` truthfully (see
-:mod:`dronefly.builder.nestedshim`; ``shim=False`` builds without it).
+:mod:`dronefly.harness.builder.nestedshim`; ``shim=False`` builds without it).
 """
 
 from __future__ import annotations
@@ -48,13 +48,13 @@ from fmpy.container_fmu.config import Component, Configuration, Connection
 from fmpy.model_description import (BaseUnit, CoSimulation, DefaultExperiment, ModelDescription,
                                     ModelVariable, Unit, Unknown, write_model_description)
 
-from ..core.files import write_zip
-from ..harness.cosim.fmi3 import read_view
-from ..harness.cosim.fmu import start_values
-from ..harness.cosim.master import CoSimError, connect_by_name
-from ..harness.cosim.ssp import SSC_NS, SSD_NS, SSV_NS, xml_bytes
-from ..models.feedback import default_gains, gain_name
-from ..models.lateral import STATE_NAMES, plant_scales
+from ...core.files import write_zip
+from ..cosim.fmu3 import read_view
+from ..cosim.fmu import start_values
+from ..cosim.master import CoSimError, connect_by_name
+from ..cosim.ssp import SSC_NS, SSD_NS, SSV_NS, xml_bytes
+from ...models.feedback import default_gains, gain_name
+from ...models.lateral_interface import STATE_NAMES, plant_scales
 from .nestedshim import install_shims
 
 __all__ = ["CLOSED_LOOP", "CONTAINER_TYPES", "CONTROLLER", "GUID_NAMESPACE", "PLANT",
@@ -272,7 +272,7 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     """Write ``DroneFlyClosedLoop.ssp`` (see the module text) and return its path.
 
     The FMUs may be FMI 2.0 or FMI 3.0 (read through the harness's view,
-    :func:`dronefly.harness.cosim.fmi3.read_view`). Every SSV parameter names a variable of
+    :func:`dronefly.harness.cosim.fmu3.read_view`). Every SSV parameter names a variable of
     its FMU, as a strict importer requires: SSP 1.0 has no array values, so an FMI 3.0 array
     (the controller's ``K``) is not bound; its start values are the gains (see
     docs/fmi3.md).

@@ -18,7 +18,7 @@ Pure Python (no numpy): the longitudinal FMUs ship this module.
 from __future__ import annotations
 
 from .axes import Axis
-from .lateral import CONTROL_UNIT, FLIGHT_DATA, INERTIAS_SECT21
+from .lateral_interface import CONTROL_UNIT, FLIGHT_DATA, INERTIAS_SECT21
 
 __all__ = [
     "parameter_description",

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ...models.longitudinal import LONGITUDINAL
+from ...models.longitudinal_interface import LONGITUDINAL
 
 from .cases import AXES, STATE_BOUNDS_SECT36
 
@@ -48,7 +48,7 @@ def compare_runs(ref: Any, ref_loop: Any, cmp: Any, cmp_loop: Any, scale: np.nda
     ----------
     ref, cmp : LoopRun
         The runs of the reference and the compared system (same steps).
-    ref_loop, cmp_loop : harness.sweep.system.LateralLoop
+    ref_loop, cmp_loop : harness.sweep.system_cases.LateralLoop
         Where each system's states are.
     scale : ndarray
         x = x+ * scale of the lateral states (U, n, n, 1); the longitudinal states use

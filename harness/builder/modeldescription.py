@@ -12,7 +12,7 @@ from __future__ import annotations
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, tostring
 
-from ..fmi import SlaveBase
+from ...fmi import SlaveBase
 from .entry import HOST_REQUIREMENT
 
 __all__ = ["add_units_and_log_categories", "format_value", "model_description",

@@ -1,8 +1,9 @@
 /* DroneFlyHover6DOF (native): the rigid body of dronefly/models/rigid_body.py with the paper's
  * linear aerodynamics: the same floats, operation for operation (_RHS, _STAGES and _RESULT
- * written out in the order the Python evaluates them; Python's sum() and min()/max() as they
- * are). The aerodynamic rows are the linear plants' own A and B: their model.c files, shipped
- * as lateral_plant.inc and longitudinal_plant.inc, are included here under other names. */
+ * written out in the order the Python evaluates them; _dot's sums left to right; Python's
+ * min() and max() as they are). The aerodynamic rows are the linear plants' own A and B:
+ * their model.c files, shipped as lateral_plant.inc and longitudinal_plant.inc, are included
+ * here under other names. */
 #include "exact.h"
 #include <math.h>
 #include <stdio.h>
@@ -299,7 +300,7 @@ int model_advance(Instance *c, double t, double h_s, char *why, int *warned) {
         return 1;
     }
     double bl[3], bn[3];
-    for (int i = 0; i < 3; i++) { /* Python's sum(map(mul, row, c)): from 0, left to right */
+    for (int i = 0; i < 3; i++) { /* rigid_body._dot: from 0.0, left to right */
         double s = 0.0;
         for (int j = 0; j < 3; j++) s = s + m->lb[i][j] * r[CONTROLS[j]];
         bl[i] = s;
@@ -323,7 +324,7 @@ int model_advance(Instance *c, double t, double h_s, char *why, int *warned) {
     double y[HOVER_NX];
     memcpy(y, x, sizeof y);
     substeps(m, y, n, h_wb / n, bl, bn);
-    double norm = sqrt(0.0 + y[6] * y[6] + y[7] * y[7] + y[8] * y[8] + y[9] * y[9]);
+    double norm = sqrt(y[6] * y[6] + y[7] * y[7] + y[8] * y[8] + y[9] * y[9]);
     int finite = 1;
     for (int j = 0; j < HOVER_NX; j++) finite = finite && isfinite(y[j]);
     if (!finite || !(norm > 0.0)) {

@@ -128,7 +128,8 @@ def _growth(name: str, span_s: float) -> float:
     """How much a plant's open loop can amplify an error over ``span_s``: exp(largest real part
     of eig(A) per wing beat x the wing beats) (lateral: 10.6 over 30 wing beats; longitudinal:
     17.9 over 60); for the rigid body, the larger of the two (linearised about hover it is the
-    two linear plants, and the reference run stays near hover: 17.9 over its 60 wing beats); 1
+    two linear plants, and the reference run stays near hover: the lateral one's, 112 over its
+    60 wing beats); 1
     for a controller, whose outputs are each step's product alone."""
     from dronefly.models import lateral_dynamics, longitudinal_dynamics
     from dronefly.models.lateral import N_HZ

@@ -441,8 +441,7 @@ int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a
 #: (the cases that also run the pythonfmu twins run them in a Python whose every allocation goes
 #: through the sanitizer: a few only)
 _SANITIZED_CASES = ("expm or state_get or delay_line or reproduces and DroneFlyLateral or "
-                    "reproduces and DroneFlyHover6DOF and 2 or aerodynamics or "
-                    "variants and sampled and integral and 2")
+                    "aerodynamics or variants and sampled-delayed-integral-2")
 
 
 @pytest.mark.skipif(_SANITIZE, reason="(this is the run the test starts)")

@@ -223,9 +223,9 @@ def master_report(fmus: Mapping[str, str | Path], report: ClosedLoopReport | Non
 def write_flapping_ssp(fmu_dir: str | Path, path: str | Path,
                        gains: Sequence[float] = PAPER_GAINS_EQ27, roll0_rad: float = 0.1,
                        stop_wb: float = 30.0) -> Path:
-    """Write the flapping insect's lateral loop (:func:`~dronefly.harness.cosim.ssp.
-    flapping_system`) with the FMUs of ``fmu_dir`` as an SSP, for ``dronefly cosim --system
-    PATH --step 1``, and return its path.
+    """Write the flapping insect's lateral loop
+    (:func:`~dronefly.harness.cosim.ssp.flapping_system`) with the FMUs of ``fmu_dir`` as an SSP,
+    for ``dronefly cosim --system PATH --step 1``, and return its path.
 
     Parameters
     ----------

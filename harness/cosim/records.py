@@ -55,11 +55,3 @@ class LoopRun:
     def column(self, name: str) -> np.ndarray:
         return self.signals[:, self.names.index(name)]
 
-    def structured(self) -> np.ndarray:
-        """fmpy-style structured array (``time`` plus every connected signal)."""
-        dtype = [("time", np.float64)] + [(n, np.float64) for n in self.names]
-        out = np.empty(len(self.time), dtype=dtype)
-        out["time"] = self.time
-        for j, n in enumerate(self.names):
-            out[n] = self.signals[:, j]
-        return out

@@ -612,7 +612,7 @@ class QuasiSteadyModel:
         # per wing-sample and element, the rows that x1 turns into V_n, V_c, the rotational
         # force factor f = rot omega_p and the added mass's m_a (V_n - mid omega_p): one
         # product per state, x1 @ (7, 4 T2 S) (long rows: a fast product; (4, T2, S, 7) @ x1
-        # costs five times as much)
+        # is the slow layout)
         Vn = A[0][:, None, :] + r[None, :, None] * B[0][:, None, :]
         Vc = A[1][:, None, :] + r[None, :, None] * B[1][:, None, :]
         om = A[2][:, None, :]

@@ -249,7 +249,7 @@ def flapping_system(fmus: Mapping[str, str | Path],
     stop_wb : float
         Stop time of the SSP's DefaultExperiment, in wing beats.
     z0 : sequence of 8 floats, optional
-        The orbit's start (:func:`orbit_start`, computed if not given, some 1 s).
+        The orbit's start (:func:`orbit_start`, computed if not given: a Newton shooting).
     """
     if len(gains) != len(lateral.STATE_NAMES):
         raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral.STATE_NAMES)} "

@@ -192,7 +192,7 @@ def master_report(fmus: Mapping[str, str | Path], report: ClosedLoopReport | Non
         Model name (``DroneFlyFlapping``, ``StateFeedback``) -> FMU path.
     report : ClosedLoopReport, optional
         The gain sets, the orbit and the linearised map's exponents, computed with the FMU's
-        :data:`~dronefly.models.flapping.STEPS_PER_BEAT` (default: computed so, some 3 s).
+        :data:`~dronefly.models.flapping.STEPS_PER_BEAT` (default: computed so).
     beats : int
         Wing beats of the run from the roll (at least 20).
     roll0_rad : float

@@ -22,11 +22,11 @@ code blocks:
 
 A *rooted* dotted name starts with ``dronefly.`` or with one of the package's sub-packages
 (``models.``, ``harness.``, ...: the top-level folders with an ``__init__.py``) and continues with
-identifiers separated by dots. Two kinds are file names or placeholders, not references: a name
-whose last part is a file suffix (``controller.ssv``, ``.png``) and a name whose last part is a
-metavariable of the CLI's help (``controller.NAME``); and as the harness names its controller FMU's
-instance ``controller``, a two-part ``controller.X`` where X is no module of the package
-``controller`` is that instance's variable (``controller.saturated``, as ``plant.n``). A role's
+identifiers separated by dots. Three kinds are file names, placeholders or FMU variables, not
+references: a name whose last part is a file suffix (``controller.ssv``, ``.png``); a name whose
+last part is a metavariable of the CLI's help (``controller.NAME``); and, as the harness names
+its controller FMU's instance ``controller``, a two-part ``controller.X`` where X is no module
+of the package ``controller`` (``controller.saturated``, as ``plant.n``). A role's
 target is not unwrapped: a target split across lines is broken for Sphinx too. A relative
 name (``.timing``, ``..values.PAPER``) is read only inside a role, where Sphinx reads it the
 same way.

@@ -8,7 +8,8 @@ by :mod:`dronefly.harness.aero.plots`. FMUs are built into ``build/`` of the wor
 where missing or out of date, as the commands do. ``--small`` runs each on small inputs (a few
 cases, a few wing beats: seconds), for the test that checks what the figures draw; the full run
 takes minutes (the sweeps: see docs/benchmarks.md). Exit 0 when every figure was written, 1 when
-a command failed (its own message on stderr), 2 on bad input.
+a command failed (its own message on stderr), 2 on bad input, 130 on Ctrl-C (the figures
+already written are kept).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Callable, Sequence
 
 from ..harness.aero.plots import plot_fig2, plot_linearity_maps
 from ..harness.sweep.delaytable import MAP_COMMAND
+from ..core.interrupt import EXIT_INTERRUPTED
 from ..models.quasisteady import QuasiSteadyModel
 from . import app
 from .commands import EXIT_FAILED, EXIT_OK, EXIT_USAGE
@@ -111,6 +113,8 @@ def regenerate(out_dir: str | Path, *, small: bool = False, only: Sequence[str] 
     ------
     RuntimeError
         A command exited with a code other than 0 (its message is on stderr).
+    KeyboardInterrupt
+        Ctrl-C (the figures already written are kept, no scratch folder is left).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -126,6 +130,8 @@ def regenerate(out_dir: str | Path, *, small: bool = False, only: Sequence[str] 
             work = Path(scratch) if work_dir is None else Path(work_dir) / Path(fig.name).stem
             argv = [*fig.argv(small), "--out", str(work)]
             code = app.main(argv)
+            if code == EXIT_INTERRUPTED:  # the command said so; the figures written are kept
+                raise KeyboardInterrupt
             if code != EXIT_OK:
                 raise RuntimeError(f"dronefly {shlex.join(argv)} exited {code}")
             made = sorted(work.glob(fig.made))
@@ -165,6 +171,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RuntimeError as e:
         print(f"figures: error: {e}", file=sys.stderr)
         return EXIT_FAILED
+    except KeyboardInterrupt:
+        print("figures: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return EXIT_OK
 
 

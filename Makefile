@@ -3,12 +3,13 @@
 #   make test   run the whole test suite
 #   make test-numeric   the tests whose numbers depend on the BLAS kernel (CI runs them again
 #                       with OPENBLAS_CORETYPE=Prescott)
+#   make figures        regenerate every figure of docs/ (minutes: the sweeps of the documents)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-numeric build bench clean
+.PHONY: demo test test-numeric figures build bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +27,9 @@ test: $(STAMP)
 
 test-numeric: $(STAMP)
 	$(BIN)/python -m pytest -n 2 -q -rs -m numeric
+
+figures: $(STAMP)
+	$(BIN)/python -m dronefly.cli.figures docs
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py

@@ -1,5 +1,5 @@
-"""`dronefly check` reports each defect once, under the rule the FMU broke (issue 38's four
-misreports), on FMUs built here: Reference-FMUs (``../shared/reference-fmus``) with an edited
+"""`dronefly check` reports each defect once, under the rule the FMU broke (four
+defects once reported twice or under another rule), on FMUs built here: Reference-FMUs (``../shared/reference-fmus``) with an edited
 modelDescription.xml or archive layout, or rebuilt with gcc from their shipped sources after an
 edit that seeds one defect."""
 

@@ -126,7 +126,7 @@ def test_block_runs_verbatim(doc, lang, body, mark, printed, tmp_path, request):
 
 
 def test_readme_is_short_and_its_layout_names_every_folder():
-    """Issue 26: the README stays at most 12 kB, and its layout table names every folder of
+    """The README stays at most 12 kB, and its layout table names every folder of
     the package's floors (the top-level ones, those of harness/ and fmu_src/) and the two
     helper folders tests/c_host and benchmarks/null_fmus."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")

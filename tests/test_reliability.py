@@ -296,7 +296,7 @@ _CONTAINER_CASES = textwrap.dedent('''
 
 
 @pytest.mark.parametrize("logging", ["1", "0"])
-def test_the_container_cases_of_issue_16(built_fmus, logging):
+def test_container_misuse_with_logging_does_not_kill_the_host(built_fmus, logging):
     """The container FMU cases that killed the host with logging on: doStep before
     initialization; bad K, n, U, delta_gamma_start while stepping and before initialization;
     unknown value references; a refusal, retry and reset; call-sequence misuse. The process

@@ -192,7 +192,7 @@ def reader(vars_: list[Var]) -> Callable[[Instance], list[float]]:
 
 
 def read_now(inst: Instance, vars_: list[Var]) -> list[float]:
-    """The values of ``vars_`` now (see :func:`_reader`)."""
+    """The values of ``vars_`` now (see :func:`reader`)."""
     return reader(vars_)(inst)
 
 
@@ -259,7 +259,7 @@ class Run:
 
 def run_steps(ctx: Context, inst: Instance, steps: range | None = None) -> Run:
     """Step on the grid start + k step, recording every output after each step; the
-    inputs follow :func:`_excite`."""
+    inputs follow :func:`excite`."""
     read = ctx.read_outputs
     rows = [read(inst)]
     for k in steps if steps is not None else range(ctx.n):

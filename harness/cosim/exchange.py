@@ -9,9 +9,12 @@ its own state machine (FMI 2.0 3.2.3, FMI 3.0 3.2):
 - ``exitInitializationMode`` runs the event iteration (fmi2NewDiscreteStates /
   fmi3UpdateDiscreteStates until no new iteration is needed, at most
   :data:`MAX_EVENT_ITERATIONS`) and enters Continuous-Time Mode;
-- ``doStep(t, h)`` integrates from ``t`` to ``t + h`` with FMPy's CVODE solver, restarted at
-  ``t`` (so a step depends only on the FMU's state and inputs at ``t``: a restored FMU state
-  continues bit for bit), stopping at time events (nextEventTime), state events (a root of the
+- ``doStep(t, h)`` integrates from ``t`` to ``t + h`` with FMPy's CVODE solver. CVODE
+  continues across communication points; it is restarted at ``t`` after initialization, after
+  an event, where the FMU state was saved or restored (``getFMUstate``, ``setFMUstate``,
+  ``reset``) and where ``t`` is not where the last step ended: so a run is a function of the
+  FMU's state where it (re)started, and a restored FMU state continues bit for bit as the
+  original did after it was saved. It stops at time events (nextEventTime), state events (a root of the
   event indicators) and step events (fmi2CompletedIntegratorStep), each handled in Event Mode
   with the event iteration; it returns FMI 3.0's ``(eventHandlingNeeded, terminateSimulation,
   earlyReturn, lastSuccessfulTime)``, terminateSimulation when the FMU asked to end the run;
@@ -99,6 +102,8 @@ class MEStepper:
         self._completed = needs_completed_integrator_step or fmi_version == 3
         self._update = raw.newDiscreteStates if fmi_version == 2 else raw.updateDiscreteStates
         self._solver: CVodeSolver | None = None
+        self._fresh = True  # restart CVODE at the next step
+        self._last_end: float | None = None
         self._next_event: float | None = None
         self.terminated = False
         self.iterations = 0  # of the last event iteration
@@ -117,6 +122,7 @@ class MEStepper:
 
     def exitInitializationMode(self) -> None:
         self._values.exitInitializationMode()
+        self._fresh = True
         self._event_iteration()
         if not self.terminated:
             self._raw.enterContinuousTimeMode()
@@ -137,7 +143,7 @@ class MEStepper:
             "asked for another each time)")
 
     def reset(self) -> Any:
-        self._next_event, self.terminated = None, False
+        self._next_event, self.terminated, self._fresh = None, False, True
         return self._values.reset()
 
     def terminate(self) -> Any:
@@ -157,7 +163,9 @@ class MEStepper:
                 get_dx=raw.getDerivatives if self._v == 2 else raw.getContinuousStateDerivatives,
                 get_z=raw.getEventIndicators, get_nominals=raw.getNominalsOfContinuousStates,
                 set_time=raw.setTime, input=_NoInput(), startTime=t, relativeTolerance=_RTOL)
-        self._solver.reset(t)  # a fresh start at t: the step depends on the state at t only
+        if self._fresh or self._last_end is None or t != self._last_end:
+            self._solver.reset(t)  # a fresh start at t
+            self._fresh = False
         return self._solver
 
     def doStep(self, currentCommunicationPoint: float, communicationStepSize: float,
@@ -170,6 +178,7 @@ class MEStepper:
         solver = self._solver_at(t)
         for _ in range(_MAX_EVENTS_PER_STEP):
             if _reached(t, end):
+                self._last_end = end
                 return False, False, False, end
             due = self._next_event
             if due is not None and (due <= t or _reached(t, due)):  # a time event now
@@ -196,11 +205,13 @@ class MEStepper:
 
     # -- FMU state: the FMU's and the next event time ----------------------------------------
     def getFMUstate(self) -> _Saved:
+        self._fresh = True  # the original continues from a restart too, as a restored one
         return _Saved(self._values.getFMUstate(), self._next_event, self.terminated)
 
     def setFMUstate(self, state: _Saved) -> None:
         self._values.setFMUstate(state.inner)
         self._next_event, self.terminated = state.next_event, state.terminated
+        self._fresh = True
 
     def freeFMUstate(self, state: _Saved) -> None:
         self._values.freeFMUstate(state.inner)

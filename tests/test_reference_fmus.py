@@ -167,8 +167,8 @@ def test_cli_on_reference_fmus_json_junit_jobs(ref, tmp_path, capsys):
 def test_cli_clocks_one_line_and_bad_options(ref, capsys):
     assert main(["check", str(ref / "fmi3" / "Clocks.fmu")]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].endswith("SKIP (not checked: Scheduled Execution only, no Co-Simulation "
-                           "interface (dronefly check tests Co-Simulation FMUs))")
+    assert out[0].endswith("SKIP (not checked: Scheduled Execution only, no Co-Simulation or "
+                           "Model Exchange interface (dronefly check tests those two))")
     assert out[-1] == "0 of 0 FMUs passed, 1 not checked"
     assert main(["check", "--check", "nope", str(ref / "fmi3" / "Clocks.fmu")]) == 2
     assert "--check 'nope': no such check" in capsys.readouterr().err

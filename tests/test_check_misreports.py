@@ -414,15 +414,19 @@ def test_stairs_reset_defect_is_its_co_simulation_step_only(version):
     at its first step). Through Model Exchange the flag is recomputed by eventUpdate (model.c:
     terminateSimulation = counter >= 10) in the event iteration of initialization before any
     function reports it, and the counter and nextEventTime are reset by setStartValues: the
-    run after fmi2Reset / fmi3Reset equals the first, to its end at 9 s."""
+    run after fmi2Reset / fmi3Reset equals the first, to its end at 9 s. ``me:state`` passes:
+    a restored FMU state keeps its next time event."""
     report = check_fmu(REF / version / "Stair.fmu", fuzz=False, isolate=False,
                        options=CheckOptions(only=("call-sequence", "reset", "model-exchange",
-                                                  "me:call-sequence", "me:reset")))
+                                                  "me:call-sequence", "me:reset", "me:state")))
     by = _by_name(report)
     assert set(_failed(report)) == {"reset"}, report.checks
     assert by["reset"].detail.startswith(f"the run after fmi{version[-1]}Reset differs from "
                                          "the first: the FMU ended it at t = 0.2 s")
     assert by["me:reset"].status == "passed"
+    # its time events (nextEventTime) kept with a saved FMU state: restored at t = 5 s, the
+    # counter steps at 6, 7, 8 s and the run ends at 9 s as the original did
+    assert by["me:state"].status == "passed", by["me:state"]
     assert "the FMU ended the run at t = 9 s" in by["me:call-sequence"].detail
 
 

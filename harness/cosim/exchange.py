@@ -39,8 +39,8 @@ __all__ = ["MAX_EVENT_ITERATIONS", "EventIterationError", "MEStepper"]
 
 #: event iterations at one time instant after which the iteration is taken not to terminate
 MAX_EVENT_ITERATIONS = 1000
-#: CVODE's relative tolerance (FMPy's default for Model Exchange is 1e-5)
-_RTOL = 1e-6
+#: CVODE's relative tolerance (FMPy's default for Model Exchange)
+_RTOL = 1e-5
 _HEADER = struct.Struct("<d??")  # the next event time, whether defined, terminated
 
 
@@ -163,7 +163,8 @@ class MEStepper:
                 get_dx=raw.getDerivatives if self._v == 2 else raw.getContinuousStateDerivatives,
                 get_z=raw.getEventIndicators, get_nominals=raw.getNominalsOfContinuousStates,
                 set_time=raw.setTime, input=_NoInput(), startTime=t, relativeTolerance=_RTOL)
-        if self._fresh or self._last_end is None or t != self._last_end:
+        if self._fresh or self._last_end is None or not _reached(t, self._last_end) \
+                or not _reached(self._last_end, t):
             self._solver.reset(t)  # a fresh start at t
             self._fresh = False
         return self._solver

@@ -5,6 +5,7 @@ edit that seeds one defect."""
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import sys
@@ -16,7 +17,7 @@ import pytest
 
 from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
-from dronefly.harness.compliance.suite import check_fmu
+from dronefly.harness.compliance.suite import JSON_SCHEMA_FILE, check_fmu, reports_json
 from dronefly.harness.cosim.fmu import FMU, FMUError
 from fmu_helpers import rebuilt_reference_fmu
 
@@ -391,6 +392,12 @@ def test_a_model_exchange_only_fmu_is_checked(tmp_path, model, version):
         run.append("me:dependencies")
     for name in run:
         assert by[name].status == "passed", by[name]
+    # its --json document validates against the shipped schema, the me: names included
+    import jsonschema
+
+    doc = reports_json([report])
+    jsonschema.validate(doc, json.loads(JSON_SCHEMA_FILE.read_text(encoding="utf-8")))
+    assert "me:reset" in [c["name"] for c in doc["fmus"][0]["checks"]]
 
 
 @pytest.mark.parametrize("version", list(OUTPUTS_LIE))

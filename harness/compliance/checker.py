@@ -20,8 +20,8 @@ order with what each needs: a binary for this platform (static checks run withou
 interface it drives, the FMI versions and profiles it is listed for by default, and the checks
 whose failure leaves it ``not run`` (a failure is reported once, under the rule the FMU broke).
 A check of an interface the FMU lacks is not listed, except ``call-sequence`` and
-``model-exchange``, which say "not applicable: no ... interface" for their interface's checks. The checks run in
-this process; :mod:`.suite` runs them in a child process (so a crashing FMU is a failed check)
+``model-exchange``, which say "not applicable: no ... interface" for their interface's checks.
+The checks run in this process; :mod:`.suite` runs them in a child process (so a crashing FMU is a failed check)
 and adds the fuzz.
 """
 
@@ -39,8 +39,8 @@ from .driver import Context, experiment, profile_for
 from .rules import (PROFILES, RULES, CheckFailed, CheckOptions, CheckResult, CheckSkipped,
                     FMUReport, rule_of)
 
-__all__ = ["CHECKS", "CHECK_NAMES", "INTERFACES", "PROFILES", "RULES", "Check", "CheckFailed", "CheckOptions",
-           "CheckResult", "CheckSkipped", "FMUReport", "experiment", "listed", "profile_for",
+__all__ = ["CHECKS", "CHECK_NAMES", "INTERFACES", "PROFILES", "RULES", "Check", "CheckFailed",
+           "CheckOptions", "CheckResult", "CheckSkipped", "FMUReport", "experiment", "listed", "profile_for",
            "rule_of", "run_checks"]
 
 

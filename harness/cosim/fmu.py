@@ -172,7 +172,8 @@ class FMU:
     ------
     FMUError
         Missing file, not a zip, no valid modelDescription.xml (every problem fmpy names, in
-        one line), no co-simulation.
+        one line), no co-simulation (``require_cosim`` false: neither co-simulation nor model
+        exchange).
     """
 
     def __init__(self, path: str | Path, validate: bool = True,
@@ -189,7 +190,9 @@ class FMU:
             raise FMUError(f"{str(self.path)!r} is not a readable FMU: {_one_line(e)}") from e
         md = self.model_description
         if md.coSimulation is None and (require_cosim or md.modelExchange is None):
-            raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU (model exchange only)")
+            raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU ("
+                           + ("model exchange only)" if md.modelExchange is not None
+                              else "neither co-simulation nor model exchange)"))
         #: 2 or 3; for FMI 3.0, ``model_description`` is the harness's view of
         #: ``model_description3`` (see :mod:`.fmi3`)
         self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2

@@ -3,6 +3,7 @@ other tests (docs/mutation.md): the paper's definitions and printed values, clos
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -12,6 +13,11 @@ import pytest
 from dronefly.core.errors import DroneflyError
 from dronefly.models import feedback, lateral, lateral_dynamics, longitudinal_dynamics
 from dronefly.models.linear import ModelParameterError
+
+from controller_common import ROOT
+from shared_files import need_shared
+
+PAPER = ROOT.parent / "shared" / "paper" / "zhang-sun-lateral-stabilization-control.md"
 from dronefly.models.axes import Axis
 
 # Sect. 2.4: U = 2 Phi n r2, with Phi = 107.1 deg, n = 164 Hz, r2 = 0.55 R, R = 11.2 mm
@@ -280,3 +286,40 @@ def test_longitudinal_mass_and_inertia_must_be_positive(name, value):
 ])
 def test_longitudinal_parameter_dependencies_follow_the_equations(row, col, controls, want):
     assert longitudinal_dynamics.parameter_dependencies(row, col, controls) == want
+
+
+def test_table1_control_derivatives_are_the_printed_row():
+    """Table 1 of the paper, read from its text: the nine values in the printed order."""
+    need_shared(PAPER, "the paper's text")
+    text = PAPER.read_text(encoding="utf-8")
+    table = text[text.index("Table 1 Non-dimensional control derivatives"):]
+    row = [line for line in table.splitlines() if line.startswith("| -0.049")][0]
+    printed = [float(cell) for cell in row.strip("| ").split("|")]
+    order = [f"{F}_{c}_plus" for c in ("Phi_a", "alpha_1a", "alpha_2a") for F in "YLN"]
+    assert [lateral_dynamics.CONTROL_DERIVATIVES_TABLE1[k] for k in order] == printed
+
+
+def test_lateral_parameters_are_immutable_and_name_the_singular_products():
+    p = lateral_dynamics.default_parameters()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.m_plus = 1.0  # type: ignore[misc]
+    bad = p.with_values(Ix_plus=4.0, Iz_plus=2.0, Ixz_plus=-3.0)
+    with pytest.raises(ModelParameterError, match=re.escape(
+            "Ix_plus*Iz_plus = 8.0 must exceed Ixz_plus^2 = 9.0 (Ixz_plus = -3.0)")):
+        bad.validate()
+
+
+def _printed_matrix(text: str, symbol: str) -> list[list[float]]:
+    r"""The matrix printed as ``\boldsymbol{<symbol>}=\left[\begin{array}...\end{array}``."""
+    start = text.index(r"\boldsymbol{%s}=\left[\begin{array}{cccc}" % symbol)
+    body = text[text.index("}", text.index("array}", start) + 6) + 1:text.index(r"\end{array}",
+                                                                                 start)]
+    return [[float(c) for c in row.split("&")] for row in body.split(r"\\")]
+
+
+def test_sect35_matrices_are_the_printed_ones():
+    """Sect. 3.5 (from Ref. [17]): A and B as the paper prints them, read from its text."""
+    need_shared(PAPER, "the paper's text")
+    text = PAPER.read_text(encoding="utf-8")
+    assert _printed_matrix(text, "A") == [list(r) for r in longitudinal_dynamics.A_SECT35]
+    assert _printed_matrix(text, "B") == [list(r) for r in longitudinal_dynamics.B_SECT35]

@@ -45,7 +45,7 @@ TARGETS: dict[str, list[str]] = {
     "models/linear_algebra.py": [_ORACLES, *_EXPM],
     "models/linear.py": [_ORACLES, "tests/test_model.py", *_EXPM],
     "controller/variables.py": ["tests/test_controller_slave.py"],
-    "controller/timing.py": ["tests/test_controller_delay.py"],
+    "controller/timing.py": [_ORACLES, "tests/test_controller_delay.py"],
     "controller/delay.py": ["tests/test_controller_delay.py"],
     "harness/cosim/stability.py": ["tests/test_cosim_verdicts.py"],
 }

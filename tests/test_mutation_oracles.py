@@ -10,6 +10,7 @@ import re
 import numpy as np
 import pytest
 
+from dronefly.controller import timing
 from dronefly.core.errors import DroneflyError
 from dronefly.models import feedback, lateral, lateral_dynamics, longitudinal_dynamics
 from dronefly.models.linear import ModelParameterError
@@ -323,3 +324,112 @@ def test_sect35_matrices_are_the_printed_ones():
     text = PAPER.read_text(encoding="utf-8")
     assert _printed_matrix(text, "A") == [list(r) for r in longitudinal_dynamics.A_SECT35]
     assert _printed_matrix(text, "B") == [list(r) for r in longitudinal_dynamics.B_SECT35]
+
+
+# --- controller/timing.py: the latency an importer sees, by counting grid steps by hand -----
+
+def test_tolerance_is_the_documented_bound():
+    h = 0.1
+    assert timing.tolerance(0.0, 5.0, 0.0) == 0.0 and timing.tolerance(0.0, 5.0, -h) == 0.0
+    assert timing.tolerance(0.0, 0.0, h) == timing.TOLERANCE * h  # no drift at t0
+    # the drift DRIFT m^2 h of m steps from t0 = 0 equals TOLERANCE h at m = sqrt(1e-9 * 2^52)
+    m = math.sqrt(timing.TOLERANCE / timing.DRIFT)
+    assert 2100 < m < 2150  # "after about 2100 steps"
+    assert timing.tolerance(0.0, m * h, h) == pytest.approx(2 * timing.TOLERANCE * h, rel=1e-9)
+    assert timing.tolerance(-m * h, 0.0, h) == timing.TOLERANCE * h  # |t| = 0
+    assert timing.tolerance(m * h, 0.0, h) == timing.TOLERANCE * h
+    assert timing.tolerance(0.0, -m * h, h) == pytest.approx(2 * timing.TOLERANCE * h, rel=1e-9)
+    # capped at DRIFT_CAP h from m = sqrt(5e-5 * 2^52) = 4.7e5 steps on
+    assert timing.tolerance(0.0, 1e6 * h, h) == pytest.approx(
+        (timing.TOLERANCE + timing.DRIFT_CAP) * h, rel=1e-12)
+
+
+@pytest.mark.parametrize("delay, period, lo, hi", [
+    (0.0, 0.0, 0.0, 0.0),      # in effect at once
+    (0.25, 0.0, 3, 3),         # a control due 2.5 steps later shows at the 3rd point
+    (0.2, 0.0, 2, 2),          # a whole number of steps: exactly that
+    # sampled every 3 steps: only the points whose step holds a sample count, here the
+    # points on the samples: seen at once, or half a step of delay later: at the next point
+    (0.0, 0.3, 0, 0),
+    (0.05, 0.3, 1, 1),
+    # samples at 0.25 k: at points 0.0 and 0.5 (at once) and inside the steps from 0.2 and
+    # 0.7 (seen at the next point, one step later)
+    (0.0, 0.25, 0, 1),
+    (0.0, 0.05, 0, 0),         # sampled twice a step: the first sample is at the point
+])
+def test_seen_latency_counts_grid_steps(delay, period, lo, hi):
+    h = 0.1
+    got = timing.Timing(delay, period).seen_latency(h)
+    # steps of 0.1 are not exact binary: a few ulps of the times involved
+    assert got == pytest.approx((lo * h, hi * h), abs=1e-12)
+
+
+def test_seen_latency_beyond_the_float_range_is_infinite():
+    assert timing.Timing(0.0, 0.0).seen_latency(1e308, steps=5) == (0.0, 0.0)
+    # (d + t) / h overflows: no instant index
+    assert timing.Timing(1.7e308, 0.0).seen_latency(0.5, steps=3) == (math.inf, math.inf)
+    # a delay of 8 steps of 1e307: the index times h overflows from the 10th point on
+    lo, hi = timing.Timing(8e307, 0.0).seen_latency(1e307)
+    assert lo == pytest.approx(8e307, rel=1e-15) and hi == math.inf
+    # a grid that leaves the float range after one step: one point seen
+    assert timing.Timing(0.0, 0.0).seen_latency(1.5e308, steps=5) == (0.0, 0.0)
+    assert timing.Timing(0.0, 0.0).seen_latency(1.0, steps=0) == (math.inf, math.inf)
+
+
+@pytest.mark.parametrize("delay, period, seen", [
+    (0.25, 0.0, "3 step(s) (0.3 s) later"),
+    (0.0, 0.25, "0 to 1 steps (0 to 0.1 s) later"),
+    (1.7e308, 0.0, "more than 2000 steps later (or beyond float range)"),
+])
+def test_off_grid_warning_states_the_seen_latency(delay, period, seen):
+    h = 0.5 if delay > 1e300 else 0.1
+    text = timing.Timing(delay, period).off_grid_warning("a sample instant", 0.25, 0.2, h,
+                                                         "FMI 3.0")
+    assert f"the importer sees the control of an input set at a communication point {seen}, " \
+        "instead of sensing_delay" in text
+    assert text.startswith(f"sensing_delay = {delay!r} s and sample_period = {period!r} s on a "
+                           f"communication step of {h} s: a sample instant (t = 0.25 s) falls "
+                           "inside the step from 0.2 s. Inputs are constant over a "
+                           "communication step (FMI 3.0 co-simulation)")
+
+
+def test_off_grid_warning_with_a_latency_infinite_at_one_end():
+    t = timing.Timing(0.0, 0.0)
+    assert "0 step(s) (0 s) later" in t.off_grid_warning("x", 0.0, 0.0, 1.0)
+    text = timing.Timing(8e307, 0.0).off_grid_warning("x", 0.0, 0.0, 1e307)
+    assert "8 steps (8e+307 s) or more later" in text
+
+
+@pytest.mark.parametrize("kwargs, fragment", [
+    ({"sensing_delay": -0.1}, "sensing_delay = -0.1 s must be finite and >= 0"),
+    ({"sensing_delay": math.nan}, "sensing_delay = nan s must be finite and >= 0"),
+    ({"sample_period": -1e-300}, "sample_period = -1e-300 s must be finite and >= 0"),
+    ({"sample_period": math.inf}, "sample_period = inf s must be finite and >= 0"),
+    ({"delay_required": True}, "sensing_delay = 0.0 s must be > 0 in this FMU"),
+])
+def test_timing_validation_names_the_value(kwargs, fragment):
+    with pytest.raises(timing.SensingError, match=re.escape(fragment)):
+        timing.Timing(**kwargs).validate()
+
+
+def test_timing_accepts_its_bounds_and_knows_when_it_is_immediate():
+    timing.Timing(0.0, 0.0).validate()
+    timing.Timing(1e-300, 0.0, delay_required=True).validate()
+    assert timing.Timing(0.0, 0.0).immediate is True
+    assert timing.Timing(1e-300, 0.0).immediate is False
+    assert timing.Timing(0.0, 1e-300).immediate is False
+
+
+def test_delay_line_bound_is_max_samples_of_the_longer_of_step_and_period():
+    h = 0.5
+    at_bound = timing.Timing(timing.MAX_SAMPLES * h, 0.0)
+    at_bound.check_step(h)  # exactly MAX_SAMPLES entries: accepted
+    over = timing.Timing(timing.MAX_SAMPLES * h * (1 + 1e-15), 0.0)
+    with pytest.raises(timing.SensingError, match=re.escape(
+            f"a delay line of more than {timing.MAX_SAMPLES} samples")):
+        over.check_step(h)
+    # a sample period longer than the step sets the bound
+    timing.Timing(timing.MAX_SAMPLES * 2.0, 2.0).check_step(h)
+    with pytest.raises(timing.SensingError, match="communication step of 0.5 s"):
+        timing.Timing(timing.MAX_SAMPLES * 2.0 + 1.0, 2.0).check_step(h)
+    assert timing.MAX_SAMPLES == 100_000

@@ -175,6 +175,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mutation: not a target module: {unknown[0]}", file=sys.stderr)
         return 2
     if not args.report_only:
+        # Cosmic Ray mutates in place: a module that differs from the commit may hold the
+        # mutant of a run that was killed before it put the file back
+        dirty = subprocess.run(["git", "diff", "--name-only", "HEAD", "--", *TARGETS],
+                               cwd=ROOT, capture_output=True, text=True, check=True).stdout
+        if dirty.strip():
+            print(f"mutation: modules differ from HEAD (a mutant left behind?): "
+                  f"{dirty.split()[0]}; restore or commit them first", file=sys.stderr)
+            return 2
         for module in modules:
             run_module(module, args.fresh, args.retry_survivors)
     text = report(list(TARGETS))

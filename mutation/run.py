@@ -44,7 +44,7 @@ TARGETS: dict[str, list[str]] = {
     "models/feedback.py": [_ORACLES, "tests/test_controller_law.py"],
     "models/linear_algebra.py": [_ORACLES, *_EXPM],
     "models/linear.py": [_ORACLES, "tests/test_model.py", *_EXPM],
-    "controller/variables.py": ["tests/test_controller_slave.py"],
+    "controller/variables.py": [_ORACLES, "tests/test_controller_slave.py"],
     "controller/timing.py": [_ORACLES, "tests/test_controller_delay.py"],
     "controller/delay.py": ["tests/test_controller_delay.py"],
     "harness/cosim/stability.py": [_ORACLES],  # test_cosim_verdicts: 60 s a mutant

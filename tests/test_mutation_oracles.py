@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from dronefly.controller import timing
+from dronefly.controller import timing, variables
 from dronefly.core.errors import CrossCheckError, DroneflyError
 from dronefly.harness.cosim import stability
 from dronefly.models import feedback, lateral, lateral_dynamics, longitudinal_dynamics
@@ -594,3 +594,46 @@ def test_unit_start_values_are_the_unit_states_made_dimensional():
         {"plant.delta_v_start": 0.0, "plant.delta_p_start": 0.0,
          "plant.delta_r_start": 0.0, "plant.delta_gamma_start": 1.0},
     ]
+
+
+# --- controller/variables.py: the interface the paper's law needs, variable by variable ------
+
+@pytest.mark.parametrize("delayed", [False, True])
+def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
+    K = ((0.5, -1.0, 2.0, 0.25), (0.0, 0.0, 0.0, 0.0), (1.5, 0.0, 0.0, -3.0))
+    sources = ("row one", "row two", "row three")
+    got = {v.name: v for v in variables.controller_variables(lateral.LATERAL, K, sources,
+                                                             delayed)}
+    states = lateral.STATE_NAMES
+    for s in states:
+        assert (got[s].causality, got[s].start) == ("input", 0.0)
+    for i, c in enumerate(lateral.CONTROL_NAMES):
+        v = got[c]
+        assert v.causality == "output" and v.initial == "calculated"
+        # no feedthrough in the delayed variant; at initialization the row's own gains only
+        row = tuple(f"K[{i + 1},{j + 1}]" for j in range(4))
+        assert v.dependencies == (() if delayed else states)
+        assert v.initial_dependencies == (() if delayed else (
+            *states, *row, "n", "U", "limit_enabled", "u_max", "sensing_delay"))
+    every_gain = tuple(f"K[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3, 4))
+    assert variables.all_gains(lateral.LATERAL) == every_gain
+    assert variables.all_integral_gains(lateral.LATERAL) == tuple("KI" + g[1:] for g in every_gain)
+    assert got["saturated"].type == "Boolean"
+    assert got["saturated"].initial_dependencies == (() if delayed else (
+        *states, *every_gain, "n", "U", "limit_enabled", "u_max", "sensing_delay"))
+    for i, row in enumerate(K):
+        for j, k in enumerate(row):
+            g = got[f"K[{i + 1},{j + 1}]"]
+            assert g.start == k and sources[i] in g.description and f"x+{j + 1}" in g.description
+            assert got[f"KI[{i + 1},{j + 1}]"].start == 0.0
+    # Sect. 2.4: n = 164 Hz, U = 2 Phi n r2; Sect. 3.1: linear range to 0.4 rad
+    assert got["n"].start == N_HZ and got["U"].start == pytest.approx(U_M_PER_S, rel=1e-12)
+    assert (got["limit_enabled"].start, got["u_max"].start) == (False, 0.4)
+    # the delayed variant defaults to one wing beat of sensing delay; the other to none
+    assert got["sensing_delay"].start == (1.0 / N_HZ if delayed else 0.0)
+    assert got["sample_period"].start == 0.0
+    assert variables.LAW_PARAMETERS == ("n", "U", "limit_enabled", "u_max")
+    names = list(got)
+    # the integral gains and the timing come after the proportional law's parameters
+    assert names.index("u_max") < names.index("KI[1,1]") < names.index("sensing_delay")
+    assert names[-2:] == ["sensing_delay", "sample_period"]

@@ -625,7 +625,11 @@ def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
         for j, k in enumerate(row):
             g = got[f"K[{i + 1},{j + 1}]"]
             assert g.start == k and sources[i] in g.description and f"x+{j + 1}" in g.description
-            assert got[f"KI[{i + 1},{j + 1}]"].start == 0.0
+            ki = got[f"KI[{i + 1},{j + 1}]"]
+            assert ki.start == 0.0
+            # the description names the component it weighs (1-based, as the FMI names)
+            assert f"[rad] on z{j + 1}, the integral of x+{j + 1} ({states[j]}) over" in \
+                ki.description
     # Sect. 2.4: n = 164 Hz, U = 2 Phi n r2; Sect. 3.1: linear range to 0.4 rad
     assert got["n"].start == N_HZ and got["U"].start == pytest.approx(U_M_PER_S, rel=1e-12)
     assert (got["limit_enabled"].start, got["u_max"].start) == (False, 0.4)

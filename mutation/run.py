@@ -13,6 +13,7 @@ Usage::
     python mutation/run.py --report-only         # the report of the sessions run so far
     python mutation/run.py --fresh models/axes.py  # forget a module's results, run it again
     python mutation/run.py --retry-survivors     # run the survivors again, after new tests
+    python mutation/run.py --budget-s 600        # stop after 10 min (the rest stays pending)
 
 The report (``build/mutation/report.md``) gives per module the mutants run, killed and
 survived, the share killed, and each survivor with its diff.
@@ -22,8 +23,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sqlite3
 import subprocess
+import time
 import sys
 from pathlib import Path
 
@@ -92,8 +95,9 @@ def _paths(module: str) -> tuple[Path, Path]:
     return OUT / f"{stem}.toml", OUT / f"{stem}.sqlite"
 
 
-def run_module(module: str, fresh: bool, retry: bool) -> None:
-    """Initialise (once) and execute the pending mutants of one module.
+def run_module(module: str, fresh: bool, retry: bool, deadline: float | None) -> bool:
+    """Initialise (once) and execute the pending mutants of one module, until ``deadline``
+    (``time.monotonic()``; None: no limit). False: stopped before the end.
 
     With ``retry`` the survivors of an earlier run are run again (after new tests).
     """
@@ -109,7 +113,18 @@ def run_module(module: str, fresh: bool, retry: bool) -> None:
         with sqlite3.connect(session) as db:
             db.execute("DELETE FROM work_results WHERE test_outcome = 'SURVIVED'")
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-    subprocess.run([BIN / "cosmic-ray", "exec", config, session], cwd=ROOT, check=True, env=env)
+    proc = subprocess.Popen([BIN / "cosmic-ray", "exec", config, session], cwd=ROOT, env=env)
+    try:
+        proc.wait(timeout=None if deadline is None else max(deadline - time.monotonic(), 0.0))
+    except (subprocess.TimeoutExpired, KeyboardInterrupt):
+        # SIGINT, never a kill: Cosmic Ray puts the module's text back on its way out (a
+        # killed run leaves the mutant in the file); the mutant under test stays pending
+        proc.send_signal(signal.SIGINT)
+        proc.wait()
+        return False
+    if proc.returncode != 0:
+        raise SystemExit(f"mutation: cosmic-ray exec failed on {module} ({proc.returncode})")
+    return True
 
 
 def summarise(module: str) -> tuple[int, int, int, list[tuple[str, str, str]]] | None:
@@ -167,6 +182,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fresh", action="store_true", help="forget earlier results")
     parser.add_argument("--retry-survivors", action="store_true",
                         help="run the survivors of earlier runs again")
+    parser.add_argument("--budget-s", type=float, default=None,
+                        help="stop after this many seconds (the rest stays pending)")
     parser.add_argument("--report-only", action="store_true", help="write the report only")
     args = parser.parse_args(argv)
     modules = args.modules or list(TARGETS)
@@ -183,8 +200,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"mutation: modules differ from HEAD (a mutant left behind?): "
                   f"{dirty.split()[0]}; restore or commit them first", file=sys.stderr)
             return 2
+        deadline = None if args.budget_s is None else time.monotonic() + args.budget_s
         for module in modules:
-            run_module(module, args.fresh, args.retry_survivors)
+            if not run_module(module, args.fresh, args.retry_survivors, deadline):
+                break
     text = report(list(TARGETS))
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "report.md").write_text(text)

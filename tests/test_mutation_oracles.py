@@ -610,6 +610,7 @@ def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
     for i, c in enumerate(lateral.CONTROL_NAMES):
         v = got[c]
         assert v.causality == "output" and v.initial == "calculated"
+        assert f": row {i + 1} of u = K x+_s + KI z" in v.description  # 1-based, as K[i,j]
         # no feedthrough in the delayed variant; at initialization the row's own gains only
         row = tuple(f"K[{i + 1},{j + 1}]" for j in range(4))
         assert v.dependencies == (() if delayed else states)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -642,3 +644,16 @@ def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
     # the integral gains and the timing come after the proportional law's parameters
     assert names.index("u_max") < names.index("KI[1,1]") < names.index("sensing_delay")
     assert names[-2:] == ["sensing_delay", "sample_period"]
+
+
+# --- the FMUs' modules import without numpy (they ship into hosts that have none) -------------
+
+def test_the_fmu_runtime_modules_import_without_numpy():
+    code = ("import sys; sys.modules['numpy'] = None\n"  # import numpy now raises ImportError
+            "import dronefly.models.lateral_dynamics, dronefly.models.longitudinal_dynamics, "
+            "dronefly.models.feedback, dronefly.models.linear, dronefly.models.linear_algebra, "
+            "dronefly.controller.timing, dronefly.controller.delay, dronefly.controller.variables\n"
+            "print('imported')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 0 and out.stdout == "imported\n", out.stderr

@@ -36,21 +36,24 @@ BIN = Path(sys.executable).parent
 
 # Module -> the tests that cover it, the fastest selection that exercises it (seconds, not
 # the whole suite per mutant).
-_ORACLES = "tests/test_mutation_oracles.py"
+# the oracle tests written against the survivors come first: a mutant they kill costs least
+_MODELS = "tests/test_mutation_models.py"
+_CONTROLLER = "tests/test_mutation_controller.py"
 _EXPM = ["tests/test_expm.py", "--deselect",  # a second process under another BLAS kernel
          "tests/test_expm.py::test_zero_order_hold_is_the_same_under_another_blas_kernel"]
 TARGETS: dict[str, list[str]] = {
-    "models/axes.py": [_ORACLES, "tests/test_model.py"],
-    "models/hover6dof.py": [_ORACLES, "tests/test_hover6dof.py"],
-    "models/lateral_dynamics.py": [_ORACLES, "tests/test_model.py"],
-    "models/longitudinal_dynamics.py": [_ORACLES],
-    "models/feedback.py": [_ORACLES, "tests/test_controller_law.py"],
-    "models/linear_algebra.py": [_ORACLES, *_EXPM],
-    "models/linear.py": [_ORACLES, "tests/test_model.py", *_EXPM],
-    "controller/variables.py": [_ORACLES, "tests/test_controller_slave.py"],
-    "controller/timing.py": [_ORACLES, "tests/test_controller_delay.py"],
-    "controller/delay.py": ["tests/test_controller_delay.py"],
-    "harness/cosim/stability.py": [_ORACLES],  # test_cosim_verdicts: 60 s a mutant
+    "models/axes.py": [_MODELS, "tests/test_model.py"],
+    "models/hover6dof.py": [_MODELS, "tests/test_hover6dof.py"],
+    "models/lateral_dynamics.py": [_MODELS, "tests/test_model.py"],
+    "models/longitudinal_dynamics.py": [_MODELS],
+    "models/feedback.py": [_MODELS, "tests/test_controller_law.py"],
+    "models/linear_algebra.py": [_MODELS, *_EXPM],
+    "models/linear.py": [_MODELS, "tests/test_model.py", *_EXPM],
+    "controller/variables.py": [_CONTROLLER, "tests/test_controller_slave.py"],
+    "controller/timing.py": [_CONTROLLER],
+    "controller/delay.py": [_CONTROLLER, "tests/test_controller_delay.py"],
+    # tests/test_cosim_verdicts.py runs the FMUs: a minute a mutant
+    "harness/cosim/stability.py": ["tests/test_mutation_stability.py"],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -41,5 +41,5 @@ def test_operator_filter_keeps_the_classic_set():
 def test_config_names_the_module_and_its_tests():
     text = run.config_text("models/axes.py")
     assert "module-path = 'models/axes.py'\n" in text
-    assert "tests/test_mutation_oracles.py tests/test_model.py'\n" in text
+    assert "tests/test_mutation_models.py tests/test_model.py'\n" in text
     assert "-p no:randomly" in text and f"timeout = {run.TIMEOUT_S}\n" in text

@@ -340,3 +340,29 @@ def test_the_fmu_runtime_modules_import_without_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=60)
     assert out.returncode == 0 and out.stdout == "imported\n", out.stderr
+
+
+def test_longitudinal_design_b_mirrors_the_unstable_pair():
+    """Design (b): delta_phibar = k x+ moves the unstable oscillatory pair of Sect. 3.5's A to
+    its mirror image and keeps the two real modes (numpy's eigenvalues of the printed A)."""
+    A = np.array(longitudinal_dynamics.A_SECT35)
+    b = np.array(longitudinal_dynamics.B_SECT35)[:, 2]  # the delta_phibar column
+    k = np.array(feedback.LONGITUDINAL_GAINS_DESIGN_B)
+    open_loop = np.linalg.eigvals(A)
+    want = np.where(open_loop.real > 0, -open_loop.conj(), open_loop)
+    got = np.linalg.eigvals(A + np.outer(b, k))
+    key = lambda z: (round(z.real, 9), z.imag)  # noqa: E731
+    # eigenvalues of a 4x4 of norm 0.1 whose gains carry 17 digits: 1e-12 of margin to spare
+    assert sorted(got, key=key) == pytest.approx(sorted(want, key=key), abs=1e-12)
+    assert sorted(np.round(want.real, 4)) == [-0.1194, -0.0481, -0.0481, -0.0122]  # the paper's
+    assert feedback.default_longitudinal_gains() == ((0.0,) * 4, (0.0,) * 4, tuple(k), (0.0,) * 4)
+
+
+@pytest.mark.parametrize("integral, what", [(False, "K x+"), (True, "K x+ + KI z")])
+def test_law_overflow_names_the_sum_that_overflowed(integral, what):
+    K = ((1e300, 0.0, 0.0, 0.0), (0.0,) * 4, (0.0,) * 4)
+    KI = ((1.0, 0.0, 0.0, 0.0), (0.0,) * 4, (0.0,) * 4) if integral else None
+    law = feedback.FeedbackLaw(K, KI=KI)
+    with pytest.raises(feedback.LawParameterError, match=re.escape(
+            f"delta_Phi_a = inf is not finite ({what} overflows)")):
+        law.evaluate([1e300, 0.0, 0.0, 0.0], [0.0] * 4)

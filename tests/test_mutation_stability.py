@@ -176,3 +176,30 @@ def test_unit_start_values_are_the_unit_states_made_dimensional():
         {"plant.delta_v_start": 0.0, "plant.delta_p_start": 0.0,
          "plant.delta_r_start": 0.0, "plant.delta_gamma_start": 1.0},
     ]
+
+
+def test_fit_residual_of_inconsistent_pairs_is_the_closed_form():
+    # one state, two runs x0 = 1 -> a and x0 = 2 -> 2 b: the weighted pairs (1, a), (1, b)
+    # fit F = (a + b) / 2 with residual |a - b| / 2 (least squares of two equal-weight points)
+    a, b = 0.9, 0.7
+    ident = stability.identify([np.array([[1.0], [a]]), np.array([[2.0], [2.0 * b]])], 0.5,
+                               False)
+    assert ident.transition[0, 0] == pytest.approx((a + b) / 2, rel=1e-14)
+    assert ident.fit_residual == pytest.approx(abs(a - b) / 2, rel=1e-12)
+    assert ident.eigenvalues[0] == pytest.approx(math.log((a + b) / 2) / 0.5, rel=1e-13)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        ident.verdict = "neutral"  # type: ignore[misc]
+
+
+def test_a_mode_at_the_delay_bound_is_dropped():
+    got = stability.rates_from_transition(np.diag([0.5, 1e-7]), 1.0)
+    assert list(got) == [pytest.approx(math.log(0.5), rel=1e-14)]
+
+
+def test_verdict_is_immutable():
+    F = np.diag([0.9, 0.8])
+    runs = [np.array([e, F @ e]) for e in np.eye(2)]
+    v = stability.verdict_of(runs, 1.0, delay=False, where="t")
+    assert v.verdict == "stable" and v.runs is runs
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        v.step_wb = 2.0  # type: ignore[misc]

@@ -366,3 +366,18 @@ def test_law_overflow_names_the_sum_that_overflowed(integral, what):
     with pytest.raises(feedback.LawParameterError, match=re.escape(
             f"delta_Phi_a = inf is not finite ({what} overflows)")):
         law.evaluate([1e300, 0.0, 0.0, 0.0], [0.0] * 4)
+
+
+@pytest.mark.parametrize("gains", list(_GAINS))
+@pytest.mark.parametrize("pair", [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)])
+def test_the_table_declines_exactly_where_the_proportional_law_does(gains, pair):
+    # two finite states whose sum overflows: evaluate_proportional declines (None), so the
+    # table must too (False, nothing written), whatever the pair
+    law = feedback.FeedbackLaw(_GAINS[gains])
+    x = [0.0] * 4
+    for i in pair:
+        x[i] = 1e308
+    assert law.evaluate_proportional(x) is None
+    r = x + [1.0, 2.0, 3.0, "untouched"]
+    assert law.on_table((0, 1, 2, 3), range(4, 7), 7)(r) is False
+    assert r[4:] == [1.0, 2.0, 3.0, "untouched"]

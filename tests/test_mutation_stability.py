@@ -137,6 +137,11 @@ def test_cross_check_failures_one_sentence_per_failed_check():
     ok = dict(ident_rate=0.0, exact_rate=1e-6, resid=1e-9, err=1e-8, ident_verdict="neutral",
               exact_verdict="neutral", exact="eig(A + B K)")
     assert stability.cross_check_failures(**ok) == []  # every bound is inclusive
+    # the rates are compared by their difference (equal rates far from 0 pass)
+    assert stability.cross_check_failures(**dict(ok, ident_rate=0.5, exact_rate=0.5)) == []
+    assert stability.cross_check_failures(**dict(ok, ident_rate=0.5, exact_rate=0.25)) == [
+        "the identified dominant rate +0.5 per wing beat deviates from +0.25 of eig(A + B K) by "
+        "2.5e-01 > 1e-06"]
     bad = dict(ident_rate=0.0, exact_rate=2e-6, resid=2e-9, err=2e-8, ident_verdict="stable",
                exact_verdict="neutral", exact="eig(A + B K)")
     assert stability.cross_check_failures(**bad) == [
@@ -203,3 +208,12 @@ def test_verdict_is_immutable():
     assert v.verdict == "stable" and v.runs is runs
     with pytest.raises(dataclasses.FrozenInstanceError):
         v.step_wb = 2.0  # type: ignore[misc]
+
+
+def test_a_run_from_the_zero_state_adds_nothing_to_the_fit():
+    # pairs (0, 0) carry no information: weight times zero, not 0 / 0
+    F = np.diag([0.9, 0.8])
+    runs = [np.array([e, F @ e, F @ F @ e]) for e in np.eye(2)] + [np.zeros((3, 2))]
+    ident = stability.identify(runs, 1.0, False)
+    np.testing.assert_allclose(ident.transition, F, rtol=1e-14, atol=1e-15)
+    assert ident.fit_residual < 1e-15

@@ -20,6 +20,7 @@ def test_tolerance_is_the_documented_bound():
     h = 0.1
     assert timing.tolerance(0.0, 5.0, 0.0) == 0.0 and timing.tolerance(0.0, 5.0, -h) == 0.0
     assert timing.tolerance(0.0, 0.0, h) == timing.TOLERANCE * h  # no drift at t0
+    assert timing.tolerance(5.0, 5.0, h) == timing.TOLERANCE * h  # (also from t0 != 0)
     # the drift DRIFT m^2 h of m steps from t0 = 0 equals TOLERANCE h at m = sqrt(1e-9 * 2^52)
     m = math.sqrt(timing.TOLERANCE / timing.DRIFT)
     assert 2100 < m < 2150  # "after about 2100 steps"
@@ -50,6 +51,16 @@ def test_seen_latency_counts_grid_steps(delay, period, lo, hi):
     got = timing.Timing(delay, period).seen_latency(h)
     # steps of 0.1 are not exact binary: a few ulps of the times involved
     assert got == pytest.approx((lo * h, hi * h), abs=1e-12)
+
+
+def test_seen_latency_on_a_fine_grid():
+    # the snapping tolerance is 1e-9 of a step, whatever the step: 2.5 steps of 1 us show at
+    # the 3rd point, a sample every 4 steps with 1.5 steps of delay at the 2nd
+    h = 1e-6
+    assert timing.Timing(2.5 * h, 0.0).seen_latency(h) == pytest.approx((3 * h, 3 * h),
+                                                                         rel=1e-9)
+    assert timing.Timing(1.5 * h, 4 * h).seen_latency(h) == pytest.approx((2 * h, 2 * h),
+                                                                          rel=1e-9)
 
 
 def test_seen_latency_beyond_the_float_range_is_infinite():

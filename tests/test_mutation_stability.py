@@ -164,6 +164,8 @@ def test_relative_deviation_is_relative_to_each_states_peak():
     assert stability.relative_deviation(ref + [[0.02, 0.0], [0, 0], [0, 0]], ref) == \
         pytest.approx(0.02, rel=1e-14)
     assert math.isnan(stability.relative_deviation(np.zeros((0, 2)), np.zeros((0, 2))))
+    # a state that stays 0 in both: no deviation (not 0 / 0)
+    assert stability.relative_deviation(ref * [1.0, 0.0], ref * [1.0, 0.0]) == 0.0
     # a state that stays 0 in the reference: any deviation of it is huge, not a division by 0
     assert stability.relative_deviation(np.array([[0.0, 1e-290]]), np.array([[1.0, 0.0]])) > 1e9
 
@@ -184,11 +186,12 @@ def test_unit_start_values_are_the_unit_states_made_dimensional():
 
 
 def test_fit_residual_of_inconsistent_pairs_is_the_closed_form():
-    # one state, two runs x0 = 1 -> a and x0 = 2 -> 2 b: the weighted pairs (1, a), (1, b)
-    # fit F = (a + b) / 2 with residual |a - b| / 2 (least squares of two equal-weight points)
+    # one state, two runs x0 = 0.5 -> 0.5 a and x0 = 0.25 -> 0.25 b: the pairs scaled to unit
+    # |z_k|, (1, a) and (1, b), fit F = (a + b) / 2 with residual |a - b| / 2 (least squares
+    # of two equal-weight points)
     a, b = 0.9, 0.7
-    ident = stability.identify([np.array([[1.0], [a]]), np.array([[2.0], [2.0 * b]])], 0.5,
-                               False)
+    ident = stability.identify([np.array([[0.5], [0.5 * a]]), np.array([[0.25], [0.25 * b]])],
+                               0.5, False)
     assert ident.transition[0, 0] == pytest.approx((a + b) / 2, rel=1e-14)
     assert ident.fit_residual == pytest.approx(abs(a - b) / 2, rel=1e-12)
     assert ident.eigenvalues[0] == pytest.approx(math.log((a + b) / 2) / 0.5, rel=1e-13)

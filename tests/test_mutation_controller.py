@@ -72,6 +72,8 @@ def test_seen_latency_beyond_the_float_range_is_infinite():
     assert lo == pytest.approx(8e307, rel=1e-15) and hi == math.inf
     # a grid that leaves the float range after one step: one point seen
     assert timing.Timing(0.0, 0.0).seen_latency(1.5e308, steps=5) == (0.0, 0.0)
+    h = 1.5e308  # half a step of delay: seen one step later, at the one point in range
+    assert timing.Timing(0.5 * h, 0.0).seen_latency(h, steps=5) == (h, h)
     assert timing.Timing(0.0, 0.0).seen_latency(1.0, steps=0) == (math.inf, math.inf)
 
 
@@ -90,6 +92,24 @@ def test_off_grid_warning_states_the_seen_latency(delay, period, seen):
                            f"communication step of {h} s: a sample instant (t = 0.25 s) falls "
                            "inside the step from 0.2 s. Inputs are constant over a "
                            "communication step (FMI 3.0 co-simulation)")
+
+
+@pytest.mark.parametrize("h, delay, period, seen", [
+    # samples at 0.25 k: from point 0.0 the control (0.1 s later) shows at 0.1, from 0.2 (the
+    # sample at 0.25) at 0.4: one to two steps
+    (0.1, 0.1, 0.25, "1 to 2 steps (0.1 to 0.2 s) later"),
+    # the same on a 1 us grid: the tolerance scales with the step
+    (1e-6, 1e-6, 2.5e-6, "1 to 2 steps (1e-06 to 2e-06 s) later"),
+])
+def test_off_grid_warning_states_a_range_of_latencies(h, delay, period, seen):
+    text = timing.Timing(delay, period).off_grid_warning("x", 0.0, 0.0, h)
+    assert f"communication point {seen}, instead of sensing_delay" in text
+
+
+def test_timing_defaults_to_no_delay_and_no_sampling():
+    t = timing.Timing()
+    assert (t.sensing_delay, t.sample_period, t.delay_required) == (0.0, 0.0, False)
+    assert t.immediate
 
 
 def test_off_grid_warning_with_a_latency_infinite_at_one_end():

@@ -381,3 +381,24 @@ def test_the_table_declines_exactly_where_the_proportional_law_does(gains, pair)
     r = x + [1.0, 2.0, 3.0, "untouched"]
     assert law.on_table((0, 1, 2, 3), range(4, 7), 7)(r) is False
     assert r[4:] == [1.0, 2.0, 3.0, "untouched"]
+
+
+def test_law_on_an_axis_of_three_states():
+    # u = K x+ on three states (x+ = (x1/U, x2, x3/n)); a row of zeros gives 0.0
+    units = (("m/s", None), ("rad", "deg"), ("1/s", None))
+    axis = Axis("three", ("a", "b", "c"), ("u", "w"), units, ("rad", "deg"), ("a", "b", "c"),
+                ("u", "w"), ("U", "1", "n"))
+    law = feedback.FeedbackLaw(((2.0, -3.0, 0.5), (0.0, 0.0, 0.0)), axis=axis, U=4.0, n=10.0)
+    law.validate()
+    want = 2.0 * 8.0 / 4.0 - 3.0 * 0.5 + 0.5 * 20.0 / 10.0
+    assert law.evaluate([8.0, 0.5, 20.0]) == ((want, 0.0), False)
+    assert law.evaluate_proportional([8.0, 0.5, 20.0]) == ([want, 0.0], False)
+
+
+def test_proportional_law_exactly_at_the_limit_is_not_limited():
+    K = ((1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, -1.0), (0.0, 0.0, 0.0, 0.0))
+    law = feedback.FeedbackLaw(K, u_max=0.25, limit_enabled=True)
+    # x+ = (0.25, 0, 0, -0.25): both controls exactly at +/-u_max
+    assert law.evaluate_proportional([0.25 * U_M_PER_S, 0.0, 0.0, -0.25]) == (
+        [pytest.approx(0.25, rel=1e-15), 0.25, 0.0], False)
+    assert law.evaluate_proportional([0.0, 0.0, 0.0, 0.25]) == ([0.0, -0.25, 0.0], False)

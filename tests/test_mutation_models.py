@@ -265,6 +265,12 @@ def test_longitudinal_rows_are_the_derivatives_over_mass_and_inertia(seed):
         assert value == pytest.approx(getattr(p, name), rel=1e-14, abs=1e-15)
 
 
+def test_longitudinal_parameters_are_immutable():
+    p = longitudinal_dynamics.default_parameters()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.m_plus = 1.0  # type: ignore[misc]
+
+
 def test_longitudinal_default_is_the_printed_matrices():
     # Sect. 3.5 prints A and B; the defaults are derived from them and give them back
     A, B = longitudinal_dynamics.system_rows(longitudinal_dynamics.default_parameters())

@@ -3,6 +3,7 @@ against the mutants that survived the other tests (docs/mutation.md)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -110,6 +111,8 @@ def test_timing_defaults_to_no_delay_and_no_sampling():
     t = timing.Timing()
     assert (t.sensing_delay, t.sample_period, t.delay_required) == (0.0, 0.0, False)
     assert t.immediate
+    with pytest.raises(dataclasses.FrozenInstanceError):  # a value, shared by the FMU's steps
+        t.sensing_delay = 1.0  # type: ignore[misc]
 
 
 def test_off_grid_warning_with_a_latency_infinite_at_one_end():

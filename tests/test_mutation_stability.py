@@ -220,3 +220,10 @@ def test_a_run_from_the_zero_state_adds_nothing_to_the_fit():
     ident = stability.identify(runs, 1.0, False)
     np.testing.assert_allclose(ident.transition, F, rtol=1e-14, atol=1e-15)
     assert ident.fit_residual < 1e-15
+
+
+def test_verdict_of_takes_the_ordering_and_the_runner_by_keyword():
+    F = np.diag([0.9, 0.8])
+    runs = [np.array([e, F @ e]) for e in np.eye(2)]
+    with pytest.raises(TypeError):
+        stability.verdict_of(runs, 1.0, False, "t")  # type: ignore[misc]

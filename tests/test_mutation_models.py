@@ -408,3 +408,16 @@ def test_proportional_law_exactly_at_the_limit_is_not_limited():
     assert law.evaluate_proportional([0.25 * U_M_PER_S, 0.0, 0.0, -0.25]) == (
         [pytest.approx(0.25, rel=1e-15), 0.25, 0.0], False)
     assert law.evaluate_proportional([0.0, 0.0, 0.0, 0.25]) == ([0.0, -0.25, 0.0], False)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_every_path_exactly_at_the_limit_is_not_limited(sign):
+    # one row of gains (the table's straight-line branch): u = x0 / U exactly at +/-u_max
+    law = feedback.FeedbackLaw(((1.0, 0.0, 0.0, 0.0), (0.0,) * 4, (0.0,) * 4), U=4.0,
+                               u_max=0.25, limit_enabled=True)
+    x = [sign * 1.0, 0.0, 0.0, 0.0]  # x+ = 0.25 exactly (a power of two)
+    assert law.evaluate(x) == ((sign * 0.25, 0.0, 0.0), False)
+    assert law.evaluate_proportional(x) == ([sign * 0.25, 0.0, 0.0], False)
+    r = x + [None, None, None, None]
+    assert law.on_table((0, 1, 2, 3), range(4, 7), 7)(r) is True
+    assert r[4:] == [sign * 0.25, 0.0, 0.0, False]

@@ -67,7 +67,7 @@ def _env(bin_dir: Path) -> dict[str, str]:
 
 
 # The blocks marked skip, by document: a new skip must be added here on purpose.
-SKIPPED = {"README.md": 1, "latency.md": 1, "sweep.md": 1, "usage.md": 1}
+SKIPPED = {"README.md": 1, "latency.md": 1, "mutation.md": 1, "sweep.md": 1, "usage.md": 1}
 
 
 def test_every_block_is_run_or_skipped_with_a_reason():

@@ -28,9 +28,9 @@ the right-hand side into straight-line Python (:func:`_make_functions`); the qua
 normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost: the README and
 docs/benchmarks.md.
 
-:func:`_make_functions` is the package's one execution of generated code (issue 26): the same
-equations as plain Python functions cost 1.2 to 1.8 times as much per step and take the
-6-DOF/pair cost ratio through FMI over its target of 5 (docs/benchmarks.md, "Generated code").
+:func:`_make_functions` is the package's one execution of generated code: the same equations as
+plain Python functions cost more per step and take the 6-DOF/pair cost ratio through FMI over
+its target of 5 (docs/benchmarks.md, "Generated code", says how to measure it).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""What the docs and the help texts state is what the code does (issue 36, point 11): the
+"""What the docs and the help texts state is what the code does: the
 options a command lists, the FMI versions it accepts, the number of FMUs, what a documented
 command prints, and which statements are measurements and which conjecture."""
 

@@ -1,6 +1,6 @@
 """Model Exchange FMUs stepped through the Co-Simulation calls the harness makes.
 
-:class:`MEStepper` wraps fmpy's ``FMU2Model`` (FMI 2.0) or an :class:`.fmi3.FMU3Adapter` over
+:class:`MEStepper` wraps fmpy's ``FMU2Model`` (FMI 2.0) or an :class:`.fmu3.FMU3Adapter` over
 ``FMU3Model`` (FMI 3.0) and answers ``setupExperiment``, ``enterInitializationMode``,
 ``exitInitializationMode``, ``doStep``, ``reset`` and the FMU-state calls as a Co-Simulation
 slave would, so that code written for Co-Simulation drives the Model Exchange interface through
@@ -82,7 +82,7 @@ class MEStepper:
         The instantiated Model Exchange model (its event and continuous-state calls).
     values : Any
         What answers the value and FMU-state calls: ``raw`` itself (FMI 2.0) or the
-        :class:`.fmi3.FMU3Adapter` around it (FMI 3.0).
+        :class:`.fmu3.FMU3Adapter` around it (FMI 3.0).
     fmi_version : int
         2 or 3.
     nx, nz : int

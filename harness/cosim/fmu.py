@@ -1,7 +1,7 @@
 """Thin, safe access to co-simulation FMUs through fmpy's FMU2Slave API.
 
 FMI 2.0 FMUs run in fmpy's FMU2Slave; FMI 3.0 FMUs in fmpy's FMU3Slave behind the same API
-(:mod:`.fmi3`: arrays appear as scalar elements, Float64 and Float32 as Real).
+(:mod:`.fmu3`: arrays appear as scalar elements, Float64 and Float32 as Real).
 
 An :class:`FMU` is read and extracted once; :meth:`FMU.instantiate` gives
 :class:`Instance` objects whose log messages are captured in

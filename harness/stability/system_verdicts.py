@@ -231,7 +231,7 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
     set_values : mapping, optional
         ``{"instance.NAME": value}``: parameter or input values, in the FMU's unit, as
         numbers, booleans or text (as ``--set`` gives them), converted to each variable's
-        declared type when the system is opened (:mod:`..cosim.values`).
+        declared type when the system is opened (:mod:`..cosim.typed_values`).
     record : sequence of str, optional
         Variables ``instance.name`` to record: any Real, Integer or Boolean variable of any
         instance (default: every Real, Integer and Boolean output).

@@ -11,7 +11,7 @@ import pytest
 
 from dronefly.cli import app
 from dronefly.cli.app import main
-from dronefly.cli.args import out_dir, out_file
+from dronefly.cli.commands.args import out_dir, out_file
 from dronefly.core.files import write_csv_atomic, write_text_atomic
 
 #: (command, option, what it names) of every output path option but those of ``check``

@@ -97,9 +97,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{who}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as e:  # a module that does not import: a bug (or a broken install)
-        print(f"{who}: internal error (a bug, please report it): {type(e).__name__}: {e}",
-              file=sys.stderr)
-        return EXIT_FAILED
+        return _bug(who, e, "--debug" in argv)
     try:
         args = parser.parse_args(argv)
     except SystemExit as e:  # argparse already printed its one-line error, the help or version
@@ -126,12 +124,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"dronefly {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except Exception as e:  # a bug, never reported as bad input
-        if args.debug:
-            traceback.print_exc()
-        print(f"dronefly {args.command}: internal error (a bug, please report it): "
-              f"{type(e).__name__}: {e}" + ("" if args.debug else " (--debug shows the traceback)"),
-              file=sys.stderr)
-        return EXIT_FAILED
+        return _bug(f"dronefly {args.command}", e, args.debug)
+
+
+def _bug(who: str, e: Exception, debug: bool) -> int:
+    """Report an internal error (a bug, never bad input) in one line, the traceback with
+    ``--debug``; returns exit code 1."""
+    if debug:
+        traceback.print_exc()
+    print(f"{who}: internal error (a bug, please report it): {type(e).__name__}: {e}"
+          + ("" if debug else " (--debug shows the traceback)"), file=sys.stderr)
+    return EXIT_FAILED
 
 
 if __name__ == "__main__":  # pragma: no cover

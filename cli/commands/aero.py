@@ -15,7 +15,6 @@ __all__ = ["EPILOG", "RUNS_FMUS", "add_arguments", "run"]
 #: no FMU runs here: Ctrl-C stops the command at once (:func:`dronefly.core.interrupt.sigint_at_once`)
 RUNS_FMUS = False
 
-
 #: the examples of ``dronefly aero --help`` (after its options)
 EPILOG = ("examples:\n  dronefly aero\n  dronefly aero --json --coefficients wang2004\n"
           "  dronefly aero forces --state delta_v=0.1 --control delta_Phi_a=0.2 --json\n"

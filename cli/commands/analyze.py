@@ -16,7 +16,6 @@ __all__ = ["EPILOG", "RUNS_FMUS", "add_arguments", "run"]
 #: no FMU runs here: Ctrl-C stops the command at once (:func:`dronefly.core.interrupt.sigint_at_once`)
 RUNS_FMUS = False
 
-
 #: the examples of ``dronefly analyze --help`` (after its options)
 EPILOG = ("examples:\n  dronefly analyze\n  dronefly analyze --json\n"
           "  dronefly analyze --markdown --out docs/reproduction.md\n"

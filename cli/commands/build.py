@@ -16,7 +16,6 @@ __all__ = ["EPILOG", "SAYS_WHAT_IT_BUILT", "add_arguments", "run"]
 #: prints every path it writes: the command line adds no line of its own
 SAYS_WHAT_IT_BUILT = True
 
-
 #: the examples of ``dronefly build --help`` (after its options)
 EPILOG = "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus\n  dronefly build --native"
 

@@ -25,7 +25,6 @@ from . import EXIT_FAILED, EXIT_OK
 
 __all__ = ["EPILOG", "add_arguments", "run"]
 
-
 #: the examples of ``dronefly check --help`` (after its options)
 EPILOG = ("examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
           "  dronefly check Model.fmu --ref Model_ref.csv --in Model_in.csv\n"

@@ -22,7 +22,6 @@ __all__ = ["EPILOG", "SAYS_WHAT_IT_BUILT", "add_arguments", "run"]
 #: its summary and JSON name what it built: the command line adds no line of its own
 SAYS_WHAT_IT_BUILT = True
 
-
 #: the units of the options, the last lines of the epilog
 _UNITS = ("\nunits: --step/--stop in wing beats (1 wing beat = 1/n = 6.1 ms); --x0 non-dimensional "
           "x+ = (dv/U, dp/n, dr/n, dgamma); --gains non-dimensional (rad per unit of x+); --set "

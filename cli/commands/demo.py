@@ -12,7 +12,6 @@ from . import EXIT_FAILED, EXIT_OK, feature
 
 __all__ = ["EPILOG", "add_arguments", "run"]
 
-
 #: the examples of ``dronefly demo --help`` (after its options)
 EPILOG = ("examples:\n  dronefly demo\n  dronefly demo --native --no-plot\n  dronefly demo --no-plot --set plant.Nr_plus=-5\n"
           "exit codes: 0 ok, 1 a run's cross-check failed (outputs kept), 2 bad input")

@@ -11,7 +11,6 @@ from . import EXIT_OK
 
 __all__ = ["EPILOG", "add_arguments", "run"]
 
-
 #: the examples of ``dronefly floquet --help`` (after its options)
 EPILOG = ("examples:\n  dronefly floquet\n  dronefly floquet --json\n"
           "  dronefly floquet --plant build/DroneFlyLateral.fmu --period 0.006097560975609756\n"

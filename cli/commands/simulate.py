@@ -13,7 +13,6 @@ __all__ = ["EPILOG", "SAYS_WHAT_IT_BUILT", "add_arguments", "run"]
 #: its summary names what it built: the command line adds no line of its own
 SAYS_WHAT_IT_BUILT = True
 
-
 #: the examples of ``dronefly simulate --help`` (after its options)
 EPILOG = ("examples:\n  dronefly simulate\n  dronefly simulate --gamma0 0.05 --stop 50\n"
           "units: --stop/--step in wing beats; --gamma0 in rad (SI)")

@@ -30,11 +30,10 @@ _SWEEP_DEFAULTS = {"grid": 21, "amplitudes": 10, "gains": "paper,stabilising",
 _SWEEP_COMPARE_DEFAULTS = {"grid": 25, "amplitudes": 12, "gains": "paper", "steps": "1",
                            "stop": "100", "extent": 3.0}
 
-
 #: the units of the options, the last lines of the epilog
 _UNITS = ("\nunits: --steps/--delays/--sample-periods/--stop in wing beats (1 wing beat = "
-                "1/n = 6.1 ms); --gains non-dimensional (rad per unit of x+ = (dv/U, dp/n, dr/n, "
-                "dgamma)); --set values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
+          "1/n = 6.1 ms); --gains non-dimensional (rad per unit of x+ = (dv/U, dp/n, dr/n, "
+          "dgamma)); --set values in the FMU's SI unit (rad, m/s, rad/s, Hz)")
 #: the examples of ``dronefly sweep --help`` (after its options)
 EPILOG = ("examples:\n  dronefly sweep\n  dronefly sweep --native\n  dronefly sweep --gains paper,stabilising,open "
           "--steps 0.1,0.5,1,2,3\n"

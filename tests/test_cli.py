@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import zipfile
 
 import numpy as np
@@ -27,6 +29,50 @@ def test_help_lists_subcommands(capsys):
         assert capsys.readouterr().out.startswith(f"usage: dronefly {name} "), name
     assert main(["nosuchcommand"]) == 2
     assert "examples:" in out
+
+
+#: prints the subcommand modules that ``main(argv)`` imported, after running it
+_IMPORTED = (
+    "import contextlib, io, sys\n"
+    "from dronefly.cli.app import main\n"
+    "with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):\n"
+    "    code = main(sys.argv[1:])\n"
+    "print(code, sorted(m.rpartition('.')[2] for m in sys.modules\n"
+    "                   if m.startswith('dronefly.cli.commands.') and m != 'dronefly.cli.commands.args'))")
+
+
+@pytest.mark.parametrize("argv, code, imported", [
+    (["--help"], 0, []),
+    (["nosuchcommand"], 2, []),
+    (["cosim", "--help"], 0, ["cosim"]),
+    (["--debug", "aero", "--no-such-option"], 2, ["aero"]),
+])
+def test_only_the_chosen_subcommand_module_is_imported(argv, code, imported):
+    """``dronefly --help`` imports no subcommand's module (none of the analyses); a subcommand
+    imports its own module alone, for its options, its --help and its run."""
+    r = subprocess.run([sys.executable, "-c", _IMPORTED, *argv], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr[-1500:]
+    assert r.stdout.split(None, 1) == [str(code), f"{imported}\n"], r.stdout
+
+
+def test_a_subcommand_module_that_fails_to_import_is_a_bug(monkeypatch, capsys):
+    """A subcommand module that cannot be imported (a broken install) is an internal error: one
+    line naming it and exit 1, never bad input; --debug adds the traceback."""
+    from dronefly.cli import commands
+
+    def broken(name):
+        raise ImportError(f"cannot import {name}")
+
+    monkeypatch.setattr(commands, "load", broken)
+    monkeypatch.setattr("dronefly.cli.app.load", broken)
+    assert main(["aero", "--json"]) == 1
+    err = capsys.readouterr().err
+    assert err == ("dronefly aero: internal error (a bug, please report it): ImportError: cannot "
+                   "import aero (--debug shows the traceback)\n")
+    assert main(["--debug", "aero"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.endswith("ImportError: cannot import aero\n")
 
 
 @pytest.mark.integration

@@ -11,7 +11,8 @@ import pytest
 
 from dronefly.cli import app
 from dronefly.cli.app import main
-from dronefly.cli.args import out_dir, out_file
+from dronefly.cli.commands import load
+from dronefly.cli.commands.args import out_dir, out_file
 from dronefly.core.files import write_csv_atomic, write_text_atomic
 
 #: (command, option, what it names) of every output path option but those of ``check``
@@ -48,10 +49,10 @@ def test_a_bad_output_path_is_refused_before_any_work(command, option, kind, tmp
     monkeypatch.chdir(tmp_path)
     Path("afile").write_text("x")
 
-    def no_work(name):
-        raise AssertionError(f"{name} started")
+    def no_work(args):
+        raise AssertionError(f"{args.command} started")
 
-    monkeypatch.setattr(app, "_command", no_work)
+    monkeypatch.setattr(load(command), "run", no_work)
     for value, why in BAD[kind]:
         assert main([command, f"{option}={value}"]) == 2
         err = capsys.readouterr().err

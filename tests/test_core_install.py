@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from dronefly.cli.app import _EPILOG, _parser
-from dronefly.cli.commands import COMMANDS
+from dronefly.cli.app import _parser
+from dronefly.cli.commands import COMMANDS, load
 
 pytestmark = pytest.mark.integration
 
@@ -54,7 +54,7 @@ json.dump(report, open(sys.argv[2], "w"))
 
 def _examples() -> list[str]:
     """Every ``dronefly ...`` line of the help texts (the top level's first)."""
-    texts = [_parser().epilog or "", *(_EPILOG.get(c, "") for c in COMMANDS)]
+    texts = [_parser().epilog or "", *(load(c).EPILOG for c in COMMANDS)]
     return [line.strip().partition("  (")[0] for text in texts for line in text.splitlines()
             if line.startswith("  dronefly ")]  # less a comment: "  (rows: ...)"
 

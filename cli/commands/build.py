@@ -8,12 +8,25 @@ from pathlib import Path
 
 from ...harness.builder.build import FMI3_OUT, build_all
 from ...harness.builder.native import NATIVE_OUT, build_native_all, build_native_container
+from .args import out_dir
 from . import EXIT_OK
 
-__all__ = ["SAYS_WHAT_IT_BUILT", "run"]
+__all__ = ["EPILOG", "SAYS_WHAT_IT_BUILT", "add_arguments", "run"]
 
 #: prints every path it writes: the command line adds no line of its own
 SAYS_WHAT_IT_BUILT = True
+
+#: the examples of ``dronefly build --help`` (after its options)
+EPILOG = "examples:\n  dronefly build\n  dronefly build --out /tmp/fmus\n  dronefly build --native"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options of ``dronefly build`` to its subparser ``p``."""
+    p.add_argument("--out", type=out_dir, default="build", metavar="DIR", help="output folder (default: build/)")
+    p.add_argument("--native", action="store_true",
+                   help="also the native (C) FMUs in DIR/native and DIR/native/fmi3, with binaries "
+                        "for every platform the toolchain builds for (zig cc: Linux, Windows, "
+                        "macOS; a minute or more) and the closed-loop container (docs/native.md)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -20,9 +20,54 @@ from ...harness.compliance.checker import CHECK_NAMES, CheckOptions, experiment
 from ...harness.compliance.suite import (CheckInterrupted, check_fmus, format_reports,
                                          reports_json, reports_junit)
 from ...harness.cosim.fmu import FMUError
+from .args import int_arg, positive
 from . import EXIT_FAILED, EXIT_OK
 
-__all__ = ["run"]
+__all__ = ["EPILOG", "add_arguments", "run"]
+
+#: the examples of ``dronefly check --help`` (after its options)
+EPILOG = ("examples:\n  dronefly check\n  dronefly check build/DroneFlyLateral.fmu --json\n"
+          "  dronefly check Model.fmu --ref Model_ref.csv --in Model_in.csv\n"
+          "exit codes: 0 all checks passed, 1 a check failed, 2 bad input")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Add the options of ``dronefly check`` to its subparser ``p``."""
+    p.add_argument("fmus", nargs="*", metavar="FMU", help="FMUs to check (default: build the project "
+                   "into --build, FMI 2.0 and FMI 3.0, and check every FMU there)")
+    p.add_argument("--build", default="build", metavar="DIR",
+                   help="where to build (default build/; the FMI 3.0 FMUs in DIR/fmi3)")
+    p.add_argument("--json", action="store_true", help="machine-readable report (with a schema "
+                   "version, each check passed/failed/skipped, durations)")
+    p.add_argument("--junit", default=None, metavar="FILE",
+                   help="also write JUnit XML: a test case per check and FMU")
+    p.add_argument("--verbose", action="store_true",
+                   help="also show each rule and what the FMU's binaries printed while checked")
+    p.add_argument("--no-fuzz", action="store_true", help="skip the short fuzz (faster)")
+    p.add_argument("--profile", choices=("auto", "standard", "dronefly"), default="auto",
+                   help="standard: the FMI standard alone; dronefly: also the project's stricter "
+                        "promises (NaN refused, log wording, corrupt states, fuzz); auto "
+                        "(default): dronefly for the project's FMUs, standard for any other")
+    p.add_argument("--check", action="append", default=[], metavar="NAME",
+                   help="run only this check (repeat, or NAME,NAME)")
+    p.add_argument("--skip", action="append", default=[], metavar="NAME",
+                   help="do not run this check (repeat, or NAME,NAME)")
+    p.add_argument("--stop-time", type=positive, default=None, metavar="S",
+                   help="stop time in seconds (default: the FMU's default experiment)")
+    p.add_argument("--step", type=positive, default=None, metavar="S",
+                   help="communication step in seconds (default: the default experiment's "
+                        "stepSize, or a hundredth of the run)")
+    p.add_argument("-j", "--jobs", type=int_arg("-j", 1), default=1, metavar="N",
+                   help="check N FMUs at once (default 1)")
+    p.add_argument("--timeout", type=positive, default=600.0, metavar="S",
+                   help="how long the checks of one FMU may take before it is reported as hung "
+                        "(default 600 s)")
+    p.add_argument("--ref", default=None, metavar="CSV",
+                   help="reference result of the one FMU given (FMI cross-check CSV: time, then "
+                        "outputs), compared by the reference check (default: <Model>_ref.csv "
+                        "beside the FMU, if there)")
+    p.add_argument("--in", dest="inputs", default=None, metavar="CSV",
+                   help="with --ref: the inputs of the reference run (cross-check CSV)")
 
 
 def _check_names(values: list[str], option: str) -> tuple[str, ...]:

@@ -2,8 +2,10 @@
 
 Each turns one option's text into a value or raises :class:`argparse.ArgumentTypeError`
 with one line naming the bad value; the parsing itself lives with the code that owns the
-value (gains in :mod:`dronefly.harness.paper.gains`, assignments in
-:mod:`dronefly.harness.cosim.params`, lists in :mod:`dronefly.harness.sweep.parse`).
+value (assignments in :mod:`dronefly.harness.cosim.params`, lists in
+:mod:`dronefly.harness.sweep.parse`; the gains and the initial state of ``dronefly cosim`` in
+:mod:`dronefly.harness.paper.gains` and :mod:`dronefly.harness.stability.run`, converted in
+:mod:`dronefly.cli.commands.cosim`).
 """
 
 from __future__ import annotations
@@ -13,12 +15,12 @@ import math
 import re
 from typing import Any, Callable
 
-from ..core.errors import DroneflyError
-from ..core.files import check_output_dir, check_output_file
-from ..harness.sweep.parse import parse_floats, parse_int
+from ...core.errors import DroneflyError
+from ...core.files import check_output_dir, check_output_file
+from ...harness.sweep.parse import parse_floats, parse_int
 
-__all__ = ["converter", "finite", "floats_arg", "int_arg", "out_dir", "out_file", "parse_gains",
-           "parse_names", "parse_setting", "parse_x0", "positive"]
+__all__ = ["converter", "finite", "floats_arg", "int_arg", "out_dir", "out_file", "parse_names",
+           "parse_setting", "positive"]
 
 
 def converter(fn: Callable[[str], Any]) -> Callable[[str], Any]:
@@ -61,20 +63,6 @@ def floats_arg(name: str) -> Callable[[str], tuple[float, ...]]:
         return parse_floats(text, name)
 
     return converter(parse)
-
-
-def parse_gains(text: str) -> Any:
-    """``--gains``: :func:`dronefly.harness.paper.gains.parse_gains`."""
-    from ..harness.paper.gains import parse_gains as parse  # start-up: numpy, scipy on use only
-
-    return parse(text)
-
-
-def parse_x0(text: str) -> Any:
-    """``--x0``: :func:`dronefly.harness.stability.run.parse_x0`."""
-    from ..harness.stability.run import parse_x0 as parse  # start-up: numpy, fmpy on use only
-
-    return parse(text)
 
 
 def parse_names(text: str) -> list[str]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import fmpy
 import numpy as np
@@ -184,6 +185,27 @@ def _lies(declared: dict[str, set[str] | None], seen: dict[str, set[str]], where
     return out
 
 
+def _probe(inst: Any, inputs: list[Var], unknowns: list[Var], seen: dict[str, set[str]],
+           tried: set[str]) -> None:
+    """Each of ``inputs`` moved alone and put back, the ``unknowns`` read before and after: the
+    inputs that moved each unknown are added to ``seen``, the inputs moved to ``tried``. The
+    instance must be in a mode where a get after a set is allowed."""
+    read = reader(unknowns)
+    before = read(inst)
+    for u in inputs:
+        x = read_now(inst, [u])[0]
+        p = _perturbed(u, x)
+        if p is None:
+            continue
+        tried.add(u.name)
+        write(inst, u, p)
+        after = read(inst)
+        write(inst, u, x)
+        for o, a, b in zip(unknowns, before, after):
+            if _moved(a, b):
+                seen[o.name].add(u.name)
+
+
 def _initialization_probe(ctx: Context, declared: dict[str, set[str] | None]
                           ) -> tuple[dict[str, set[str]], set[str]]:
     """Which inputs move which outputs in Initialization Mode (set, get in any order)."""
@@ -194,21 +216,7 @@ def _initialization_probe(ctx: Context, declared: dict[str, set[str] | None]
         ctx.event(call=f"{ctx.fmi}EnterInitializationMode(startTime={ctx.start!r})")
         s.setupExperiment(startTime=ctx.start, stopTime=ctx.stop)
         s.enterInitializationMode()
-        outs = [o for o in ctx.outputs if o.name in declared]
-        read = reader(outs)
-        before = read(inst)
-        for u in ctx.inputs:
-            x = read_now(inst, [u])[0]
-            p = _perturbed(u, x)
-            if p is None:
-                continue
-            tried.add(u.name)
-            write(inst, u, p)
-            after = read(inst)
-            write(inst, u, x)
-            for o, a, b in zip(outs, before, after):
-                if _moved(a, b):
-                    seen[o.name].add(u.name)
+        _probe(inst, ctx.inputs, [o for o in ctx.outputs if o.name in declared], seen, tried)
         s.exitInitializationMode()
         s.terminate()
     return seen, tried
@@ -290,26 +298,12 @@ def _continuous_time_probe(ctx: Context, unknowns: list[Var]
     3.2.3): each input moved alone, the unknowns read, the input put back."""
     seen: dict[str, set[str]] = {o.name: set() for o in unknowns}
     tried: set[str] = set()
-    read = reader(unknowns)
     with ctx.instantiate("check") as inst:
         initialize(ctx, inst)
         if getattr(inst.slave, "terminated", False):
             raise CheckSkipped("the FMU asked to terminate at its initialization")
-        before = read(inst)
-        for u in ctx.inputs:
-            if u.var.variability != "continuous":  # set in Event Mode only
-                continue
-            x = read_now(inst, [u])[0]
-            p = _perturbed(u, x)
-            if p is None:
-                continue
-            tried.add(u.name)
-            write(inst, u, p)
-            after = read(inst)
-            write(inst, u, x)
-            for o, a, b in zip(unknowns, before, after):
-                if _moved(a, b):
-                    seen[o.name].add(u.name)
+        _probe(inst, [u for u in ctx.inputs  # the others are set in Event Mode only
+                      if u.var.variability == "continuous"], unknowns, seen, tried)
         ctx.event(call=f"{ctx.fmi}Terminate()")
         inst.slave.terminate()
     return seen, tried

@@ -10,6 +10,7 @@ Windows DLL runs under Wine in tests/test_native_hosts.py.
 from __future__ import annotations
 
 import ctypes
+import os
 import shutil
 import subprocess
 import sys
@@ -242,3 +243,12 @@ def test_a_binary_is_compiled_once_per_inputs_and_anew_when_a_byte_changes(
     zig.compile([probe_c], tmp_path / "f.so", "linux64", include_dirs=[inc],
                 defines={"SCALE": "1.0"})
     assert len(calls) == 4 and len(list(fresh_cache.iterdir())) == 4
+    # an executable from the cache is still one (the C hosts of the tests run so)
+    monkeypatch.setenv("DRONEFLY_CACHE_DIR", str(fresh_cache))
+    exe_src = tmp_path / "main.c"
+    exe_src.write_text("int main(void) { return 7; }\n")
+    for k in range(2):
+        exe = zig.compile([exe_src], tmp_path / f"exe{k}", "linux64", shared=False)
+        if LINUX_X86:
+            assert subprocess.run([str(exe)]).returncode == 7
+        assert os.access(exe, os.X_OK)

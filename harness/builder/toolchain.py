@@ -279,7 +279,7 @@ class Toolchain:
         link = [f"-l{lib}" for lib in libs] + ([] if p.fmt == "PE" else ["-lm"])
         cached = _cached(self, platform, flags, srcs, include_dirs, link, out.suffix)
         if cached is not None and cached.is_file():
-            shutil.copyfile(cached, out)
+            shutil.copy(cached, out)  # the bytes and the mode (an executable stays one)
             return out
         with tempfile.TemporaryDirectory(prefix="dronefly-cc-") as tmp:
             target = Path(tmp) / (out.stem + out.suffix)
@@ -344,6 +344,7 @@ def _keep(binary: Path, cached: Path) -> None:
         try:
             with os.fdopen(fd, "wb") as f:
                 f.write(binary.read_bytes())
+            shutil.copymode(binary, part)
             os.replace(part, cached)
         finally:
             if os.path.exists(part):

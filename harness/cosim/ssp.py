@@ -21,13 +21,13 @@ import numpy as np
 from ...core.files import write_zip
 from ...models import lateral_interface, longitudinal_interface
 from ...models.feedback import PAPER_GAINS_EQ27
-from ...models.flapping import FlappingModel
+from ...models.flapping import orbit_start
 from .fmu3 import read_view
 from .system import System, SystemSpecError
 
 __all__ = ["FLAPPING", "FLAPPING_FMUS", "HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS",
            "SSC_NS", "SSD_NS", "SSV_NS", "flapping_starts", "flapping_system", "hover_system",
-           "orbit_start", "write_system_ssp", "xml_bytes"]
+           "write_system_ssp", "xml_bytes"]
 
 #: the XML namespaces of SSP 1.0's system structure, common types and parameter values
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -187,18 +187,6 @@ def hover_system(fmus: Mapping[str, str | Path],
     return _system(fmus, models, params, HOVER_6DOF if nonlinear else HOVER, stop_wingbeats)
 
 
-def orbit_start(model: FlappingModel | None = None) -> np.ndarray:
-    """The start of the flapping insect's periodic orbit at the averaged trim's kinematics
-    (:meth:`FlappingModel.periodic_orbit`, the averaged twin's monodromy as the Newton
-    Jacobian): the reduced state (u+, v+, w+, p+, q+, r+, phi, theta) at a beat's start.
-
-    ``model`` defaults to ``FlappingModel()``, the model of the ``DroneFlyFlapping`` FMU.
-    """
-    model = model or FlappingModel()
-    twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True)
-    return model.periodic_orbit(jacobian=twin.monodromy(np.zeros(8))).z0
-
-
 def flapping_starts(z: Sequence[float], roll0_rad: float = 0.0) -> dict[str, float]:
     """The ``*_start`` parameters (SI) of ``DroneFlyFlapping`` (and ``DroneFlyHover6DOF``)
     that start it at a reduced state with a roll added (heading and position 0).
@@ -249,7 +237,7 @@ def flapping_system(fmus: Mapping[str, str | Path],
     stop_wb : float
         Stop time of the SSP's DefaultExperiment, in wing beats.
     z0 : sequence of 8 floats, optional
-        The orbit's start (:func:`orbit_start`, computed if not given, some 1 s).
+        The orbit's start (:func:`dronefly.models.flapping.orbit_start`, computed if not given, some 1 s).
     """
     if len(gains) != len(lateral_interface.STATE_NAMES):
         raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral_interface.STATE_NAMES)} "

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import fields, replace
-from functools import lru_cache
 from operator import mul
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple, TypeVar
@@ -162,58 +161,119 @@ def _stepper(rows: Rows, scale: Sequence[float], inputs: range, outputs: range) 
 
 def _unrolled(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], int, int], Stepper]] | None":
     """The product and a maker of the fused stepper of :func:`_stepper` for the plants' shapes,
-    [Phi, Gamma] of 4 states and 3 or 4 controls, as straight-line arithmetic on locals (no
-    list, no call inside a step: a third of the cost of the general product); None for any
-    other shape (whose product keeps :func:`dronefly.models.axes.dot`'s floats).
+    [Phi, Gamma] of 4 states and 3 or 4 controls, written out as straight-line arithmetic on
+    locals (no list, no call inside a step: a third of the cost of the general product); None
+    for any other shape.
 
     The stepper detects a value that is not finite from the sum of the outputs alone: every
     control enters every row (with a coefficient 0.0 too, as 0 * inf and 0 * nan are nan), so a
     control that is not finite makes every output so."""
-    if len(rows) != 4 or len({len(row) for row in rows}) != 1 or len(rows[0]) not in (7, 8):
+    if len(rows) != 4 or len({len(row) for row in rows}) != 1:
         return None
-    return _straight_line(len(rows), len(rows[0]) - len(rows))(*(a for row in rows for a in row))
+    if len(rows[0]) == 7:
+        return _unrolled_4x3(rows)
+    if len(rows[0]) == 8:
+        return _unrolled_4x4(rows)
+    return None
 
 
-@lru_cache(maxsize=None)  # one compile per shape (two shapes are used)
-def _straight_line(n: int, m: int) -> Callable[..., "tuple[Product, Callable[[tuple[float, ...], int, int], Stepper]]"]:
-    """``bind(a00, a01, ..., a(n-1)(n+m-1)) -> (product, make)`` of :func:`_unrolled` for n
-    states and m controls, compiled once per shape from source written here: each row summed
-    left to right, ``a0 x0 + ... + a(n-1) x(n-1) + an u0 + ...``; the coefficients are closure
-    variables (exact floats, never printed as text). The same way of writing straight-line
-    code as :func:`dronefly.models.rigid_body._make_functions`: generated for any shape, not
-    written out by hand per shape."""
-    a = [[f"a{i}_{j}" for j in range(n + m)] for i in range(n)]
-    xs = [f"x{j}" for j in range(n)]
-    us = [f"u{j}" for j in range(m)]
-    sums = [" + ".join(f"{a[i][j]} * {v}" for j, v in enumerate(xs + us)) for i in range(n)]
+def _unrolled_4x3(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], int, int], Stepper]]":
+    """:func:`_unrolled` for 4 states and 3 controls (the lateral plant)."""
+    ((a00, a01, a02, a03, a04, a05, a06), (a10, a11, a12, a13, a14, a15, a16),
+     (a20, a21, a22, a23, a24, a25, a26), (a30, a31, a32, a33, a34, a35, a36)) = rows
 
-    def unpack(names: list[str]) -> str:
-        return ", ".join(names) + ("," if len(names) == 1 else "")
+    def product(x: Sequence[float], u: Sequence[float]) -> List[float]:
+        x0, x1, x2, x3 = x
+        u0, u1, u2 = u
+        return [a00 * x0 + a01 * x1 + a02 * x2 + a03 * x3 + a04 * u0 + a05 * u1 + a06 * u2,
+                a10 * x0 + a11 * x1 + a12 * x2 + a13 * x3 + a14 * u0 + a15 * u1 + a16 * u2,
+                a20 * x0 + a21 * x1 + a22 * x2 + a23 * x3 + a24 * u0 + a25 * u1 + a26 * u2,
+                a30 * x0 + a31 * x1 + a32 * x2 + a33 * x3 + a34 * u0 + a35 * u1 + a36 * u2]
 
-    src = [f"def bind({', '.join(c for row in a for c in row)}):",
-           "    def product(x, u):",
-           f"        {unpack(xs)} = x",
-           f"        {unpack(us)} = u",
-           f"        return [{', '.join(sums)}]",
-           "    def make(scale, u_row, y_row):",
-           f"        {unpack([f's{i}' for i in range(n)])} = scale",
-           *(f"        i{j} = u_row + {j}" for j in range(m)),
-           *(f"        o{i} = y_row + {i}" for i in range(n)),
-           "        def stepper(x, r):",
-           f"            {unpack(xs)} = x",
-           *(f"            u{j} = r[i{j}]" for j in range(m)),
-           *(f"            n{i} = {sums[i]}" for i in range(n)),
-           *(f"            y{i} = n{i} * s{i}" for i in range(n)),
-           f"            total = {' + '.join(f'y{i}' for i in range(n))}",
-           "            if total - total != 0.0:",
-           "                return None",
-           *(f"            r[o{i}] = y{i}" for i in range(n)),
-           f"            return [{', '.join(f'n{i}' for i in range(n))}]",
-           "        return stepper",
-           "    return product, make"]
-    namespace: dict[str, Callable[..., Any]] = {}
-    exec(compile("\n".join(src) + "\n", f"<dronefly.models.linear {n}x{m} step>", "exec"), namespace)
-    return namespace["bind"]
+    def make(scale: tuple[float, ...], u_row: int, y_row: int) -> Stepper:
+        s0, s1, s2, s3 = scale
+        i0, i1, i2 = u_row, u_row + 1, u_row + 2
+        o0, o1, o2, o3 = y_row, y_row + 1, y_row + 2, y_row + 3
+
+        def stepper(x: Sequence[float], r: List[float]) -> "List[float] | None":
+            x0, x1, x2, x3 = x
+            u0 = r[i0]
+            u1 = r[i1]
+            u2 = r[i2]
+            n0 = a00 * x0 + a01 * x1 + a02 * x2 + a03 * x3 + a04 * u0 + a05 * u1 + a06 * u2
+            n1 = a10 * x0 + a11 * x1 + a12 * x2 + a13 * x3 + a14 * u0 + a15 * u1 + a16 * u2
+            n2 = a20 * x0 + a21 * x1 + a22 * x2 + a23 * x3 + a24 * u0 + a25 * u1 + a26 * u2
+            n3 = a30 * x0 + a31 * x1 + a32 * x2 + a33 * x3 + a34 * u0 + a35 * u1 + a36 * u2
+            y0 = n0 * s0
+            y1 = n1 * s1
+            y2 = n2 * s2
+            y3 = n3 * s3
+            total = y0 + y1 + y2 + y3  # (a control that is not finite makes every y so)
+            if total - total != 0.0:
+                return None
+            r[o0] = y0
+            r[o1] = y1
+            r[o2] = y2
+            r[o3] = y3
+            return [n0, n1, n2, n3]
+
+        return stepper
+
+    return product, make
+
+
+def _unrolled_4x4(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], int, int], Stepper]]":
+    """:func:`_unrolled` for 4 states and 4 controls (the longitudinal plant)."""
+    ((a00, a01, a02, a03, a04, a05, a06, a07), (a10, a11, a12, a13, a14, a15, a16, a17),
+     (a20, a21, a22, a23, a24, a25, a26, a27), (a30, a31, a32, a33, a34, a35, a36, a37)) = rows
+
+    def product(x: Sequence[float], u: Sequence[float]) -> List[float]:
+        x0, x1, x2, x3 = x
+        u0, u1, u2, u3 = u
+        return [a00 * x0 + a01 * x1 + a02 * x2 + a03 * x3 + a04 * u0 + a05 * u1 + a06 * u2
+                + a07 * u3,
+                a10 * x0 + a11 * x1 + a12 * x2 + a13 * x3 + a14 * u0 + a15 * u1 + a16 * u2
+                + a17 * u3,
+                a20 * x0 + a21 * x1 + a22 * x2 + a23 * x3 + a24 * u0 + a25 * u1 + a26 * u2
+                + a27 * u3,
+                a30 * x0 + a31 * x1 + a32 * x2 + a33 * x3 + a34 * u0 + a35 * u1 + a36 * u2
+                + a37 * u3]
+
+    def make(scale: tuple[float, ...], u_row: int, y_row: int) -> Stepper:
+        s0, s1, s2, s3 = scale
+        i0, i1, i2, i3 = u_row, u_row + 1, u_row + 2, u_row + 3
+        o0, o1, o2, o3 = y_row, y_row + 1, y_row + 2, y_row + 3
+
+        def stepper(x: Sequence[float], r: List[float]) -> "List[float] | None":
+            x0, x1, x2, x3 = x
+            u0 = r[i0]
+            u1 = r[i1]
+            u2 = r[i2]
+            u3 = r[i3]
+            n0 = (a00 * x0 + a01 * x1 + a02 * x2 + a03 * x3 + a04 * u0 + a05 * u1 + a06 * u2
+                  + a07 * u3)
+            n1 = (a10 * x0 + a11 * x1 + a12 * x2 + a13 * x3 + a14 * u0 + a15 * u1 + a16 * u2
+                  + a17 * u3)
+            n2 = (a20 * x0 + a21 * x1 + a22 * x2 + a23 * x3 + a24 * u0 + a25 * u1 + a26 * u2
+                  + a27 * u3)
+            n3 = (a30 * x0 + a31 * x1 + a32 * x2 + a33 * x3 + a34 * u0 + a35 * u1 + a36 * u2
+                  + a37 * u3)
+            y0 = n0 * s0
+            y1 = n1 * s1
+            y2 = n2 * s2
+            y3 = n3 * s3
+            total = y0 + y1 + y2 + y3  # (a control that is not finite makes every y so)
+            if total - total != 0.0:
+                return None
+            r[o0] = y0
+            r[o1] = y1
+            r[o2] = y2
+            r[o3] = y3
+            return [n0, n1, n2, n3]
+
+        return stepper
+
+    return product, make
 
 
 def finite_rows(A: "list[list[float]]", B: "list[list[float]]", error: type,

@@ -77,8 +77,26 @@ def _ssv_type(value: object) -> tuple[str, str]:
 
 
 def write_system_ssp(system: System, path: str | Path, *, description: str = "",
-                     stop_s: float | None = None) -> Path:
-    """Write ``system`` as an SSP 1.0 archive at ``path`` and return the path.
+                     stop_s: float | None = None, entries: Mapping[str, str] | None = None,
+                     connector_types: Sequence[str] = ("Real", "Integer", "Boolean")) -> Path:
+    """Write ``system`` as an SSP 1.0 archive at ``path`` and return the path: the project's
+    one SSP writer (:meth:`System.from_ssp` is its reader).
+
+    Parameters
+    ----------
+    system : System
+        The FMUs, connections and parameter values; an instance named in
+        ``system.parameters`` gets a ParameterBinding and its ``.ssv`` even if it binds no value.
+    path : str or Path
+        The archive to write.
+    description : str
+        The System element's description.
+    stop_s : float, optional
+        The DefaultExperiment's stop time, s (default ``system.stop_s``; none if both None).
+    entries : mapping, optional
+        Instance -> the FMU's file name under ``resources/`` (default: the file's own name).
+    connector_types : sequence of str
+        The SSP connector types (``Real``, ``Integer``, ``Boolean``) written as connectors.
 
     Raises
     ------
@@ -98,14 +116,16 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
         if not inst.isidentifier():
             raise SystemSpecError(f"instance name {inst!r} must be an identifier")
         data = Path(fmu).read_bytes()
-        entry = sources.setdefault(data, f"resources/{Path(fmu).name}")
+        file_name = (entries or {}).get(inst, Path(fmu).name)
+        entry = sources.setdefault(data, f"resources/{file_name}")
         if files.get(entry, data) != data:
-            raise SystemSpecError(f"two different FMUs are named {Path(fmu).name!r}")
+            raise SystemSpecError(f"two different FMUs are named {file_name!r}")
         files[entry] = data
         comp = ET.SubElement(elements, f"{{{_SSD}}}Component", {
             "name": inst, "source": entry, "type": "application/x-fmu-sharedlibrary"})
         ports = [(v.name, v.causality, _SSP_TYPES[v.type]) for v in read_view(fmu).modelVariables
-                 if v.causality in ("input", "output") and v.type in _SSP_TYPES]
+                 if v.causality in ("input", "output")
+                 and _SSP_TYPES.get(v.type) in connector_types]
         if ports:  # the schema wants a Connector in Connectors: none without
             connectors = ET.SubElement(comp, f"{{{_SSD}}}Connectors")
             for name, kind, ssp_type in ports:
@@ -113,7 +133,7 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
                                     {"name": name, "kind": kind})
                 ET.SubElement(con, f"{{{_SSC}}}{ssp_type}")
         values = system.parameters.get(inst)
-        if values:
+        if values is not None:
             bindings = ET.SubElement(comp, f"{{{_SSD}}}ParameterBindings")
             ET.SubElement(bindings, f"{{{_SSD}}}ParameterBinding",
                           {"source": f"resources/{inst}.ssv"})

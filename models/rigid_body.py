@@ -44,7 +44,6 @@ import math
 import re
 from dataclasses import dataclass
 from functools import lru_cache
-from operator import mul
 from typing import Any, Callable, Protocol, Sequence
 
 from ..core.errors import DroneflyError
@@ -312,8 +311,8 @@ class Hover6DOF:
         """dx/dt+ of the 13-value state with the lateral (3) and longitudinal (4) controls."""
         if self.aerodynamics is not None:
             return self._rhs(x, self._acc(c_lat, c_lon))
-        bl = [sum(k * c for k, c in zip(row, c_lat)) for row in self._lat[1]]
-        bn = [sum(k * c for k, c in zip(row, c_lon)) for row in self._lon[1]]
+        bl = [_dot(row, c_lat) for row in self._lat[1]]
+        bn = [_dot(row, c_lon) for row in self._lon[1]]
         return self._rhs(x, bl, bn)
 
     def step(self, x: Sequence[float], c_lat: Sequence[float], c_lon: Sequence[float],
@@ -331,8 +330,8 @@ class Hover6DOF:
         if qs:
             args: tuple = (self._acc(c_lat, c_lon),)
         else:
-            args = ([sum(map(mul, row, c_lat)) for row in self._lat[1]],
-                    [sum(map(mul, row, c_lon)) for row in self._lon[1]])
+            args = ([_dot(row, c_lat) for row in self._lat[1]],
+                    [_dot(row, c_lon) for row in self._lon[1]])
         rate = math.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5])
         top, turn = ((MAX_SUBSTEP_QS_WB, MAX_TURN_PER_SUBSTEP_QS_RAD) if qs
                      else (MAX_SUBSTEP_WB, MAX_TURN_PER_SUBSTEP_RAD))
@@ -347,12 +346,22 @@ class Hover6DOF:
         except (OverflowError, ValueError, FloatingPointError) as e:  # the aerodynamics' own
             raise Hover6DOFError(f"the aerodynamics failed in a step of {h_wb!r} wing beats "
                                  f"(from u, v, w, p, q, r = {list(x[:6])!r}): {e}") from e
-        norm = math.sqrt(sum(c * c for c in y[6:10]))  # finiteness on the sum: faster
+        e0, e1, e2, e3 = y[6:10]
+        norm = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)  # finiteness on the sum: faster
         if not (math.isfinite(sum(y)) or all(math.isfinite(a) for a in y)) or not norm > 0.0:
             raise Hover6DOFError(f"the state is not finite after a step of {h_wb!r} wing beats "
                                  f"(from u, v, w, p, q, r = {list(x[:6])!r})")
         y[6:10] = [c / norm for c in y[6:10]]
         return y
+
+
+def _dot(row: Sequence[float], c: Sequence[float]) -> float:
+    """The sum of ``row[i] * c[i]``, left to right: the same float on every Python (``sum`` of
+    floats is compensated from Python 3.12 on) and in the native FMU (fmu_src/hover6dof/model.c)."""
+    s = 0.0
+    for k, x in zip(row, c):
+        s += k * x
+    return s
 
 
 def _as_list(values: Any) -> list:

@@ -392,7 +392,7 @@ def test_a_checkout_named_dronefly_is_the_package(tmp_path):
                        env={k: v for k, v in __import__("os").environ.items()
                             if k != "PYTHONPATH"})
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split() == [str(tmp_path / "dronefly" / "builder" / "build.py"),
+    assert r.stdout.split() == [str(tmp_path / "dronefly" / "harness" / "builder" / "build.py"),
                                 str(tmp_path / "dronefly" / "cli" / "app.py")]
 
 

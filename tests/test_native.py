@@ -127,16 +127,29 @@ def _bound(ref: np.ndarray, names: list[str], steps: int, columns: int, growth: 
 def _growth(name: str, span_s: float) -> float:
     """How much a plant's open loop can amplify an error over ``span_s``: exp(largest real part
     of eig(A) per wing beat x the wing beats) (lateral: 10.6 over 30 wing beats; longitudinal:
-    17.9 over 60); 1 for a controller, whose outputs are each step's product alone."""
+    17.9 over 60); for the rigid body, the larger of the two (linearised about hover it is the
+    two linear plants, and the reference run stays near hover: the lateral one's, 112 over its
+    60 wing beats); 1
+    for a controller, whose outputs are each step's product alone."""
     from dronefly.models import lateral_dynamics, longitudinal_dynamics
     from dronefly.models.lateral_interface import N_HZ
 
-    module = {"DroneFlyLateral": lateral_dynamics,
-              "DroneFlyLongitudinal": longitudinal_dynamics}.get(name)
-    if module is None:
-        return 1.0
-    A = module.system_matrices(module.default_parameters())[0]
-    return math.exp(max(float(np.max(np.linalg.eigvals(A).real)), 0.0) * span_s * N_HZ)
+    modules = {"DroneFlyLateral": (lateral_dynamics,),
+               "DroneFlyLongitudinal": (longitudinal_dynamics,),
+               "DroneFlyHover6DOF": (lateral_dynamics, longitudinal_dynamics)}.get(name, ())
+    rate = 0.0
+    for module in modules:
+        A = module.system_matrices(module.default_parameters())[0]
+        rate = max(rate, float(np.max(np.linalg.eigvals(A).real)))
+    return math.exp(rate * span_s * N_HZ)
+
+
+#: rounded operations per value and step: a linear plant's or controller's row product (8
+#: terms); the rigid body's order-6 sub-step (one per step in its reference run: 0.1 wing beat
+#: is under MAX_SUBSTEP_WB, and its turn rates are far under 0.5 rad per wing beat): 7 stages of
+#: at most 15 operations of the right-hand side (_RHS's a_u line with gravity and transport)
+#: and 11 of a stage's input, and the result's 11: 7 * (15 + 11) + 11 = 193
+_OPERATIONS = {"DroneFlyHover6DOF": 193}
 
 
 @pytest.mark.parametrize("fmi", (2, 3))
@@ -161,7 +174,8 @@ def test_native_reproduces_the_reference(native_fmus, python_fmus, name, fmi):
     got = fmpy.simulate_fmu(str(native_fmus[name, fmi]), **kw)
     twin = fmpy.simulate_fmu(str(python_fmus[name, fmi]), **kw)
     steps = len(ref) - 1
-    bound = _bound(ref, names, steps, 8, _growth(name, float(ref["time"][-1] - ref["time"][0])))
+    bound = _bound(ref, names, steps, _OPERATIONS.get(name, 8),
+                   _growth(name, float(ref["time"][-1] - ref["time"][0])))
     for n in names:
         a, b = got[n].astype(float), ref[n].astype(float)
         assert np.max(np.abs(a - b)) <= bound, (n, np.max(np.abs(a - b)), bound)
@@ -244,24 +258,26 @@ def _bad_step(s, fmu):
 
 @pytest.mark.parametrize("fmi", (2, 3))
 @pytest.mark.parametrize("case", (_nan_input, _bad_step), ids=("nan-input", "bad-step"))
-def test_the_same_refusals_with_the_same_message(native_fmus, python_fmus, fmi, case):
+@pytest.mark.parametrize("name", ("DroneFlyLateral", "DroneFlyHover6DOF"))
+def test_the_same_refusals_with_the_same_message(native_fmus, python_fmus, name, fmi, case):
     """A NaN input (Discard) and a step size that is not > 0 (FMI 2.0: Discard, 3.0: Error):
     the native FMU answers with the pythonfmu FMU's status and logs its message, which names
     the value."""
-    got = _run_messages(native_fmus["DroneFlyLateral", fmi], fmi, case)
-    want = _run_messages(python_fmus["DroneFlyLateral", fmi], fmi, case)
+    got = _run_messages(native_fmus[name, fmi], fmi, case)
+    want = _run_messages(python_fmus[name, fmi], fmi, case)
     assert got[0] == want[0] != 0
     assert any(("nan" in m or "-1.0" in m) for m in got[1])
     assert [m.split(": ", 1)[1] for m in got[1]] == [m.split(": ", 1)[1] for m in want[1]]
 
 
 @pytest.mark.parametrize("fmi", (2, 3))
-def test_state_get_set_serialize_and_reset(native_fmus, fmi):
+@pytest.mark.parametrize("name", ("DroneFlyLateral", "DroneFlyHover6DOF"))
+def test_state_get_set_serialize_and_reset(native_fmus, name, fmi):
     """A serialized state restored into another instance continues bit for bit; a refused
     (corrupt) state leaves the instance unchanged; reset starts over."""
     from dronefly.harness.cosim.fmu import FMU
 
-    path = native_fmus["DroneFlyLateral", fmi]
+    path = native_fmus[name, fmi]
     h = 1e-3
     with FMU(path) as fmu:
         outs = [fmu.vr(n) for n in ("delta_v", "delta_p", "delta_r", "delta_gamma")]
@@ -425,7 +441,7 @@ int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a
 #: (the cases that also run the pythonfmu twins run them in a Python whose every allocation goes
 #: through the sanitizer: a few only)
 _SANITIZED_CASES = ("expm or state_get or delay_line or reproduces and DroneFlyLateral or "
-                    "variants and sampled and integral and 2")
+                    "aerodynamics or variants and sampled-delayed-integral-2")
 
 
 @pytest.mark.skipif(_SANITIZE, reason="(this is the run the test starts)")
@@ -592,3 +608,38 @@ def test_fmi3_get_with_too_few_values_is_refused_with_a_message(native_fmus, tmp
     finally:
         slave.terminate()
         slave.freeInstance()
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+def test_hover6dof_aerodynamics_quasi_steady_is_refused_with_a_message(native_fmus, python_fmus,
+                                                                       fmi):
+    """docs/native.md: the native DroneFlyHover6DOF has the linear aerodynamics only. Its
+    ``aerodynamics`` parameter is the pythonfmu FMU's (one interface); the value 2
+    (quasi_steady) is refused, never computed as something else: the outputs' fetch before
+    initialization keeps the last values, the initialization reports and every step is
+    refused (Discard), each with a logged message naming the value and the FMU to take. A value that is neither is refused as the pythonfmu FMU refuses it."""
+    from dronefly.harness.compliance.fuzzkit import status_of
+    from dronefly.harness.cosim.fmu import FMU
+
+    def run(path, value):
+        with FMU(path) as fmu, fmu.instantiate("a") as inst:
+            s = inst.slave
+            s.setupExperiment(startTime=0.0)
+            s.enterInitializationMode()
+            s.setInteger([fmu.vr("aerodynamics")], [value])
+            got = status_of(lambda: s.getReal([fmu.vr("delta_v")]))
+            s.exitInitializationMode()
+            step = status_of(lambda: s.doStep(currentCommunicationPoint=0.0,
+                                              communicationStepSize=1e-3))
+            return got, step, [m.message for m in inst.messages]
+
+    _, step, messages = run(native_fmus["DroneFlyHover6DOF", fmi], 2)
+    assert step != 0, (step, messages)
+    assert sum("aerodynamics = 2 (quasi_steady)" in m and "pythonfmu DroneFlyHover6DOF" in m
+               for m in messages) >= 3, messages  # the fetch, the initialization, the step
+    assert any("outputs keep their last valid values" in m for m in messages), messages
+    ours, theirs = (run(f, 3) for f in (native_fmus["DroneFlyHover6DOF", fmi],
+                                        python_fmus["DroneFlyHover6DOF", fmi]))
+    assert ours[1] == theirs[1] != 0
+    assert any("aerodynamics = 3: expected 1 (linear) or 2 (quasi_steady)" in m for m in ours[2])
+    assert any("aerodynamics = 3: expected 1 (linear) or 2 (quasi_steady)" in m for m in theirs[2])

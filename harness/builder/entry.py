@@ -136,7 +136,7 @@ _ENTRY3 = Template('''\
 # Entry module named in resources/slavemodule.txt. pythonfmu3's wrapper imports it and takes
 # the class defined on a line "class <Name>(...Fmi3Slave...):" in this file.
 ${cannot_start}try:
-    from $pkg.fmi.fmi3 import fmi3_class
+    from $pkg.fmi.base3 import fmi3_class
     from $pkg.$module import $cls as _Model
 
     Fmi3Slave = fmi3_class(_Model)

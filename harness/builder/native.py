@@ -69,10 +69,15 @@ class _NativeSpec:
     cls: str
     model_dir: str  # the folder of model.c and model.h
     shared: tuple[str, ...]  # shared C files below native/
+    #: other models' files that model.c includes: (name in sources/, path in the package)
+    included: tuple[tuple[str, str], ...] = ()
 
 
 _PLANT_C = ("exact.h", "fmu.c", "fmu.h", "expm.c", "expm.h", "linear_plant.c", "linear_plant.h")
 _CONTROLLER_C = ("exact.h", "fmu.c", "fmu.h")
+#: the rigid body takes its aerodynamic rows from the linear plants' A and B, their own C
+_HOVER_INCLUDED = (("lateral_plant.inc", "fmu_src/lateral/model.c"),
+                   ("longitudinal_plant.inc", "fmu_src/longitudinal/model.c"))
 
 #: the native FMUs: model name -> where its equations and interface live
 NATIVE_FMUS: dict[str, _NativeSpec] = {
@@ -87,6 +92,8 @@ NATIVE_FMUS: dict[str, _NativeSpec] = {
                                         _CONTROLLER_C),
     "StateFeedbackLongitudinalDelayed": _NativeSpec(
         "controller.slave", "StateFeedbackLongitudinalDelayed", "controller", _CONTROLLER_C),
+    "DroneFlyHover6DOF": _NativeSpec("fmu_src.hover6dof.slave", "DroneFlyHover6DOF",
+                                     "fmu_src/hover6dof", _CONTROLLER_C, _HOVER_INCLUDED),
 }
 
 def c_name(name: str) -> str:
@@ -181,6 +188,8 @@ def _c_files(name: str) -> dict[str, bytes]:
     files = {f: (_ROOT / "native" / f).read_bytes() for f in spec.shared}
     for f in ("model.c", "model.h"):
         files[f] = (_ROOT / spec.model_dir / f).read_bytes()
+    for f, path in spec.included:
+        files[f] = (_ROOT / path).read_bytes()
     return files
 
 

@@ -1,8 +1,8 @@
 """Benchmark of ``dronefly check`` on the Reference-FMUs (``../shared/reference-fmus``).
 
 Times ``dronefly check`` by the wall clock (and its CPU time, which a loaded machine does not
-inflate), once per Co-Simulation FMU (the default checks and
-profile, Roberts with ``--stop-time 1``; each FMU in its own process, as the CLI runs it), and
+inflate), once per FMU it checks (the default checks and profile, the Model Exchange ones
+included where the FMU has the interface, Roberts with ``--stop-time 1``; each FMU in its own process, as the CLI runs it), and
 then all of them in one command with ``-j 1`` and with ``-j 2``. Reports the median and the
 largest time per FMU and the two totals, with the cores and the load average. The targets:
 at most 2 s per FMU (median), and ``-j 2`` about half of ``-j 1``; exits 1 when the

@@ -1,4 +1,4 @@
-"""Benchmark of the flapping plant (issue 30): the cost of a simulated wing beat through FMI and
+"""Benchmark of the flapping plant: the cost of a simulated wing beat through FMI and
 of the Floquet analysis through FMI.
 
 - ``beat``: ``DroneFlyFlapping`` (FMI 2.0) through fmpy's ``FMU2Slave``, one core, 10 wing beats

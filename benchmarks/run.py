@@ -15,7 +15,7 @@ alike):
           (DroneFlyLateral + DroneFlyLongitudinal) and against DroneFlyLateral alone, through
           FMI, and against the pair in-process (model classes), at steps of 0.1 and 1 wing
           beat (benchmarks/plants.py)
-Prints medians and the ratios ours/floor (target <= 1.2, issue 28: everything we add, FMU
+Prints medians and the ratios ours/floor (target <= 1.2: everything we add, FMU
 code and master, over the unavoidable FMI calls), master/floor (what the master alone adds),
 SystemMaster/dedicated pair master (target <= 1.05), and per system the cost per step (a run of
 N steps less a run of 1 step, over N - 1: without instantiation), the FMI calls per step
@@ -46,7 +46,7 @@ HERE = Path(__file__).resolve().parent
 #: process's CPU time BLAS threads spinning after the analyses' numpy calls), or the wall time
 #: (``--clock wall``)
 CLOCK = [time.thread_time]
-#: the closed-loop step's target: ours/floor at most this (issue 28)
+#: the closed-loop step's target: ours/floor at most this
 TARGET_OURS = 1.2
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))  # the dedicated pair master: the tests' oracle

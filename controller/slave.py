@@ -6,7 +6,8 @@ default) and their ``...Delayed`` variants (``sensing_delay`` > 0 required, no d
 feedthrough declared). The internal state is the delay line and the integral z
 (:class:`.delay.Sensor`); the outputs are recomputed whenever an output is read after a
 value was set (feedthrough FMUs) and at the end of every step. All numbers come from
-:mod:`.law`, the timing from :mod:`.delay`, the variables from :mod:`.variables`.
+:mod:`dronefly.models.feedback`, the timing from :mod:`.delay`, the variables from
+:mod:`.variables`.
 """
 
 from __future__ import annotations

@@ -1,13 +1,13 @@
 """Co-simulation slave base shared by the project's FMUs (shipped inside each FMU).
 
 One implementation, two FMI wrappers: :class:`SlaveBase` is the FMI 2.0 slave (pythonfmu
-0.7.0); :func:`.fmi3.fmi3_class` makes any subclass an FMI 3.0 slave (pythonfmu3).
+0.7.0); :func:`.base3.fmi3_class` makes any subclass an FMI 3.0 slave (pythonfmu3).
 
 - :mod:`.base`: :class:`SlaveBase`, storage, hooks and the FMI 2.0 binding;
 - :mod:`.calls`: the lifecycle, doStep and the call-sequence table (both versions);
-- :mod:`.fmi3`, :mod:`.table3`: the FMI 3.0 side (arrays, ``time``, statuses);
+- :mod:`.base3`, :mod:`.table3`: the FMI 3.0 side (arrays, ``time``, statuses);
 - :mod:`.vars`: the variable table (:class:`Var`) and the unit definitions (``UNITS``);
-- :mod:`.values`: fmi2Get/fmi2Set of every type;
+- :mod:`.access`: fmi2Get/fmi2Set of every type;
 - :mod:`.state`: FMU states, their serialisation and refusal;
 - :mod:`.host`: what the host process needs (``sys.path``, exit, FMPy's container).
 """

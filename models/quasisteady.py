@@ -100,7 +100,6 @@ __all__ = [
     "Trim",
     "WingGeometry",
     "gauss_jacobi",
-    "weight_plus",
 ]
 
 Array = NDArray[np.float64]
@@ -233,12 +232,6 @@ class WingGeometry:
                    q=(1.0 - r1_hat) * common, S_wing=data["S_wing"] / c**2, Phi_rad=Phi, k=k,
                    hinge=hinge, rotation_fraction=body["rotation_fraction"],
                    weight=scales["m_plus"] * scales["g_plus"])
-
-
-def weight_plus(data: Mapping[str, float] = FLIGHT_DATA) -> float:
-    """W+ = m g / (0.5 rho U^2 S_t) = m+ g+ from the flight data (non-dimensional)."""
-    s = reference_scales(data)
-    return s["m_plus"] * s["g_plus"]
 
 
 @dataclass(frozen=True)
@@ -619,7 +612,7 @@ class QuasiSteadyModel:
         # per wing-sample and element, the rows that x1 turns into V_n, V_c, the rotational
         # force factor f = rot omega_p and the added mass's m_a (V_n - mid omega_p): one
         # product per state, x1 @ (7, 4 T2 S) (long rows: a fast product; (4, T2, S, 7) @ x1
-        # costs five times as much)
+        # is the slow layout)
         Vn = A[0][:, None, :] + r[None, :, None] * B[0][:, None, :]
         Vc = A[1][:, None, :] + r[None, :, None] * B[1][:, None, :]
         om = A[2][:, None, :]

@@ -33,9 +33,9 @@ the package's one exception, :func:`_make_functions` (seven Runge-Kutta stages o
 with the terms chosen per instance: written out by hand that is hundreds of lines per choice of
 terms); everything else is plain code, written out by hand where it must be fast (the linear
 plants' steps of :mod:`dronefly.models.linear`, the control law's one row). Plain Python
-functions for these equations take the 6-DOF/pair cost ratio through FMI over its target of 5
-(docs/benchmarks.md, "Generated code", with the measurement); no other code has a measured
-need for exec, which an FMU reviewer must read as generated text.
+functions for these equations cost more per step and take the 6-DOF/pair cost ratio through
+FMI over its target of 5 (docs/benchmarks.md, "Generated code", says how to measure it); no
+other code has a measured need for exec, which an FMU reviewer must read as generated text.
 """
 
 from __future__ import annotations

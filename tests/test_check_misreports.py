@@ -1,10 +1,12 @@
-"""`dronefly check` reports each defect once, under the rule the FMU broke (issue 38's four
-misreports), on FMUs built here: Reference-FMUs (``../shared/reference-fmus``) with an edited
+"""`dronefly check` reports each defect once, under the rule the FMU broke (four
+defects once reported twice or under another rule), on FMUs built here: Reference-FMUs (``../shared/reference-fmus``) with an edited
 modelDescription.xml or archive layout, or rebuilt with gcc from their shipped sources after an
 edit that seeds one defect."""
 
 from __future__ import annotations
 
+import json
+import re
 import shutil
 import sys
 import zipfile
@@ -15,7 +17,7 @@ import pytest
 
 from dronefly.cli.app import main
 from dronefly.harness.compliance.checker import CheckOptions
-from dronefly.harness.compliance.suite import check_fmu
+from dronefly.harness.compliance.suite import JSON_SCHEMA_FILE, check_fmu, reports_json
 from dronefly.harness.cosim.fmu import FMU, FMUError
 from fmu_helpers import rebuilt_reference_fmu
 
@@ -326,28 +328,118 @@ OUTPUTS_LIE = {
 }
 
 
+#: what ``me:dependencies`` says of the lie: found by a get after a set in Continuous-Time Mode
+ME_LIE = ("Float64_continuous_output (declared in Outputs with no dependency among the inputs) "
+          "changed when only Float64_continuous_input was set, in Continuous-Time Mode (set, "
+          "then get)")
+
+
 @pytest.mark.parametrize("version", list(OUTPUTS_LIE))
 def test_an_outputs_dependency_lie_fails_dependencies_only(tmp_path, version):
     """Feedthrough with Float64_continuous_output declared in <Outputs> without a dependency
     (InitialUnknowns left truthful) while it follows Float64_continuous_input directly: two
     continuations from one saved FMU state, with the input as it was and moved, differ by O(1)
-    over a step of 1e-3 and of 1e-4 of the run's: ``dependencies`` fails, only it, FMI 2.0
-    and 3.0 alike."""
+    over a step of 1e-3 and of 1e-4 of the run's: ``dependencies`` fails; through Model
+    Exchange, a get after a set in Continuous-Time Mode sees it: ``me:dependencies`` fails;
+    no other check, FMI 2.0 and 3.0 alike."""
     fmu = _copy(REF / version / "Feedthrough.fmu", tmp_path / "Feedthrough.fmu",
                 (OUTPUTS_LIE[version],))
     report = check_fmu(fmu, fuzz=False, isolate=False)
     failed = _failed(report)
-    assert set(failed) == {"dependencies"}, report.checks
+    assert set(failed) == {"dependencies", "me:dependencies"}, report.checks
     assert failed["dependencies"].detail.startswith(
         "Float64_continuous_output (declared in Outputs with no dependency among the inputs) "
         "changed when only Float64_continuous_input was set, in Step Mode"), \
         failed["dependencies"].detail
+    assert failed["me:dependencies"].detail.startswith(ME_LIE), failed["me:dependencies"].detail
 
 
 # -- Model Exchange -----------------------------------------------------------------------------
+def _me_only(src: Path, dst: Path, md_edits: tuple[tuple[bytes, bytes], ...] = ()) -> Path:
+    """A copy of a Reference-FMU with its <CoSimulation> element left out (Model Exchange
+    only) and ``md_edits``."""
+    text = zipfile.ZipFile(src).read("modelDescription.xml")
+    cs = re.search(rb"<CoSimulation[^>]*/>|<CoSimulation\b.*?</CoSimulation>", text, re.S)
+    assert cs is not None
+    return _copy(src, dst, ((cs.group(0), b""), *md_edits))
+
+
+#: the Model Exchange checks, each passed or said not to apply (no inputs, no exact start)
+ME_CHECKS = ("model-exchange", "me:call-sequence", "me:start-values", "me:dependencies",
+             "me:reset", "me:two-instances", "me:state")
+
+
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+@pytest.mark.parametrize("model", ["Feedthrough", "Stair"])
+def test_a_model_exchange_only_fmu_is_checked(tmp_path, model, version):
+    """A Reference-FMU without its <CoSimulation> element is checked, not declined (in its
+    checking process, as the CLI runs it): the static and binary checks (the Model Exchange
+    functions) and every Model Exchange check pass; of the Co-Simulation checks only
+    ``call-sequence`` is listed, saying it does not apply. Stair's reset holds through Model
+    Exchange (see :func:`test_stairs_reset_defect_is_its_co_simulation_step_only`)."""
+    fmu = _me_only(REF / version / f"{model}.fmu", tmp_path / f"{model}.fmu")
+    assert "<CoSimulation" not in zipfile.ZipFile(fmu).read("modelDescription.xml").decode()
+    report = check_fmu(fmu, fuzz=False)
+    assert not report.skipped, report.skipped
+    assert report.passed, [c for c in report.checks if not c.passed]
+    by = _by_name(report)
+    assert [c.name for c in report.checks] == ["validate", "archive", "binary",
+                                               "call-sequence", *ME_CHECKS]
+    assert by["call-sequence"].detail == "not applicable: no Co-Simulation interface"
+    assert by["binary"].passed and not by["binary"].skipped, by["binary"]
+    run = ["model-exchange", "me:call-sequence", "me:reset", "me:two-instances", "me:state"]
+    if model == "Feedthrough":
+        run.append("me:dependencies")
+    for name in run:
+        assert by[name].status == "passed", by[name]
+    # its --json document validates against the shipped schema, the me: names included
+    import jsonschema
+
+    doc = reports_json([report])
+    jsonschema.validate(doc, json.loads(JSON_SCHEMA_FILE.read_text(encoding="utf-8")))
+    assert "me:reset" in [c["name"] for c in doc["fmus"][0]["checks"]]
+
+
+@pytest.mark.parametrize("version", list(OUTPUTS_LIE))
+def test_an_outputs_dependency_lie_in_a_model_exchange_only_fmu(tmp_path, version):
+    """The Outputs dependency lie in a Feedthrough with Model Exchange only: a get after a set
+    in Continuous-Time Mode sees Float64_continuous_output follow its input; only
+    ``me:dependencies`` fails, FMI 2.0 and 3.0 alike."""
+    fmu = _me_only(REF / version / "Feedthrough.fmu", tmp_path / "Feedthrough.fmu",
+                   (OUTPUTS_LIE[version],))
+    report = check_fmu(fmu, fuzz=False, isolate=False)
+    failed = _failed(report)
+    assert set(failed) == {"me:dependencies"}, report.checks
+    assert failed["me:dependencies"].detail.startswith(ME_LIE), failed["me:dependencies"].detail
+
+
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+def test_stairs_reset_defect_is_its_co_simulation_step_only(version):
+    """Stair at its default experiment fails ``reset`` through Co-Simulation and passes
+    ``me:reset``. Its sources' reset() (cosimulation.c) leaves terminateSimulation true from
+    the first run; only fmi2DoStep / fmi3DoStep read that flag (the run after the reset ends
+    at its first step). Through Model Exchange the flag is recomputed by eventUpdate (model.c:
+    terminateSimulation = counter >= 10) in the event iteration of initialization before any
+    function reports it, and the counter and nextEventTime are reset by setStartValues: the
+    run after fmi2Reset / fmi3Reset equals the first, to its end at 9 s. ``me:state`` passes:
+    a restored FMU state keeps its next time event."""
+    report = check_fmu(REF / version / "Stair.fmu", fuzz=False, isolate=False,
+                       options=CheckOptions(only=("call-sequence", "reset", "model-exchange",
+                                                  "me:call-sequence", "me:reset", "me:state")))
+    by = _by_name(report)
+    assert set(_failed(report)) == {"reset"}, report.checks
+    assert by["reset"].detail.startswith(f"the run after fmi{version[-1]}Reset differs from "
+                                         "the first: the FMU ended it at t = 0.2 s")
+    assert by["me:reset"].status == "passed"
+    # its time events (nextEventTime) kept with a saved FMU state: restored at t = 5 s, the
+    # counter steps at 6, 7, 8 s and the run ends at 9 s as the original did
+    assert by["me:state"].status == "passed", by["me:state"]
+    assert "the FMU ended the run at t = 9 s" in by["me:call-sequence"].detail
+
+
 @pytest.mark.parametrize("version", ["fmi2", "fmi3"])
 @pytest.mark.parametrize("model", ["BouncingBall", "Dahlquist", "Stair", "VanDerPol"])
-def test_reference_fmus_pass_through_model_exchange(model, version):
+def test_reference_fmus_pass_model_exchange(model, version):
     """The Reference-FMUs with both interfaces pass ``model-exchange`` (FMPy's Model Exchange
     simulation with CVODE and its event handling; Stair's terminateSimulation at 9 s ends it)."""
     c = _by_name(check_fmu(REF / version / f"{model}.fmu", fuzz=False, isolate=False,
@@ -360,7 +452,8 @@ def test_reference_fmus_pass_through_model_exchange(model, version):
 @needs_gcc
 def test_an_event_iteration_that_never_ends_fails_model_exchange(tmp_path):
     """Dahlquist rebuilt so that fmi2NewDiscreteStates always asks for another iteration:
-    ``model-exchange`` fails (the event iteration must terminate), no other check."""
+    ``model-exchange`` fails (the event iteration must terminate), no other check (the other
+    Model Exchange checks are not run: they depend on it)."""
     edits = {"fmi2Functions.c": [
         ("    eventInfo->newDiscreteStatesNeeded           = S->newDiscreteStatesNeeded;",
          "    eventInfo->newDiscreteStatesNeeded           = fmi2True;")]}
@@ -371,3 +464,6 @@ def test_an_event_iteration_that_never_ends_fails_model_exchange(tmp_path):
     assert set(failed) == {"model-exchange"}, report.checks
     assert failed["model-exchange"].detail.startswith(
         "the event iteration of initialization did not terminate in 1000 iterations")
+    by = _by_name(report)
+    for name in ME_CHECKS[1:]:
+        assert by[name].detail.startswith("not run: it depends on model-exchange"), by[name]

@@ -1,4 +1,4 @@
-"""Issue 36: what a command will write is checked before it works, and options that cannot take
+"""What a command will write is checked before it works, and options that cannot take
 effect are refused (exit 2, one line naming the option and the value)."""
 
 from __future__ import annotations

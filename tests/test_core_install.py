@@ -1,5 +1,5 @@
 """The core install (``pip install dronefly-fmu``, no extra) runs every command with its defaults:
-every command's ``--help`` and every example its help prints exit 0 there (issue 36, point 7).
+every command's ``--help`` and every example its help prints exit 0 there.
 The documented examples (README, docs/) run in the same environment: tests/test_docs.py.
 
 A missing optional package costs only its feature, with one line saying so (a plot skipped,

@@ -1,4 +1,4 @@
-"""What the docs and the help texts state is what the code does (issue 36, point 11): the
+"""What the docs and the help texts state is what the code does: the
 options a command lists, the FMI versions it accepts, the number of FMUs, what a documented
 command prints, and which statements are measurements and which conjecture."""
 
@@ -60,7 +60,7 @@ def test_fmu_counts_in_the_docs_are_the_builds(built_fmus, built_fmus3):
     number that `dronefly check` checks by default (every FMU that `dronefly build` writes:
     FMI 2.0 with the container FMU, and FMI 3.0)."""
     fmi3 = (DOCS / "fmi3.md").read_text(encoding="utf-8")
-    m = re.search(r"(\w+) FMUs \(`dronefly\.builder\.build\.FMUS`\)", fmi3)
+    m = re.search(r"(\w+) FMUs \(`dronefly\.harness\.builder\.build\.FMUS`\)", fmi3)
     assert m and _WORDS[m.group(1).lower()] == len(FMUS)
     listing = fmi3[:m.start()]
     assert all(f"{name}.fmu" in listing for name in FMUS), "the build listing misses an FMU"

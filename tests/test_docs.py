@@ -67,7 +67,7 @@ def _env(bin_dir: Path) -> dict[str, str]:
 
 
 # The blocks marked skip, by document: a new skip must be added here on purpose.
-SKIPPED = {"README.md": 1, "latency.md": 1, "sweep.md": 1, "usage.md": 1}
+SKIPPED = {"README.md": 1, "latency.md": 1, "mutation.md": 1, "sweep.md": 1, "usage.md": 1}
 
 
 def test_every_block_is_run_or_skipped_with_a_reason():
@@ -126,7 +126,7 @@ def test_block_runs_verbatim(doc, lang, body, mark, printed, tmp_path, request):
 
 
 def test_readme_is_short_and_its_layout_names_every_folder():
-    """Issue 26: the README stays at most 12 kB, and its layout table names every folder of
+    """The README stays at most 12 kB, and its layout table names every folder of
     the package's floors (the top-level ones, those of harness/ and fmu_src/) and the two
     helper folders tests/c_host and benchmarks/null_fmus."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")

@@ -344,7 +344,7 @@ def test_the_averaged_twin_is_the_quasi_steady_linear_model():
 def test_with_averaged_forces_it_is_the_quasi_steady_6dof_plant():
     """The flapping model with its forces replaced by their cycle average (and so no wing
     inertia, zero on average) flies as DroneFlyHover6DOF's model with the quasi-steady
-    aerodynamics (issue 29) and the same body (Sect. 2.4 mass and inertias): over 10 wing beats
+    aerodynamics and the same body (Sect. 2.4 mass and inertias): over 10 wing beats
     from a lateral disturbance the states agree to 1e-5 of the disturbance. The bound is the
     6-DOF plant's sub-steps (half a wing beat at most; measured 4.2e-6 of the disturbance
     against finer ones), not the flapping model's 40 RK4 steps per beat; measured 3.3e-6."""

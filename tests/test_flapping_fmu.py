@@ -125,7 +125,7 @@ def test_floquet_command_json(built_fmus, capsys):
 
 @pytest.mark.numeric
 def test_with_forces_averaged_the_fmu_flies_as_the_quasi_steady_6dof_fmu(built_fmus):
-    """Issue 30: with the flapping forces replaced by their cycle average (forces = 2) the
+    """With the flapping forces replaced by their cycle average (forces = 2) the
     FMU is DroneFlyHover6DOF with the quasi-steady aerodynamics (aerodynamics = 2) and the same
     body (the Sect. 2.4 mass and inertias, set as the 6-DOF FMU's parameters). Both through
     fmpy, 10 wing beats from a lateral disturbance, compared at the beats' ends: they agree to
@@ -164,7 +164,7 @@ def test_with_forces_averaged_the_fmu_flies_as_the_quasi_steady_6dof_fmu(built_f
 @pytest.mark.numeric
 def test_started_on_the_periodic_orbit_the_fmu_returns_to_its_start_after_a_wing_beat(
         built_fmus):
-    """Issue 30: at trim (the averaged trim's kinematics, controls 0) hover is a periodic
+    """At trim (the averaged trim's kinematics, controls 0) hover is a periodic
     orbit. The FMU started at the orbit's start (found by the model's Newton shooting, to a
     residual of 1e-12) is back there after one wing beat, through fmpy: to 1e-10 of U (and of
     1/t_w, 1 rad), the Newton tolerance and the round-off of the start parameters' SI

@@ -1,5 +1,5 @@
 """The paper's lateral loop on the flapping insect as a system of two FMUs (DroneFlyFlapping and
-StateFeedback) through the project's master (issue 30): the exponents identified from its runs
+StateFeedback) through the project's master: the exponents identified from its runs
 are the linearised wing-beat map's, its beat starts are the in-model flight's, a step of 0.1
 wing beat gives the same beat starts as a step of 1 (under Gauss-Seidel; under Jacobi the step
 is a delay), the system is an SSP that ``dronefly cosim --system`` flies, and the FMI 3.0 build

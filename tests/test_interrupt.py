@@ -60,7 +60,7 @@ def test_ctrl_c_during_an_in_process_run_stops_cleanly(built_fmus, tmp_path, arg
 
 
 
-# --- issue 36: every command stops within one step or one sweep chunk --------------------------
+# --- every command stops within one step or one sweep chunk ----------------------------------
 _SWEEP = ["sweep", "--grid", "15", "--slices", "dgamma:dp", "--disturbances", "grid", "--steps",
           "0.1", "--gains", "paper", "--stop", "20", "--no-plot", "--no-progress"]
 

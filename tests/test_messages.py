@@ -1,4 +1,4 @@
-"""Messages in the user's words (issue 36, point 8): FMI status names and plain floats, the SSP
+"""Messages in the user's words: FMI status names and plain floats, the SSP
 and the component by name, one line for an output folder that is a file, the FMU's own message
 from ``simulate``, grammar, and the hints of the bare command and ``--debug``."""
 

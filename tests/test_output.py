@@ -1,4 +1,4 @@
-"""Output a user can read (issue 36, point 12): names that differ when the inputs differ, the
+"""Output a user can read: names that differ when the inputs differ, the
 units of every CSV column in a sidecar (or, for simulate, the docs), plot titles and legends
 that stay whole and off the data, axes with units."""
 

@@ -1,5 +1,5 @@
 """``cosim``/``sweep`` with ``--plant/--controller``: any pair connected by name is identified
-from its own states (issue 36, point 4), and a pair that cannot be is refused up front."""
+from its own states, and a pair that cannot be is refused up front."""
 
 from __future__ import annotations
 

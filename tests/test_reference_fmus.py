@@ -167,8 +167,8 @@ def test_cli_on_reference_fmus_json_junit_jobs(ref, tmp_path, capsys):
 def test_cli_clocks_one_line_and_bad_options(ref, capsys):
     assert main(["check", str(ref / "fmi3" / "Clocks.fmu")]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].endswith("SKIP (not checked: Scheduled Execution only, no Co-Simulation "
-                           "interface (dronefly check tests Co-Simulation FMUs))")
+    assert out[0].endswith("SKIP (not checked: Scheduled Execution only, no Co-Simulation or "
+                           "Model Exchange interface (dronefly check tests those two))")
     assert out[-1] == "0 of 0 FMUs passed, 1 not checked"
     assert main(["check", "--check", "nope", str(ref / "fmi3" / "Clocks.fmu")]) == 2
     assert "--check 'nope': no such check" in capsys.readouterr().err
@@ -191,13 +191,15 @@ SEEDED = {
     # a parameter declared -2.0 that holds -9.81
     "start-value-lie": ("fmi2/BouncingBall.fmu",
                         b'<Real start="-9.81" declaredType="Acceleration"/>',
-                        b'<Real start="-2.0" declaredType="Acceleration"/>', "start-values",
+                        b'<Real start="-2.0" declaredType="Acceleration"/>',
+                        ("start-values", "me:start-values"),
                         "g: declared start -2.0, holds -9.81"),
     # an output declared without direct feedthrough (Outputs and InitialUnknowns) that
     # follows its input
     "dependency-lie": ("fmi2/Feedthrough.fmu",
                        b'<Unknown index="5" dependencies="4" dependenciesKind="constant"/>',
-                       b'<Unknown index="5" dependencies=""/>', "dependencies",
+                       b'<Unknown index="5" dependencies=""/>',
+                       ("dependencies", "me:dependencies"),
                        "Float64_continuous_output (declared in InitialUnknowns with no "
                        "dependency among the inputs) changed when only Float64_continuous_input "
                        "was set, in Initialization Mode"),
@@ -207,13 +209,16 @@ SEEDED = {
 
 @pytest.mark.parametrize("defect", list(SEEDED))
 def test_seeded_defect_fails_only_its_check(ref, tmp_path, defect):
-    src, old, new, check, detail = SEEDED[defect]
+    """Each seeded defect of the model description fails its check, through Co-Simulation and
+    through Model Exchange (the FMUs have both interfaces), and no other."""
+    src, old, new, checks, detail = SEEDED[defect]
     fmu = _edited(ref / src, tmp_path / Path(src).name, old, new)
     report = check_fmu(fmu, fuzz=False, isolate=False)
     failed = {c.name: c for c in report.checks if not c.passed}
-    assert set(failed) == {check}, report.checks
-    assert failed[check].detail.startswith(detail)
-    assert f"[FAIL] {check:<14} {detail}" in format_reports([report])
+    assert set(failed) == set(checks), report.checks
+    for check in checks:
+        assert failed[check].detail.startswith(detail)
+        assert f"[FAIL] {check:<14} {detail}" in format_reports([report])
 
 
 def _rebuilt(src: Path, dst: Path, work: Path, source: str, old: str, new: str) -> Path:
@@ -226,16 +231,18 @@ def _rebuilt(src: Path, dst: Path, work: Path, source: str, old: str, new: str) 
                     reason="rebuilding a Reference-FMU (binaries/linux64) needs gcc on Linux")
 def test_a_reset_that_does_nothing_fails_reset_only(ref, tmp_path):
     """Dahlquist whose fmi2Reset keeps the state (its start values are not set again): the run
-    after the reset continues from the first run's end. Only ``reset`` fails (FMI 2.0 2.1.6);
-    ``bad-input``, which resets after each refused call, still recovers the instance."""
+    after the reset continues from the first run's end. Only ``reset`` fails (FMI 2.0 2.1.6),
+    and ``me:reset`` (the reset is shared by both interfaces); ``bad-input``, which resets
+    after each refused call, still recovers the instance."""
     reset = ("    comp->status = OK;\n    setStartValues(comp);\n    comp->isDirtyValues = true;\n",
              "    comp->status = OK;\n")
     fmu = _rebuilt(ref / "fmi2/Dahlquist.fmu", tmp_path / "Dahlquist.fmu", tmp_path / "src",
                    "cosimulation.c", *reset)
     report = check_fmu(fmu, fuzz=False, isolate=False)
     failed = {c.name: c for c in report.checks if not c.passed}
-    assert set(failed) == {"reset"}, report.checks
+    assert set(failed) == {"reset", "me:reset"}, report.checks
     assert failed["reset"].detail == "the run after fmi2Reset differs from the first"
+    assert failed["me:reset"].detail == "the run after fmi2Reset differs from the first"
     # that a rebuild alone breaks nothing: the mended Stair below passes every check
 
 

@@ -111,7 +111,7 @@ def _host_args(fmu: Path, folder: Path) -> list[str]:
                            "its absence fails)")
 def test_no_invalid_read_at_exit_under_valgrind(built_fmus, tmp_path):
     """pythonfmu's exit double free (docs/fmi-limits.md, "Process exit") is deterministic under
-    valgrind: a host that keeps plant and controller loaded until it exits (the ctypes host,
+    valgrind: a host that keeps an FMU loaded until it exits (the ctypes host,
     standard library only) shows "Invalid read ... in finalizePythonInterpreter" without the
     FMUs' exit handler (measured: error exit 99, one invalid read per library), and nothing
     with it. Aborts by glibc are only occasional (0 of 150 plain runs without the handler, on
@@ -120,14 +120,16 @@ def test_no_invalid_read_at_exit_under_valgrind(built_fmus, tmp_path):
     # at half the run time
     cmd = ["valgrind", "--error-exitcode=99", "-q", "--undef-value-errors=no",
            sys.executable, "-I", "-S", str(HOST)]
-    for k, name in enumerate(("DroneFlyLateral", "StateFeedback")):
-        cmd += (["+"] if k else []) + _host_args(built_fmus[name], tmp_path / name)
+    # one library: the exit handler is the entry module's, the same in every pythonfmu FMU,
+    # and each library without it shows its own invalid read (suite time: valgrind runs
+    # Python at a twentieth of its speed)
+    cmd += _host_args(built_fmus["DroneFlyLateral"], tmp_path / "DroneFlyLateral")
     # the system allocator, so that valgrind sees every block (pymalloc's arenas hide them)
     env = {"PATH": os.environ.get("PATH", ""), "PYTHONMALLOC": "malloc"}
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env)
     invalid = [ln for ln in r.stderr.splitlines() if "Invalid" in ln or " at 0x" in ln]
     assert r.returncode == 0 and not invalid, (r.returncode, invalid[:6])
-    assert r.stdout.count("instance: ok") == 2, r.stdout[-800:]
+    assert r.stdout.count("instance: ok") == 1, r.stdout[-800:]
 
 
 def test_the_fuzz_survives_and_counts_a_crashing_fmu(tmp_path):
@@ -296,7 +298,7 @@ _CONTAINER_CASES = textwrap.dedent('''
 
 
 @pytest.mark.parametrize("logging", ["1", "0"])
-def test_the_container_cases_of_issue_16(built_fmus, logging):
+def test_container_misuse_with_logging_does_not_kill_the_host(built_fmus, logging):
     """The container FMU cases that killed the host with logging on: doStep before
     initialization; bad K, n, U, delta_gamma_start while stepping and before initialization;
     unknown value references; a refusal, retry and reset; call-sequence misuse. The process

@@ -1,4 +1,4 @@
-"""Every SSP the build writes loads in a strict importer (issue 36, point 10): each SSV
+"""Every SSP the build writes loads in a strict importer: each SSV
 parameter names a variable of its FMU, in FMI 2.0 and 3.0 alike, and OMSimulator (a native
 SSP importer, ../shared/tools/omsimulator) runs the closed loops as our master does."""
 

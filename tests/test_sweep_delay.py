@@ -188,7 +188,7 @@ def _flat(path: Path) -> NumericText:
 
 def test_doc_and_readme_numbers_are_the_code_s():
     """docs/latency.md's table verbatim, its command, and the numbers of its text recomputed
-    (its summary of the sweep included, which the README quoted before issue 26): the verdicts
+    (its summary of the sweep included): the verdicts
     over the whole map by model (b), the rest by :mod:`harness.sweep.delaytable` (which the
     other tests tie to the co-simulation)."""
     import math

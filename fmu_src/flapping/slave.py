@@ -40,7 +40,7 @@ _STARTS = (*(f"{s}_start" for s in STATE_OUTPUTS), *(e[0] for e in EXTRA_STARTS)
 #: the largest control magnitude accepted [rad] (Sect. 3.6 keeps them within 0.4 rad; the
 #: blade-element forces are defined for any wing attitude, so nothing else is refused)
 CONTROL_LIMIT_RAD = 1.0
-#: the longest communication step [wing beats] (each costs some 5 ms of computing)
+#: the longest communication step [wing beats] (a step computes every wing beat it spans)
 MAX_STEP_BEATS = 1000.0
 #: the values of the parameter ``forces``
 FORCES = {1: "instantaneous", 2: "cycle_averaged"}

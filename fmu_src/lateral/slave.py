@@ -1,7 +1,8 @@
 """FMU ``DroneFlyLateral``: the lateral plant of Eq. (9) as an FMI 2.0 CS slave.
 
 The wrapper (:class:`~dronefly.fmu_src.linear_slave.LinearPlantSlave`, shared with the longitudinal
-plant) maps FMI variables onto :mod:`.model`; all numbers come from there.
+plant) maps FMI variables onto :mod:`dronefly.models.lateral_dynamics`; all numbers come from
+there.
 Outputs are the paper's disturbance states made dimensional with U and t_w.
 """
 

@@ -1,7 +1,8 @@
 """FMU ``DroneFlyLongitudinal``: the longitudinal plant of Sect. 3.5 as an FMI 2.0 CS slave.
 
 The wrapper (:class:`~dronefly.fmu_src.linear_slave.LinearPlantSlave`, shared with the lateral
-plant) maps FMI variables onto :mod:`.model`; all numbers come from there.
+plant) maps FMI variables onto :mod:`dronefly.models.longitudinal_dynamics`; all numbers come
+from there.
 Outputs are the disturbance states made dimensional with U and t_w.
 """
 

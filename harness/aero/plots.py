@@ -20,12 +20,14 @@ __all__ = ["plot_fig2", "plot_linearity_maps"]
 _LATERAL_CONTROLS = ("delta_Phi_a", "delta_alpha_1a", "delta_alpha_2a")
 
 
-def plot_fig2(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0) -> Path:
-    """Y+, L+, N+ against each lateral control out to ``extent`` times +/-0.4 rad, with the
-    tangent at hover and the box of Sect. 3.6 (the paper's Fig. 2, from the model)."""
+def plot_fig2(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0,
+              points: int = 33) -> Path:
+    """Y+, L+, N+ against each lateral control at ``points`` values out to ``extent`` times
+    +/-0.4 rad, with the tangent at hover and the box of Sect. 3.6 (the paper's Fig. 2, from the
+    model)."""
     plt = pyplot()
 
-    scan = linearity_scan(model, _LATERAL_CONTROLS, ("Y", "L", "N"), extent=extent, points=33)
+    scan = linearity_scan(model, _LATERAL_CONTROLS, ("Y", "L", "N"), extent=extent, points=points)
     d = derivatives(model, 1e-3, _LATERAL_CONTROLS)
     f0 = model.forces_vector()
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), sharey=False)
@@ -46,15 +48,16 @@ def plot_fig2(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0) ->
     return _save(fig, path)
 
 
-def plot_linearity_maps(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0) -> Path:
-    """Error of the linear Y+, L+, N+ over each pair of lateral states out to ``extent`` times
-    the box, the largest of the three outputs in per cent of its scale, with the 1, 5 and 10 %
-    contours and the box."""
+def plot_linearity_maps(model: QuasiSteadyModel, path: str | Path, extent: float = 2.0,
+                        points: int = 17) -> Path:
+    """Error of the linear Y+, L+, N+ over each pair of lateral states on ``points`` x
+    ``points`` values out to ``extent`` times the box, the largest of the three outputs in per
+    cent of its scale, with the 1, 5 and 10 % contours and the box."""
     plt = pyplot()
 
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
     for ax, pair in zip(axes, LATERAL_PAIRS):
-        r = pair_scan(model, pair, "YLN", extent=extent, points=17)
+        r = pair_scan(model, pair, "YLN", extent=extent, points=points)
         s = np.asarray(r["values"])
         err = np.max([np.asarray(r[o]["error_pct"]) for o in "YLN"], axis=0)  # type: ignore[index]
         mesh = ax.pcolormesh(s, s, err.T, shading="nearest", cmap="viridis")

@@ -50,20 +50,29 @@ _FMI3_COMMON = ("GetVersion", "SetDebugLogging", "FreeInstance", "EnterInitializ
                 "ExitInitializationMode", "Terminate", "Reset", "EnterConfigurationMode",
                 "ExitConfigurationMode", *(f"{a}{t}" for t in _FMI3_TYPES for a in ("Get", "Set")))
 _FMI3_CS = ("InstantiateCoSimulation", "DoStep", "EnterStepMode")
+_FMI2_ME = ("EnterEventMode", "NewDiscreteStates", "EnterContinuousTimeMode",
+            "CompletedIntegratorStep", "SetTime", "SetContinuousStates", "GetDerivatives",
+            "GetEventIndicators", "GetContinuousStates", "GetNominalsOfContinuousStates")
+_FMI3_ME = ("InstantiateModelExchange", "EnterEventMode", "UpdateDiscreteStates",
+            "EnterContinuousTimeMode", "CompletedIntegratorStep", "SetTime",
+            "SetContinuousStates", "GetContinuousStateDerivatives", "GetEventIndicators",
+            "GetContinuousStates", "GetNominalsOfContinuousStates",
+            "GetNumberOfEventIndicators", "GetNumberOfContinuousStates")
 #: a value the host passes as its environment, to be handed back to the logger
 _SENTINEL = 0x5EED
 
 
-def required_functions(md: Any, fmi_version: int) -> list[str]:
-    """The functions the Co-Simulation interface of ``md`` (FMPy's model description of the
-    FMU's own version) requires its binary to export."""
-    cs = md.coSimulation
+def required_functions(md: Any, fmi_version: int, interface: str = "cs") -> list[str]:
+    """The functions the Co-Simulation (``"cs"``) or Model Exchange (``"me"``) interface of
+    ``md`` (FMPy's model description of the FMU's own version) requires its binary to export."""
+    me = interface == "me"
+    cs = md.modelExchange if me else md.coSimulation
     if fmi_version == 2:
-        names = [*_FMI2_COMMON, *_FMI2_CS]
+        names = [*_FMI2_COMMON, *(_FMI2_ME if me else _FMI2_CS)]
         state = ("GetFMUstate", "SetFMUstate", "FreeFMUstate")
         serial = ("SerializedFMUstateSize", "SerializeFMUstate", "DeSerializeFMUstate")
     else:
-        names = [*_FMI3_COMMON, *_FMI3_CS]
+        names = [*_FMI3_COMMON, *(_FMI3_ME if me else _FMI3_CS)]
         state = ("GetFMUState", "SetFMUState", "FreeFMUState")
         serial = ("SerializedFMUStateSize", "SerializeFMUState", "DeserializeFMUState")
     if cs.canGetAndSetFMUstate:
@@ -76,8 +85,9 @@ def required_functions(md: Any, fmi_version: int) -> list[str]:
     return [f"fmi{fmi_version}{n}" for n in names]
 
 
-def _library(ctx: Context) -> Path:
-    ident = ctx.fmu.model_description.coSimulation.modelIdentifier
+def _library(ctx: Context, interface: str = "cs") -> Path:
+    md = ctx.fmu.model_description
+    ident = (md.modelExchange if interface == "me" else md.coSimulation).modelIdentifier
     folder = platform if ctx.fmu.fmi_version == 2 else platform_tuple
     return Path(ctx.fmu._unzipdir, "binaries", folder, ident + sharedLibraryExtension)
 
@@ -85,13 +95,24 @@ def _library(ctx: Context) -> Path:
 def check_binary(ctx: Context) -> str:
     v = ctx.fmu.fmi_version
     md = ctx.fmu.model_description3 or ctx.fmu.model_description
-    path = _library(ctx)
+    # each declared interface's library (one file where they share the model identifier)
+    libraries: dict[Path, list[str]] = {}
+    for interface in ctx.interfaces:
+        libraries.setdefault(_library(ctx, interface), []).extend(
+            n for n in required_functions(md, v, interface)
+            if n not in libraries.get(_library(ctx, interface), []))
+    path = next(iter(libraries))
     if not path.is_file():
         raise CheckSkipped(f"no binary {path.name} for this platform")
-    ctx.event(call=f"dlopen({path.name})")
+    missing, problems = [], []
+    for lib_path, required in libraries.items():
+        if not lib_path.is_file():
+            problems.append(f"no binary {lib_path.name} for this platform beside {path.name}")
+            continue
+        ctx.event(call=f"dlopen({lib_path.name})")
+        found = ctypes.CDLL(str(lib_path), mode=os.RTLD_LAZY | os.RTLD_LOCAL)
+        missing += [n for n in required if not hasattr(found, n)]
     lib = ctypes.CDLL(str(path), mode=os.RTLD_LAZY | os.RTLD_LOCAL)
-    missing = [n for n in required_functions(md, v) if not hasattr(lib, n)]
-    problems = []
     if missing:
         problems.append(f"not exported: {', '.join(missing)}")
     versions = [("fmi2GetVersion", "2.0"), ("fmi2GetTypesPlatform", "default")] if v == 2 \
@@ -109,7 +130,7 @@ def check_binary(ctx: Context) -> str:
         ctx.unusable = ("its binary lacks functions a host binds (the finding is reported "
                         "under binary)")
     require(not problems, "; ".join(problems))
-    n = len(required_functions(md, v))
+    n = sum(len(names) for names in libraries.values())
     return f"{n} required functions exported; {', '.join(w for w, _ in versions)} right"
 
 

@@ -7,15 +7,21 @@ The runner. The checks live in their families, one home each, every one a functi
 * :mod:`.binary` (the shared library as a host links and calls it): ``binary``;
 * :mod:`.runtime` (runtime semantics): ``call-sequence``, ``start-values``, ``dependencies``,
   ``reset``, ``two-instances``, ``state``, ``reference``;
-* :mod:`.exchange` (the Model Exchange interface): ``model-exchange``;
+* :mod:`.exchange` (the Model Exchange interface): ``model-exchange`` (the event iteration,
+  FMPy's Model Exchange simulation); and the runtime checks above once more through Model
+  Exchange, named ``me:call-sequence``, ``me:start-values``, ``me:dependencies``,
+  ``me:reset``, ``me:two-instances``, ``me:state`` (the same functions, their instances
+  :class:`..cosim.exchange.MEStepper`: ``ctx.interface == "me"``);
 * :mod:`.refusals` (calls to refuse or survive): ``bad-input``, ``state-machine``,
   ``discard``, ``state-refusal``, ``logger-format``.
 
 Their rules are :mod:`.rules`'; :mod:`.driver` drives the FMU. :data:`CHECKS` lists them in
 order with what each needs: a binary for this platform (static checks run without one), the
-FMI versions and profiles it is listed for by default, and the checks whose failure leaves it
-``not run`` (a failure is reported once, under the rule the FMU broke). The checks run in
-this process; :mod:`.suite` runs them in a child process (so a crashing FMU is a failed check)
+interface it drives, the FMI versions and profiles it is listed for by default, and the checks
+whose failure leaves it ``not run`` (a failure is reported once, under the rule the FMU broke).
+A check of an interface the FMU lacks is not listed, except ``call-sequence`` and
+``model-exchange``, which say "not applicable: no ... interface" for their interface's checks.
+The checks run in this process; :mod:`.suite` runs them in a child process (so a crashing FMU is a failed check)
 and adds the fuzz.
 """
 
@@ -33,8 +39,8 @@ from .driver import Context, experiment, profile_for
 from .rules import (PROFILES, RULES, CheckFailed, CheckOptions, CheckResult, CheckSkipped,
                     FMUReport, rule_of)
 
-__all__ = ["CHECKS", "CHECK_NAMES", "PROFILES", "RULES", "Check", "CheckFailed", "CheckOptions",
-           "CheckResult", "CheckSkipped", "FMUReport", "experiment", "listed", "profile_for",
+__all__ = ["CHECKS", "CHECK_NAMES", "INTERFACES", "PROFILES", "RULES", "Check", "CheckFailed",
+           "CheckOptions", "CheckResult", "CheckSkipped", "FMUReport", "experiment", "listed", "profile_for",
            "rule_of", "run_checks"]
 
 
@@ -51,20 +57,32 @@ class Check:
     profiles: tuple[str, ...] = PROFILES
     #: the checks whose failure leaves it not run (it would fail on their finding)
     needs: tuple[str, ...] = ()
+    #: the interface it drives: "cs" (Co-Simulation), "me" (Model Exchange) or "any"
+    interface: str = "cs"
+    #: listed on an FMU without its interface, to say that it does not apply
+    announces: bool = False
 
 
 _RUN = ("call-sequence",)
+_ME = ("model-exchange",)
+_ME_RUN = ("model-exchange", "me:call-sequence")
 CHECKS: tuple[Check, ...] = (
-    Check("validate", static.check_validate, runs=False),
-    Check("archive", static.check_archive, runs=False),
-    Check("binary", binary.check_binary),
-    Check("call-sequence", runtime.check_call_sequence),
+    Check("validate", static.check_validate, runs=False, interface="any"),
+    Check("archive", static.check_archive, runs=False, interface="any"),
+    Check("binary", binary.check_binary, interface="any"),
+    Check("call-sequence", runtime.check_call_sequence, announces=True),
     Check("start-values", runtime.check_start_values),
     Check("dependencies", runtime.check_dependencies),
     Check("reset", runtime.check_reset, needs=_RUN),
     Check("two-instances", runtime.check_two_instances, needs=_RUN),
     Check("state", runtime.check_state, needs=_RUN),
-    Check("model-exchange", exchange.check_model_exchange),
+    Check("model-exchange", exchange.check_model_exchange, interface="me", announces=True),
+    Check("me:call-sequence", runtime.check_call_sequence, interface="me", needs=_ME),
+    Check("me:start-values", runtime.check_start_values, interface="me", needs=_ME),
+    Check("me:dependencies", runtime.check_dependencies, interface="me", needs=_ME),
+    Check("me:reset", runtime.check_reset, interface="me", needs=_ME_RUN),
+    Check("me:two-instances", runtime.check_two_instances, interface="me", needs=_ME_RUN),
+    Check("me:state", runtime.check_state, interface="me", needs=_ME_RUN),
     Check("bad-input", refusals.check_bad_input),
     Check("reference", runtime.check_reference, needs=_RUN),
     Check("state-machine", refusals.check_state_machine, versions=(3,)),
@@ -80,12 +98,22 @@ assert set(CHECK_NAMES) == set(RULES)
 _FATAL_RULE = {"fmi2": "FMI 2.0 2.1.3", "fmi3": "FMI 3.0 2.2.3"}
 
 
-def listed(check: Check, fmi_version: int, profile: str) -> bool:
-    """Whether ``check`` is run on such an FMU when the user selected no check by name."""
-    return fmi_version in check.versions and profile in check.profiles
+#: the interfaces by their short names, as a report says them
+INTERFACES = {"cs": "Co-Simulation", "me": "Model Exchange"}
 
 
-def _not_applicable(check: Check, fmi_version: int, profile: str) -> str:
+def listed(check: Check, fmi_version: int, profile: str,
+           interfaces: tuple[str, ...] = ("cs", "me")) -> bool:
+    """Whether ``check`` is run (or said not to apply) on such an FMU, with such
+    ``interfaces`` ("cs", "me"), when the user selected no check by name."""
+    return (fmi_version in check.versions and profile in check.profiles
+            and (check.interface == "any" or check.interface in interfaces or check.announces))
+
+
+def _not_applicable(check: Check, fmi_version: int, profile: str,
+                    interfaces: tuple[str, ...]) -> str:
+    if check.interface not in ("any", *interfaces):
+        return f"no {INTERFACES[check.interface]} interface"
     if fmi_version not in check.versions:
         return f"{check.name} is an FMI 3.0 check; this FMU is FMI 2.0"
     return (f"{check.name} is the dronefly profile's check (--profile dronefly runs it); this "
@@ -110,7 +138,7 @@ def run_checks(path: Path, progress: Callable[[dict], None] | None = None,
             progress(asdict(result))
 
     try:  # unvalidated and without a binary for this platform: validate and archive say so
-        fmu = FMU(path, validate=False, require_binary=False)
+        fmu = FMU(path, validate=False, require_binary=False, require_cosim=False)
     except FMUError as e:
         add(CheckResult("load", False, str(e), rule="FMI 2.0 / 3.0 FMU archive"))
         return report
@@ -129,10 +157,14 @@ def run_checks(path: Path, progress: Callable[[dict], None] | None = None,
             if not options.wants(check.name):
                 continue
             rule = rule_of(check.name, fmu.fmi_version, ctx.profile)
-            if not listed(check, fmu.fmi_version, ctx.profile):
-                if check.name in options.only:  # selected by name: said why it does not apply
+            if not listed(check, fmu.fmi_version, ctx.profile, ctx.interfaces) or \
+                    check.interface not in ("any", *ctx.interfaces):
+                if check.name in options.only or listed(check, fmu.fmi_version, ctx.profile,
+                                                        ctx.interfaces):
+                    # selected by name, or announcing: said why it does not apply
                     add(CheckResult(check.name, True, "not applicable: " + _not_applicable(
-                        check, fmu.fmi_version, ctx.profile), rule, skipped=True))
+                        check, fmu.fmi_version, ctx.profile, ctx.interfaces), rule,
+                        skipped=True))
                 continue
             if pending():  # Ctrl-C between two checks (in-process runs)
                 raise KeyboardInterrupt
@@ -164,6 +196,7 @@ def _one(ctx: Context, check: Check, rule: str) -> CheckResult:
     if why is not None:
         return CheckResult(check.name, True, f"not run: {why}", rule, skipped=True)
     ctx.warnings, ctx.instances = [], []
+    ctx.interface = "me" if check.interface == "me" else "cs"
     t0 = time.perf_counter()
     try:
         result = CheckResult(check.name, True, check.fn(ctx), rule)

@@ -64,6 +64,13 @@ class Context:
         #: the checks that failed so far, by name (what a later check depends on)
         self.failed: set[str] = set()
         self.fmi = f"fmi{fmu.fmi_version}"
+        #: the interface the running check drives: ``"cs"`` (Co-Simulation) or ``"me"`` (Model
+        #: Exchange, through :class:`..cosim.exchange.MEStepper`); set by the runner
+        self.interface = "cs"
+        md = fmu.model_description
+        #: the interfaces the FMU declares
+        self.interfaces = tuple(i for i, e in (("cs", md.coSimulation), ("me", md.modelExchange))
+                                if e is not None)
         self.start, self.stop, self.step, self.n = experiment(fmu.model_description, options)
         vs = [v for v in fmu.model_description.modelVariables if v.type in KINDS]
         self.inputs = [Var(v.name, KINDS[v.type], v.valueReference, v) for v in vs
@@ -74,18 +81,36 @@ class Context:
         self.real_inputs = [v for v in self.inputs if v.kind == "Real"]
         self.input_base = [float(v.var.start) if v.var.start is not None else 0.0
                             for v in self.real_inputs]
+        #: value reference -> the start of the Real input (what :func:`excite` moves it about)
+        self.input_start = dict(zip((v.vr for v in self.real_inputs), self.input_base))
 
     @property
     def ours(self) -> bool:
         return self.profile == "dronefly"
+
+    @property
+    def caps(self) -> Any:
+        """The capability flags of the interface the check drives (fmpy's CoSimulation or
+        ModelExchange element)."""
+        md = self.fmu.model_description
+        return md.modelExchange if self.interface == "me" else md.coSimulation
+
+    @property
+    def excited(self) -> list[Var]:
+        """The Real inputs the runs move (:func:`excite`): through Model Exchange the
+        continuous ones (a discrete input is set in Event Mode only: FMI 2.0 3.2.3)."""
+        if self.interface == "me":
+            return [v for v in self.real_inputs if v.var.variability == "continuous"]
+        return self.real_inputs
 
     def event(self, **row: Any) -> None:
         if self.on_event is not None:
             self.on_event(row)
 
     def instantiate(self, name: str) -> Instance:
-        self.event(call=f"{self.fmi}Instantiate(instanceName={name!r})")
-        inst = self.fmu.instantiate(name)
+        kind = " through Model Exchange" if self.interface == "me" else ""
+        self.event(call=f"{self.fmi}Instantiate(instanceName={name!r}){kind}")
+        inst = self.fmu.instantiate(name, interface=self.interface)
         if self.on_event is not None:
             inst.messages = Tee(inst.messages, self.on_event)
         self.instances.append(inst)
@@ -192,7 +217,7 @@ def reader(vars_: list[Var]) -> Callable[[Instance], list[float]]:
 
 
 def read_now(inst: Instance, vars_: list[Var]) -> list[float]:
-    """The values of ``vars_`` now (see :func:`_reader`)."""
+    """The values of ``vars_`` now (see :func:`reader`)."""
     return reader(vars_)(inst)
 
 
@@ -221,21 +246,24 @@ def bounded(var: Var, x: float) -> float:
 
 def excite(ctx: Context, inst: Instance, k: int) -> None:
     """Real inputs at step k: start + 0.01 sin(0.3 k + j) for input j, within min/max."""
-    real = ctx.real_inputs
+    real = ctx.excited
     if real:
+        base = ctx.input_start
         inst.slave.setReal([v.vr for v in real],
-                           [bounded(v, b + 0.01 * math.sin(0.3 * k + j))
-                            for j, (v, b) in enumerate(zip(real, ctx.input_base))])
+                           [bounded(v, base[v.vr] + 0.01 * math.sin(0.3 * k + j))
+                            for j, v in enumerate(real)])
 
 
 def do_step(ctx: Context, inst: Instance, t: float, h: float) -> bool:
     """One step; True if the FMU ended the run (terminate requested, early return)."""
 
-    if ctx.on_event is not None:
-        ctx.on_event({"call": f"{ctx.fmi}DoStep(currentCommunicationPoint={t!r}, "
-                              f"communicationStepSize={h!r})"})
     s = inst.slave
-    if ctx.fmu.fmi_version == 3:
+    if ctx.on_event is not None:
+        what = (f"{ctx.fmi}DoStep" if inst.interface == "cs" else
+                "Model Exchange step (CVODE, events)")
+        ctx.on_event({"call": f"{what}(currentCommunicationPoint={t!r}, "
+                              f"communicationStepSize={h!r})"})
+    if ctx.fmu.fmi_version == 3 or inst.interface == "me":
         _, terminate, early, _ = s.doStep(currentCommunicationPoint=t, communicationStepSize=h)
         return bool(terminate or early)
     try:
@@ -259,7 +287,7 @@ class Run:
 
 def run_steps(ctx: Context, inst: Instance, steps: range | None = None) -> Run:
     """Step on the grid start + k step, recording every output after each step; the
-    inputs follow :func:`_excite`."""
+    inputs follow :func:`excite`."""
     read = ctx.read_outputs
     rows = [read(inst)]
     for k in steps if steps is not None else range(ctx.n):

@@ -1,6 +1,6 @@
-"""Check family: the Model Exchange interface of an FMU that has one besides Co-Simulation.
+"""Check family: the Model Exchange interface of an FMU (``dronefly check``).
 
-``model-exchange``, ``check(ctx) -> detail`` for FMI 2.0 and 3.0 alike:
+``model-exchange``, ``check(ctx) -> detail`` for FMI 2.0 and 3.0 alike, the family's first:
 
 * the event iteration of initialization terminates: after fmi2ExitInitializationMode,
   fmi2NewDiscreteStates (FMI 3.0: fmi3UpdateDiscreteStates) stops asking for another iteration
@@ -10,65 +10,36 @@
   Model Exchange simulation (its CVODE solver and event handling: state and time events,
   terminateSimulation), with finite outputs (non-finite: a warning).
 
-Not yet through Model Exchange: start values, dependencies, reset, FMU state, two instances;
-an FMU with Model Exchange only is not checked (docs/compliance.md).
+The runtime checks run through Model Exchange too (``me:call-sequence``, ``me:start-values``,
+``me:dependencies``, ``me:reset``, ``me:two-instances``, ``me:state``): the functions of
+:mod:`.runtime`, their instances driven by :class:`..cosim.exchange.MEStepper`. They are not
+run when this check fails.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import fmpy
-from fmpy.fmi2 import FMU2Model
-from fmpy.fmi3 import FMU3Model
 
-from .driver import Context
-from .rules import CheckSkipped, require
+from ..cosim.exchange import MAX_EVENT_ITERATIONS, EventIterationError
+from .driver import Context, initialize
+from .rules import CheckFailed, CheckSkipped
 
 __all__ = ["MAX_EVENT_ITERATIONS", "check_model_exchange"]
-
-#: event iterations at one time instant after which the iteration is taken not to terminate
-MAX_EVENT_ITERATIONS = 1000
 
 
 def _event_iterations(ctx: Context) -> int:
     """Iterations of the event update after initialization until no new one is needed (or the
-    FMU asks to terminate); ``MAX_EVENT_ITERATIONS + 1``: it never ended."""
-    md = ctx.fmu.model_description3 or ctx.fmu.model_description
-    ident = md.modelExchange.modelIdentifier
-    if ctx.fmu.fmi_version == 2:
-        model = FMU2Model(guid=md.guid, unzipDirectory=ctx.fmu._unzipdir, modelIdentifier=ident,
-                          instanceName="me-check")
-        instantiate, update = "fmi2Instantiate(fmi2ModelExchange)", "fmi2NewDiscreteStates"
-
-        def initialize() -> None:
-            model.setupExperiment(startTime=ctx.start, stopTime=ctx.stop)
-            model.enterInitializationMode()
-
-        next_event = model.newDiscreteStates
-    else:
-        model = FMU3Model(guid=md.instantiationToken, unzipDirectory=ctx.fmu._unzipdir,
-                          modelIdentifier=ident, instanceName="me-check")
-        instantiate, update = "fmi3InstantiateModelExchange()", "fmi3UpdateDiscreteStates"
-
-        def initialize() -> None:
-            model.enterInitializationMode(startTime=ctx.start, stopTime=ctx.stop)
-
-        next_event = model.updateDiscreteStates
-    ctx.event(call=instantiate)
-    model.instantiate()
-    try:
-        initialize()
-        model.exitInitializationMode()
-        for k in range(1, MAX_EVENT_ITERATIONS + 1):
-            ctx.event(call=f"{update}() (iteration {k})")
-            needed, terminate = next_event()[:2]
-            if not needed or terminate:
-                model.terminate()
-                return k
-        return MAX_EVENT_ITERATIONS + 1
-    finally:
-        model.freeInstance()
-        model.freeLibrary()
+    FMU asks to terminate), through the Model Exchange instance's own loop."""
+    with ctx.instantiate("me-check") as inst:
+        try:
+            initialize(ctx, inst)
+        except EventIterationError:
+            raise CheckFailed(f"the event iteration of initialization did not terminate in "
+                              f"{MAX_EVENT_ITERATIONS} iterations") from None
+        ctx.event(call=f"{ctx.fmi}Terminate()")
+        inst.slave.terminate()
+        return inst.slave.iterations
 
 
 def check_model_exchange(ctx: Context) -> str:
@@ -76,9 +47,6 @@ def check_model_exchange(ctx: Context) -> str:
     if md.modelExchange is None:
         raise CheckSkipped("no Model Exchange interface")
     iterations = _event_iterations(ctx)
-    require(iterations <= MAX_EVENT_ITERATIONS,
-            f"the event iteration of initialization did not terminate in "
-            f"{MAX_EVENT_ITERATIONS} iterations")
     outputs = [v.name for v in ctx.outputs if v.kind == "Real"]
     ctx.event(call=f"fmpy.simulate_fmu(fmi_type='ModelExchange', solver='CVode', "
                    f"stop_time={ctx.stop!r})")

@@ -18,7 +18,7 @@ import pytest
 from .checker import CHECKS, listed
 from .driver import profile_for
 from .rules import CheckOptions, FMUReport
-from .suite import check_fmu, not_checked
+from .suite import check_fmu, interfaces_of, not_checked
 
 __all__ = ["FMUCheckItem", "pytest_addoption", "pytest_collection_modifyitems"]
 
@@ -49,7 +49,8 @@ def _planned(path: Path, options: CheckOptions, fuzz: bool) -> list[str]:
         return ["load"]
     version = 3 if str(md.fmiVersion).startswith("3") else 2
     profile = options.profile or profile_for(_Profile(md))
-    names = [c.name for c in CHECKS if listed(c, version, profile) and options.wants(c.name)]
+    names = [c.name for c in CHECKS if listed(c, version, profile, interfaces_of(path))
+             and options.wants(c.name)]
     if fuzz and profile == "dronefly" and options.wants("fuzz"):
         names.append("fuzz")
     return names

@@ -89,6 +89,43 @@ RULES: dict[str, tuple[str, str, str]] = {
         "terminates; FMPy's Model Exchange simulation (CVODE, events) runs to the stop time",
         "FMI 3.0 3 (Model Exchange, its state machine): the event iteration of initialization "
         "terminates; FMPy's Model Exchange simulation (CVODE, events) runs to the stop time", ""),
+    "me:call-sequence": (
+        "FMI 2.0 3.2.3 (Model Exchange state machine): instantiate, initialize with the event "
+        "iteration, Continuous-Time Mode integrated to the stop time (CVODE restarted at each "
+        "communication point) with time, state and step events handled in Event Mode, "
+        "terminate, free succeed; terminateSimulation ends the run",
+        "FMI 3.0 3.2 (Model Exchange state machine): instantiate, initialize with the event "
+        "iteration, Continuous-Time Mode integrated to the stop time with time, state and "
+        "step events handled in Event Mode, terminate, free succeed; terminateSimulation ends "
+        "the run", "outputs are finite and respond to the inputs"),
+    "me:start-values": (
+        "FMI 2.0 2.2.7 (initial = \"exact\"), through Model Exchange: the variable is "
+        "initialized with its start value",
+        "FMI 3.0 2.4.7 (initial = \"exact\"), through Model Exchange: the variable is "
+        "initialized with its start value", ""),
+    "me:dependencies": (
+        "FMI 2.0 2.2.8 (ModelStructure dependencies), through Model Exchange: InitialUnknowns "
+        "tested in Initialization Mode; Outputs and Derivatives in Continuous-Time Mode, where "
+        "3.2.3 allows a get after a set (each continuous input moved alone)",
+        "FMI 3.0 2.4.8 (ModelStructure dependencies), through Model Exchange: InitialUnknown "
+        "tested in Initialization Mode; Output and ContinuousStateDerivative in Continuous-Time "
+        "Mode, where a get after a set is allowed", ""),
+    "me:reset": (
+        "FMI 2.0 2.1.6 (fmi2Reset), through Model Exchange: the FMU goes into the same state "
+        "as after fmi2Instantiate",
+        "FMI 3.0 2.3 (FMU states, fmi3Reset), through Model Exchange: the FMU goes into the "
+        "same state as after instantiation", ""),
+    "me:two-instances": (
+        "FMI 2.0 2.1.5 (fmi2Instantiate), through Model Exchange: instances are independent "
+        "unless canBeInstantiatedOnlyOncePerProcess",
+        "FMI 3.0 (fmi3InstantiateModelExchange): instances are independent unless "
+        "canBeInstantiatedOnlyOncePerProcess", ""),
+    "me:state": (
+        "FMI 2.0 2.1.8 (Getting and Setting the Complete FMU State), through Model Exchange "
+        "(its canGetAndSetFMUstate, canSerializeFMUstate): a restored state continues as the "
+        "original did",
+        "FMI 3.0 2.2.6.4 (Getting and Setting the Complete FMU State), through Model Exchange: "
+        "a restored state continues as the original did", ""),
     "bad-input": (
         "FMI 2.0 4.2.2 (fmi2DoStep: communicationStepSize > 0, the communication point "
         "continues the last) and 2.1.3 (after fmi2Error only fmi2Reset, fmi2FreeInstance or "

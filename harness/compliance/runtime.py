@@ -88,11 +88,13 @@ def check_start_values(ctx: Context) -> str:
     return f"{len(exact)} variable(s) with initial=\"exact\" hold their start values"
 
 
-def _declared(ctx: Context, which: str = "initialUnknowns") -> dict[str, set[str] | None]:
-    """Output name (as in ``ctx.outputs``) -> the input names it is declared to depend on, in
-    ModelStructure ``which`` (``initialUnknowns`` or ``outputs``; None: not declared, on every
-    one)."""
+def _declared(ctx: Context, which: str = "initialUnknowns",
+              pool: list[Var] | None = None) -> dict[str, set[str] | None]:
+    """Unknown name (as in ``pool``, default ``ctx.outputs``) -> the input names it is declared
+    to depend on, in ModelStructure ``which`` (``initialUnknowns``, ``outputs`` or
+    ``derivatives``; None: not declared, on every one)."""
     md = ctx.fmu.model_description3 or ctx.fmu.model_description
+    pool = ctx.outputs if pool is None else pool
 
     def members(name: str, pool: list[Var]) -> list[str]:
         return [v.name for v in pool if v.name == name or v.name.startswith(name + "[")]
@@ -102,9 +104,18 @@ def _declared(ctx: Context, which: str = "initialUnknowns") -> dict[str, set[str
         deps = unknown.dependencies
         names = (None if deps is None else
                  {n for d in deps for n in members(d.name, ctx.inputs)})
-        for o in members(unknown.variable.name, ctx.outputs):
+        for o in members(unknown.variable.name, pool):
             out[o] = names
     return out
+
+
+def _derivatives(ctx: Context) -> list[Var]:
+    """The derivatives of the continuous states (ModelStructure Derivatives), as variables."""
+    md = ctx.fmu.model_description3 or ctx.fmu.model_description
+    names = {d.variable.name for d in md.derivatives or []}
+    return [Var(v.name, "Real", v.valueReference, v)
+            for v in ctx.fmu.model_description.modelVariables
+            if v.type == "Real" and (v.name in names or v.name.split("[")[0] in names)]
 
 
 def _nudged(var: Var, x: float) -> float | None:
@@ -254,12 +265,93 @@ def _step_probe(ctx: Context, declared: dict[str, set[str] | None]) -> dict[str,
     return seen
 
 
+def _initial_part(ctx: Context, initial: dict[str, set[str] | None]
+                  ) -> tuple[list[str], list[str]]:
+    """(lies, what was done) of the InitialUnknowns probed in Initialization Mode."""
+    if not initial:
+        return [], []
+    seen, tried = _initialization_probe(ctx, initial)
+    lies = _lies(initial, seen, "in Initialization Mode", "InitialUnknowns")
+    unseen = [f"{o} on {u}" for o, deps in initial.items() if deps is not None
+              for u in sorted((deps & tried) - seen.get(o, set()))]
+    if unseen:
+        ctx.warnings.append("declared dependencies not seen (a dependency may be "
+                            "conditional, e.g. on a gain that is zero): "
+                            + ", ".join(unseen[:6]) + (" ..." if len(unseen) > 6 else ""))
+    n = sum(deps is not None for deps in initial.values())
+    return lies, [f"{n} output(s) with declared initial dependencies, {len(tried)} input(s) "
+                  "set one at a time in Initialization Mode"]
+
+
+def _continuous_time_probe(ctx: Context, unknowns: list[Var]
+                           ) -> tuple[dict[str, set[str]], set[str]]:
+    """Which continuous inputs move which ``unknowns`` (outputs, derivatives) in Model
+    Exchange's Continuous-Time Mode, where a get after a set is allowed (FMI 2.0 3.2.3, FMI 3.0
+    3.2.3): each input moved alone, the unknowns read, the input put back."""
+    seen: dict[str, set[str]] = {o.name: set() for o in unknowns}
+    tried: set[str] = set()
+    read = reader(unknowns)
+    with ctx.instantiate("check") as inst:
+        initialize(ctx, inst)
+        if getattr(inst.slave, "terminated", False):
+            raise CheckSkipped("the FMU asked to terminate at its initialization")
+        before = read(inst)
+        for u in ctx.inputs:
+            if u.var.variability != "continuous":  # set in Event Mode only
+                continue
+            x = read_now(inst, [u])[0]
+            p = _perturbed(u, x)
+            if p is None:
+                continue
+            tried.add(u.name)
+            write(inst, u, p)
+            after = read(inst)
+            write(inst, u, x)
+            for o, a, b in zip(unknowns, before, after):
+                if _moved(a, b):
+                    seen[o.name].add(u.name)
+        ctx.event(call=f"{ctx.fmi}Terminate()")
+        inst.slave.terminate()
+    return seen, tried
+
+
+def _dependencies_me(ctx: Context) -> str:
+    """The dependencies through Model Exchange: InitialUnknowns in Initialization Mode,
+    Outputs and Derivatives in Continuous-Time Mode (set an input, get the unknowns)."""
+    if not ctx.inputs:
+        raise CheckSkipped("no inputs")
+    initial = _declared(ctx, "initialUnknowns")
+    derivatives = _derivatives(ctx)
+    declared = {which: {o: d for o, d in _declared(ctx, which, pool).items() if d is not None}
+                for which, pool in (("outputs", ctx.outputs), ("derivatives", derivatives))}
+    unknowns = [v for v in ctx.outputs if v.name in declared["outputs"]] + \
+        [v for v in derivatives if v.name in declared["derivatives"]]
+    if not initial and not unknowns:
+        raise CheckSkipped("no output among the ModelStructure InitialUnknowns, and no "
+                           "Outputs or Derivatives dependencies declared")
+    lies, parts = _initial_part(ctx, initial)
+    if unknowns and not lies:
+        seen, tried = _continuous_time_probe(ctx, unknowns)
+        for which, name in (("outputs", "Outputs"), ("derivatives", "Derivatives")):
+            lies += _lies(declared[which], seen, "in Continuous-Time Mode (set, then get)",
+                          name)
+        parts.append(f"{len(declared['outputs'])} output(s) and {len(declared['derivatives'])} "
+                     f"derivative(s) with declared dependencies, {len(tried)} continuous "
+                     "input(s) set one at a time in Continuous-Time Mode")
+    require(not lies, "; ".join(lies[:4]) + (" ..." if len(lies) > 4 else ""))
+    return "; ".join(parts) + ": no undeclared dependency"
+
+
 def check_dependencies(ctx: Context) -> str:
     # In Initialization Mode the importer may set inputs and get outputs in any order, the FMU
     # evaluating its equations in between (FMI 2.0 4.2.4, FMI 3.0 Initialization Mode): the
     # InitialUnknowns are tested there. In Step Mode a get after a set without a step is not
     # allowed: the Outputs' dependencies are tested by two continuations from one saved FMU
     # state over a small step (where the FMU can save its state).
+    # Through Model Exchange a get after a set is allowed in Continuous-Time Mode: the Outputs
+    # and the Derivatives are probed there (:func:`_dependencies_me`).
+    if ctx.interface == "me":
+        return _dependencies_me(ctx)
     if not ctx.inputs or not ctx.outputs:
         raise CheckSkipped("no inputs or no outputs")
     initial = _declared(ctx, "initialUnknowns")
@@ -270,19 +362,7 @@ def check_dependencies(ctx: Context) -> str:
         raise CheckSkipped("no output among the ModelStructure InitialUnknowns, and no Outputs "
                            "dependencies to probe in Step Mode" + ("" if can_probe else
                            " (canGetAndSetFMUstate is not declared)"))
-    lies, parts = [], []
-    if initial:
-        seen, tried = _initialization_probe(ctx, initial)
-        lies += _lies(initial, seen, "in Initialization Mode", "InitialUnknowns")
-        unseen = [f"{o} on {u}" for o, deps in initial.items() if deps is not None
-                  for u in sorted((deps & tried) - seen.get(o, set()))]
-        if unseen:
-            ctx.warnings.append("declared dependencies not seen (a dependency may be "
-                                "conditional, e.g. on a gain that is zero): "
-                                + ", ".join(unseen[:6]) + (" ..." if len(unseen) > 6 else ""))
-        n = sum(deps is not None for deps in initial.values())
-        parts.append(f"{n} output(s) with declared initial dependencies, {len(tried)} input(s) "
-                     "set one at a time in Initialization Mode")
+    lies, parts = _initial_part(ctx, initial)
     if can_probe and probed and not lies:
         lies += _lies(outputs, _step_probe(ctx, outputs), "in Step Mode (two continuations "
                       "from one saved FMU state differ by O(1), not O(h), over a small step)",
@@ -314,7 +394,7 @@ def check_reset(ctx: Context) -> str:
 
 
 def check_two_instances(ctx: Context) -> str:
-    if ctx.fmu.model_description.coSimulation.canBeInstantiatedOnlyOncePerProcess:
+    if ctx.caps.canBeInstantiatedOnlyOncePerProcess:
         raise CheckSkipped("canBeInstantiatedOnlyOncePerProcess is declared")
     with ctx.instantiate("single") as one:
         initialize(ctx, one)
@@ -336,7 +416,7 @@ def check_two_instances(ctx: Context) -> str:
 
 
 def check_state(ctx: Context) -> str:
-    cs = ctx.fmu.model_description.coSimulation
+    cs = ctx.caps
     if not cs.canGetAndSetFMUstate:
         raise CheckSkipped("canGetAndSetFMUstate is not declared")
     half = ctx.n // 2

@@ -131,9 +131,10 @@ def check_archive(ctx: Context) -> str:
 
 
 def cannot_run(ctx: Context) -> str | None:
-    """Why the FMU's Co-Simulation interface cannot run on this machine, or None."""
+    """Why the FMU cannot run on this machine (its Co-Simulation interface, or its Model
+    Exchange one if it has no other), or None."""
     md = ctx.fmu.model_description
-    ident = md.coSimulation.modelIdentifier
+    ident = (md.coSimulation or md.modelExchange).modelIdentifier
     lay = layout(ctx.fmu.path, ctx.fmu.fmi_version)
     if lay.runs_here(ident):
         return None

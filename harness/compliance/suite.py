@@ -30,7 +30,8 @@ from ...core.interrupt import pending
 from .child import die_with_parent, run_child
 from .fuzz import describe_exit, fuzz_fmu
 
-__all__ = ["JSON_SCHEMA", "JSON_SCHEMA_FILE", "CheckInterrupted", "check_fmu", "check_fmus", "format_reports", "not_checked",
+__all__ = ["JSON_SCHEMA", "JSON_SCHEMA_FILE", "CheckInterrupted", "check_fmu", "check_fmus",
+           "format_reports", "interfaces_of", "not_checked",
            "reports_json", "reports_junit"]
 
 #: the version of the ``--json`` document (``{"schema": JSON_SCHEMA, "fmus": [...]}``)
@@ -142,20 +143,27 @@ def _fmi_version(path: Path) -> str | None:
     return m.group(1) if m else None
 
 
+def interfaces_of(path: Path) -> tuple[str, ...]:
+    """The interfaces ("cs", "me") the FMU's modelDescription.xml declares (both if unread)."""
+    head = _model_description_head(path)
+    if head is None:
+        return ("cs", "me")
+    return tuple(i for i, tag in (("cs", "<CoSimulation"), ("me", "<ModelExchange"))
+                 if tag in head)
+
+
 def not_checked(path: Path) -> str | None:
-    """Why an FMU is out of scope (no Co-Simulation interface), or None.
+    """Why an FMU is out of scope (Scheduled Execution only: neither Co-Simulation nor Model
+    Exchange), or None.
 
     A file that is no readable FMU is not out of scope: its ``load`` check fails.
     """
     head = _model_description_head(path)
-    if head is None or "<fmiModelDescription" not in head or "<CoSimulation" in head:
+    if head is None or "<fmiModelDescription" not in head or "<CoSimulation" in head \
+            or "<ModelExchange" in head or "<ScheduledExecution" not in head:
         return None
-    others = [name for tag, name in (("<ScheduledExecution", "Scheduled Execution"),
-                                     ("<ModelExchange", "Model Exchange")) if tag in head]
-    if not others:
-        return None
-    return (f"not checked: {' and '.join(others)} only, no Co-Simulation interface "
-            "(dronefly check tests Co-Simulation FMUs)")
+    return ("not checked: Scheduled Execution only, no Co-Simulation or Model Exchange "
+            "interface (dronefly check tests those two)")
 
 
 def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUReport:
@@ -213,7 +221,7 @@ def _not_run(path: Path, report: FMUReport, crashed: str | None,
 
     profile = report.profile or "standard"
     fmi = 3 if _fmi_version(path) == "3.0" else 2
-    names = [c.name for c in CHECKS if listed(c, fmi, profile)]
+    names = [c.name for c in CHECKS if listed(c, fmi, profile, interfaces_of(path))]
     done = {c.name for c in report.checks}
     rest = [n for n in names if n not in done and options.wants(n)]
     where = f"in {crashed}" if crashed else "between checks"

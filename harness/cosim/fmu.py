@@ -1,7 +1,7 @@
 """Thin, safe access to co-simulation FMUs through fmpy's FMU2Slave API.
 
 FMI 2.0 FMUs run in fmpy's FMU2Slave; FMI 3.0 FMUs in fmpy's FMU3Slave behind the same API
-(:mod:`.fmi3`: arrays appear as scalar elements, Float64 and Float32 as Real).
+(:mod:`.fmu3`: arrays appear as scalar elements, Float64 and Float32 as Real).
 
 An :class:`FMU` is read and extracted once; :meth:`FMU.instantiate` gives
 :class:`Instance` objects whose log messages are captured in
@@ -23,11 +23,12 @@ from typing import Any, Mapping, Sequence
 import fmpy
 from fmpy import platform, platform_tuple, sharedLibraryExtension
 from fmpy.fmi1 import calloc, free
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.logging import addLoggerProxy
 
 from ...core.errors import DroneflyError
+from .exchange import MEStepper
 from .fmu3 import FMU3Adapter, fmi2_view
 
 __all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "column_units",
@@ -163,16 +164,20 @@ class FMU:
         ``dronefly check`` reads it unvalidated and lists every problem in its own checks.
     require_binary : bool
         Refuse an FMU without a binary for this platform (default).
+    require_cosim : bool
+        Refuse an FMU without a Co-Simulation interface (default); ``dronefly check`` also
+        checks one with Model Exchange only.
 
     Raises
     ------
     FMUError
         Missing file, not a zip, no valid modelDescription.xml (every problem fmpy names, in
-        one line), no co-simulation.
+        one line), no co-simulation (``require_cosim`` false: neither co-simulation nor model
+        exchange).
     """
 
     def __init__(self, path: str | Path, validate: bool = True,
-                 require_binary: bool = True) -> None:
+                 require_binary: bool = True, require_cosim: bool = True) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise FMUError(f"FMU file {str(self.path)!r} " + (
@@ -184,8 +189,10 @@ class FMU:
         except Exception as e:  # fmpy lists its problems one a line: every one kept
             raise FMUError(f"{str(self.path)!r} is not a readable FMU: {_one_line(e)}") from e
         md = self.model_description
-        if md.coSimulation is None:
-            raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU (model exchange only)")
+        if md.coSimulation is None and (require_cosim or md.modelExchange is None):
+            raise FMUError(f"{str(self.path)!r} is not a co-simulation FMU ("
+                           + ("model exchange only)" if md.modelExchange is not None
+                              else "neither co-simulation nor model exchange)"))
         #: 2 or 3; for FMI 3.0, ``model_description`` is the harness's view of
         #: ``model_description3`` (see :mod:`.fmi3`)
         self.fmi_version = 3 if md.fmiVersion.startswith("3") else 2
@@ -218,10 +225,13 @@ class FMU:
     def names(self, causality: str) -> list[str]:
         return [v.name for v in self.model_description.modelVariables if v.causality == causality]
 
-    def instantiate(self, instance_name: str | None = None, logging: bool = True) -> "Instance":
+    def instantiate(self, instance_name: str | None = None, logging: bool = True,
+                    interface: str = "cs") -> "Instance":
+        """An instance through the Co-Simulation (``"cs"``) or the Model Exchange (``"me"``)
+        interface; a Model Exchange one answers the same calls (:mod:`.exchange`)."""
         if self._unzipdir is None:
             raise FMUError(f"FMU {self.name!r} is closed")
-        return Instance(self, instance_name or self.name, logging)
+        return Instance(self, instance_name or self.name, logging, interface=interface)
 
     def close(self) -> None:
         """Delete the extracted files."""
@@ -238,12 +248,14 @@ class FMU:
 
 @dataclass
 class Instance:
-    """One instantiated slave; ``slave`` is the fmpy ``FMU2Slave``."""
+    """One instantiated slave; ``slave`` is the fmpy ``FMU2Slave`` (``interface`` ``"me"``: a
+    :class:`.exchange.MEStepper` answering its calls through Model Exchange)."""
 
     fmu: FMU
     name: str
     logging: bool = True
     messages: list[LogMessage] = field(default_factory=list)
+    interface: str = "cs"
 
     def __post_init__(self) -> None:
         self.name = _unique(self.name)
@@ -254,9 +266,10 @@ class Instance:
         if _DISPATCH is None:
             _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
         md = self.fmu.model_description
-        self.slave = FMU2Slave(guid=md.guid, unzipDirectory=self.fmu._unzipdir,
-                               modelIdentifier=md.coSimulation.modelIdentifier,
-                               instanceName=self.name)
+        me = self.interface == "me"
+        cls, interface = (FMU2Model, md.modelExchange) if me else (FMU2Slave, md.coSimulation)
+        self.slave = cls(guid=md.guid, unzipDirectory=self.fmu._unzipdir,
+                         modelIdentifier=interface.modelIdentifier, instanceName=self.name)
         cb = fmi2CallbackFunctions()
         cb.logger = _DISPATCH
         cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
@@ -267,6 +280,10 @@ class Instance:
             pass
         self._callbacks = cb  # keep the ctypes structure alive as long as the instance
         self._register(callbacks=cb, loggingOn=self.logging)
+        if me:
+            self.slave = MEStepper(self.slave, self.slave, 2, md.numberOfContinuousStates,
+                                   md.numberOfEventIndicators,
+                                   bool(md.modelExchange.needsCompletedIntegratorStep))
 
     def _register(self, **instantiate_args: Any) -> None:
         """Call the slave's instantiate; the instance is live (freed at exit) if it succeeds."""
@@ -281,13 +298,17 @@ class Instance:
 
     def _instantiate3(self) -> None:
         md = self.fmu.model_description3
-        self.slave: Any = FMU3Adapter(md, str(self.fmu._unzipdir), self.name, self.fmu.elements)
+        me = self.interface == "me"
+        self.slave: Any = FMU3Adapter(md, str(self.fmu._unzipdir), self.name, self.fmu.elements,
+                                      model_exchange=me)
 
         def log(env: Any, status: int, category: bytes, message: bytes) -> None:
             self.messages.append(LogMessage(self.name, int(status), (category or b"").decode(
                 "utf-8", "replace"), (message or b"").decode("utf-8", "replace")))
 
         self._register(logMessage=log, loggingOn=self.logging)
+        if me:
+            self.slave = MEStepper(self.slave.model, self.slave, 3, None, None)
 
     def vrs(self, names: Sequence[str]) -> list[int]:
         return [self.fmu.vr(n) for n in names]

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from fmpy import read_model_description
-from fmpy.fmi3 import FMU3Slave
+from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from ...core.errors import DroneflyError
 
@@ -121,13 +121,16 @@ def read_view(path: str | Path) -> Any:
 
 
 class FMU3Adapter:
-    """fmpy's FMU3Slave answering the FMU2Slave calls the harness makes."""
+    """fmpy's FMU3Slave answering the FMU2Slave calls the harness makes (``model_exchange``:
+    fmpy's FMU3Model, its value and FMU-state calls; ``model`` is the fmpy object)."""
 
     def __init__(self, md: Any, unzipdir: str, instance_name: str,
-                 elements: dict[int, Element]) -> None:
-        self._s = FMU3Slave(guid=md.guid, unzipDirectory=unzipdir,
-                            modelIdentifier=md.coSimulation.modelIdentifier,
-                            instanceName=instance_name)
+                 elements: dict[int, Element], model_exchange: bool = False) -> None:
+        cls, interface = (FMU3Model, md.modelExchange) if model_exchange else \
+            (FMU3Slave, md.coSimulation)
+        self._s = cls(guid=md.guid, unzipDirectory=unzipdir,
+                      modelIdentifier=interface.modelIdentifier, instanceName=instance_name)
+        self.model = self._s
         self._elements = elements
         self._types = {v.valueReference: v.type for v in md.modelVariables}
         #: Float32 variables are read and written with fmi3Get/SetFloat32 (section 2.2.6.2)

@@ -1,4 +1,4 @@
-"""Write a :class:`~.description.System` as an SSP 1.0 file, and the systems of the project: the
+"""Write a :class:`~.system.System` as an SSP 1.0 file, and the systems of the project: the
 hover system (both axes) and the flapping insect's lateral loop.
 
 The archive holds ``SystemStructure.ssd`` (one component per instance with its Real, Integer
@@ -219,8 +219,8 @@ def flapping_starts(z: Sequence[float], roll0_rad: float = 0.0) -> dict[str, flo
         Added to the roll angle phi [rad].
 
     The FMU takes the attitude as delta_gamma_start and delta_theta_start (gamma =
-    asin(sin phi cos theta), the paper's roll angle; :func:`dronefly.models.rigid_body.
-    initial_state` inverts it): the same attitude to round-off.
+    asin(sin phi cos theta), the paper's roll angle;
+    :func:`dronefly.models.rigid_body.initial_state` inverts it): the same attitude to round-off.
     """
     U, n = lateral_interface.U_M_PER_S, lateral_interface.N_HZ
     u, v, w, p, q, r, phi, theta = (float(x) for x in z)
@@ -257,7 +257,8 @@ def flapping_system(fmus: Mapping[str, str | Path],
     stop_wb : float
         Stop time of the SSP's DefaultExperiment, in wing beats.
     z0 : sequence of 8 floats, optional
-        The orbit's start (:func:`dronefly.models.flapping.orbit_start`, computed if not given, some 1 s).
+        The orbit's start (:func:`dronefly.models.flapping.orbit_start`, computed if not
+        given: a Newton shooting).
     """
     if len(gains) != len(lateral_interface.STATE_NAMES):
         raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral_interface.STATE_NAMES)} "

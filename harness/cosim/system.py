@@ -189,7 +189,7 @@ def _experiment_time(ssd: Path, attribute: str) -> float | None:
 
 def _ssv_value(p: Any) -> Any:
     """An SSV parameter's value as its SSV type says (converted to the FMU variable's type
-    when the system is opened, :mod:`.values`; an Enumeration given by an item name stays
+    when the system is opened, :mod:`.typed_values`; an Enumeration given by an item name stays
     that name, resolved there against the variable's type definition)."""
     kind = (p.type or "Real").lower()
     if kind == "string":

@@ -13,7 +13,7 @@ It is also the master of the plant/controller pair (:class:`dronefly.harness.cos
 runs the pair's system here, in the pair's fixed order and on instances reused across runs).
 Real, Integer and Boolean connections are supported. Parameter and input values are converted
 to their variables' declared types when the master is made (and those of a run when it
-starts), :mod:`.values`. Any Real, Integer or Boolean variable can be recorded, as a pure
+starts), :mod:`.typed_values`. Any Real, Integer or Boolean variable can be recorded, as a pure
 observer: every recorded variable is read together with the point's outputs, before the
 inputs of the next step are set, and nothing is set at the last point. A recorded input is
 the value set for the step from that point: its source's output of that point (read from the

@@ -1,4 +1,4 @@
-"""The averaged model itself (issue 30): the periodic orbit of the wing-beat-resolved model, its
+"""The averaged model itself: the periodic orbit of the wing-beat-resolved model, its
 Floquet exponents beside the averaged model's eigenvalues and the paper's.
 
 :mod:`dronefly.models.flapping` is the model; :mod:`dronefly.harness.flapping.floquet` the

@@ -192,7 +192,7 @@ def master_report(fmus: Mapping[str, str | Path], report: ClosedLoopReport | Non
         Model name (``DroneFlyFlapping``, ``StateFeedback``) -> FMU path.
     report : ClosedLoopReport, optional
         The gain sets, the orbit and the linearised map's exponents, computed with the FMU's
-        :data:`~dronefly.models.flapping.STEPS_PER_BEAT` (default: computed so, some 3 s).
+        :data:`~dronefly.models.flapping.STEPS_PER_BEAT` (default: computed so).
     beats : int
         Wing beats of the run from the roll (at least 20).
     roll0_rad : float
@@ -223,9 +223,9 @@ def master_report(fmus: Mapping[str, str | Path], report: ClosedLoopReport | Non
 def write_flapping_ssp(fmu_dir: str | Path, path: str | Path,
                        gains: Sequence[float] = PAPER_GAINS_EQ27, roll0_rad: float = 0.1,
                        stop_wb: float = 30.0) -> Path:
-    """Write the flapping insect's lateral loop (:func:`~dronefly.harness.cosim.ssp.
-    flapping_system`) with the FMUs of ``fmu_dir`` as an SSP, for ``dronefly cosim --system
-    PATH --step 1``, and return its path.
+    """Write the flapping insect's lateral loop
+    (:func:`~dronefly.harness.cosim.ssp.flapping_system`) with the FMUs of ``fmu_dir`` as an SSP,
+    for ``dronefly cosim --system PATH --step 1``, and return its path.
 
     Parameters
     ----------

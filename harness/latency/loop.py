@@ -104,11 +104,6 @@ class FeedbackLoop:
         """(q, n) selection of the integrated states (q = ``len(self.integrated)``)."""
         return np.eye(self.n)[list(self.integrated)]
 
-    @property
-    def n_aug(self) -> int:
-        """States of the augmented loop, n + q."""
-        return self.n + len(self.integrated)
-
     def augmented(self) -> tuple[Array, Array, Array]:
         """(A_a, B_a, K_a) with X = [x; integral of C x], A_a = [[A, 0], [C, 0]], B_a = [B; 0],
         K_a = [K, KI C^T]: the loop is X' = A_a X + B_a u, u = K_a X_s.

@@ -37,7 +37,7 @@ def gain_matrix(name: str) -> np.ndarray:
     if name == "open":
         return np.zeros(_SHAPE)
     if name == "stabilising":
-        # the design pulls in scipy (0.25 s): imported for this set only, so that what reads
+        # the design pulls in scipy (slow to import): imported for this set only, so that what reads
         # gains (the CLI's converters, the sweep's cases and workers) starts without it
         from .design import move_lambda1_gains
 

@@ -3,7 +3,7 @@
 :func:`cosimulate_system` is the Python API of the command. It opens the system (an SSP
 file or a :class:`System`), applies ``instance.NAME=VALUE`` settings, runs it with the
 :class:`SystemMaster`, records the outputs, and, for every plant of the system (see
-:mod:`.verdicts`), identifies the closed-loop eigenvalues from runs of the whole system:
+:mod:`..cosim.verdicts`), identifies the closed-loop eigenvalues from runs of the whole system:
 
 - at the run's communication step: the verdict, and the deviation from the exact
   sampled-data loop at that step;
@@ -14,7 +14,7 @@ file or a :class:`System`), applies ``instance.NAME=VALUE`` settings, runs it wi
   eigenvalues are not as many (the Jacobi loop's delay modes) there is no comparison.
 
 With ``open_loop`` each plant's open loop is identified as well, from runs with the gains of
-its controller set to zero (:func:`.verdicts.open_loop_verdicts`), and cross-checked against
+its controller set to zero (:func:`..cosim.verdicts.open_loop_verdicts`), and cross-checked against
 eig(A) in the same way.
 
 Times are in wing beats of the system's wing-beat frequency (the parameter ``n`` of its
@@ -231,7 +231,7 @@ def cosimulate_system(system: System | str | Path, *, step_wingbeats: float = 0.
     set_values : mapping, optional
         ``{"instance.NAME": value}``: parameter or input values, in the FMU's unit, as
         numbers, booleans or text (as ``--set`` gives them), converted to each variable's
-        declared type when the system is opened (:mod:`.values`).
+        declared type when the system is opened (:mod:`..cosim.typed_values`).
     record : sequence of str, optional
         Variables ``instance.name`` to record: any Real, Integer or Boolean variable of any
         instance (default: every Real, Integer and Boolean output).

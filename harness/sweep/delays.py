@@ -1,9 +1,9 @@
 """The delay axes of ``dronefly sweep`` (``--delays``, ``--sample-periods``): the loop's verdict.
 
 A sweep whose cases set the controller's ``sensing_delay`` or ``sample_period`` (any value
-other than 0; see :mod:`.timing`) gets the columns ``DELAY_COLUMNS`` on every row. Per
-configuration (gains, step, delay, sample period, master, ``--set`` values) the closed loop's
-verdict is computed once, with the delay states in it:
+other than 0; see :mod:`dronefly.controller.timing`) gets the columns ``DELAY_COLUMNS`` on
+every row. Per configuration (gains, step, delay, sample period, master, ``--set`` values) the
+closed loop's verdict is computed once, with the delay states in it:
 
 ``stability``, ``stability_rate``
     Model (b) (:func:`dronefly.harness.latency.sampled.sampled_rates`) for the plant FMU's A and
@@ -73,8 +73,9 @@ def _integral_gains(pair: Any, values: dict[str, Any]) -> np.ndarray:
 
 
 def loop_verdict(loop: Any, timing: GridTiming) -> tuple[str, float]:
-    """(verdict, dominant rate per wing beat) of a :class:`~dronefly.harness.latency.loop.
-    FeedbackLoop` under ``timing``; ("", nan) where no model applies (see the module text)."""
+    """(verdict, dominant rate per wing beat) of a
+    :class:`~dronefly.harness.latency.loop.FeedbackLoop` under ``timing``; ("", nan) where no
+    model applies (see the module text)."""
 
     b = timing.model_b()
     if b is not None:

@@ -4,7 +4,7 @@
 gains (Eq. 27) and the stabilising design, communication step half a wing beat, the delays
 :data:`MAP_DELAYS_WB` x the sample periods :data:`MAP_PERIODS_WB`, from the ten box directions
 at four amplitudes each (40 disturbances per cell), 200 wing beats each. :func:`table`
-recomputes the doc's table from the timing alone (:func:`.timing.grid_simulate`, which
+recomputes the doc's table from the timing alone (:func:`..latency.grid.grid_simulate`, which
 reproduces the FMUs' trajectories to rounding; tests) and model (b) (the margins,
 :func:`dronefly.harness.latency.sampled.sampled_margin`), so the test that compares the doc
 with it costs a second, not the sweep's minute.

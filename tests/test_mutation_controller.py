@@ -1,0 +1,205 @@
+"""Independent oracles for the controller's timing and variable table (controller/), written
+against the mutants that survived the other tests (docs/mutation.md)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import pytest
+
+from dronefly.controller import timing, variables
+from dronefly.models import lateral_interface
+
+from test_mutation_models import N_HZ, U_M_PER_S
+
+
+# --- controller/timing.py: the latency an importer sees, by counting grid steps by hand -----
+
+def test_tolerance_is_the_documented_bound():
+    h = 0.1
+    assert timing.tolerance(0.0, 5.0, 0.0) == 0.0 and timing.tolerance(0.0, 5.0, -h) == 0.0
+    assert timing.tolerance(0.0, 0.0, h) == timing.TOLERANCE * h  # no drift at t0
+    assert timing.tolerance(5.0, 5.0, h) == timing.TOLERANCE * h  # (also from t0 != 0)
+    # the drift DRIFT m^2 h of m steps from t0 = 0 equals TOLERANCE h at m = sqrt(1e-9 * 2^52)
+    m = math.sqrt(timing.TOLERANCE / timing.DRIFT)
+    assert 2100 < m < 2150  # "after about 2100 steps"
+    assert timing.tolerance(0.0, m * h, h) == pytest.approx(2 * timing.TOLERANCE * h, rel=1e-9)
+    assert timing.tolerance(-m * h, 0.0, h) == timing.TOLERANCE * h  # |t| = 0
+    assert timing.tolerance(m * h, 0.0, h) == timing.TOLERANCE * h
+    assert timing.tolerance(0.0, -m * h, h) == pytest.approx(2 * timing.TOLERANCE * h, rel=1e-9)
+    # capped at DRIFT_CAP h from m = sqrt(5e-5 * 2^52) = 4.7e5 steps on
+    assert timing.tolerance(0.0, 1e6 * h, h) == pytest.approx(
+        (timing.TOLERANCE + timing.DRIFT_CAP) * h, rel=1e-12)
+
+
+@pytest.mark.parametrize("delay, period, lo, hi", [
+    (0.0, 0.0, 0.0, 0.0),      # in effect at once
+    (0.25, 0.0, 3, 3),         # a control due 2.5 steps later shows at the 3rd point
+    (0.2, 0.0, 2, 2),          # a whole number of steps: exactly that
+    # sampled every 3 steps: only the points whose step holds a sample count, here the
+    # points on the samples: seen at once, or half a step of delay later: at the next point
+    (0.0, 0.3, 0, 0),
+    (0.05, 0.3, 1, 1),
+    # samples at 0.25 k: at points 0.0 and 0.5 (at once) and inside the steps from 0.2 and
+    # 0.7 (seen at the next point, one step later)
+    (0.0, 0.25, 0, 1),
+    (0.0, 0.05, 0, 0),         # sampled twice a step: the first sample is at the point
+])
+def test_seen_latency_counts_grid_steps(delay, period, lo, hi):
+    h = 0.1
+    got = timing.Timing(delay, period).seen_latency(h)
+    # steps of 0.1 are not exact binary: a few ulps of the times involved
+    assert got == pytest.approx((lo * h, hi * h), abs=1e-12)
+
+
+def test_seen_latency_on_a_fine_grid():
+    # the snapping tolerance is 1e-9 of a step, whatever the step: 2.5 steps of 1 us show at
+    # the 3rd point, a sample every 4 steps with 1.5 steps of delay at the 2nd
+    h = 1e-6
+    assert timing.Timing(2.5 * h, 0.0).seen_latency(h) == pytest.approx((3 * h, 3 * h),
+                                                                         rel=1e-9)
+    assert timing.Timing(1.5 * h, 4 * h).seen_latency(h) == pytest.approx((2 * h, 2 * h),
+                                                                          rel=1e-9)
+
+
+def test_seen_latency_beyond_the_float_range_is_infinite():
+    assert timing.Timing(0.0, 0.0).seen_latency(1e308, steps=5) == (0.0, 0.0)
+    # (d + t) / h overflows: no instant index
+    assert timing.Timing(1.7e308, 0.0).seen_latency(0.5, steps=3) == (math.inf, math.inf)
+    # a delay of 8 steps of 1e307: the index times h overflows from the 10th point on
+    lo, hi = timing.Timing(8e307, 0.0).seen_latency(1e307)
+    assert lo == pytest.approx(8e307, rel=1e-15) and hi == math.inf
+    # a grid that leaves the float range after one step: one point seen
+    assert timing.Timing(0.0, 0.0).seen_latency(1.5e308, steps=5) == (0.0, 0.0)
+    h = 1.5e308  # half a step of delay: seen one step later, at the one point in range
+    assert timing.Timing(0.5 * h, 0.0).seen_latency(h, steps=5) == (h, h)
+    assert timing.Timing(0.0, 0.0).seen_latency(1.0, steps=0) == (math.inf, math.inf)
+
+
+@pytest.mark.parametrize("delay, period, seen", [
+    (0.25, 0.0, "3 step(s) (0.3 s) later"),
+    (0.0, 0.25, "0 to 1 steps (0 to 0.1 s) later"),
+    (1.7e308, 0.0, "more than 2000 steps later (or beyond float range)"),
+])
+def test_off_grid_warning_states_the_seen_latency(delay, period, seen):
+    h = 0.5 if delay > 1e300 else 0.1
+    text = timing.Timing(delay, period).off_grid_warning("a sample instant", 0.25, 0.2, h,
+                                                         "FMI 3.0")
+    assert f"the importer sees the control of an input set at a communication point {seen}, " \
+        "instead of sensing_delay" in text
+    assert text.startswith(f"sensing_delay = {delay!r} s and sample_period = {period!r} s on a "
+                           f"communication step of {h} s: a sample instant (t = 0.25 s) falls "
+                           "inside the step from 0.2 s. Inputs are constant over a "
+                           "communication step (FMI 3.0 co-simulation)")
+
+
+@pytest.mark.parametrize("h, delay, period, seen", [
+    # samples at 0.25 k: from point 0.0 the control (0.1 s later) shows at 0.1, from 0.2 (the
+    # sample at 0.25) at 0.4: one to two steps
+    (0.1, 0.1, 0.25, "1 to 2 steps (0.1 to 0.2 s) later"),
+    # the same on a 1 us grid: the tolerance scales with the step
+    (1e-6, 1e-6, 2.5e-6, "1 to 2 steps (1e-06 to 2e-06 s) later"),
+])
+def test_off_grid_warning_states_a_range_of_latencies(h, delay, period, seen):
+    text = timing.Timing(delay, period).off_grid_warning("x", 0.0, 0.0, h)
+    assert f"communication point {seen}, instead of sensing_delay" in text
+
+
+def test_timing_defaults_to_no_delay_and_no_sampling():
+    t = timing.Timing()
+    assert (t.sensing_delay, t.sample_period, t.delay_required) == (0.0, 0.0, False)
+    assert t.immediate
+    with pytest.raises(dataclasses.FrozenInstanceError):  # a value, shared by the FMU's steps
+        t.sensing_delay = 1.0  # type: ignore[misc]
+
+
+def test_off_grid_warning_with_a_latency_infinite_at_one_end():
+    t = timing.Timing(0.0, 0.0)
+    assert "0 step(s) (0 s) later" in t.off_grid_warning("x", 0.0, 0.0, 1.0)
+    text = timing.Timing(8e307, 0.0).off_grid_warning("x", 0.0, 0.0, 1e307)
+    assert "8 steps (8e+307 s) or more later" in text
+
+
+@pytest.mark.parametrize("kwargs, fragment", [
+    ({"sensing_delay": -0.1}, "sensing_delay = -0.1 s must be finite and >= 0"),
+    ({"sensing_delay": math.nan}, "sensing_delay = nan s must be finite and >= 0"),
+    ({"sample_period": -1e-300}, "sample_period = -1e-300 s must be finite and >= 0"),
+    ({"sample_period": math.inf}, "sample_period = inf s must be finite and >= 0"),
+    ({"delay_required": True}, "sensing_delay = 0.0 s must be > 0 in this FMU"),
+])
+def test_timing_validation_names_the_value(kwargs, fragment):
+    with pytest.raises(timing.SensingError, match=re.escape(fragment)):
+        timing.Timing(**kwargs).validate()
+
+
+def test_timing_accepts_its_bounds_and_knows_when_it_is_immediate():
+    timing.Timing(0.0, 0.0).validate()
+    timing.Timing(1e-300, 0.0, delay_required=True).validate()
+    assert timing.Timing(0.0, 0.0).immediate is True
+    assert timing.Timing(1e-300, 0.0).immediate is False
+    assert timing.Timing(0.0, 1e-300).immediate is False
+
+
+def test_delay_line_bound_is_max_samples_of_the_longer_of_step_and_period():
+    h = 0.5
+    at_bound = timing.Timing(timing.MAX_SAMPLES * h, 0.0)
+    at_bound.check_step(h)  # exactly MAX_SAMPLES entries: accepted
+    over = timing.Timing(timing.MAX_SAMPLES * h * (1 + 1e-15), 0.0)
+    with pytest.raises(timing.SensingError, match=re.escape(
+            f"a delay line of more than {timing.MAX_SAMPLES} samples")):
+        over.check_step(h)
+    # a sample period longer than the step sets the bound
+    timing.Timing(timing.MAX_SAMPLES * 2.0, 2.0).check_step(h)
+    with pytest.raises(timing.SensingError, match="communication step of 0.5 s"):
+        timing.Timing(timing.MAX_SAMPLES * 2.0 + 1.0, 2.0).check_step(h)
+    assert timing.MAX_SAMPLES == 100_000
+
+
+# --- controller/variables.py: the interface the paper's law needs, variable by variable ------
+
+@pytest.mark.parametrize("delayed", [False, True])
+def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
+    K = ((0.5, -1.0, 2.0, 0.25), (0.0, 0.0, 0.0, 0.0), (1.5, 0.0, 0.0, -3.0))
+    sources = ("row one", "row two", "row three")
+    got = {v.name: v for v in variables.controller_variables(lateral_interface.LATERAL, K, sources,
+                                                             delayed)}
+    states = lateral_interface.STATE_NAMES
+    for s in states:
+        assert (got[s].causality, got[s].start) == ("input", 0.0)
+    for i, c in enumerate(lateral_interface.CONTROL_NAMES):
+        v = got[c]
+        assert v.causality == "output" and v.initial == "calculated"
+        assert f": row {i + 1} of u = K x+_s + KI z" in v.description  # 1-based, as K[i,j]
+        # no feedthrough in the delayed variant; at initialization the row's own gains only
+        row = tuple(f"K[{i + 1},{j + 1}]" for j in range(4))
+        assert v.dependencies == (() if delayed else states)
+        assert v.initial_dependencies == (() if delayed else (
+            *states, *row, "n", "U", "limit_enabled", "u_max", "sensing_delay"))
+    every_gain = tuple(f"K[{i},{j}]" for i in (1, 2, 3) for j in (1, 2, 3, 4))
+    assert variables.all_gains(lateral_interface.LATERAL) == every_gain
+    assert variables.all_integral_gains(lateral_interface.LATERAL) == tuple("KI" + g[1:] for g in every_gain)
+    assert got["saturated"].type == "Boolean"
+    assert got["saturated"].initial_dependencies == (() if delayed else (
+        *states, *every_gain, "n", "U", "limit_enabled", "u_max", "sensing_delay"))
+    for i, row in enumerate(K):
+        for j, k in enumerate(row):
+            g = got[f"K[{i + 1},{j + 1}]"]
+            assert g.start == k and sources[i] in g.description and f"x+{j + 1}" in g.description
+            ki = got[f"KI[{i + 1},{j + 1}]"]
+            assert ki.start == 0.0
+            # the description names the component it weighs (1-based, as the FMI names)
+            assert f"[rad] on z{j + 1}, the integral of x+{j + 1} ({states[j]}) over" in \
+                ki.description
+    # Sect. 2.4: n = 164 Hz, U = 2 Phi n r2; Sect. 3.1: linear range to 0.4 rad
+    assert got["n"].start == N_HZ and got["U"].start == pytest.approx(U_M_PER_S, rel=1e-12)
+    assert (got["limit_enabled"].start, got["u_max"].start) == (False, 0.4)
+    # the delayed variant defaults to one wing beat of sensing delay; the other to none
+    assert got["sensing_delay"].start == (1.0 / N_HZ if delayed else 0.0)
+    assert got["sample_period"].start == 0.0
+    assert variables.LAW_PARAMETERS == ("n", "U", "limit_enabled", "u_max")
+    names = list(got)
+    # the integral gains and the timing come after the proportional law's parameters
+    assert names.index("u_max") < names.index("KI[1,1]") < names.index("sensing_delay")
+    assert names[-2:] == ["sensing_delay", "sample_period"]

@@ -86,7 +86,7 @@ from .quasisteady import CONTROLS, QuasiSteadyModel
 from .rigid_body import euler_from_quaternion, quaternion_from_euler
 
 __all__ = ["STATE_SIZE", "STEPS_PER_BEAT", "WING_CM_OVER_R", "FlappingError", "FlappingModel",
-           "Flight", "Floquet", "PeriodicOrbit", "Z_NAMES", "shooting", "wing_beat_controls"]
+           "Flight", "Floquet", "PeriodicOrbit", "Z_NAMES", "orbit_start", "shooting", "wing_beat_controls"]
 
 #: number of state values (as the 6-DOF plant: u, v, w, p, q, r, e0..e3, x, y, z)
 STATE_SIZE = 13
@@ -579,6 +579,18 @@ class FlappingModel:
             dz[j] = step
             cols.append((self.z_map(z + dz, control) - self.z_map(z - dz, control)) / (2 * step))
         return np.column_stack(cols)
+
+
+def orbit_start(model: FlappingModel | None = None) -> np.ndarray:
+    """The start of the flapping insect's periodic orbit at the averaged trim's kinematics
+    (:meth:`FlappingModel.periodic_orbit`, the averaged twin's monodromy as the Newton
+    Jacobian): the reduced state (u+, v+, w+, p+, q+, r+, phi, theta) at a beat's start.
+
+    ``model`` defaults to ``FlappingModel()``, the model of the ``DroneFlyFlapping`` FMU.
+    """
+    model = model or FlappingModel()
+    twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True)
+    return model.periodic_orbit(jacobian=twin.monodromy(np.zeros(8))).z0
 
 
 class Flight:

@@ -167,7 +167,12 @@ def _unrolled(rows: Rows) -> "tuple[Product, Callable[[tuple[float, ...], int, i
 
     The stepper detects a value that is not finite from the sum of the outputs alone: every
     control enters every row (with a coefficient 0.0 too, as 0 * inf and 0 * nan are nan), so a
-    control that is not finite makes every output so."""
+    control that is not finite makes every output so.
+
+    Two copies, 4 x 3 and 4 x 4, kept on purpose: one generic version is either a loop (the
+    general closure: several times the cost of a step) or source generated and run with exec (the
+    same cost, but exec is reserved to :func:`dronefly.models.rigid_body._make_functions`, see
+    its module); so each shape the plants use is written out once."""
     if len(rows) != 4 or len({len(row) for row in rows}) != 1:
         return None
     if len(rows[0]) == 7:

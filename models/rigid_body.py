@@ -28,9 +28,14 @@ the right-hand side into straight-line Python (:func:`_make_functions`); the qua
 normalised after each step. Accuracy (within 1e-9 of ``solve_ivp``) and cost: the README and
 docs/benchmarks.md.
 
-:func:`_make_functions` is the package's one execution of generated code: the same equations as
-plain Python functions cost more per step and take the 6-DOF/pair cost ratio through FMI over
-its target of 5 (docs/benchmarks.md, "Generated code", says how to measure it).
+Two ways of writing fast straight-line code, kept on purpose: exec of generated source is
+the package's one exception, :func:`_make_functions` (seven Runge-Kutta stages of 13 states
+with the terms chosen per instance: written out by hand that is hundreds of lines per choice of
+terms); everything else is plain code, written out by hand where it must be fast (the linear
+plants' steps of :mod:`dronefly.models.linear`, the control law's one row). Plain Python
+functions for these equations cost more per step and take the 6-DOF/pair cost ratio through
+FMI over its target of 5 (docs/benchmarks.md, "Generated code", says how to measure it); no
+other code has a measured need for exec, which an FMU reviewer must read as generated text.
 """
 
 from __future__ import annotations

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from dronefly.harness.aero import QuasiSteadyModel, Terms, Trim, WingGeometry
-from dronefly.harness.aero.beside_paper import ackermann, derivatives, eigenvalues, parity_report
+from dronefly.harness.aero.beside_paper import (LATERAL_PARAMETERS, closed_loop, derivatives, eigenvalues,
+                                                parity_report, matrices_with_derivatives)
 from dronefly.models import lateral_dynamics
 from dronefly.models.quasisteady import COEFFICIENT_SETS, CONTROLS, FORCES, STATES
 from dronefly.cli.app import main
@@ -179,14 +180,18 @@ def test_paper_derivatives_give_the_papers_eigenvalues():
     assert ev["longitudinal"][0].real == pytest.approx(0.0481, abs=1e-4)
 
 
-def test_ackermann_against_the_harness_design():
-    from dronefly.harness.paper.analysis import ackermann_gains
-    from dronefly.models.lateral_dynamics import default_parameters, system_matrices
+def test_matched_gains_against_python_control(model):
+    """The matched design of ``closed_loop`` (Ackermann's formula, harness.paper.analysis)
+    against python-control's ``acker`` (u = -K x there): the same gains to 1e-9 relative
+    (both solve the same 4 x 4 controllability system, condition ~1e4 here)."""
+    import control
 
-    A, B = system_matrices(default_parameters())
-    targets = [0.0, -0.089 + 0.057j, -0.089 - 0.057j, -0.51]
-    np.testing.assert_allclose(ackermann(A, B[:, 0], targets),
-                               np.ravel(ackermann_gains(A, B, targets, 0)), rtol=1e-9)
+    d = derivatives(model)
+    values = {p: float(d[i][FORCES.index(F)]) for p, F, i in LATERAL_PARAMETERS}
+    (A1q, B1q), _ = matrices_with_derivatives(values)
+    c = closed_loop(values)
+    theirs = -np.asarray(control.acker(A1q, B1q[:, [0]], c["targets"])).ravel()
+    np.testing.assert_allclose(c["matched_gains"], theirs, rtol=1e-9)
 
 
 def test_report_json_has_the_schema(model):
@@ -406,12 +411,11 @@ def translational_share(m):
 def test_quasi_steady_lateral_matrix_has_the_signs_of_eq9(reports):
     """Axes and signs as the paper's: Eq. (10) with the model's derivatives has +g+ in its first
     row and the sign of Eq. (12) in every aerodynamic entry the paper prints as nonzero."""
-    from dronefly.harness.aero.beside_paper import system_matrices
     from dronefly.models.lateral_interface import INERTIAS_SECT21
     from dronefly.models.lateral_dynamics import A1_EQ12
 
     values = {r.parameter: r.quasi_steady for r in reports[0].rows}
-    (A1, B1), _ = system_matrices(values)
+    (A1, B1), _ = matrices_with_derivatives(values)
     assert A1[0, 3] == INERTIAS_SECT21["g_plus"] > 0 and INERTIAS_SECT21["Ixz_plus"] < 0
     paper = np.asarray(A1_EQ12)
     printed = np.abs(paper[:3, :3]) > 0.0

@@ -171,7 +171,8 @@ def test_started_on_the_periodic_orbit_the_fmu_returns_to_its_start_after_a_wing
     conversion (the FMU integrates on the same grid as the model). Half a beat in, it is not
     (the body's oscillation within the beat), and from rest (state 0) the beat does not close
     (the orbit is not trivial)."""
-    from dronefly.harness.cosim.ssp import flapping_starts, orbit_start
+    from dronefly.harness.cosim.ssp import flapping_starts
+    from dronefly.models.flapping import orbit_start
     from dronefly.models.lateral_interface import U_M_PER_S
 
     names = ("delta_u", "delta_v", "delta_w", "delta_p", "delta_q", "delta_r", "delta_gamma",

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dronefly.harness.aero.beside_paper import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS,
-                                           derivatives, system_matrices)
+                                           derivatives, matrices_with_derivatives)
 from dronefly.models import lateral_dynamics
 from dronefly.models import longitudinal_dynamics
 from dronefly.models import rigid_body
@@ -48,7 +48,7 @@ def tangent(qs):
     d = derivatives(qs)
     values = {p: float(d[i][FORCES.index(F)])
               for p, F, i in (*LATERAL_PARAMETERS, *LONGITUDINAL_PARAMETERS)}
-    return system_matrices(values)
+    return matrices_with_derivatives(values)
 
 
 def test_gauss_jacobi_is_scipys():

@@ -22,6 +22,7 @@ from ...models import (lateral_dynamics,
                        longitudinal_dynamics)
 from ...models.feedback import PAPER_GAINS_EQ27
 from ...models.lateral_interface import STATE_BOUNDS_SECT36, sort_eigenvalues
+from ..paper.analysis import ackermann_gains
 from ...models.quasisteady import (COEFFICIENT_SETS, CONTROLS, FORCES, STATES, QuasiSteadyModel,
                                    Terms, Trim)
 
@@ -35,16 +36,16 @@ __all__ = [
     "ParityReport",
     "STATE_BOX",
     "TRIM_VARIANTS",
-    "ackermann",
     "readme_paragraph",
     "closed_loop",
     "derivative_table",
+    "derivative_parameters",
     "derivatives",
     "eigenvalues",
     "linearity_scan",
     "linearity_summary",
+    "matrices_with_derivatives",
     "pair_scan",
-    "system_matrices",
     "parity_report",
     "term_contributions",
     "trim_table",
@@ -172,36 +173,33 @@ def derivative_table(model: QuasiSteadyModel, step: float = 1e-3) -> list[Deriva
             for p, F, inp in (*LATERAL_PARAMETERS, *LONGITUDINAL_PARAMETERS)]
 
 
-def system_matrices(values: dict[str, float]) -> tuple[tuple[Array, Array], tuple[Array, Array]]:
-    """Lateral (A1, B1) and longitudinal (A, B) with the derivatives of ``values`` and the
-    paper's mass, inertias and gravity."""
+def derivative_parameters(values: dict[str, float]) -> tuple[lateral_dynamics.LateralParameters,
+                                                          longitudinal_dynamics.LongitudinalParameters]:
+    """The paper's lateral and longitudinal parameters with the derivatives of ``values``
+    in place of the paper's (mass, inertias and gravity stay the paper's)."""
     lat = dict(lateral_dynamics.default_parameters().__dict__)
     lat.update({p: values[p] for p, _, _ in LATERAL_PARAMETERS if p in values})
     lon = dict(longitudinal_dynamics.default_parameters().__dict__)
     lon.update({p: values[p] for p, _, _ in LONGITUDINAL_PARAMETERS if p in values})
-    return (lateral_dynamics.system_matrices(lateral_dynamics.LateralParameters(**lat)),
-            longitudinal_dynamics.system_matrices(longitudinal_dynamics.LongitudinalParameters(**lon)))
+    return (lateral_dynamics.LateralParameters(**lat),
+            longitudinal_dynamics.LongitudinalParameters(**lon))
+
+
+def matrices_with_derivatives(values: dict[str, float]) -> tuple[tuple[Array, Array],
+                                                                  tuple[Array, Array]]:
+    """Lateral (A1, B1) and longitudinal (A, B) of :func:`derivative_parameters`, by the one
+    home of the equations, ``system_matrices`` of :mod:`dronefly.models.lateral_dynamics` and
+    :mod:`dronefly.models.longitudinal_dynamics`."""
+    lat, lon = derivative_parameters(values)
+    return lateral_dynamics.system_matrices(lat), longitudinal_dynamics.system_matrices(lon)
 
 
 def eigenvalues(values: dict[str, float]) -> dict[str, list[complex]]:
     """Lateral and longitudinal eigenvalues per wing beat of the derivatives ``values``
     (with the paper's m+, g+, Ix+, Iz+, Ixz+, Iy+), in the project's order."""
-    (A1, _), (A, _) = system_matrices(values)
+    (A1, _), (A, _) = matrices_with_derivatives(values)
     return {"lateral": sort_eigenvalues(np.linalg.eigvals(A1)),
             "longitudinal": sort_eigenvalues(np.linalg.eigvals(A))}
-
-
-def ackermann(A: Array, b: Array, targets: Sequence[complex]) -> Array:
-    """Single-input gains k (u = k x) placing eig(A + b k) at ``targets`` (Ackermann)."""
-    n = A.shape[0]
-    coeffs = np.real(np.poly(np.asarray(targets, dtype=complex)))
-    phi = np.zeros_like(A)
-    for c in coeffs:
-        phi = phi @ A + c * np.eye(n)
-    ctrb = np.column_stack([np.linalg.matrix_power(A, i) @ b for i in range(n)])
-    e_n = np.zeros(n)
-    e_n[-1] = 1.0
-    return -(e_n @ np.linalg.solve(ctrb, phi))
 
 
 def closed_loop(values: dict[str, float]) -> dict[str, object]:
@@ -215,13 +213,13 @@ def closed_loop(values: dict[str, float]) -> dict[str, object]:
         quasi-steady eigenvalue with a positive real part onto the imaginary axis and keeping
         the others; ``matched_eigenvalues`` its closed loop.
     """
-    (A1q, B1q), _ = system_matrices(values)
+    (A1q, B1q), _ = matrices_with_derivatives(values)
     A1p, _ = lateral_dynamics.system_matrices(lateral_dynamics.default_parameters())
     k = np.asarray(PAPER_GAINS_EQ27)
     b = B1q[:, 0]
     open_q = sort_eigenvalues(np.linalg.eigvals(A1q))
     targets = [complex(0.0, z.imag) if z.real > 0 else z for z in open_q]
-    gains = ackermann(A1q, b, targets)
+    gains = ackermann_gains(A1q, b, targets)
     return {
         "qs_A_qs_B": sort_eigenvalues(np.linalg.eigvals(A1q + np.outer(b, k))),
         "paper_A_qs_B": sort_eigenvalues(np.linalg.eigvals(A1p + np.outer(b, k))),

@@ -39,7 +39,6 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from xml.etree import ElementTree as ET
 
 import fmpy.container_fmu as cfmu
 import numpy as np
@@ -52,7 +51,8 @@ from ...core.files import write_zip
 from ..cosim.fmu3 import read_view
 from ..cosim.fmu import start_values
 from ..cosim.master import CoSimError, connect_by_name
-from ..cosim.ssp import SSC_NS, SSD_NS, SSV_NS, xml_bytes
+from ..cosim.ssp import write_system_ssp
+from ..cosim.system import Connection as SystemConnection, System
 from ...models.feedback import default_gains, gain_name
 from ...models.lateral_interface import STATE_NAMES, plant_scales
 from .nestedshim import install_shims
@@ -288,42 +288,17 @@ def write_ssp(plant: str | Path, controller: str | Path, out_dir: str | Path = "
     params = _bindable(parameter_values(pmd, spec), {"plant": (plant, pmd),
                                                      "controller": (controller, cmd)})
     step = spec.step_wingbeats / n
-    root = ET.Element(f"{{{SSD_NS}}}SystemStructureDescription",
-                      {"version": "1.0", "name": CLOSED_LOOP})
-    system = ET.SubElement(root, f"{{{SSD_NS}}}System", {
-        "name": CLOSED_LOOP,
-        "description": f"DroneFlyLateral plant with StateFeedback controller (Zhang & Sun, "
-                       f"Eq. 27); communication step {spec.step_wingbeats:g} wing beat = "
-                       f"{float(step)!r} s" + _versions(pmd, cmd)})
-    elements = ET.SubElement(system, f"{{{SSD_NS}}}Elements")
-    for comp, fmu, md in (("plant", PLANT, pmd), ("controller", CONTROLLER, cmd)):
-        c = ET.SubElement(elements, f"{{{SSD_NS}}}Component", {
-            "name": comp, "source": f"resources/{fmu}.fmu",
-            "type": "application/x-fmu-sharedlibrary"})
-        connectors = ET.SubElement(c, f"{{{SSD_NS}}}Connectors")
-        for v in md.modelVariables:
-            if v.causality in ("input", "output") and v.type == "Real":
-                con = ET.SubElement(connectors, f"{{{SSD_NS}}}Connector",
-                                    {"name": v.name, "kind": v.causality})
-                ET.SubElement(con, f"{{{SSC_NS}}}Real")
-        bindings = ET.SubElement(c, f"{{{SSD_NS}}}ParameterBindings")
-        ET.SubElement(bindings, f"{{{SSD_NS}}}ParameterBinding", {"source": f"resources/{comp}.ssv"})
-    connections = ET.SubElement(system, f"{{{SSD_NS}}}Connections")
-    for a, x, b, y in connect_by_name(pmd, cmd):
-        ET.SubElement(connections, f"{{{SSD_NS}}}Connection", {
-            "startElement": a, "startConnector": x, "endElement": b, "endConnector": y})
-    ET.SubElement(root, f"{{{SSD_NS}}}DefaultExperiment", {
-        "startTime": "0.0", "stopTime": repr(float(spec.stop_wingbeats / n))})
-    files = {"SystemStructure.ssd": xml_bytes(root),
-             f"resources/{PLANT}.fmu": Path(plant).read_bytes(),
-             f"resources/{CONTROLLER}.fmu": Path(controller).read_bytes()}
-    for comp in ("plant", "controller"):
-        pset = ET.Element(f"{{{SSV_NS}}}ParameterSet", {"version": "1.0", "name": comp})
-        plist = ET.SubElement(pset, f"{{{SSV_NS}}}Parameters")
-        for k, v in params.items():
-            owner, _, name = k.partition(".")
-            if owner == comp:
-                p = ET.SubElement(plist, f"{{{SSV_NS}}}Parameter", {"name": name})
-                ET.SubElement(p, f"{{{SSV_NS}}}Real", {"value": repr(float(v))})
-        files[f"resources/{comp}.ssv"] = xml_bytes(pset)
-    return write_zip(Path(out_dir) / f"{CLOSED_LOOP}.ssp", files)
+    values: dict[str, dict[str, object]] = {"plant": {}, "controller": {}}
+    for k, v in params.items():
+        owner, _, name = k.partition(".")
+        values[owner][name] = float(v)
+    system = System({"plant": Path(plant), "controller": Path(controller)},
+                    [SystemConnection(a, x, b, y) for a, x, b, y in connect_by_name(pmd, cmd)],
+                    values, name=CLOSED_LOOP, stop_s=float(spec.stop_wingbeats / n))
+    return write_system_ssp(
+        system, Path(out_dir) / f"{CLOSED_LOOP}.ssp",
+        description=f"DroneFlyLateral plant with StateFeedback controller (Zhang & Sun, "
+                    f"Eq. 27); communication step {spec.step_wingbeats:g} wing beat = "
+                    f"{float(step)!r} s" + _versions(pmd, cmd),
+        entries={"plant": f"{PLANT}.fmu", "controller": f"{CONTROLLER}.fmu"},
+        connector_types=("Real",))

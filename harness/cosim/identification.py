@@ -23,12 +23,13 @@ from typing import Sequence
 import numpy as np
 
 from ...models import lateral_interface
+from ...models.lateral_interface import sort_eigenvalues
 from ...models.linear import discretize_zoh
 from ...core.errors import CrossCheckError
 
 __all__ = ["FIT_RESIDUAL_TOL", "RATE_TOL_PER_WINGBEAT", "TOL_PER_WINGBEAT", "TRAJECTORY_TOL",
            "Identification", "Verdict", "checked", "classify", "cross_check_failures", "identify",
-           "rates_from_transition", "relative_deviation", "sampled_closed_loop", "sort_eigenvalues",
+           "rates_from_transition", "relative_deviation", "sampled_closed_loop",
            "unit_start_values",
            "verdict_of"]
 
@@ -56,16 +57,11 @@ TRAJECTORY_TOL = 1e-8
 _DELAY_MODE = 1e-7
 
 
-def sort_eigenvalues(ev: np.ndarray) -> np.ndarray:
-    """As an array, in the order of :func:`dronefly.models.lateral_interface.sort_eigenvalues`."""
-    return np.array(lateral_interface.sort_eigenvalues(np.ravel(ev)), dtype=complex)
-
-
 def rates_from_transition(F: np.ndarray, step_wb: float) -> np.ndarray:
     """Continuous eigenvalues per wing beat of a one-step transition matrix."""
     mu = np.linalg.eigvals(F)
     mu = mu[np.abs(mu) > _DELAY_MODE]
-    return sort_eigenvalues(np.log(mu.astype(complex)) / step_wb)
+    return np.array(sort_eigenvalues(np.log(mu.astype(complex)) / step_wb), dtype=complex)
 
 
 def classify(rates: np.ndarray, tol: float = TOL_PER_WINGBEAT) -> str:

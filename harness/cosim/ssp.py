@@ -21,13 +21,13 @@ import numpy as np
 from ...core.files import write_zip
 from ...models import lateral_interface, longitudinal_interface
 from ...models.feedback import PAPER_GAINS_EQ27
-from ...models.flapping import FlappingModel
+from ...models.flapping import orbit_start
 from .fmu3 import read_view
 from .system import System, SystemSpecError
 
 __all__ = ["FLAPPING", "FLAPPING_FMUS", "HOVER", "HOVER_6DOF", "HOVER_6DOF_FMUS", "HOVER_FMUS",
            "SSC_NS", "SSD_NS", "SSV_NS", "flapping_starts", "flapping_system", "hover_system",
-           "orbit_start", "write_system_ssp", "xml_bytes"]
+           "write_system_ssp", "xml_bytes"]
 
 #: the XML namespaces of SSP 1.0's system structure, common types and parameter values
 SSD_NS = "http://ssp-standard.org/SSP1/SystemStructureDescription"
@@ -77,8 +77,26 @@ def _ssv_type(value: object) -> tuple[str, str]:
 
 
 def write_system_ssp(system: System, path: str | Path, *, description: str = "",
-                     stop_s: float | None = None) -> Path:
-    """Write ``system`` as an SSP 1.0 archive at ``path`` and return the path.
+                     stop_s: float | None = None, entries: Mapping[str, str] | None = None,
+                     connector_types: Sequence[str] = ("Real", "Integer", "Boolean")) -> Path:
+    """Write ``system`` as an SSP 1.0 archive at ``path`` and return the path: the project's
+    one SSP writer (:meth:`System.from_ssp` is its reader).
+
+    Parameters
+    ----------
+    system : System
+        The FMUs, connections and parameter values; an instance named in
+        ``system.parameters`` gets a ParameterBinding and its ``.ssv`` even if it binds no value.
+    path : str or Path
+        The archive to write.
+    description : str
+        The System element's description.
+    stop_s : float, optional
+        The DefaultExperiment's stop time, s (default ``system.stop_s``; none if both None).
+    entries : mapping, optional
+        Instance -> the FMU's file name under ``resources/`` (default: the file's own name).
+    connector_types : sequence of str
+        The SSP connector types (``Real``, ``Integer``, ``Boolean``) written as connectors.
 
     Raises
     ------
@@ -98,14 +116,16 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
         if not inst.isidentifier():
             raise SystemSpecError(f"instance name {inst!r} must be an identifier")
         data = Path(fmu).read_bytes()
-        entry = sources.setdefault(data, f"resources/{Path(fmu).name}")
+        file_name = (entries or {}).get(inst, Path(fmu).name)
+        entry = sources.setdefault(data, f"resources/{file_name}")
         if files.get(entry, data) != data:
-            raise SystemSpecError(f"two different FMUs are named {Path(fmu).name!r}")
+            raise SystemSpecError(f"two different FMUs are named {file_name!r}")
         files[entry] = data
         comp = ET.SubElement(elements, f"{{{_SSD}}}Component", {
             "name": inst, "source": entry, "type": "application/x-fmu-sharedlibrary"})
         ports = [(v.name, v.causality, _SSP_TYPES[v.type]) for v in read_view(fmu).modelVariables
-                 if v.causality in ("input", "output") and v.type in _SSP_TYPES]
+                 if v.causality in ("input", "output")
+                 and _SSP_TYPES.get(v.type) in connector_types]
         if ports:  # the schema wants a Connector in Connectors: none without
             connectors = ET.SubElement(comp, f"{{{_SSD}}}Connectors")
             for name, kind, ssp_type in ports:
@@ -113,7 +133,7 @@ def write_system_ssp(system: System, path: str | Path, *, description: str = "",
                                     {"name": name, "kind": kind})
                 ET.SubElement(con, f"{{{_SSC}}}{ssp_type}")
         values = system.parameters.get(inst)
-        if values:
+        if values is not None:
             bindings = ET.SubElement(comp, f"{{{_SSD}}}ParameterBindings")
             ET.SubElement(bindings, f"{{{_SSD}}}ParameterBinding",
                           {"source": f"resources/{inst}.ssv"})
@@ -187,18 +207,6 @@ def hover_system(fmus: Mapping[str, str | Path],
     return _system(fmus, models, params, HOVER_6DOF if nonlinear else HOVER, stop_wingbeats)
 
 
-def orbit_start(model: FlappingModel | None = None) -> np.ndarray:
-    """The start of the flapping insect's periodic orbit at the averaged trim's kinematics
-    (:meth:`FlappingModel.periodic_orbit`, the averaged twin's monodromy as the Newton
-    Jacobian): the reduced state (u+, v+, w+, p+, q+, r+, phi, theta) at a beat's start.
-
-    ``model`` defaults to ``FlappingModel()``, the model of the ``DroneFlyFlapping`` FMU.
-    """
-    model = model or FlappingModel()
-    twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True)
-    return model.periodic_orbit(jacobian=twin.monodromy(np.zeros(8))).z0
-
-
 def flapping_starts(z: Sequence[float], roll0_rad: float = 0.0) -> dict[str, float]:
     """The ``*_start`` parameters (SI) of ``DroneFlyFlapping`` (and ``DroneFlyHover6DOF``)
     that start it at a reduced state with a roll added (heading and position 0).
@@ -249,7 +257,8 @@ def flapping_system(fmus: Mapping[str, str | Path],
     stop_wb : float
         Stop time of the SSP's DefaultExperiment, in wing beats.
     z0 : sequence of 8 floats, optional
-        The orbit's start (:func:`orbit_start`, computed if not given: a Newton shooting).
+        The orbit's start (:func:`dronefly.models.flapping.orbit_start`, computed if not
+        given: a Newton shooting).
     """
     if len(gains) != len(lateral_interface.STATE_NAMES):
         raise SystemSpecError(f"gains = {list(gains)!r}: expected {len(lateral_interface.STATE_NAMES)} "

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from ...models.lateral_interface import sort_eigenvalues
 from .calculated import calculated_matrix
-from .identification import (Identification, identify, rates_from_transition, sampled_closed_loop,
-                        sort_eigenvalues)
+from .identification import Identification, identify, rates_from_transition, sampled_closed_loop
 from .master import CoSimError
 from .system_master import SystemMaster
 
@@ -234,6 +234,6 @@ def _verdict(master: SystemMaster, p: PlantInfo, plants: list[PlantInfo], step_w
     if p.A is not None and K is not None and (p.B is not None or not K.size):
         k = len(p.A)
         B = np.zeros((k, 0)) if p.B is None else p.B
-        cont = sort_eigenvalues(np.linalg.eigvals(p.A + B @ K))
+        cont = np.array(sort_eigenvalues(np.linalg.eigvals(p.A + B @ K)), dtype=complex)
         sampled = rates_from_transition(sampled_closed_loop(p.A, B, K, step_wb, jacobi), step_wb)
     return AxisVerdict(p, ident, cont, sampled)

@@ -18,7 +18,7 @@ from ..builder.build import project_fmus
 from ...core.files import run_name, write_run_files
 from ...core.text import complex_text
 from ...models.feedback import default_gains, gain_name
-from ...models.lateral_interface import STATE_NAMES
+from ...models.lateral_interface import STATE_NAMES, sort_eigenvalues
 from ..cosim.calculated import plant_matrices
 from ..cosim.fmu import FMU, column_units
 from ..cosim.master import MASTERS, CoSimError, Loop, LoopRun, step_count
@@ -27,7 +27,7 @@ from ..cosim.params import resolve_assignments, scale_ratios
 from ..cosim.identification import (FIT_RESIDUAL_TOL, RATE_TOL_PER_WINGBEAT, TOL_PER_WINGBEAT,
                                TRAJECTORY_TOL, Identification, classify, cross_check_failures,
                                identify, rates_from_transition, relative_deviation,
-                               sampled_closed_loop, sort_eigenvalues)
+                               sampled_closed_loop)
 from ..latency.grid import GridTiming
 from ..latency.identify import identify_delayed
 from ..latency.loop import FeedbackLoop, LatencyInputError
@@ -415,7 +415,7 @@ def _cosimulate(loop: Loop, K: np.ndarray | None, x0: np.ndarray | None, step_wb
                                 for j in range(K.shape[1])}}
             open_run = loop.run(h, n_steps, master=master, plant_start=start(x0),
                                 controller_params=zero, instances=(p, c), u_source0=feed0)
-    cont = sort_eigenvalues(np.linalg.eigvals(A + B @ Km))
+    cont = np.array(sort_eigenvalues(np.linalg.eigvals(A + B @ Km)), dtype=complex)
     xs = np.column_stack([run.column(s) for s in states]) / scale
     z = np.zeros(len(F))
     z[:ns] = x0

@@ -8,6 +8,13 @@ recomputes the doc's table from the timing alone (:func:`..latency.grid.grid_sim
 reproduces the FMUs' trajectories to rounding; tests) and model (b) (the margins,
 :func:`dronefly.harness.latency.sampled.sampled_margin`), so the test that compares the doc
 with it costs a second, not the sweep's minute.
+
+The other tables of docs/latency.md (margins of every design, the cost of latency, the
+redesigns) are :mod:`dronefly.harness.latency.report`'s. Kept apart on purpose: this table
+needs the sweep's cases (:mod:`.cases`, a floor above ``harness.latency``, which latency may
+not import), and the one number both tables show, margin (b) at one sample per wing beat,
+has one home, :func:`dronefly.harness.latency.sampled.sampled_margin`, which both call; the
+wing beat to ms conversion is the report's :func:`~dronefly.harness.latency.report.wb_to_ms`.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ from ...models.lateral_interface import N_HZ
 from ..cosim.identification import classify
 from ..latency.grid import GridTiming, grid_simulate
 from ..latency.loop import FeedbackLoop
+from ..latency.report import wb_to_ms
 from ..latency.sampled import SampledMargin, sampled_margin, sampled_rates
 from ..paper.analysis import lateral_system
 from ..paper.gains import gain_matrix
@@ -134,9 +142,9 @@ def table(m: dict | None = None, c: dict | None = None) -> list[str]:
     rows = []
     for g in _GAINS:
         for T in MAP_PERIODS_WB:
-            period = (f"{T:g} wb ({1e3 * T / N_HZ:.1f} ms)" if T
+            period = (f"{T:g} wb ({wb_to_ms(T):.1f} ms)" if T
                       else f"every step ({MAP_STEP_WB:g} wb)")
             rows.append([g, period, f"{m[(g, T)].tau:.2f} wb ({m[(g, T)].ms(N_HZ):.1f} ms)",
                          *(_text(c[(g, T, d)]) for d in TABLE_DELAYS_WB)])
-    head = [f"{d:g} wb ({1e3 * d / N_HZ:.1f} ms)" for d in TABLE_DELAYS_WB]
+    head = [f"{d:g} wb ({wb_to_ms(d):.1f} ms)" for d in TABLE_DELAYS_WB]
     return markdown_table(["gains", "sample period", "margin (b)", *head], rows)

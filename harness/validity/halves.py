@@ -57,8 +57,9 @@ from ...models.feedback import LONGITUDINAL_GAINS_DESIGN_B
 from ...models.linear import discretize_zoh
 from ...models.quasisteady import FORCES, QuasiSteadyModel
 from ...models.rigid_body import Hover6DOF, gamma_from_quaternion, quasi_steady_rates
-from ..aero.beside_paper import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS, ackermann, closed_loop,
-                            derivatives, system_matrices)
+from ..aero.beside_paper import (LATERAL_PARAMETERS, LONGITUDINAL_PARAMETERS, closed_loop,
+                            derivative_parameters, derivatives, matrices_with_derivatives)
+from ..paper.analysis import ackermann_gains
 from ..sweep.cases import STATE_BOUNDS_SECT36, direction_vector
 from .terms import linearisation_error
 
@@ -149,18 +150,15 @@ def quasi_steady_loops(model: QuasiSteadyModel | None = None) -> QuasiSteadyLoop
     d = derivatives(qs)
     values = {p: float(d[i][FORCES.index(F)])
               for p, F, i in (*LATERAL_PARAMETERS, *LONGITUDINAL_PARAMETERS)}
-    (A1, B1), (A2, B2) = tangent = system_matrices(values)
+    (A1, B1), (A2, B2) = tangent = matrices_with_derivatives(values)
     Kl = np.zeros((3, 4))
     Kl[0] = closed_loop(values)["matched_gains"]
     Ap, Bp = longitudinal_dynamics.system_matrices(longitudinal_dynamics.default_parameters())
     targets = np.linalg.eigvals(Ap + np.outer(Bp[:, 2], LONGITUDINAL_GAINS_DESIGN_B))
     Kn = np.zeros((4, 4))
-    Kn[2] = ackermann(A2, B2[:, 2], targets)
+    Kn[2] = ackermann_gains(A2, B2[:, 2], targets)
     lp, np_ = lateral_dynamics.default_parameters(), longitudinal_dynamics.default_parameters()
-    lpq = lateral_dynamics.LateralParameters(**{**lp.__dict__, **{
-        p: values[p] for p, _, _ in LATERAL_PARAMETERS}})
-    npq = longitudinal_dynamics.LongitudinalParameters(**{**np_.__dict__, **{
-        p: values[p] for p, _, _ in LONGITUDINAL_PARAMETERS}})
+    lpq, npq = derivative_parameters(values)
     return QuasiSteadyLoops(qs, tangent, Kl, Kn, Hover6DOF(lp, np_, aerodynamics=qs),
                             LinearRigidBody(qs, lp, np_), Hover6DOF(lpq, npq))
 

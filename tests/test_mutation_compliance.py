@@ -6,6 +6,8 @@ mutant costs seconds."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from fmpy.model_description import read_model_description
@@ -42,6 +44,17 @@ def test_rule_of_names_the_versions_rule_and_the_profiles_promise():
     assert rules.rule_of("reset", 3, "dronefly") == r3
     assert rules.rule_of("no such check", 2, "dronefly") == ""
     assert rules.rule_of("no such check", 3, "standard") == ""
+
+
+def test_results_and_reports_are_untimed_until_timed_and_results_are_values(tmp_path):
+    """A result or report made without a duration took no measured time (0 s), and a result
+    cannot change after it is made (a frozen dataclass: the report holds what was found)."""
+    assert rules.CheckResult("x", True).duration_s == 0.0
+    assert rules.FMUReport(tmp_path).duration_s == 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rules.CheckResult("x", True).passed = False  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rules.CheckOptions().only = ("state",)  # type: ignore[misc]
 
 
 def test_check_result_status_is_skipped_passed_or_failed():

@@ -43,12 +43,13 @@ def _diag(*values: float) -> list[list[float]]:
 
 
 @pytest.mark.parametrize("m", [3, 5, 7, 9, 13])
-@pytest.mark.parametrize("where", [0.5, 1.0])
+@pytest.mark.parametrize("where", [0.0, 0.5, 1.0])
 def test_expm_takes_the_pade_degree_of_higham_table_2_3(monkeypatch, m, where):
-    """A 1-norm at theta_m (the bound is inclusive) and at half of it between the bounds below
-    and at theta_m: degree m, pi_m products, no squaring; the result is e^a."""
+    """A 1-norm just above the bound below theta_m (the next float), half way to theta_m and at
+    theta_m (the bound is inclusive): degree m, pi_m products, no squaring; the result is e^a."""
     below = max([t for k, t in THETA.items() if k < m], default=0.0)
-    norm = THETA[m] if where == 1.0 else (below + THETA[m]) / 2
+    norm = {0.0: math.nextafter(below, math.inf), 0.5: (below + THETA[m]) / 2,
+            1.0: THETA[m]}[where]
     calls = _counting(monkeypatch)
     e = la.expm(_diag(norm, -norm / 2))
     assert calls[0] == PI[m]

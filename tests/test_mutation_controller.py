@@ -9,6 +9,7 @@ import re
 
 import pytest
 
+from dronefly.controller import delay as delay_mod
 from dronefly.controller import timing, variables
 from dronefly.models import lateral
 
@@ -203,3 +204,82 @@ def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
     # the integral gains and the timing come after the proportional law's parameters
     assert names.index("u_max") < names.index("KI[1,1]") < names.index("sensing_delay")
     assert names[-2:] == ["sensing_delay", "sample_period"]
+
+
+# --- controller/delay.py: the Sensor against the module's definition, in exact arithmetic -----
+# The oracle is test_controller_delay._expected: the input sensed at each communication point is
+# that of the step holding the latest sample instant t_k = t_start + k * period with
+# t_k + delay <= t (the live input at delay 0 on a sample instant), by Fractions. Here in
+# seconds, with periods longer than a second and t_start != 0 (the FMU tests run in wing beats
+# from 0), and binary-exact times so that the floats are the fractions.
+
+def _sensor_run(steps, delay, period, t0):
+    from fractions import Fraction
+
+    s = delay_mod.Sensor(1, float(t0))
+    tm = timing.Timing(float(delay), float(period))
+    t, got = Fraction(t0), []
+    for m, h in enumerate([*steps, None]):
+        x = (float(m + 1),)  # the input set at point m
+        got.append(s.sensed(float(t), x, tm, True)[0])
+        if h is not None:
+            s.advance(float(t), float(h), x, (1.0,), 1.0, tm, False)
+            t += h
+    return got
+
+
+@pytest.mark.parametrize("t0", ["0", "0.25", "10"])
+@pytest.mark.parametrize("h, delay, period", [
+    ("1", "0", "2"), ("1", "3", "2"), ("0.5", "1.5", "2.5"), ("1", "0.25", "0.75"),
+    ("0.25", "0", "0.75"), ("2", "1", "3"), ("1", "0", "0"), ("0.5", "1.25", "0"),
+])
+def test_sensor_senses_the_input_of_the_latest_instant_due(t0, h, delay, period):
+    from fractions import Fraction as F
+    from test_controller_delay import _expected
+
+    steps = [F(h)] * int(12 / F(h))
+    got = _sensor_run(steps, F(delay), F(period), F(t0))
+    want = [0.0 if i is None else float(i + 1) for i in _expected(steps, F(delay), F(period))]
+    assert got == want
+
+
+def test_sensor_records_the_first_sample_instant_strictly_inside_a_step():
+    """Several instants in one step [0, 1) s, period 0.5 s: the one at 0 is on the point, the
+    first strictly inside is 0.5 (the FMU's off-grid warning names it)."""
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1.0, (1.0,), (1.0,), 1.0, timing.Timing(0.0, 0.5), False)
+    assert s.off_grid == ("a sample instant", 0.5, 0.0, 1.0)
+
+
+def test_sensor_without_delay_or_sampling_holds_no_line_entry():
+    """``current`` is None for a sample without delay (the attribute's definition), and the
+    sample is in effect at once."""
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, timing.Timing(0.0, 0.0), False)
+    assert s.current is None and s.held == (2.0,) and s.t_effect == 0.0 and not s.line
+
+
+def test_sensor_before_the_first_step_has_no_tolerance_and_after_it_the_drift_counts():
+    """The tolerance is 1e-9 of the last communication step plus the drift term (0 before the
+    first step): a delay of 5e-10 s is a delay before it, within the tolerance after a 1 s step,
+    and 1.5e-9 s is within it only with a drift term of 1e-9 s."""
+    x_live = (7.0,)
+    s = delay_mod.Sensor(1)
+    assert (s.h, s.drift) == (0.0, 0.0)
+    assert s.sensed(0.0, x_live, timing.Timing(5e-10, 0.0), True) == (0.0,)
+    s.h = 1.0
+    assert s.sensed(0.0, x_live, timing.Timing(5e-10, 0.0), True) == x_live
+    assert s.sensed(0.0, x_live, timing.Timing(1.5e-9, 0.0), True) == (0.0,)
+    s.drift = 1e-9
+    assert s.sensed(0.0, x_live, timing.Timing(1.5e-9, 0.0), True) == x_live
+
+
+def test_integral_takes_the_new_scale_from_the_step_it_changes():
+    """z = integral of x / scale * n dt: x = 2 held from 0 s, scale 1 over [0, 1) s and 4 from
+    1 s on (n = 1 Hz): z(1) = 2, z(2) = 2 + 2 / 4 = 2.5 (exact)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.0)
+    s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
+    assert s.integral(1.0) == (2.0,)
+    s.advance(1.0, 1.0, (2.0,), (4.0,), 1.0, tm, True)
+    assert s.integral(2.0) == (2.5,)

@@ -283,3 +283,48 @@ def test_integral_takes_the_new_scale_from_the_step_it_changes():
     assert s.integral(1.0) == (2.0,)
     s.advance(1.0, 1.0, (2.0,), (4.0,), 1.0, tm, True)
     assert s.integral(2.0) == (2.5,)
+
+
+def test_integral_overflow_names_the_component():
+    """x+1 = 1e300 at n = 1e10 Hz for 1 s: z1 overflows; the error names z1 and x+1."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.0)
+    s.advance(0.0, 1.0, (1e300,), (1.0,), 1e10, tm, True)
+    with pytest.raises(timing.SensingError, match=r"integral state z1 = inf \(of x\+1\)"):
+        s.advance(1.0, 1.0, (2e300,), (1.0,), 1e10, tm, True)
+
+
+def test_a_line_of_several_instants_a_step_stops_at_its_bound(monkeypatch):
+    """Four sample instants a step (period 0.25 s, steps of 1 s) and a delay of 10 s: one line
+    entry a step; with the bound at 2 entries the third step is refused and the line keeps 2."""
+    monkeypatch.setattr(delay_mod, "MAX_SAMPLES", 2)
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(10.0, 0.25)
+    for k in range(2):
+        s.advance(float(k), 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    assert len(s.line) == 2
+    assert [e[2] for e in s.line] == [0.75, 1.75]  # the last instant of each step
+    with pytest.raises(timing.SensingError):
+        s.advance(2.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    assert len(s.line) == 2
+
+
+@pytest.mark.parametrize("t0, t, h", [(0.0, 0.5, 0.5), (-1.0, -0.5, 0.5), (0.0, 3.0, 0.25),
+                                      (-2.0, 1.0, 0.5)])
+def test_the_step_tolerance_is_timings(t0, t, h):
+    """The drift term kept after a step is that of timing.tolerance (inlined in advance)."""
+    s = delay_mod.Sensor(1, t0)
+    s.advance(t, h, (1.0,), (1.0,), 1.0, timing.Timing(0.0, 0.0), False)
+    assert s.h == h
+    assert timing.TOLERANCE * h + s.drift == timing.tolerance(t0, t, h)
+    assert s.drift > 0.0
+
+
+def test_instant_indices_beyond_the_float_range_sample_at_the_point():
+    """(t - t_start) / period beyond the float range: the sample is taken at the point, no
+    OverflowError (an FMU never crashes)."""
+    s = delay_mod.Sensor(1)
+    s.advance(1e306, 1.0, (3.0,), (1.0,), 1.0, timing.Timing(0.0, 1e-3), False)
+    assert s.held == (3.0,)
+    s.h, s.drift = 1e-300, 0.0
+    assert s.is_instant(1e10, 1e-300)

@@ -323,3 +323,135 @@ def test_fmi3_a_dimension_names_an_unsigned_structural_parameter_or_constant(tmp
     want = [] if ok else [("2.4.7", "variable 'x': a dimension given by 'n', not a structural "
                                     "parameter or constant of an unsigned integer type")]
     assert got == want
+
+
+def test_every_variable_is_checked_after_one_that_ends_its_checks(tmp_path):
+    """A variable whose combination is refused (or a continuous non-float) ends its own checks,
+    not those of the variables after it."""
+    par = 'causality="parameter" variability="fixed"'
+    for what in ("combination", "continuous integer"):
+        md = _md(tmp_path, _sv("a", 1, 'causality="local" variability="discrete"', '',
+                               "Integer") + _sv("b", 2, par, 'start="-1" min="0"'))
+        a = md.modelVariables[0]
+        if what == "combination":
+            a.causality, a.variability = "input", "fixed"
+        else:
+            a.variability = "continuous"
+        got = structure_problems(md, 2)
+        assert ("2.2.7", "variable 'b': start -1.0 < min 0.0") in got, (what, got)
+
+
+def test_defaults_where_the_reader_leaves_variability_and_initial_out(tmp_path):
+    """FMI 2.0 2.2.7: variability defaults to continuous (discrete for a non-float here) and
+    initial to the first of the table's entry (calculated for a continuous local)."""
+    md = _md(tmp_path, _sv("x", 1, 'causality="local" variability="continuous"', '')
+             + _sv("i", 2, 'causality="local" variability="discrete"', '', "Integer")
+             + _sv("time", 3, 'causality="independent" variability="continuous"', ''))
+    for v in md.modelVariables:
+        v.variability, v.initial = None, None
+    assert structure_problems(md, 2) == []
+    md.modelVariables[0].start = "1"  # a start value where initial is calculated
+    assert structure_problems(md, 2) == [
+        ("2.2.7", "variable 'x': a start value with initial 'calculated'")]
+
+
+def test_bounds_without_a_start_value_are_checked_alone(tmp_path):
+    loc = 'causality="local" variability="continuous"'
+    assert _problems(tmp_path, _sv("x", 1, loc, 'min="0" max="1"')) == []
+    assert _problems(tmp_path, _sv("x", 1, loc, 'min="0" max="1" nominal="0.5"')) == []
+
+
+def test_previous_names_a_variable_of_the_same_type(tmp_path):
+    """FMI 3.0 2.4.7 (previous): the variable and its previous value are of one type (FMPy does
+    not resolve the attribute: set here)."""
+    disc = 'causality="local" variability="discrete"'
+    md = _md(tmp_path, f'<Float64 name="x" valueReference="1" {disc} initial="exact" start="0"/>'
+                       f'<Float64 name="y" valueReference="2" {disc}/>'
+                       f'<Int32 name="i" valueReference="3" {disc} initial="exact" start="0"/>',
+             fmi=3)
+    x, y, i = md.modelVariables
+    y.previous = x
+    assert structure_problems(md, 3) == []
+    y.previous = i
+    assert structure_problems(md, 3) == [
+        ("2.4.7", "variable 'y': previous names 'i' of type Int32, not Float64")]
+
+
+def test_declared_type_agrees_with_the_variable_and_lends_its_unit(tmp_path):
+    units = ('<UnitDefinitions><Unit name="m"><DisplayUnit name="mm" factor="1000"/></Unit>'
+             '</UnitDefinitions>\n')
+    types = ('<TypeDefinitions><SimpleType name="Len"><Real unit="m" displayUnit="mm"/>'
+             '</SimpleType><SimpleType name="Bad"><Real unit="km"/></SimpleType>'
+             '<SimpleType name="Count"><Integer/></SimpleType>'
+             '<SimpleType name="E"><Enumeration><Item name="a" value="1"/></Enumeration>'
+             '</SimpleType></TypeDefinitions>\n')
+    par = 'causality="parameter" variability="fixed"'
+    ok = (_sv("l", 1, par, 'start="1" declaredType="Len"')
+          + _sv("e", 2, par, 'start="1" declaredType="E"', "Enumeration"))
+    assert _problems(tmp_path, ok, units=units, types=types) == []
+    got = _problems(tmp_path, _sv("b", 1, par, 'start="1" declaredType="Bad"'), units=units,
+                    types=types)
+    assert got == [("2.2.2", "variable 'b': unit 'km' is not among the UnitDefinitions")]
+    md = _md(tmp_path, _sv("l", 1, par, 'start="1" declaredType="Len"'), units=units,
+             types=types)
+    md.modelVariables[0].type = "Integer"  # an Integer variable of a Real type
+    got = structure_problems(md, 2)
+    assert ("2.2.3", "variable 'l': declaredType 'Len' is a Real type, the variable a "
+                     "Integer") in got
+    md = _md(tmp_path, _sv("c", 1, par, 'start="1" declaredType="Count"', "Integer"),
+             units=units, types=types)
+    md.modelVariables[0].type = "Enumeration"  # an Enumeration of an Integer type
+    assert ("2.2.3", "variable 'c': declaredType 'Count' is a Integer type, the variable a "
+                     "Enumeration") in structure_problems(md, 2)
+
+
+def test_fmi3_clocks_name_clock_variables(tmp_path):
+    disc = 'causality="local" variability="discrete"'
+    variables = ('<Clock name="c" valueReference="3" causality="input" variability="discrete" '
+                 'intervalVariability="triggered"/>'
+                 f'<Float64 name="z" valueReference="4" {disc} clocks="3"/>')
+    assert _problems(tmp_path, variables, fmi=3) == []
+    md = _md(tmp_path, variables + f'<Float64 name="w" valueReference="5" {disc}/>', fmi=3)
+    md.modelVariables[1].clocks = [md.modelVariables[2]]
+    assert structure_problems(md, 3) == [("2.4.7", "variable 'z': clocks names 'w', not a Clock")]
+
+
+def test_aliases_of_integers_and_enumerations_and_several_groups(tmp_path):
+    """FMI 2.0: Integer and Enumeration share value references (one type family); every group
+    of aliases is checked, also after a variable alone on its reference."""
+    types = ('<TypeDefinitions><SimpleType name="E"><Enumeration><Item name="a" value="1"/>'
+             '</Enumeration></SimpleType></TypeDefinitions>\n')
+    par = 'causality="parameter" variability="fixed"'
+    got = _problems(tmp_path, _sv("i", 1, par, 'start="1"', "Integer")
+                    + _sv("e", 1, par, 'start="1" declaredType="E"', "Enumeration"), types=types)
+    assert got == [("2.2.7", "aliases 'i', 'e' (value reference 1): more than one has a start "
+                             "value")]
+    got = _problems(tmp_path, _sv("alone", 0, par, 'start="1"') + _sv("a", 1, par, 'start="1"')
+                    + _sv("b", 1, par, 'start="1"'))
+    assert got == [("2.2.7", "aliases 'a', 'b' (value reference 1): more than one has a start "
+                             "value")]
+    got = _problems(tmp_path, f'<Float64 name="a" valueReference="1" {par} start="1"/>'
+                              f'<Float64 name="b" valueReference="1" {par} start="1"/>'
+                              f'<Float64 name="c" valueReference="2" {par} start="1"/>'
+                              f'<Float64 name="d" valueReference="2" {par} start="1"/>', fmi=3)
+    assert [p for _, p in got] == [
+        "variables 'a', 'b' share value reference 1 (FMI 3.0: each variable has its own)",
+        "variables 'c', 'd' share value reference 2 (FMI 3.0: each variable has its own)"]
+
+
+def test_derivatives_and_dependencies_name_variables(tmp_path):
+    """2.2.8: each Derivatives entry is a derivative (has the derivative attribute), every
+    dependency names a variable of the list."""
+    loc = 'causality="local" variability="continuous"'
+    x = _sv("x", 1, 'causality="local" variability="continuous" initial="exact"', 'start="0"')
+    dx = _sv("der(x)", 2, loc, 'derivative="1"')
+    md = _md(tmp_path, x + dx, '<Derivatives><Unknown index="2" dependencies="1"/>'
+                               '</Derivatives>')
+    assert structure_problems(md, 2) == []
+    md.derivatives[0].dependencies.append(object())  # a dependency on no variable of the list
+    assert structure_problems(md, 2) == [
+        ("2.2.8", "ModelStructure/Derivatives: a dependency of 'der(x)' names no variable")]
+    md = _md(tmp_path, x + dx, '<Derivatives><Unknown index="1"/></Derivatives>')
+    assert structure_problems(md, 2) == [
+        ("2.2.8", "ModelStructure/Derivatives: 'x' is not the derivative of a state (no "
+                  "derivative attribute)")]

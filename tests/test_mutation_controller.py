@@ -328,3 +328,13 @@ def test_instant_indices_beyond_the_float_range_sample_at_the_point():
     assert s.held == (3.0,)
     s.h, s.drift = 1e-300, 0.0
     assert s.is_instant(1e10, 1e-300)
+
+
+def test_a_delay_above_the_tolerance_of_a_short_step_takes_effect_inside_it():
+    """Steps of 1 ms: the tolerance is 1e-9 of the step (1e-12 s), so a delay of 1e-7 s is a
+    delay: the sample at 0 takes effect at 1e-7 s, strictly inside the step (recorded for the
+    off-grid warning), and is in effect at its end."""
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1e-3, (1.0,), (1.0,), 1.0, timing.Timing(1e-7, 0.0), False)
+    assert s.off_grid == ("an effect instant", 1e-7, 0.0, 1e-3)
+    assert s.held == (1.0,) and s.t_effect == 1e-7

@@ -455,3 +455,35 @@ def test_derivatives_and_dependencies_name_variables(tmp_path):
     assert structure_problems(md, 2) == [
         ("2.2.8", "ModelStructure/Derivatives: 'x' is not the derivative of a state (no "
                   "derivative attribute)")]
+
+
+def test_a_display_unit_of_the_declared_type_is_checked_too(tmp_path):
+    units = ('<UnitDefinitions><Unit name="m"><DisplayUnit name="mm" factor="1000"/></Unit>'
+             '</UnitDefinitions>\n')
+    types = ('<TypeDefinitions><SimpleType name="Len"><Real unit="m" displayUnit="ft"/>'
+             '</SimpleType></TypeDefinitions>\n')
+    got = _problems(tmp_path, _sv("l", 1, 'causality="parameter" variability="fixed"',
+                                  'start="1" declaredType="Len"'), units=units, types=types)
+    assert got == [("2.2.2", "variable 'l': displayUnit 'ft' is not a DisplayUnit of unit 'm'")]
+
+
+def test_aliases_after_a_clock_are_checked(tmp_path):
+    par = 'causality="parameter" variability="fixed"'
+    got = _problems(tmp_path, '<Clock name="c" valueReference="3" causality="input" '
+                              'variability="discrete" intervalVariability="triggered"/>'
+                              f'<Float64 name="a" valueReference="1" {par} start="1"/>'
+                              f'<Float64 name="b" valueReference="1" {par} start="1"/>', fmi=3)
+    assert [p for _, p in got] == [
+        "variables 'a', 'b' share value reference 1 (FMI 3.0: each variable has its own)"]
+
+
+def test_each_model_structure_list_is_checked_after_one_naming_no_variable(tmp_path):
+    x = _sv("x", 1, 'causality="local" variability="continuous" initial="exact"', 'start="0"')
+    y = _sv("y", 2, 'causality="output" variability="continuous"', '')
+    md = _md(tmp_path, x + y, '<Outputs><Unknown index="2"/></Outputs><Derivatives><Unknown '
+                              'index="1"/></Derivatives>')
+    md.outputs[0].variable = type("Foreign", (), {"name": "ghost"})()
+    got = structure_problems(md, 2)
+    assert ("2.2.8", "ModelStructure/Outputs: an index names no variable") in got
+    assert ("2.2.8", "ModelStructure/Derivatives: 'x' is not the derivative of a state (no "
+                     "derivative attribute)") in got

@@ -307,6 +307,12 @@ def test_a_line_of_several_instants_a_step_stops_at_its_bound(monkeypatch):
     with pytest.raises(timing.SensingError):
         s.advance(2.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
     assert len(s.line) == 2
+    # a saved state holds at most the bound
+    state = s.to_dict()
+    assert len(delay_mod.Sensor.from_dict(state, 1).line) == 2
+    state["line"].append(state["line"][-1])
+    with pytest.raises(ValueError, match="more than 2"):
+        delay_mod.Sensor.from_dict(state, 1)
 
 
 @pytest.mark.parametrize("t0, t, h", [(0.0, 0.5, 0.5), (-1.0, -0.5, 0.5), (0.0, 3.0, 0.25),

@@ -344,3 +344,36 @@ def test_a_delay_above_the_tolerance_of_a_short_step_takes_effect_inside_it():
     s.advance(0.0, 1e-3, (1.0,), (1.0,), 1.0, timing.Timing(1e-7, 0.0), False)
     assert s.off_grid == ("an effect instant", 1e-7, 0.0, 1e-3)
     assert s.held == (1.0,) and s.t_effect == 1e-7
+
+
+def test_a_new_sample_period_starts_its_own_grid():
+    """Period 0.5 s over [0, 2) s (last instant 1.5 s), then 2 s: the instant 2 s = 1 * 2 s of
+    the new grid lies in [2, 3) and is taken (delay 0: in effect at once)."""
+    s = delay_mod.Sensor(1)
+    for k, period in enumerate((0.5, 0.5, 2.0)):
+        s.advance(float(k), 1.0, (float(k + 1),), (1.0,), 1.0, timing.Timing(0.0, period), False)
+    assert s.held == (3.0,) and s.t_effect == 2.0
+
+
+def test_a_grid_the_step_cannot_resolve_and_then_can_again():
+    """Period 0.5 s: a step of 1e10 s makes the period finer than the step's tolerance (every
+    point is an instant); the next 1 s step is on the grid again."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.5)
+    s.advance(0.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    s.advance(1.0, 1e10, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (2.0,)
+    s.advance(1e10 + 1.0, 1.0, (3.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (3.0,)
+
+
+def test_the_sensor_state_round_trips():
+    """to_dict / from_dict: every field back, with and without a grid index."""
+    s = delay_mod.Sensor(1, 0.25)
+    assert delay_mod.Sensor.from_dict(s.to_dict(), 1).to_dict() == s.to_dict()
+    tm = timing.Timing(1.5, 0.5)
+    for k in range(3):
+        s.advance(0.25 + k, 1.0, (float(k),), (1.0,), 1.0, tm, True)
+    assert s.last_k is not None and s.line
+    assert delay_mod.Sensor.from_dict(s.to_dict(), 1).to_dict() == s.to_dict()
+    assert delay_mod.Sensor(1).t0 == 0.0  # the default start time

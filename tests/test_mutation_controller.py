@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from fractions import Fraction as F
 
 import pytest
 
@@ -214,11 +215,9 @@ def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
 # from 0), and binary-exact times so that the floats are the fractions.
 
 def _sensor_run(steps, delay, period, t0):
-    from fractions import Fraction
-
     s = delay_mod.Sensor(1, float(t0))
     tm = timing.Timing(float(delay), float(period))
-    t, got = Fraction(t0), []
+    t, got = F(t0), []
     for m, h in enumerate([*steps, None]):
         x = (float(m + 1),)  # the input set at point m
         got.append(s.sensed(float(t), x, tm, True)[0])
@@ -234,8 +233,7 @@ def _sensor_run(steps, delay, period, t0):
     ("0.25", "0", "0.75"), ("2", "1", "3"), ("1", "0", "0"), ("0.5", "1.25", "0"),
 ])
 def test_sensor_senses_the_input_of_the_latest_instant_due(t0, h, delay, period):
-    from fractions import Fraction as F
-    from test_controller_delay import _expected
+    from test_controller_delay import _expected  # (numpy and the slaves: only here)
 
     steps = [F(h)] * int(12 / F(h))
     got = _sensor_run(steps, F(delay), F(period), F(t0))
@@ -377,3 +375,13 @@ def test_the_sensor_state_round_trips():
     assert s.last_k is not None and s.line
     assert delay_mod.Sensor.from_dict(s.to_dict(), 1).to_dict() == s.to_dict()
     assert delay_mod.Sensor(1).t0 == 0.0  # the default start time
+
+
+def test_integral_action_switched_off_freezes_z():
+    """x = 2 integrated over [0, 1) s (z = 2), integral action off from 1 s: z stays 2."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.0)
+    assert not s.integrating and s.integral(3.0) == (0.0,)
+    s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
+    s.advance(1.0, 1.0, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.integral(1.0) == s.integral(5.0) == (2.0,)

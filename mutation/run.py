@@ -39,6 +39,7 @@ BIN = Path(sys.executable).parent
 # the oracle tests written against the survivors come first: a mutant they kill costs least
 _MODELS = "tests/test_mutation_models.py"
 _CONTROLLER = "tests/test_mutation_controller.py"
+_COMPLIANCE = "tests/test_mutation_compliance.py"
 _EXPM = ["tests/test_expm.py", "--deselect",  # a second process under another BLAS kernel
          "tests/test_expm.py::test_zero_order_hold_is_the_same_under_another_blas_kernel"]
 TARGETS: dict[str, list[str]] = {
@@ -47,13 +48,17 @@ TARGETS: dict[str, list[str]] = {
     "models/lateral_dynamics.py": [_MODELS, "tests/test_model.py"],
     "models/longitudinal_dynamics.py": [_MODELS],
     "models/feedback.py": [_MODELS, "tests/test_controller_law.py"],
-    "models/linear_algebra.py": [_MODELS, *_EXPM],
+    "models/linear_algebra.py": ["tests/test_mutation_linear_algebra.py", *_EXPM],
     "models/linear.py": [_MODELS, "tests/test_model.py", *_EXPM],
     "controller/variables.py": [_CONTROLLER, "tests/test_controller_slave.py"],
     "controller/timing.py": [_CONTROLLER],
     "controller/delay.py": [_CONTROLLER, "tests/test_controller_delay.py"],
     # tests/test_cosim_verdicts.py runs the FMUs: a minute a mutant
     "harness/cosim/identification.py": ["tests/test_mutation_stability.py"],
+    # the checker's checks: unit tests on small in-memory descriptions (the checks that run an
+    # FMU cost seconds to a minute a mutant through tests/test_check_misreports.py)
+    "harness/compliance/rules.py": [_COMPLIANCE],
+    "harness/compliance/structure.py": [_COMPLIANCE],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -6,9 +6,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from fractions import Fraction as F
 
 import pytest
 
+from dronefly.controller import delay as delay_mod
 from dronefly.controller import timing, variables
 from dronefly.models import lateral_interface
 
@@ -203,3 +205,183 @@ def test_controller_variables_carry_the_laws_defaults_and_structure(delayed):
     # the integral gains and the timing come after the proportional law's parameters
     assert names.index("u_max") < names.index("KI[1,1]") < names.index("sensing_delay")
     assert names[-2:] == ["sensing_delay", "sample_period"]
+
+
+# --- controller/delay.py: the Sensor against the module's definition, in exact arithmetic -----
+# The oracle is test_controller_delay._expected: the input sensed at each communication point is
+# that of the step holding the latest sample instant t_k = t_start + k * period with
+# t_k + delay <= t (the live input at delay 0 on a sample instant), by Fractions. Here in
+# seconds, with periods longer than a second and t_start != 0 (the FMU tests run in wing beats
+# from 0), and binary-exact times so that the floats are the fractions.
+
+def _sensor_run(steps, delay, period, t0):
+    s = delay_mod.Sensor(1, float(t0))
+    tm = timing.Timing(float(delay), float(period))
+    t, got = F(t0), []
+    for m, h in enumerate([*steps, None]):
+        x = (float(m + 1),)  # the input set at point m
+        got.append(s.sensed(float(t), x, tm, True)[0])
+        if h is not None:
+            s.advance(float(t), float(h), x, (1.0,), 1.0, tm, False)
+            t += h
+    return got
+
+
+@pytest.mark.parametrize("t0", ["0", "0.25", "10"])
+@pytest.mark.parametrize("h, delay, period", [
+    ("1", "0", "2"), ("1", "3", "2"), ("0.5", "1.5", "2.5"), ("1", "0.25", "0.75"),
+    ("0.25", "0", "0.75"), ("2", "1", "3"), ("1", "0", "0"), ("0.5", "1.25", "0"),
+])
+def test_sensor_senses_the_input_of_the_latest_instant_due(t0, h, delay, period):
+    from test_controller_delay import _expected  # (numpy and the slaves: only here)
+
+    steps = [F(h)] * int(12 / F(h))
+    got = _sensor_run(steps, F(delay), F(period), F(t0))
+    want = [0.0 if i is None else float(i + 1) for i in _expected(steps, F(delay), F(period))]
+    assert got == want
+
+
+def test_sensor_records_the_first_sample_instant_strictly_inside_a_step():
+    """Several instants in one step [0, 1) s, period 0.5 s: the one at 0 is on the point, the
+    first strictly inside is 0.5 (the FMU's off-grid warning names it)."""
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1.0, (1.0,), (1.0,), 1.0, timing.Timing(0.0, 0.5), False)
+    assert s.off_grid == ("a sample instant", 0.5, 0.0, 1.0)
+
+
+def test_sensor_without_delay_or_sampling_holds_no_line_entry():
+    """``current`` is None for a sample without delay (the attribute's definition), and the
+    sample is in effect at once."""
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, timing.Timing(0.0, 0.0), False)
+    assert s.current is None and s.held == (2.0,) and s.t_effect == 0.0 and not s.line
+
+
+def test_sensor_before_the_first_step_has_no_tolerance_and_after_it_the_drift_counts():
+    """The tolerance is 1e-9 of the last communication step plus the drift term (0 before the
+    first step): a delay of 5e-10 s is a delay before it, within the tolerance after a 1 s step,
+    and 1.5e-9 s is within it only with a drift term of 1e-9 s."""
+    x_live = (7.0,)
+    s = delay_mod.Sensor(1)
+    assert (s.h, s.drift) == (0.0, 0.0)
+    assert s.sensed(0.0, x_live, timing.Timing(5e-10, 0.0), True) == (0.0,)
+    s.h = 1.0
+    assert s.sensed(0.0, x_live, timing.Timing(5e-10, 0.0), True) == x_live
+    assert s.sensed(0.0, x_live, timing.Timing(1.5e-9, 0.0), True) == (0.0,)
+    s.drift = 1e-9
+    assert s.sensed(0.0, x_live, timing.Timing(1.5e-9, 0.0), True) == x_live
+
+
+def test_integral_takes_the_new_scale_from_the_step_it_changes():
+    """z = integral of x / scale * n dt: x = 2 held from 0 s, scale 1 over [0, 1) s and 4 from
+    1 s on (n = 1 Hz): z(1) = 2, z(2) = 2 + 2 / 4 = 2.5 (exact)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.0)
+    s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
+    assert s.integral(1.0) == (2.0,)
+    s.advance(1.0, 1.0, (2.0,), (4.0,), 1.0, tm, True)
+    assert s.integral(2.0) == (2.5,)
+
+
+def test_integral_overflow_names_the_component():
+    """x+1 = 1e300 at n = 1e10 Hz for 1 s: z1 overflows; the error names z1 and x+1."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.0)
+    s.advance(0.0, 1.0, (1e300,), (1.0,), 1e10, tm, True)
+    with pytest.raises(timing.SensingError, match=r"integral state z1 = inf \(of x\+1\)"):
+        s.advance(1.0, 1.0, (2e300,), (1.0,), 1e10, tm, True)
+
+
+def test_a_line_of_several_instants_a_step_stops_at_its_bound(monkeypatch):
+    """Four sample instants a step (period 0.25 s, steps of 1 s) and a delay of 10 s: one line
+    entry a step; with the bound at 2 entries the third step is refused and the line keeps 2."""
+    monkeypatch.setattr(delay_mod, "MAX_SAMPLES", 2)
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(10.0, 0.25)
+    for k in range(2):
+        s.advance(float(k), 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    assert len(s.line) == 2
+    assert [e[2] for e in s.line] == [0.75, 1.75]  # the last instant of each step
+    with pytest.raises(timing.SensingError):
+        s.advance(2.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    assert len(s.line) == 2
+    # a saved state holds at most the bound
+    state = s.to_dict()
+    assert len(delay_mod.Sensor.from_dict(state, 1).line) == 2
+    state["line"].append(state["line"][-1])
+    with pytest.raises(ValueError, match="more than 2"):
+        delay_mod.Sensor.from_dict(state, 1)
+
+
+@pytest.mark.parametrize("t0, t, h", [(0.0, 0.5, 0.5), (-1.0, -0.5, 0.5), (0.0, 3.0, 0.25),
+                                      (-2.0, 1.0, 0.5)])
+def test_the_step_tolerance_is_timings(t0, t, h):
+    """The drift term kept after a step is that of timing.tolerance (inlined in advance)."""
+    s = delay_mod.Sensor(1, t0)
+    s.advance(t, h, (1.0,), (1.0,), 1.0, timing.Timing(0.0, 0.0), False)
+    assert s.h == h
+    assert timing.TOLERANCE * h + s.drift == timing.tolerance(t0, t, h)
+    assert s.drift > 0.0
+
+
+def test_instant_indices_beyond_the_float_range_sample_at_the_point():
+    """(t - t_start) / period beyond the float range: the sample is taken at the point, no
+    OverflowError (an FMU never crashes)."""
+    s = delay_mod.Sensor(1)
+    s.advance(1e306, 1.0, (3.0,), (1.0,), 1.0, timing.Timing(0.0, 1e-3), False)
+    assert s.held == (3.0,)
+    s.h, s.drift = 1e-300, 0.0
+    assert s.is_instant(1e10, 1e-300)
+
+
+def test_a_delay_above_the_tolerance_of_a_short_step_takes_effect_inside_it():
+    """Steps of 1 ms: the tolerance is 1e-9 of the step (1e-12 s), so a delay of 1e-7 s is a
+    delay: the sample at 0 takes effect at 1e-7 s, strictly inside the step (recorded for the
+    off-grid warning), and is in effect at its end."""
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1e-3, (1.0,), (1.0,), 1.0, timing.Timing(1e-7, 0.0), False)
+    assert s.off_grid == ("an effect instant", 1e-7, 0.0, 1e-3)
+    assert s.held == (1.0,) and s.t_effect == 1e-7
+
+
+def test_a_new_sample_period_starts_its_own_grid():
+    """Period 0.5 s over [0, 2) s (last instant 1.5 s), then 2 s: the instant 2 s = 1 * 2 s of
+    the new grid lies in [2, 3) and is taken (delay 0: in effect at once)."""
+    s = delay_mod.Sensor(1)
+    for k, period in enumerate((0.5, 0.5, 2.0)):
+        s.advance(float(k), 1.0, (float(k + 1),), (1.0,), 1.0, timing.Timing(0.0, period), False)
+    assert s.held == (3.0,) and s.t_effect == 2.0
+
+
+def test_a_grid_the_step_cannot_resolve_and_then_can_again():
+    """Period 0.5 s: a step of 1e10 s makes the period finer than the step's tolerance (every
+    point is an instant); the next 1 s step is on the grid again."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.5)
+    s.advance(0.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    s.advance(1.0, 1e10, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (2.0,)
+    s.advance(1e10 + 1.0, 1.0, (3.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (3.0,)
+
+
+def test_the_sensor_state_round_trips():
+    """to_dict / from_dict: every field back, with and without a grid index."""
+    s = delay_mod.Sensor(1, 0.25)
+    assert delay_mod.Sensor.from_dict(s.to_dict(), 1).to_dict() == s.to_dict()
+    tm = timing.Timing(1.5, 0.5)
+    for k in range(3):
+        s.advance(0.25 + k, 1.0, (float(k),), (1.0,), 1.0, tm, True)
+    assert s.last_k is not None and s.line
+    assert delay_mod.Sensor.from_dict(s.to_dict(), 1).to_dict() == s.to_dict()
+    assert delay_mod.Sensor(1).t0 == 0.0  # the default start time
+
+
+def test_integral_action_switched_off_freezes_z():
+    """x = 2 integrated over [0, 1) s (z = 2), integral action off from 1 s: z stays 2."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 0.0)
+    assert not s.integrating and s.integral(3.0) == (0.0,)
+    s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
+    s.advance(1.0, 1.0, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.integral(1.0) == s.integral(5.0) == (2.0,)

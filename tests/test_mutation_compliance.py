@@ -13,7 +13,7 @@ import pytest
 from fmpy.model_description import read_model_description
 
 from dronefly.harness.compliance import rules
-from dronefly.harness.compliance.structure import structure_problems
+from dronefly.harness.compliance.structure import alias_notes, structure_problems
 
 
 # --- rules.py --------------------------------------------------------------------------------
@@ -254,13 +254,18 @@ def test_unit_and_display_unit_must_be_defined(tmp_path):
     assert _problems(tmp_path, _sv("p", 1, par, 'start="1" unit="km"')) == []
 
 
-def test_aliases_agree_in_variability_and_have_one_start(tmp_path):
+def test_aliases_have_one_start_and_a_note_where_variabilities_differ(tmp_path):
+    """FMI 2.0: at most one alias has a start value (a problem); aliases of two variabilities
+    are allowed ("other parts of the variable definition might be different"): a note."""
     par = 'causality="parameter" variability="fixed"'
     loc = 'causality="local" variability="continuous"'
     assert _problems(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 2, par, 'start="1"')) \
         == []
-    got = _problems(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 1, loc, ''))
-    assert got == [("2.2.7", "aliases 'a', 'b' (value reference 1) differ in variability")]
+    md = _md(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 1, loc, ''))
+    assert structure_problems(md, 2) == []
+    assert alias_notes(md) == ["aliases 'a', 'b' (value reference 1) differ in variability "
+                               "(FMI 2.0 allows it; the highest governs)"]
+    assert alias_notes(_md(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 2, loc, ''))) == []
     got = _problems(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 1, par, 'start="1"'))
     assert got == [("2.2.7", "aliases 'a', 'b' (value reference 1): more than one has a start "
                              "value")]

@@ -20,7 +20,7 @@ from fmpy import platform, platform_tuple, sharedLibraryExtension
 from .driver import Context
 from .names import validate_fmu
 from .rules import require
-from .structure import structure_problems
+from .structure import alias_notes, structure_problems
 
 __all__ = ["Layout", "check_archive", "check_validate", "layout", "section_of"]
 
@@ -56,6 +56,7 @@ def check_validate(ctx: Context) -> str:
     found = [f"{section_of(p, v)}: {p.strip().rstrip('.')}" for p in validate_fmu(str(ctx.fmu.path))]
     ours = [f"FMI {v}.0 {section}: {text}" for section, text
             in structure_problems(ctx.fmu.model_description3 or ctx.fmu.model_description, v)]
+    ctx.warnings.extend(alias_notes(ctx.fmu.model_description3 or ctx.fmu.model_description))
     seen = {p.split(": ", 1)[1] for p in found}
     problems = found + [p for p in ours if p.split(": ", 1)[1] not in seen]
     require(not problems, f"{len(problems)} problem(s): "

@@ -28,7 +28,7 @@ import math
 from collections import defaultdict
 from typing import Any
 
-__all__ = ["structure_problems"]
+__all__ = ["alias_notes", "structure_problems"]
 
 _FLOAT = ("Real", "Float32", "Float64")
 #: FMI 2.0 2.2.7 / FMI 3.0 2.4.7: the variabilities each causality allows
@@ -170,9 +170,6 @@ def structure_problems(md: Any, fmi_version: int) -> list[tuple[str, str]]:
             out.append(("2.4.7", f"variables {names} share value reference {vr} (FMI 3.0: each "
                                  "variable has its own)"))
             continue
-        if len({v.variability for v in group}) > 1:
-            out.append(("2.2.7", f"aliases {names} (value reference {vr}) differ in "
-                                 "variability"))
         starts = [v for v in group if v.start is not None]
         if len(starts) > 1 and any(v.variability != "constant" for v in group):
             out.append(("2.2.7", f"aliases {names} (value reference {vr}): more than one has "
@@ -204,3 +201,20 @@ def structure_problems(md: Any, fmi_version: int) -> list[tuple[str, str]]:
         out.append((ms_s, f"ModelStructure/Outputs: the outputs {', '.join(missing[:6])} are "
                           "not listed"))
     return out
+
+
+def alias_notes(md: Any) -> list[str]:
+    """FMI 2.0 aliases (one value reference, one type family) declared with different
+    variabilities. Not a violation: the standard's paragraph on value references says aliases
+    "have identical values but other parts of the variable definition might be different", and
+    the highest variability then governs (fmi-standard issue #436). A note for the user, since a
+    lower one may be a false claim that no static check can refute."""
+    if str(getattr(md, "fmiVersion", "2.0")).startswith("3"):
+        return []
+    by_vr: dict[Any, list[Any]] = defaultdict(list)
+    for v in md.modelVariables:
+        family = "Integer" if v.type == "Enumeration" else v.type
+        by_vr[(v.valueReference, family)].append(v)
+    return [f"aliases {', '.join(repr(v.name) for v in group)} (value reference {vr}) differ in "
+            "variability (FMI 2.0 allows it; the highest governs)"
+            for (vr, _), group in by_vr.items() if len({v.variability for v in group}) > 1]

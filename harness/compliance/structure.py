@@ -155,16 +155,7 @@ def structure_problems(md: Any, fmi_version: int) -> list[tuple[str, str]]:
             for clock in getattr(v, "clocks", None) or []:
                 if getattr(clock, "type", None) != "Clock":
                     out.append(("2.4.7", f"{what}: clocks names {clock.name!r}, not a Clock"))
-    # aliases: variables sharing a value reference (per type family in FMI 2.0)
-    by_vr: dict[Any, list[Any]] = defaultdict(list)
-    for v in variables:
-        if v.type == "Clock" or v3 and getattr(v, "alias", None) is not None:  # FMI 3.0 <Alias>
-            continue
-        family = v.type if v3 else ("Integer" if v.type == "Enumeration" else v.type)
-        by_vr[(v.valueReference, None if v3 else family)].append(v)
-    for (vr, _), group in by_vr.items():
-        if len(group) < 2:
-            continue
+    for vr, group in _alias_groups(variables, v3):
         names = ", ".join(repr(v.name) for v in group)
         if v3:
             out.append(("2.4.7", f"variables {names} share value reference {vr} (FMI 3.0: each "
@@ -211,10 +202,20 @@ def alias_notes(md: Any) -> list[str]:
     lower one may be a false claim that no static check can refute."""
     if str(getattr(md, "fmiVersion", "2.0")).startswith("3"):
         return []
-    by_vr: dict[Any, list[Any]] = defaultdict(list)
-    for v in md.modelVariables:
-        family = "Integer" if v.type == "Enumeration" else v.type
-        by_vr[(v.valueReference, family)].append(v)
     return [f"aliases {', '.join(repr(v.name) for v in group)} (value reference {vr}) differ in "
             "variability (FMI 2.0 allows it; the highest governs)"
-            for (vr, _), group in by_vr.items() if len({v.variability for v in group}) > 1]
+            for vr, group in _alias_groups(md.modelVariables, False)
+            if len({v.variability for v in group}) > 1]
+
+
+def _alias_groups(variables: Any, v3: bool) -> list[tuple[Any, list[Any]]]:
+    """(value reference, variables) of every value reference that two or more variables share:
+    per type family in FMI 2.0 (an Enumeration is an Integer); FMI 3.0's ``<Alias>`` elements
+    and Clocks left out."""
+    by_vr: dict[Any, list[Any]] = defaultdict(list)
+    for v in variables:
+        if v.type == "Clock" or v3 and getattr(v, "alias", None) is not None:  # FMI 3.0 <Alias>
+            continue
+        family = v.type if v3 else ("Integer" if v.type == "Enumeration" else v.type)
+        by_vr[(v.valueReference, None if v3 else family)].append(v)
+    return [(vr, group) for (vr, _), group in by_vr.items() if len(group) > 1]

@@ -120,7 +120,9 @@ def run_module(module: str, fresh: bool, retry: bool, deadline: float | None) ->
         # Cosmic Ray's exec runs the work items without a result: drop the survivors' results
         with sqlite3.connect(session) as db:
             db.execute("DELETE FROM work_results WHERE test_outcome = 'SURVIVED'")
-    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    # a fresh bytecode cache per test session (tests/conftest.py): a mutant written in the same
+    # second as the last one, with the same size, would otherwise import the last one's bytecode
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", DRONEFLY_TEST_PYCACHE="session")
     proc = subprocess.Popen([BIN / "cosmic-ray", "exec", config, session], cwd=ROOT, env=env)
     try:
         proc.wait(timeout=None if deadline is None else max(deadline - time.monotonic(), 0.0))

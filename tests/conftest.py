@@ -12,6 +12,7 @@ import contextlib
 import os
 import shutil
 import signal
+import sys
 import tempfile
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -19,19 +20,29 @@ from typing import Any, Callable, Iterator
 import pytest
 
 # The suite starts hundreds of Python processes (the CLI of the documents' blocks, the checking
-# and fuzz children, sweep workers) that import the package: they share one bytecode cache for
-# the session, outside the checkout, also where the machine sets PYTHONDONTWRITEBYTECODE (the
-# pytest-xdist workers inherit it from the first process that loads this file).
+# and fuzz children, sweep workers) that import the package: they share one bytecode cache,
+# outside the checkout, also where the machine sets PYTHONDONTWRITEBYTECODE (the pytest-xdist
+# workers inherit it from the first process that loads this file). The cache is kept between
+# sessions (``dronefly-fmu/pycache`` in ``$XDG_CACHE_HOME``, default ``~/.cache``): compiling
+# numpy, scipy, fmpy and the package anew costs each worker about 10 s of CPU. Python checks a
+# cached file against its source's modification time (whole seconds) and size; a tool that
+# rewrites sources faster than that (mutation/run.py) sets ``DRONEFLY_TEST_PYCACHE=session``:
+# a fresh cache for the session, removed at its end.
 # Two workers on two cores, and each process's OpenBLAS would start a thread per core that
 # spins between calls: one BLAS thread per process (the workers and every process they start
 # inherit it; the suite's matrices are small). 5 % less CPU for the suite, measured.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 if "PYTHONPYCACHEPREFIX" not in os.environ:
-    _PYCACHE = tempfile.mkdtemp(prefix="dronefly_pycache_")
+    if os.environ.get("DRONEFLY_TEST_PYCACHE") == "session":
+        _PYCACHE = tempfile.mkdtemp(prefix="dronefly_pycache_")
+        atexit.register(shutil.rmtree, _PYCACHE, True)
+    else:
+        _PYCACHE = str(Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+                       / "dronefly-fmu" / "pycache")
     os.environ["PYTHONPYCACHEPREFIX"] = _PYCACHE
     os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
-    atexit.register(shutil.rmtree, _PYCACHE, True)
+    sys.pycache_prefix, sys.dont_write_bytecode = _PYCACHE, False  # this process's imports too
 
 
 def _blas_kernels() -> list[str]:

@@ -60,7 +60,7 @@ def test_expm_takes_the_pade_degree_of_higham_table_2_3(monkeypatch, m, where):
     assert e[0][1] == e[1][0] == 0.0
 
 
-@pytest.mark.parametrize("norm", [5.5, 10.75, 20.0, 300.0, 2.0 ** 20])
+@pytest.mark.parametrize("norm", [5.5, 10.75, 20.0, 300.0, 1400.0])
 def test_expm_scales_by_the_smallest_power_of_two_of_algorithm_2_3(monkeypatch, norm):
     """||A||_1 > theta_13: s = ceil(log2(||A||_1 / theta_13)) squarings after the degree-13
     approximant's 6 products; the result of a diagonal matrix is e^a on the diagonal (or inf
@@ -72,6 +72,27 @@ def test_expm_scales_by_the_smallest_power_of_two_of_algorithm_2_3(monkeypatch, 
     assert calls[0] == PI[13] + s
     # cond(exp, a) = |a|; each squaring doubles the relative error of the scaled approximant
     assert math.isclose(e[1][1], math.exp(a), rel_tol=64 * 2.0 ** -53 * max(1.0, abs(a)))
+
+
+def test_expm_stops_squaring_at_a_fixed_point(monkeypatch):
+    """||A||_1 = 2^20: s = 18 and the scaled diagonal is -4; the k-th squaring is
+    e^(-4 * 2^k), which underflows to 0 at k = 8 (4 * 2^8 = 1024 > 1075 ln 2 = 745.1, the
+    exponent of the smallest subnormal); the 9th squaring gives 0 again, a fixed point: no
+    further product. The zero-order hold of a stable plant over a huge step, exp([[-h, h],
+    [0, 0]]) = [[e^-h, 1 - e^-h], [0, 1]], is [[0, 1], [0, 1]] for h = 1e300 (s = 995) after
+    a few dozen squarings."""
+    s = math.ceil(math.log2(2.0 ** 20 / THETA[13]))
+    k = next(k for k in range(s + 1) if 4 * 2.0 ** k > 1075 * math.log(2))
+    assert (s, k) == (18, 8)
+    calls = _counting(monkeypatch)
+    assert la.expm(_diag(-2.0 ** 20, -2.0 ** 20)) == [[0.0, 0.0], [0.0, 0.0]]
+    assert calls[0] == PI[13] + k + 1
+    calls[0] = 0
+    (e00, e01), bottom = la.expm([[-1e300, 1e300], [0.0, 0.0]])
+    # the integral block is 1 to a few units of round-off: the fixed point inherits the scaled
+    # approximant's error (backward error 2^-53 on an entry of size 1, Higham 2005)
+    assert e00 == 0.0 and bottom == [0.0, 1.0] and abs(e01 - 1.0) <= 8 * 2.0 ** -53
+    assert calls[0] < PI[13] + 100 < PI[13] + math.ceil(math.log2(2e300 / THETA[13]))
 
 
 def test_expm_stops_squaring_once_the_result_overflows(monkeypatch):

@@ -155,7 +155,8 @@ def test_no_temporary_folder_survives(hanging, private_tmp, tmp_path, case):
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc and pgrep: Linux")
 def test_sigterm_stops_the_checking_process_and_removes_its_folder(hanging, tmp_path):
     """SIGTERM to `dronefly check` (a CI job's timeout) while an FMU's step hangs: exit 143,
-    the checking process does not outlive it, and no temporary folder is left."""
+    neither the checking process nor the fork server it came from outlives it, and no
+    temporary folder is left."""
     import signal
     import subprocess
 
@@ -175,9 +176,14 @@ def test_sigterm_stops_the_checking_process_and_removes_its_folder(hanging, tmp_
     else:
         proc.kill()
         pytest.fail(f"the check did not reach the hanging step: {proc.communicate()}")
-    children = subprocess.run(["pgrep", "-f", f"compliance.suite {hanging}"],
-                              capture_output=True, text=True).stdout.split()
-    assert children
+    def children_of(pid: int | str) -> list[str]:
+        return subprocess.run(["pgrep", "-P", str(pid)], capture_output=True,
+                              text=True).stdout.split()
+
+    # the checking process: forked by the fork server, the child of dronefly check
+    servers = children_of(proc.pid)
+    children = servers + [c for s in servers for c in children_of(s)]
+    assert len(children) >= 2, children
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=60) == 143
     for _ in range(50):  # the child is killed with its parent

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from .checker import CHECKS, CheckOptions, CheckResult, FMUReport, listed, rule_of, run_checks
 from ...core.interrupt import pending
-from .child import die_with_parent, run_child
+from .child import die_with_parent, run_function
 from .fuzz import describe_exit, fuzz_fmu
 
 __all__ = ["JSON_SCHEMA", "JSON_SCHEMA_FILE", "CheckInterrupted", "check_fmu", "check_fmus",
@@ -171,8 +171,8 @@ def _check_isolated(path: Path, options: CheckOptions, timeout_s: float) -> FMUR
         rows = Path(tmp, "checks.jsonl")
         opts = json.dumps(asdict(options))
         # the child's own temporary files (the extracted FMU) go to tmp: removed at any end
-        proc = run_child([sys.executable, "-m", "dronefly.harness.compliance.suite",
-                          str(path), str(rows), opts], timeout_s, tmp=tmp)
+        proc = run_function("dronefly.harness.compliance.suite", "checking_process",
+                            [str(path), str(rows), opts], timeout_s, tmp=tmp)
         if proc.returncode is None:
             died = f"hung for more than {timeout_s:g} s"
         else:
@@ -229,7 +229,9 @@ def _not_run(path: Path, report: FMUReport, crashed: str | None,
                                           f"{where})")] if rest else []
 
 
-def _child(path: str, rows: str, opts: str) -> None:
+def checking_process(path: str, rows: str, opts: str) -> None:
+    """The body of the checking process of :func:`check_fmu`: the checks of the FMU at
+    ``path`` with the options ``opts`` (JSON), one JSON row per event written to ``rows``."""
     fd = os.open(rows, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     try:
         def progress(row: dict) -> None:  # one unbuffered write per row: a crash loses none
@@ -317,4 +319,4 @@ def reports_junit(reports: list[FMUReport]) -> str:
 
 if __name__ == "__main__":  # the child process of check_fmu
     die_with_parent()
-    _child(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else "{}")
+    checking_process(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else "{}")

@@ -1,0 +1,41 @@
+"""Functions that tests/test_forkserver.py runs in checking processes (importable by name)."""
+
+from __future__ import annotations
+
+import atexit
+import ctypes
+import os
+import signal
+import sys
+import tempfile
+import time
+
+
+def exit_with(code: str) -> None:
+    sys.exit(int(code))
+
+
+def crash() -> None:
+    os.kill(os.getpid(), signal.SIGSEGV)
+
+
+def hang() -> None:
+    time.sleep(600)
+
+
+def fail() -> None:
+    raise RuntimeError("a bug of the function")
+
+
+def report(name: str) -> None:
+    """Print where the process stands: an environment variable, the temporary folder, the
+    working folder, and whether it leads a session of its own."""
+    print(os.environ.get(name), tempfile.gettempdir(), os.getcwd(), os.getsid(0) == os.getpid())
+
+
+def printf_and_atexit(path: str) -> None:
+    """C stdio output left in its buffer (no newline, no flush) and an ``atexit`` function:
+    both reach their files only if the process ends as a process ends."""
+    atexit.register(lambda: open(path, "w").write("atexit ran"))
+    libc = ctypes.CDLL(None)
+    libc.printf(b"%s", b"buffered by the C library")

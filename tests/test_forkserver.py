@@ -1,0 +1,130 @@
+"""The checking processes of ``dronefly check`` (harness/compliance/child.py, forkserver.py):
+forked from the fork server or started as fresh interpreters (``DRONEFLY_CHECK_FORK=0``), each
+is a process of its own and ends as a process ends, and the parent sees how it ended."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from dronefly.harness.compliance import child
+from dronefly.harness.compliance.child import run_function
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="fork and PR_SET_PDEATHSIG: Linux")
+
+
+@pytest.fixture(params=["fork server", "fresh interpreter"])
+def mode(request, monkeypatch):
+    monkeypatch.setenv("DRONEFLY_CHECK_FORK", "1" if request.param == "fork server" else "0")
+    # tests/forked_targets.py: importable in a fresh interpreter too (the forked child takes
+    # the parent's sys.path)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(Path(__file__).parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    return request.param
+
+
+def _run(function: str, *args: str, timeout_s: float = 60.0, tmp: str | None = None):
+    return run_function("forked_targets", function, list(args), timeout_s, tmp)
+
+
+def test_exit_codes_crashes_and_exceptions_are_reported(mode):
+    assert _run("exit_with", "0").returncode == 0
+    assert _run("exit_with", "3").returncode == 3
+    assert _run("crash").returncode == -signal.SIGSEGV
+    failed = _run("fail")
+    assert failed.returncode == 1
+    assert "RuntimeError: a bug of the function" in failed.stderr
+
+
+def test_the_child_has_its_own_session_environment_and_temporary_folder(mode, tmp_path,
+                                                                        monkeypatch):
+    """The parent's environment as it is at the call (not as it was when the server started),
+    its working folder, the private TMPDIR, a session of its own."""
+    monkeypatch.setenv("DRONEFLY_TEST_VALUE", f"set at {time.monotonic()}")
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "private"
+    folder.mkdir()
+    r = _run("report", "DRONEFLY_TEST_VALUE", tmp=str(folder))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split(" ", 1)[0] == os.environ["DRONEFLY_TEST_VALUE"].split(" ", 1)[0]
+    assert os.environ["DRONEFLY_TEST_VALUE"] in r.stdout
+    assert r.stdout.endswith(f" {folder} {tmp_path} True\n")
+
+
+def test_the_child_ends_as_a_process_ends(mode, tmp_path):
+    """``atexit`` functions run and the C library's buffered output is flushed: an FMU's
+    exit-time code runs in the child as in a fresh process."""
+    marker = tmp_path / "marker"
+    r = _run("printf_and_atexit", str(marker))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == "buffered by the C library"
+    assert marker.read_text() == "atexit ran"
+
+
+def test_a_hanging_child_is_killed_at_the_timeout_and_its_folder_removed(mode, tmp_path,
+                                                                          monkeypatch):
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    t0 = time.monotonic()
+    r = _run("hang", timeout_s=1.0)
+    assert r.returncode is None
+    assert time.monotonic() - t0 < 30
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_kills_the_child_within_a_poll(mode, monkeypatch):
+    """A deferred SIGINT (core/interrupt.py) stops the wait: the child is killed, then
+    KeyboardInterrupt."""
+    calls = []
+
+    def pending() -> bool:
+        calls.append(time.monotonic())
+        return len(calls) > 3
+
+    monkeypatch.setattr(child, "pending", pending)
+    t0 = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        _run("hang")
+    assert time.monotonic() - t0 < 30
+
+
+def test_the_fork_server_ends_with_its_parent(tmp_path):
+    """A parent killed with SIGKILL (no exit code of its own runs): the server sees the end
+    of its stdin and exits, and a child that still ran dies with it."""
+    import subprocess
+
+    code = ("import sys; sys.path.insert(0, sys.argv[1])\n"
+            "from dronefly.harness.compliance.child import run_function\n"
+            "run_function('forked_targets', 'hang', [], 600)\n")
+    parent = subprocess.Popen([sys.executable, "-c", code, str(Path(__file__).parent)],
+                              env={**os.environ, "DRONEFLY_CHECK_FORK": "1"})
+    try:
+        deadline = time.monotonic() + 60
+        pids: list[str] = []
+        while time.monotonic() < deadline and len(pids) < 2:
+            servers = subprocess.run(["pgrep", "-P", str(parent.pid)], capture_output=True,
+                                     text=True).stdout.split()
+            pids = servers + [c for s in servers for c in subprocess.run(
+                ["pgrep", "-P", s], capture_output=True, text=True).stdout.split()]
+            time.sleep(0.1)
+        assert len(pids) == 2, pids  # the server and the hanging child
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+    for _ in range(100):
+        if not any(Path(f"/proc/{p}").exists() and "Z" not in _state(p) for p in pids):
+            break
+        time.sleep(0.1)
+    assert not any(Path(f"/proc/{p}").exists() and "Z" not in _state(p) for p in pids), pids
+
+
+def _state(pid: str) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return "Z"

@@ -171,11 +171,13 @@ class _ForkServer:
             return (not self.alive), None
 
     def close(self) -> None:
+        """End the server (the end of its stdin) and reap it."""
         try:
             if self.proc.stdin is not None:
                 self.proc.stdin.close()
-        except OSError:
-            pass
+            self.proc.wait(timeout=10)
+        except (OSError, subprocess.TimeoutExpired):
+            self.proc.kill()
 
 
 _SERVER: _ForkServer | None = None

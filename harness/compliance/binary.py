@@ -26,11 +26,12 @@ from typing import Any
 
 from fmpy import platform, platform_tuple, sharedLibraryExtension
 from fmpy.fmi1 import calloc, free
-from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-from fmpy.fmi3 import (FMU3Slave, fmi3InstanceEnvironment, fmi3IntermediateUpdateCallback,
+from fmpy.fmi3 import (fmi3InstanceEnvironment, fmi3IntermediateUpdateCallback,
                        fmi3LogMessageCallback, fmi3ValueReference)
 
+from ..cosim.prototypes import FMU2Slave, FMU3Slave
 from .driver import Context
 from .fuzzkit import status_of
 from .rules import CheckSkipped, require

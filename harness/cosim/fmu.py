@@ -23,13 +23,14 @@ from typing import Any, Mapping, Sequence
 import fmpy
 from fmpy import platform, platform_tuple, sharedLibraryExtension
 from fmpy.fmi1 import calloc, free
-from fmpy.fmi2 import (FMU2Model, FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy.logging import addLoggerProxy
 
 from ...core.errors import DroneflyError
 from .exchange import MEStepper
 from .fmu3 import FMU3Adapter, fmi2_view
+from .prototypes import FMU2Model, FMU2Slave
 
 __all__ = ["FMU", "FMUError", "Instance", "LogMessage", "check_archive", "column_units",
            "start_values", "variable_unit"]

@@ -30,9 +30,9 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from fmpy import read_model_description
-from fmpy.fmi3 import FMU3Model, FMU3Slave
 
 from ...core.errors import DroneflyError
+from .prototypes import FMU3Model, FMU3Slave
 
 __all__ = ["INT_TYPES", "VIRTUAL", "Element", "FMU3Adapter", "fmi2_view", "read_view"]
 

@@ -252,3 +252,33 @@ def test_a_binary_is_compiled_once_per_inputs_and_anew_when_a_byte_changes(
         if LINUX_X86:
             assert subprocess.run([str(exe)]).returncode == 7
         assert os.access(exe, os.X_OK)
+
+
+@pytest.mark.skipif(not LINUX_X86, reason="the nested-FMU shim is built for linux64 (x86_64) only")
+def test_the_nested_fmu_shim_is_compiled_once_per_compiler_and_source(tmp_path, monkeypatch):
+    """harness/builder/nestedshim.py: the first build compiles the shim into the cache, the
+    next takes the same bytes from it without compiling; another source compiles anew."""
+    from dronefly.harness.builder import nestedshim
+
+    if nestedshim._compiler() is None:
+        pytest.skip("no C compiler (cc, gcc or clang) on this machine")
+    monkeypatch.setenv("DRONEFLY_CACHE_DIR", str(tmp_path / "cache"))
+    compiled = []
+    run = subprocess.run
+
+    def counting(cmd, *a, **kw):
+        if "-shared" in cmd:
+            compiled.append(cmd)
+        return run(cmd, *a, **kw)
+
+    monkeypatch.setattr(nestedshim.subprocess, "run", counting)
+    builds = []
+    for source in (nestedshim.SHIM_SOURCE, nestedshim.SHIM_SOURCE,
+                   nestedshim.SHIM_SOURCE + "\n/* another source */\n"):
+        monkeypatch.setattr(nestedshim, "SHIM_SOURCE", source)
+        nestedshim.shim_library.cache_clear()
+        builds.append(nestedshim.shim_library())
+    nestedshim.shim_library.cache_clear()
+    assert len(compiled) == 2  # the first and the third
+    assert builds[0] == builds[1] and builds[0][:4] == b"\x7fELF"
+    assert len(list((tmp_path / "cache").iterdir())) == 2

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from ...fmi.host import PYTHONFMU_BESIDE_SHIM
+from .toolchain import cached_binary, keep_binary
 
 __all__ = ["REAL_SUFFIX", "SHIM_SOURCE", "install_shims", "shim_library"]
 
@@ -193,15 +194,24 @@ def shim_library() -> bytes | None:
     cc = _compiler()
     if cc is None:
         return None
+    flags = ["-shared", "-fPIC", "-O2", "-Wall"]
+    version = subprocess.run([*cc.split(), "--version"], capture_output=True).stdout
+    # compiled once per compiler and source (harness/builder/toolchain.py's cache)
+    cached = cached_binary([cc.encode(), version, " ".join(flags).encode(),
+                            SHIM_SOURCE.encode()], ".so")
+    if cached is not None and cached.is_file():
+        return cached.read_bytes()
     with tempfile.TemporaryDirectory(prefix="dronefly_shim_") as tmp:
         src, lib = Path(tmp, "shim.c"), Path(tmp, "shim.so")
         src.write_text(SHIM_SOURCE, encoding="utf-8")
-        r = subprocess.run([*cc.split(), "-shared", "-fPIC", "-O2", "-Wall", "-o", str(lib),
-                            str(src), "-ldl"], capture_output=True, text=True)
+        r = subprocess.run([*cc.split(), *flags, "-o", str(lib), str(src), "-ldl"],
+                           capture_output=True, text=True)
         if r.returncode != 0 or not lib.is_file():
             warnings.warn(f"could not compile the nested-FMU shim with {cc}: {r.stderr[-500:]}",
                           RuntimeWarning, stacklevel=2)
             return None
+        if cached is not None:
+            keep_binary(lib, cached)
         return lib.read_bytes()
 
 

@@ -44,8 +44,8 @@ from pathlib import Path
 from ...core.errors import DroneflyError
 
 __all__ = ["FMI2_PLATFORMS", "FMI3_PLATFORMS", "PLATFORMS", "Platform", "Toolchain",
-           "ToolchainError", "binary_platform", "cache_dir", "find_toolchain", "fmi_include_dir",
-           "host_platform", "missing_reason"]
+           "ToolchainError", "binary_platform", "cache_dir", "cached_binary", "find_toolchain",
+           "fmi_include_dir", "host_platform", "keep_binary", "missing_reason"]
 
 
 class ToolchainError(DroneflyError):
@@ -296,7 +296,7 @@ class Toolchain:
                                      f"{', '.join(s.name for s in srcs)} (exit {r.returncode}): "
                                      + " | ".join(lines[:6]))
             if cached is not None:
-                _keep(target, cached)
+                keep_binary(target, cached)
             shutil.move(str(target), out)
         return out
 
@@ -336,7 +336,19 @@ def _cached(tc: Toolchain, platform: str, flags: Sequence[str], srcs: Sequence[P
     return folder / f"{h.hexdigest()}{suffix}"
 
 
-def _keep(binary: Path, cached: Path) -> None:
+def cached_binary(parts: Sequence[bytes], suffix: str) -> Path | None:
+    """Where the binary made from ``parts`` (the compiler, its version, the flags, the sources:
+    everything its bytes depend on) is kept in :func:`cache_dir` (None: no cache)."""
+    folder = cache_dir()
+    if folder is None:
+        return None
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(hashlib.sha256(part).digest())
+    return folder / f"{h.hexdigest()}{suffix}"
+
+
+def keep_binary(binary: Path, cached: Path) -> None:
     """Copy ``binary`` into the cache, atomically; a cache that cannot be written is no cache."""
     try:
         cached.parent.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,6 @@
 """A virtual environment with only the core install of dronefly-fmu (``pip install
-dronefly-fmu`` without extras), made in about a second from this environment's packages.
+dronefly-fmu`` without extras), or with only another distribution (``fmpy``), made in about a
+second from this environment's packages.
 
 The environment's site-packages gets a link to each installed file tree of every distribution
 that ``dronefly-fmu``'s core requirements pull in (their requirements' markers evaluated without
@@ -51,13 +52,14 @@ def core_distributions(root: str = "dronefly-fmu") -> dict[str, metadata.Distrib
     return seen
 
 
-def make_core_env(env: Path) -> Path:
-    """Make the core-install environment in ``env``; returns its ``bin`` folder."""
+def make_core_env(env: Path, root: str = "dronefly-fmu") -> Path:
+    """Make the environment of ``root``'s install (without extras) in ``env``; returns its
+    ``bin`` folder."""
     env = env.resolve()
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env)], check=True,
                    timeout=120)
     site = next((env / "lib").glob("python*/site-packages"))
-    for dist in core_distributions().values():
+    for dist in core_distributions(root).values():
         tops = {Path(str(f)).parts[0] for f in dist.files or () if not str(f).startswith("..")}
         for top in sorted(tops):  # packages, modules, .dist-info, .libs, the editable finder
             source = Path(str(dist.locate_file(top)))

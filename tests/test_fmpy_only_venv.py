@@ -4,21 +4,20 @@ user runs them: ``fmpy.simulate_fmu`` of every FMU that ``dronefly build`` write
 with the numpy that fmpy brings), reproduces the reference results in
 fmu_*/, controller/ and harness/interop/.
 
-The environment is created once per test session in a temporary folder (``pip install
-fmpy==<this environment's version>`` by this environment's pip, from PyPI or the configured
-wheel folders; about 10 s).
+The environment is created once per test session in a temporary folder, as ``pip install
+fmpy`` would make it from this environment's packages: links to fmpy and to every distribution
+its requirements pull in, nothing else (tests/core_install.py; no scipy, no dronefly-fmu).
 """
 
 from __future__ import annotations
 
 import json
 import subprocess
-import sys
-from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
 import pytest
+from core_install import make_core_env
 
 from dronefly.harness.compliance.reference import REFERENCES, reference_outputs, reference_paths
 
@@ -47,15 +46,13 @@ json.dump(report, open(sys.argv[2], "w"))
 @pytest.fixture(scope="session")
 def fmpy_only_python(tmp_path_factory) -> Path:
     """The interpreter of a fresh virtual environment with fmpy (and its dependencies) only."""
-    env = tmp_path_factory.mktemp("fmpy_only_venv")
-    # no pip inside (ensurepip is half the time): this environment's pip installs into it
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env)], check=True,
-                   timeout=120)
-    python = env / "bin" / "python"
-    r = subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install",
-                        "--quiet", "--no-compile", f"fmpy=={version('fmpy')}"],
-                       capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, f"pip install fmpy failed (needs PyPI or a wheel folder):\n{r.stderr}"
+    python = make_core_env(tmp_path_factory.mktemp("fmpy_only_venv") / "venv", "fmpy") / "python"
+    code = ("import importlib.util, sys\n"
+            "found = [m for m in ('scipy', 'dronefly', 'pythonfmu') if importlib.util.find_spec(m)]\n"
+            "import fmpy, numpy\n"
+            "sys.exit(f'more than fmpy: {found}' if found else 0)\n")
+    r = subprocess.run([str(python), "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
     return python
 
 

@@ -28,7 +28,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import eig
 
 from ..cosim.identification import classify, rates_from_transition
 from .loop import NEUTRAL_RATE, FeedbackLoop, LatencyInputError
@@ -247,6 +246,8 @@ def response(loop: FeedbackLoop, x0: ArrayLike, Ts: float = 1.0, tau: float = 0.
         # its right and left eigenvectors: well-conditioned for the simple, isolated mu ~ 1.
         # (A whole inverse eigenvector basis is not: the delay line's mu = 0 is defective,
         # and inv(V) then differs in its third digit between BLAS kernels.)
+        from scipy.linalg import eig  # 0.3 s to import: for a neutral loop's limit only
+
         w, vl, vr = eig(M, left=True, right=True)
         i = int(np.argmin(np.abs(w - 1.0)))
         v, u = vr[:, i], vl[:, i]

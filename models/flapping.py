@@ -75,7 +75,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import partial
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -353,10 +352,8 @@ class FlappingModel:
         if self.averaged:  # the cycle average of the beat's controls, no wing inertia
             aero = self.qs.state_function(c_now, self.trim)
             return [(aero, np.zeros(6), np.zeros((6, STATE_SIZE)), a) for a in ang]
-        forces_of = self.qs.forces_of
         c0, W = self._inertia(ang)
-        return [(partial(forces_of, inst), c0[i], W[i], ang[i])
-                for i, inst in enumerate(self.qs.instants(ang))]
+        return [(inst, c0[i], W[i], ang[i]) for i, inst in enumerate(self.qs.instants(ang))]
 
     def _inertia(self, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The wings' inertial reaction at the instants of ``ang`` (T, 6, 2) (:meth:`angles`):

@@ -64,7 +64,7 @@ def test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model()
 
 
 def test_instantaneous_forces_are_an_element_by_element_evaluation_to_round_off(model):
-    # forces_at (its instants, then forces_of) against forces_over_cycle, which sums every
+    # forces_at (its instants, each called with the state) against forces_over_cycle, which sums every
     # element's force and moment in Cartesian components: without the added mass the same to
     # round-off (measured 5e-15 of the weight); the added mass, analytic in forces_at, against
     # the Richardson extrapolation of forces_over_cycle's central differences (error
@@ -76,7 +76,7 @@ def test_instantaneous_forces_are_an_element_by_element_evaluation_to_round_off(
     for terms, tol in ((Terms(added_mass=False), 1e-13), (Terms(translational=False,
                                                                 rotational=False), 1e-6)):
         qs = model.qs.with_options(terms=terms)
-        mine = np.array([qs.forces_of(i, X6) for i in qs.instants(angles)])
+        mine = np.array([instant(X6) for instant in qs.instants(angles)])
         F3, F9 = (qs.with_options(n_time=m * n).forces_over_cycle(X6, control, trim)
                   for m in (3, 9))
         ref = (9.0 * F9[:, 9 * js + 4] - F3[:, 3 * js + 1]) / 8.0

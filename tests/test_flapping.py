@@ -1,4 +1,4 @@
-"""The wing-beat-resolved model (models/flapping.py): its forces, its rigid body, its
+"""The wing-beat-resolved model (models/flapping/): its forces, its rigid body, its
 integration, when its controls take effect, and its periodic orbit.
 
 Oracles: the quasi-steady model's own sampled forces (``forces_over_cycle``) and cycle average
@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 from dronefly.models import lateral_dynamics
 from dronefly.models import longitudinal_dynamics
 from dronefly.models.flapping import (WING_CM_OVER_R, FlappingError, FlappingModel, Flight,
-                                      wing_beat_controls)
+                                      periodic_orbit, wing_beat_controls)
 from dronefly.models.lateral_interface import FLIGHT_DATA, INERTIAS_SECT21
 from dronefly.models.quasisteady import CONTROLS, QuasiSteadyModel, Terms
 from dronefly.models.rigid_body import Hover6DOF
@@ -142,7 +142,7 @@ def test_wing_inertia_averages_to_zero_and_peaks_at_four_weights(model):
     accel = (fore_aft_m(t + h) - 2 * fore_aft_m(t) + fore_aft_m(t - h)) / h ** 2
     peak = np.max(np.abs(2 * d["m_wing"] * accel)) / ((d["m_body"] + 2 * d["m_wing"]) * d["g"])
     assert np.max(np.abs(inertial[:, 0])) / W == pytest.approx(peak, rel=1e-5)
-    assert round(peak, 1) == 4.2  # "up to 4.2 times the weight" (models/flapping.py's docstring)
+    assert round(peak, 1) == 4.2  # "up to 4.2 times the weight" (dronefly.models.flapping's docstring)
     assert np.max(np.abs(inertial[:, [1, 2, 3, 5]])) < 1e-12
     assert np.max(np.abs(inertial[:, 4])) > W
 
@@ -303,7 +303,7 @@ def test_bad_values_are_refused(model):
 
 
 def test_hover_is_a_periodic_orbit(model):
-    orbit = model.periodic_orbit()
+    orbit = periodic_orbit(model)
     assert orbit.residuals[-1] < 1e-12
     x0 = model.state_from_z(orbit.z0)
     x1 = Flight(model, x0).advance_to(1.0)

@@ -110,7 +110,9 @@ FMUS: dict[str, _Spec] = {
         "flapping", "DroneFlyFlapping", *_FMI, "models/linear.py", "models/linear_algebra.py",
         "models/longitudinal_interface.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py", *_QUASI_STEADY,
-        "models/flapping.py", "fmu_src/body_variables.py"),
+        "models/shooting.py", *(f"models/flapping/{m}.py" for m in ("__init__", "model", "flight",
+                                                                    "orbit")),
+        "fmu_src/body_variables.py"),
 }
 #: the FMUs that import numpy (the others run on the standard library alone)
 NEEDS_NUMPY = frozenset({"DroneFlyFlapping"})

@@ -1,6 +1,6 @@
 """A periodic orbit by shooting: Newton's chord method on a period map (:func:`shooting`), for
-any map of a state vector over one period (the wing-beat map of
-:mod:`dronefly.models.flapping`, an FMU's through FMI in :mod:`dronefly.harness.flapping.fmi_floquet`)."""
+any map of a state vector over one period (the wing-beat map of :mod:`dronefly.models.flapping`,
+an FMU's through FMI in :mod:`dronefly.harness.flapping.fmi_floquet`)."""
 
 from __future__ import annotations
 

@@ -6,9 +6,10 @@ Floquet exponents beside the averaged model's eigenvalues and the paper's.
 ``averaged_monodromy`` are re-exported here); :mod:`dronefly.harness.flapping.floquet` the
 report beside the averaged model's and the paper's eigenvalues,
 :mod:`dronefly.harness.flapping.fmi_floquet` the same analysis through FMI (any FMU that can get
-and set its state; ``dronefly floquet``). An analysis package (numpy), not shipped in an FMU. :mod:`dronefly.harness.flapping.closed_loop` flies the paper's controller in the
-model, :mod:`dronefly.harness.flapping.master_run` the same as a system of FMUs through the
-project's master.
+and set its state; ``dronefly floquet``). An analysis package (numpy), not shipped in an FMU.
+:mod:`dronefly.harness.flapping.closed_loop` flies the paper's controller in the model,
+:mod:`dronefly.harness.flapping.master_run` the same as a system of FMUs through the project's
+master.
 """
 
 from __future__ import annotations

@@ -36,18 +36,18 @@ rotational inertia about its own span.
 Controls (the seven of the linear plants, in the order of
 :data:`dronefly.models.quasisteady.CONTROLS`) are the wing kinematics they stand for
 (:meth:`~dronefly.models.quasisteady.QuasiSteadyModel.wing_kinematics`: per-wing stroke
-amplitude, mean stroke angle, angles of attack). **When a change takes effect**: the controls are sampled at the start of each wing
-beat, t+ = k, the rear stroke reversal where the wing is at rest, and held for that beat.
-Beat k's stroke runs from the rear reversal the previous beat reached to the front reversal of
-the new controls (downstroke), then to their rear reversal (upstroke), each half a cosine, so
-the stroke angle and its rate are continuous; the pitch rotation centred on the reversal at
-t+ = k is already under way when the controls are sampled and is finished with the angles it
-began with, so the new angles of attack begin with the next rotation: the upstroke angle
-alpha_u in beat k, the downstroke angle alpha_d from beat k + 1 (no jump in the pitch angle or
-rate, so no impulse of the added mass). With the controls held, the kinematics are exactly
-those of the quasi-steady model. A host that steps once per wing beat and one that steps 40
-times per wing beat, setting the same controls at the beats' starts, see the same physics
-(tests/test_flapping.py): a change between two beat starts waits for the next one.
+amplitude, mean stroke angle, angles of attack). **When a change takes effect**: the controls
+are sampled at the start of each wing beat, t+ = k, the rear stroke reversal where the wing is
+at rest, and held for that beat. Beat k's stroke runs from the rear reversal the previous beat
+reached to the front reversal of the new controls (downstroke), then to their rear reversal
+(upstroke), each half a cosine, so the stroke angle and its rate are continuous; the pitch
+rotation centred on the reversal at t+ = k is already under way when the controls are sampled
+and is finished with the angles it began with, so the new angles of attack begin with the next
+rotation: the upstroke angle alpha_u in beat k, the downstroke angle alpha_d from beat k + 1 (no
+jump in the pitch angle or rate, so no impulse of the added mass). With the controls held, the
+kinematics are exactly those of the quasi-steady model. A host that steps once per wing beat and
+one that steps 40 times per wing beat, setting the same controls at the beats' starts, see the
+same physics (tests/test_flapping.py): a change between two beat starts waits for the next one.
 
 Integration: the classical Runge-Kutta method on a fixed grid of :data:`STEPS_PER_BEAT` steps
 per wing beat anchored at the beats' starts (so the stroke reversals, t+ = k and k + 1/2, and

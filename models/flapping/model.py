@@ -333,9 +333,9 @@ class FlappingModel:
         return self._body(y, aero(y[:6]) + (c0 + W @ y))
 
     def _body(self, y: np.ndarray, F: np.ndarray) -> np.ndarray:
-        """dx/dtau of the rigid body (the equations of :mod:`dronefly.models.flapping`) under the loads ``F`` (the six,
-        non-dimensional as :meth:`loads`'), in Python floats (13 values: numpy's per-call
-        cost would be most of it)."""
+        """dx/dtau of the rigid body (the equations of :mod:`dronefly.models.flapping`) under
+        the loads ``F`` (the six, non-dimensional as :meth:`loads`'), in Python floats (13
+        values: numpy's per-call cost would be most of it)."""
         u, v, w, p, q, r, e0, e1, e2, e3 = y.tolist()[:10]
         X, Y, Z, L, M, N = F.tolist()
         R20, R21, R22 = 2.0 * (e1 * e3 - e0 * e2), 2.0 * (e2 * e3 + e0 * e1), \

@@ -63,15 +63,15 @@ modelled (Sun's CFD finds it negligible in hover). Cycle averages are the mean o
 ``n_time`` equally spaced samples midway between the reversals' instants (the periodic
 midpoint rule); in the added mass's cycle average the time derivative is moved, by parts over
 the periodic cycle, onto the wing's own motion (analytic), so no derivative of the
-state-dependent flow is sampled. The velocities are affine in the state and the span, so
-what does not depend on the state is computed once per wing kinematics; the instantaneous
-forces (:meth:`QuasiSteadyModel.forces_at`) are split the same way, into
+state-dependent flow is sampled. The velocities are affine in the state and the span, so what
+does not depend on the state is computed once per wing kinematics; the instantaneous forces
+(:meth:`QuasiSteadyModel.forces_at`) are split the same way, into
 :meth:`QuasiSteadyModel.instants`, the wing motion's part (at any number of instants at once),
 and the call of each :class:`Instant` with a state, the state's (the wing-beat-resolved plant
-keeps the first for the instants of its grid). The default grid, 8 elements and 100 samples, is the smallest whose derivatives agree with a grid of 32 x 800
-to 0.1 % of each input's largest derivative (tests/test_aero.py); the error is the midpoint
-rule's O(1/n_time^2) at the kinks of the quasi-steady forces where an element's velocity
-passes through zero near a reversal.
+keeps the first for the instants of its grid). The default grid, 8 elements and 100 samples, is
+the smallest whose derivatives agree with a grid of 32 x 800 to 0.1 % of each input's largest
+derivative (tests/test_aero.py); the error is the midpoint rule's O(1/n_time^2) at the kinks of
+the quasi-steady forces where an element's velocity passes through zero near a reversal.
 
 The package, one idea a module:
 

@@ -64,7 +64,8 @@ class Instant(NamedTuple):
         loads @ (every element's F_n, F_c over 0.5 rho U^2 S_t, ordered as in ``rows``; the
         added mass's sums; their products with the body's rates) is (X+, Y+, Z+, L+, M+, N+).
     cw : array, shape (n_span,)
-        The elements' quadrature weights [c^2] (:class:`~dronefly.models.quasisteady.elements.BladeElements`).
+        The elements' quadrature weights [c^2]
+        (:class:`~dronefly.models.quasisteady.elements.BladeElements`).
     coefficients : CoefficientSet or None
         The translational coefficients; None without the translational term.
     """
@@ -99,8 +100,9 @@ class Instant(NamedTuple):
         x1[_ONE] = 1.0
         x1[_ONE + 1:] = state
         e = x1 @ rows
-        a = e[-_ADDED_MASS_SUMS:]  # (S0, S1) of each wing, then the added mass's normal force sums
-        E = e[:-_ADDED_MASS_SUMS].reshape(_QUANTITIES, 2, -1)  # (V_n, V_c, f, -f) of (wing, element)
+        a = e[-_ADDED_MASS_SUMS:]  # (S0, S1) of each wing, then the normal force's sums
+        # (V_n, V_c, f, -f) of (wing, element)
+        E = e[:-_ADDED_MASS_SUMS].reshape(_QUANTITIES, 2, -1)
         V = E[_V_N:_V_C + 1]
         rotational = E[_ROT:] * V[::-1]  # (f V_c, -f V_n)
         if coefficients is not None:

@@ -127,7 +127,7 @@ def test_flapping_counter_torque_against_its_closed_form():
         gw = 4 / math.pi * (0.75 * w * math.sqrt(A * A - w * w)
                             + (A * A / 4 + w * w / 2) * math.asin(w / A))
         expected = -2 * cd * g.k**2 * I3 / (2 * g.S_wing) * gw
-        N = m.forces({"delta_r": w}, trim=Trim(alpha, alpha, 0.0, 0.0))["N"]
+        N = m.forces_vector({"delta_r": w}, trim=Trim(alpha, alpha, 0.0, 0.0))[FORCES.index("N")]
         # the midpoint rule on |a + w| (a kink at each zero crossing): error O(dt^2) = 6e-8,
         # relative; 1e-6 leaves room
         assert N == pytest.approx(expected, rel=1e-6)

@@ -1,4 +1,4 @@
-"""The wing-beat-resolved model (models/flapping.py): its forces, its rigid body, its
+"""The wing-beat-resolved model (models/flapping/): its forces, its rigid body, its
 integration, when its controls take effect, and its periodic orbit.
 
 Oracles: the quasi-steady model's own sampled forces (``forces_over_cycle``) and cycle average
@@ -18,7 +18,7 @@ from scipy.integrate import solve_ivp
 from dronefly.models import lateral_dynamics
 from dronefly.models import longitudinal_dynamics
 from dronefly.models.flapping import (WING_CM_OVER_R, FlappingError, FlappingModel, Flight,
-                                      wing_beat_controls)
+                                      periodic_orbit, wing_beat_controls)
 from dronefly.models.lateral_interface import FLIGHT_DATA, INERTIAS_SECT21
 from dronefly.models.quasisteady import CONTROLS, QuasiSteadyModel, Terms
 from dronefly.models.rigid_body import Hover6DOF
@@ -64,7 +64,7 @@ def test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model()
 
 
 def test_instantaneous_forces_are_an_element_by_element_evaluation_to_round_off(model):
-    # forces_at (its instants, then forces_of) against forces_over_cycle, which sums every
+    # forces_at (its instants, each called with the state) against forces_over_cycle, which sums every
     # element's force and moment in Cartesian components: without the added mass the same to
     # round-off (measured 5e-15 of the weight); the added mass, analytic in forces_at, against
     # the Richardson extrapolation of forces_over_cycle's central differences (error
@@ -76,7 +76,7 @@ def test_instantaneous_forces_are_an_element_by_element_evaluation_to_round_off(
     for terms, tol in ((Terms(added_mass=False), 1e-13), (Terms(translational=False,
                                                                 rotational=False), 1e-6)):
         qs = model.qs.with_options(terms=terms)
-        mine = np.array([qs.forces_of(i, X6) for i in qs.instants(angles)])
+        mine = np.array([instant(X6) for instant in qs.instants(angles)])
         F3, F9 = (qs.with_options(n_time=m * n).forces_over_cycle(X6, control, trim)
                   for m in (3, 9))
         ref = (9.0 * F9[:, 9 * js + 4] - F3[:, 3 * js + 1]) / 8.0
@@ -142,7 +142,7 @@ def test_wing_inertia_averages_to_zero_and_peaks_at_four_weights(model):
     accel = (fore_aft_m(t + h) - 2 * fore_aft_m(t) + fore_aft_m(t - h)) / h ** 2
     peak = np.max(np.abs(2 * d["m_wing"] * accel)) / ((d["m_body"] + 2 * d["m_wing"]) * d["g"])
     assert np.max(np.abs(inertial[:, 0])) / W == pytest.approx(peak, rel=1e-5)
-    assert round(peak, 1) == 4.2  # "up to 4.2 times the weight" (models/flapping.py's docstring)
+    assert round(peak, 1) == 4.2  # "up to 4.2 times the weight" (dronefly.models.flapping's docstring)
     assert np.max(np.abs(inertial[:, [1, 2, 3, 5]])) < 1e-12
     assert np.max(np.abs(inertial[:, 4])) > W
 
@@ -306,7 +306,7 @@ def test_bad_values_are_refused(model):
 
 
 def test_hover_is_a_periodic_orbit(model):
-    orbit = model.periodic_orbit()
+    orbit = periodic_orbit(model)
     assert orbit.residuals[-1] < 1e-12
     x0 = model.state_from_z(orbit.z0)
     x1 = Flight(model, x0).advance_to(1.0)

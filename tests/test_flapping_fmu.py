@@ -14,7 +14,7 @@ import pytest
 from dronefly.cli.app import main
 from dronefly.harness.flapping import fmi_floquet
 from dronefly.models import lateral_dynamics
-from dronefly.models.flapping import Floquet, FlappingModel
+from dronefly.models.flapping import Floquet, FlappingModel, periodic_orbit
 from dronefly.models.lateral_interface import N_HZ, sort_eigenvalues
 
 pytestmark = pytest.mark.integration
@@ -90,7 +90,7 @@ def test_floquet_of_a_linear_fmu_is_its_eigenvalues(built_fmus):
 def test_floquet_through_fmi_is_the_models(built_fmus):
     r = fmi_floquet(built_fmus["DroneFlyFlapping"])
     model = FlappingModel()
-    orbit = model.periodic_orbit()
+    orbit = periodic_orbit(model)
     fl = Floquet.of(model, orbit)
     # the same equations and grid: the orbit agrees to the Newton tolerance (in the FMU's
     # SI units: velocities times U, rates times n), the exponents to the finite differences'

@@ -7,6 +7,7 @@ import json
 
 from ...core.errors import DroneflyError
 from ...harness.aero import QuasiSteadyModel, Terms, parity_report
+from ...models.quasisteady import FORCES
 from .args import parse_setting
 from . import EXIT_OK
 
@@ -60,8 +61,9 @@ def run(args: argparse.Namespace) -> int:
         translational=not args.no_translational, rotational=not args.no_rotational,
         added_mass=not args.no_added_mass, added_mass_form=args.added_mass_form))
     if args.what == "forces":
-        forces = model.forces({k: number(k, v) for k, v in args.state},
-                              {k: number(k, v) for k, v in args.control})
+        loads = model.forces_vector({k: number(k, v) for k, v in args.state},
+                                    {k: number(k, v) for k, v in args.control})
+        forces = dict(zip(FORCES, (float(v) for v in loads)))
         print(json.dumps(forces, indent=2) if args.json
               else "  ".join(f"{k}+ = {v:+.6f}" for k, v in forces.items()))
         return EXIT_OK

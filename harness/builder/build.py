@@ -71,6 +71,10 @@ _PLANT = (*_FMI, "models/linear.py", "models/linear_algebra.py", "fmu_src/linear
 _CONTROLLER = (*_FMI, "models/longitudinal_interface.py", "models/feedback.py", "controller/delay.py",
                "controller/timing.py", "controller/variables.py", "controller/slave.py")
 
+#: the quasi-steady wing model (numpy), a package
+_QUASI_STEADY = tuple(f"models/quasisteady/{m}.py" for m in (
+    "__init__", "wing", "elements", "kinematics", "trim", "instantaneous", "cycle", "model"))
+
 
 def _controller(cls: str) -> _Spec:
     """A controller FMU: one slave module, one README, its reference files in controller/."""
@@ -99,14 +103,16 @@ FMUS: dict[str, _Spec] = {
         "hover6dof", "DroneFlyHover6DOF", *_FMI, "models/linear.py", "models/linear_algebra.py",
         "models/longitudinal_interface.py", "models/hover6dof.py", "models/lateral_dynamics.py",
         "models/longitudinal_dynamics.py", "models/rigid_body.py",
-        "models/quasisteady.py",  # imported (with numpy) only with aerodynamics = 2
+        *_QUASI_STEADY,  # imported (with numpy) only with aerodynamics = 2
         "fmu_src/body_variables.py"),
     # the one FMU that needs numpy in the host's Python (see NEEDS_NUMPY)
     "DroneFlyFlapping": _plant(
         "flapping", "DroneFlyFlapping", *_FMI, "models/linear.py", "models/linear_algebra.py",
         "models/longitudinal_interface.py", "models/hover6dof.py", "models/lateral_dynamics.py",
-        "models/longitudinal_dynamics.py", "models/rigid_body.py", "models/quasisteady.py",
-        "models/flapping.py", "fmu_src/body_variables.py"),
+        "models/longitudinal_dynamics.py", "models/rigid_body.py", *_QUASI_STEADY,
+        "models/shooting.py", *(f"models/flapping/{m}.py" for m in ("__init__", "model", "flight",
+                                                                    "orbit")),
+        "fmu_src/body_variables.py"),
 }
 #: the FMUs that import numpy (the others run on the standard library alone)
 NEEDS_NUMPY = frozenset({"DroneFlyFlapping"})

@@ -32,7 +32,8 @@ import numpy as np
 
 from ...core.text import complexes_text
 from ...models.feedback import PAPER_GAINS_EQ27
-from ...models.flapping import FlappingModel, Flight, Floquet, PeriodicOrbit
+from ...models.flapping import (FlappingModel, Flight, Floquet, PeriodicOrbit, monodromy,
+                                periodic_orbit)
 from ...models.lateral_interface import sort_eigenvalues
 from ...models.rigid_body import euler_from_quaternion, gamma_from_quaternion
 from ..aero.beside_paper import closed_loop as qs_closed_loop
@@ -155,8 +156,8 @@ def closed_loop_report(steps_per_beat: int = 20, beats: int = 30,
     """Eq. (27) and the quasi-steady design on the flapping insect and its averaged twin."""
     model = FlappingModel(steps_per_beat=steps_per_beat)
     twin = FlappingModel(model.qs, steps_per_beat, averaged=True)
-    M_avg = twin.monodromy(np.zeros(8))
-    orbit = model.periodic_orbit(jacobian=M_avg)
+    M_avg = monodromy(twin, np.zeros(8))
+    orbit = periodic_orbit(model, jacobian=M_avg)
     M = Floquet.of(model, orbit).monodromy
     G0, G1 = _control_maps(model, orbit.z0)
     A0, A1 = _control_maps(twin, np.zeros(8))

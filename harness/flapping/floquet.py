@@ -1,12 +1,10 @@
-"""Hover as a periodic orbit, and how far the averaged model is from it.
+"""How far the averaged model is from hover as a periodic orbit: the report.
 
-The wing-beat-resolved model (:mod:`dronefly.models.flapping`) hovers on a periodic orbit:
-:meth:`FlappingModel.periodic_orbit` finds it by shooting. Its monodromy matrix (central
-differences of the wing-beat map about the orbit's start, in the reduced coordinates u, v, w,
-p, q, r, phi, theta; position and heading are neutral) has the multipliers mu; the Floquet
-exponents log(mu) per wing beat are what the eigenvalues of the averaged model claim to be.
-The orbit is left-right symmetric, so the monodromy splits exactly into a lateral block
-(v, p, r, phi) and a longitudinal one (u, w, q, theta).
+The wing-beat-resolved model (:mod:`dronefly.models.flapping`) hovers on a periodic orbit;
+:mod:`dronefly.models.flapping.orbit` finds it by shooting and gives its Floquet exponents
+log(mu) per wing beat, per axis (the monodromy splits exactly into a lateral block (v, p, r,
+phi) and a longitudinal one (u, w, q, theta)): what the eigenvalues of the averaged model claim
+to be. This module sets them beside the eigenvalues of the other models.
 
 Beside them, per axis:
 
@@ -28,39 +26,11 @@ from typing import Sequence
 import numpy as np
 
 from ...core.text import complex_text
-from ...models.flapping import Floquet, FlappingModel, PeriodicOrbit
-from ...models.lateral_interface import sort_eigenvalues
+from ...models.flapping import (AXES, Floquet, FlappingModel, PeriodicOrbit, averaged_monodromy,
+                                block_exponents, periodic_orbit)
 from ..aero.beside_paper import derivative_table, eigenvalues
 
-__all__ = ["AXES", "FloquetReport", "readme_paragraph", "averaged_exponents", "averaged_monodromy",
-           "convergence", "convergence_rows", "floquet_report"]
-
-#: the reduced coordinates of each axis (indices into dronefly.models.flapping.Z_NAMES)
-AXES: dict[str, tuple[int, ...]] = {"lateral": (1, 3, 5, 6), "longitudinal": (0, 2, 4, 7)}
-
-
-def _block_exponents(M: np.ndarray, period: float) -> dict[str, list[complex]]:
-    """log(eig) / period of each axis' block of a monodromy matrix, in the project's order."""
-    out = {}
-    for axis, idx in AXES.items():
-        mu = np.linalg.eigvals(M[np.ix_(idx, idx)])
-        out[axis] = sort_eigenvalues(np.log(mu.astype(complex)) / period)
-    return out
-
-
-def averaged_monodromy(model: FlappingModel) -> np.ndarray:
-    """The monodromy matrix of the averaged twin of ``model`` (same aerodynamics, rigid body,
-    grid and period) about the trimmed hover: its exact map over one period (reduced
-    coordinates)."""
-    twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True,
-                         frequency_factor=1.0 / model.period)
-    return twin.monodromy(np.zeros(8))
-
-
-def averaged_exponents(model: FlappingModel) -> dict[str, list[complex]]:
-    """Eigenvalues per wing beat of the averaged twin of ``model``: the logarithms of the
-    eigenvalues of its map over one period, over the period."""
-    return _block_exponents(averaged_monodromy(model), model.period)
+__all__ = ["FloquetReport", "convergence", "convergence_rows", "floquet_report", "readme_paragraph"]
 
 
 def _power(M: np.ndarray, p: float) -> np.ndarray:
@@ -170,15 +140,15 @@ def floquet_report(model: FlappingModel | None = None) -> FloquetReport:
     and the eigenvalues beside them."""
     model = model or FlappingModel()
     M_avg = averaged_monodromy(model)
-    orbit = model.periodic_orbit(jacobian=M_avg)
+    orbit = periodic_orbit(model, jacobian=M_avg)
     fl = Floquet.of(model, orbit)
     table = derivative_table(model.qs)
     qs_values = {r.parameter: r.quasi_steady for r in table}
     paper_values = {r.parameter: r.paper for r in table}
     return FloquetReport(
         steps_per_beat=model.steps_per_beat, orbit=orbit, oscillation=orbit.oscillation(),
-        floquet=_block_exponents(fl.monodromy, model.period),
-        averaged=_block_exponents(M_avg, model.period),
+        floquet=block_exponents(fl.monodromy, model.period),
+        averaged=block_exponents(M_avg, model.period),
         quasi_steady=eigenvalues(qs_values), paper=eigenvalues(paper_values),
         multipliers=list(fl.multipliers))
 
@@ -190,13 +160,13 @@ def convergence_rows(factors: Sequence[float] = (1.0, 2.0, 4.0, 8.0),
     Floquet exponents against the averaged eigenvalues, lateral and longitudinal, per cent."""
     base = FlappingModel(steps_per_beat=steps_per_beat)
     M_avg = averaged_monodromy(base)
-    avg = _block_exponents(M_avg, 1.0)
+    avg = block_exponents(M_avg, 1.0)
     rows = []
     for s in factors:
         m = FlappingModel(base.qs, steps_per_beat, frequency_factor=s)
         # the averaged map over the shorter period: the Newton steps' Jacobian
         M_s = M_avg if s == 1.0 else _power(M_avg, 1.0 / s)
-        fl = _block_exponents(Floquet.of(m, m.periodic_orbit(jacobian=M_s)).monodromy, m.period)
+        fl = block_exponents(Floquet.of(m, periodic_orbit(m, jacobian=M_s)).monodromy, m.period)
         errs = {axis: max(_pct(f, a) for f, a in zip(_paired(fl[axis], avg[axis]), avg[axis]))
                 for axis in AXES}
         rows.append((float(s), errs["lateral"], errs["longitudinal"]))

@@ -28,10 +28,10 @@ import numpy as np
 from ..builder.build import ensure_fmu
 from ...core.errors import DroneflyError
 from ...core.interrupt import checkpoint
-from ...models.flapping import FlappingModel, shooting
+from ...models.flapping import FlappingModel, averaged_exponents
 from ...models.lateral_interface import sort_eigenvalues
+from ...models.shooting import shooting
 from ..cosim.fmu import FMU
-from .floquet import averaged_exponents
 
 __all__ = ["NEUTRAL", "FmiFloquet", "FmiPeriodicMap", "floquet_analysis", "floquet_text",
            "fmi_floquet"]

@@ -7,8 +7,8 @@ within the beat and the wings' speed through the air with it. Its own trim is th
 (delta_Phi, delta_phibar), stroke amplitude and mean stroke angle, whose orbit's mean velocity
 over the beat is zero: Newton's method on the position change over one beat of the periodic
 orbit (north and down; east is 0 by symmetry), the Jacobian by central differences of the
-controls, each evaluation a periodic orbit (:meth:`FlappingModel.periodic_orbit`). An
-analysis: the FMU's default (the quasi-steady trim) is unchanged; its inputs delta_Phi and
+controls, each evaluation a periodic orbit (:func:`~dronefly.models.flapping.periodic_orbit`).
+An analysis: the FMU's default (the quasi-steady trim) is unchanged; its inputs delta_Phi and
 delta_phibar take these values.
 """
 
@@ -20,7 +20,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ...models.flapping import FlappingError, FlappingModel, Floquet, PeriodicOrbit
+from ...models.flapping import (FlappingError, FlappingModel, Floquet, PeriodicOrbit, monodromy,
+                                periodic_orbit)
 from ...models.quasisteady import CONTROLS
 
 __all__ = ["FlappingTrim", "flapping_trim", "orbit_drift"]
@@ -41,7 +42,7 @@ def orbit_drift(model: FlappingModel, control: Sequence[float],
                 jacobian: np.ndarray | None = None) -> tuple[PeriodicOrbit, np.ndarray]:
     """The periodic orbit with ``control`` (the seven controls [rad], held) and its drift:
     the position change over one beat, north and down, in U t_w (the mean velocity over U)."""
-    orbit = model.periodic_orbit(control, jacobian=jacobian)
+    orbit = periodic_orbit(model, control, jacobian=jacobian)
     x = model.beat(model.state_from_z(orbit.z0), control, control)
     return orbit, np.array([x[10], x[12]]) / model.period
 
@@ -118,7 +119,7 @@ def flapping_trim(model: FlappingModel | None = None, tol: float = 1e-12, max_it
     """
     model = model or FlappingModel()
     twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True)
-    J = twin.monodromy(np.zeros(8))
+    J = monodromy(twin, np.zeros(8))
     a = np.zeros(len(_TRIMMED))
     orbit, r = orbit_drift(model, _controls(a), J)
     qs_orbit = orbit

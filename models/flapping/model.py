@@ -1,92 +1,23 @@
-"""The wing-beat-resolved model: the rigid body driven by the flapping wings' instantaneous forces.
-
-Zhang & Sun (Sect. 2.1) replace the flapping wings by their cycle-averaged forces. This model
-does not: the rigid body of ``DroneFlyHover6DOF`` (same 13-value non-dimensional state, same
-axes: body axes at the centre of mass, x forward, y right, z down; earth axes north-east-down)
-is driven at every instant of the wing beat by the forces and moments of both wings from the
-quasi-steady blade-element model, :meth:`dronefly.models.quasisteady.QuasiSteadyModel.forces_at`
-(one implementation, imported). Everything is non-dimensional as there: velocities over U,
-rates times t_w, time t+ in wing beats, forces over 0.5 rho U^2 S_t, lengths in mean chords c
-(the position P+ in U t_w, as the 6-DOF plant's).
-
-Equations (x = (V+, omega+, e, P+), R(e) body -> earth):
-
-- m+ dV+/dt+ = F_aero+(t+, V+, omega+) + F_wing+ + m+ g+ R^T e_z - m+ omega+ x V+
-- J+ domega+/dt+ = M_aero+ + M_wing+ - omega+ x J+ omega+
-- de/dt+ = e * (0, omega+) / 2, dP+/dt+ = R V+
-
-with m+, J+ (the full tensor, Ixz+) and g+ from the Sect. 2.4 flight data
-(:func:`dronefly.models.lateral_interface.reference_scales`), the same data whose weight the
-quasi-steady trim balances (so the trimmed wing motion holds the insect up on average).
-
-Wing inertia: each wing (m_w = 0.56 mg, 0.6 % of the insect) is a point mass at 0.35 R along
-its span axis from the root, moving relative to the body with the prescribed stroke; the body
-feels the reaction -m_w (a_rel + 2 omega x v_rel) at that point (a_rel, v_rel its acceleration
-and velocity relative to the body, the Coriolis term with the body's rate). It is included,
-and it is not negligible within the wing beat: the two wings' forward-backward inertial forces
-add (together up to 4.2 times the weight), and they dominate the body's fore-aft oscillation
-(docs/averaging.md gives the orbit with and without them). Their cycle average is zero, so they
-do not change the averaged model. Left out: the centripetal term omega x (omega x r_w) (second
-order in the body's rate), the change within the beat of the wings' share of the inertia
-tensor (each wing's m_w r^2 about the centre of mass is about 1 % of Iy; the paper's J+ holds
-the mean), the shift of the insect's centre of mass in the gravity moment (40 micrometres peak:
-the body's fore-aft oscillation on the periodic orbit is its mirror image), and the wing's
-rotational inertia about its own span.
-
-Controls (the seven of the linear plants, in the order of
-:data:`dronefly.models.quasisteady.CONTROLS`) are the wing kinematics they stand for
-(:meth:`QuasiSteadyModel.wing_kinematics`: per-wing stroke amplitude, mean stroke angle, angles
-of attack). **When a change takes effect**: the controls are sampled at the start of each wing
-beat, t+ = k, the rear stroke reversal where the wing is at rest, and held for that beat.
-Beat k's stroke runs from the rear reversal the previous beat reached to the front reversal of
-the new controls (downstroke), then to their rear reversal (upstroke), each half a cosine, so
-the stroke angle and its rate are continuous; the pitch rotation centred on the reversal at
-t+ = k is already under way when the controls are sampled and is finished with the angles it
-began with, so the new angles of attack begin with the next rotation: the upstroke angle
-alpha_u in beat k, the downstroke angle alpha_d from beat k + 1 (no jump in the pitch angle or
-rate, so no impulse of the added mass). With the controls held, the kinematics are exactly
-those of the quasi-steady model. A host that steps once per wing beat and one that steps 40
-times per wing beat, setting the same controls at the beats' starts, see the same physics
-(tests/test_flapping.py): a change between two beat starts waits for the next one.
-
-Integration: the classical Runge-Kutta method on a fixed grid of :data:`STEPS_PER_BEAT` steps
-per wing beat anchored at the beats' starts (so the stroke reversals, t+ = k and k + 1/2, and
-the rotations' ends are grid points, where the forces have kinks), independent of any
-communication step: a communication point between two grid points is reached by a partial step
-from the last grid point that the state does not keep. The accuracy against
-``scipy.integrate.solve_ivp`` (rtol 1e-10), tests/test_flapping.py: 8e-7 over a beat from hover
-(order 4); from a disturbed state with new controls 7.5e-6, of first order in the step where an
-element's normal velocity crosses zero off the grid (the lift coefficient's value at zero
-incidence, 0.027 in Dickinson's fit, turns the normal force over: a jump in time).
-
-What the equations need of the wing motion at an instant (the angles, the quasi-steady model's
-:meth:`~dronefly.models.quasisteady.QuasiSteadyModel.instants`, the wing inertia as an affine
-map of the state) does not depend on the state: for the grid's steps it is made once per pair
-of controls (the 2N + 2 distinct stage instants of a beat, all together) and kept, so a beat
-with its controls held costs the 4N evaluations of the state's part
-(:meth:`~dronefly.models.quasisteady.QuasiSteadyModel.forces_of`, the rigid body) alone; a
-partial step makes its own. The kept stages are the equations evaluated at those instants, to
-round-off (tests/test_flapping.py); the angles and loads at a grid point are its stage's.
-
-numpy is imported (the quasi-steady model needs it); the FMU that ships this module documents it.
-"""
+"""The equations of the wing-beat-resolved model (:class:`FlappingModel`): the wing kinematics
+of each beat from its controls, the stages of the Runge-Kutta grid, the rigid body under the
+wings' instantaneous loads and their inertia (the package's text,
+:mod:`dronefly.models.flapping`, states them)."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import partial
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..core.errors import DroneflyError
-from .lateral_interface import FLIGHT_DATA, reference_scales
-from .quasisteady import CONTROLS, QuasiSteadyModel
-from .rigid_body import euler_from_quaternion, quaternion_from_euler
+from ...core.errors import DroneflyError
+from ..lateral_interface import FLIGHT_DATA, reference_scales
+from ..quasisteady import CONTROLS, QuasiSteadyModel
+from ..rigid_body import euler_from_quaternion, quaternion_from_euler
 
 __all__ = ["STATE_SIZE", "STEPS_PER_BEAT", "WING_CM_OVER_R", "FlappingError", "FlappingModel",
-           "Flight", "Floquet", "PeriodicOrbit", "Z_NAMES", "orbit_start", "shooting", "wing_beat_controls"]
+           "Z_NAMES", "wing_beat_controls"]
 
 #: number of state values (as the 6-DOF plant: u, v, w, p, q, r, e0..e3, x, y, z)
 STATE_SIZE = 13
@@ -112,35 +43,6 @@ _TABLES = 16
 class FlappingError(DroneflyError):
     """A bad value for the flapping model (the message names it)."""
 
-
-def shooting(period_map: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
-             monodromy: np.ndarray, tol: float, max_iter: int,
-             scales: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
-    """A periodic orbit by shooting: Newton's chord method on ``period_map(x) - x`` from ``x0``,
-    the Jacobian ``monodromy - I`` kept for every step (the map is nearly linear over the
-    orbit's offset), until the largest residual (over ``scales``, if given) is below ``tol``.
-
-    Returns
-    -------
-    x, residuals : array, list of float
-        The state at the orbit's start and the residual of each iteration.
-
-    Raises
-    ------
-    FlappingError
-        The residual is not below ``tol`` after ``max_iter`` steps.
-    """
-    x = np.asarray(x0, dtype=float)
-    J = np.asarray(monodromy, dtype=float) - np.eye(len(x))
-    residuals: list[float] = []
-    for _ in range(max_iter):
-        r = period_map(x) - x
-        residuals.append(float(np.max(np.abs(r if scales is None else r / scales))))
-        if residuals[-1] < tol:
-            return x, residuals
-        x = x - np.linalg.solve(J, r)
-    raise FlappingError(f"no periodic orbit: the residual is {residuals[-1]:.3g} after "
-                        f"{max_iter} steps ({residuals!r})")
 
 
 def wing_beat_controls(control: Mapping[str, float] | Sequence[float] | None) -> tuple[float, ...]:
@@ -312,8 +214,8 @@ class FlappingModel:
         ``tau`` of a beat, body state ``x`` (at least its six velocities and rates).
 
         A phase within 1e-9 of a step of a grid point is that grid point (as the flight's
-        state there, :meth:`Flight.state_at`): its loads are those of the integration's
-        stage there."""
+        state there, :meth:`dronefly.models.flapping.Flight.state_at`): its loads are those of
+        the integration's stage there."""
         cp, cn = wing_beat_controls(c_prev), wing_beat_controls(c_now)
         beat, v = self._beat(cp, cn), np.asarray(x[:6], dtype=float)
         stage = self._grid_stage(tau, beat, cp, cn)
@@ -353,10 +255,8 @@ class FlappingModel:
         if self.averaged:  # the cycle average of the beat's controls, no wing inertia
             aero = self.qs.state_function(c_now, self.trim)
             return [(aero, np.zeros(6), np.zeros((6, STATE_SIZE)), a) for a in ang]
-        forces_of = self.qs.forces_of
         c0, W = self._inertia(ang)
-        return [(partial(forces_of, inst), c0[i], W[i], ang[i])
-                for i, inst in enumerate(self.qs.instants(ang))]
+        return [(inst, c0[i], W[i], ang[i]) for i, inst in enumerate(self.qs.instants(ang))]
 
     def _inertia(self, ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The wings' inertial reaction at the instants of ``ang`` (T, 6, 2) (:meth:`angles`):
@@ -433,9 +333,9 @@ class FlappingModel:
         return self._body(y, aero(y[:6]) + (c0 + W @ y))
 
     def _body(self, y: np.ndarray, F: np.ndarray) -> np.ndarray:
-        """dx/dtau of the rigid body (the module's equations) under the loads ``F`` (the six,
-        non-dimensional as :meth:`loads`'), in Python floats (13 values: numpy's per-call
-        cost would be most of it)."""
+        """dx/dtau of the rigid body (the equations of :mod:`dronefly.models.flapping`) under
+        the loads ``F`` (the six, non-dimensional as :meth:`loads`'), in Python floats (13
+        values: numpy's per-call cost would be most of it)."""
         u, v, w, p, q, r, e0, e1, e2, e3 = y.tolist()[:10]
         X, Y, Z, L, M, N = F.tolist()
         R20, R21, R22 = 2.0 * (e1 * e3 - e0 * e2), 2.0 * (e2 * e3 + e0 * e1), \
@@ -546,197 +446,3 @@ class FlappingModel:
     def z_map(self, z: Sequence[float], control: Sequence[float] | None = None) -> np.ndarray:
         """One wing beat with the controls held, in reduced coordinates."""
         return self.z_from_state(self.beat(self.state_from_z(z), control, control))
-
-    def periodic_orbit(self, control: Sequence[float] | None = None, tol: float = 1e-12,
-                       max_iter: int = 30, step: float = 1e-6, samples: int | None = None,
-                       jacobian: np.ndarray | None = None) -> "PeriodicOrbit":
-        """Hover as a periodic orbit: Newton's method on the state at the start of a beat
-        (shooting with the wing-beat map), from the trimmed hover's state 0, to a residual
-        below ``tol``.
-
-        The Jacobian is kept for every step (the chord method: the wing-beat map is nearly
-        linear over the orbit's offset): ``jacobian``, an approximation of the monodromy
-        matrix (the averaged model's serves), or by default the central-difference one at the
-        start.
-
-        Raises
-        ------
-        FlappingError
-            The residual is not below ``tol`` after ``max_iter`` steps.
-        """
-        z = np.zeros(len(Z_NAMES))
-        M = self.monodromy(z, control, step) if jacobian is None else np.asarray(jacobian)
-        z, history = shooting(lambda x: self.z_map(x, control), z, M, tol, max_iter)
-        return PeriodicOrbit(self, z, control, history, samples or 200)
-
-    def monodromy(self, z: Sequence[float], control: Sequence[float] | None = None,
-                  step: float = 1e-6) -> np.ndarray:
-        """d(z after one beat)/d(z at its start), central differences of the wing-beat map."""
-        z = np.asarray(z, dtype=float)
-        cols = []
-        for j in range(len(z)):
-            dz = np.zeros(len(z))
-            dz[j] = step
-            cols.append((self.z_map(z + dz, control) - self.z_map(z - dz, control)) / (2 * step))
-        return np.column_stack(cols)
-
-
-def orbit_start(model: FlappingModel | None = None) -> np.ndarray:
-    """The start of the flapping insect's periodic orbit at the averaged trim's kinematics
-    (:meth:`FlappingModel.periodic_orbit`, the averaged twin's monodromy as the Newton
-    Jacobian): the reduced state (u+, v+, w+, p+, q+, r+, phi, theta) at a beat's start.
-
-    ``model`` defaults to ``FlappingModel()``, the model of the ``DroneFlyFlapping`` FMU.
-    """
-    model = model or FlappingModel()
-    twin = FlappingModel(model.qs, model.steps_per_beat, averaged=True)
-    return model.periodic_orbit(jacobian=twin.monodromy(np.zeros(8))).z0
-
-
-class Flight:
-    """The model in time: the state on the Runge-Kutta grid, the controls latched at the beats'
-    starts, any instant reached by a partial step that the flight does not keep.
-
-    Time is t+ in wing beats from the start; beat k is [k, k + 1). ``set_controls`` may be
-    called at any time: the values are taken when the flight enters the next beat (see the
-    module's text). The whole state is :meth:`snapshot` (plain Python values; the FMU's
-    state).
-    """
-
-    def __init__(self, model: FlappingModel, x0: Sequence[float],
-                 controls: Sequence[float] | Mapping[str, float] | None = None) -> None:
-        self.model = model
-        y = np.array(x0, dtype=float)
-        if y.shape != (STATE_SIZE,) or not np.all(np.isfinite(y)):
-            raise FlappingError(f"initial state {list(np.ravel(x0))!r}: expected {STATE_SIZE} "
-                                "finite values")
-        c = wing_beat_controls(controls)
-        self.grid = 0  # grid index of y: t+ = grid / N
-        self.y = y
-        self.pending = c
-        self.c_prev = c  # before the first beat the insect flapped with the initial controls
-        self.c_now = c
-        self.latched = -1  # the beat whose controls c_now are
-
-    @property
-    def N(self) -> int:
-        return self.model.steps_per_beat
-
-    def set_controls(self, controls: Sequence[float] | Mapping[str, float] | None) -> None:
-        """The controls for the next beat that starts (taken at its start)."""
-        self.pending = wing_beat_controls(controls)
-
-    def _latch(self, beat: int) -> None:
-        if self.latched < beat:
-            if self.latched >= 0:
-                self.c_prev = self.c_now
-            self.c_now = self.pending
-            self.latched = beat
-
-    def _tolerance(self) -> float:
-        return 1e-9 / self.N
-
-    def advance_to(self, t: float) -> np.ndarray:
-        """Integrate the kept state to the last grid point at or before ``t`` (wing beats) and
-        return the state at ``t`` (a partial step from there if ``t`` is off the grid)."""
-        N = self.N
-        if not t >= self.grid / N - self._tolerance():
-            raise FlappingError(f"time {t!r} wing beats is before the flight's state "
-                                f"({self.grid / N!r})")
-        m = self.model
-        while (self.grid + 1) / N <= t + self._tolerance():
-            k, j = divmod(self.grid, N)
-            self._latch(k)
-            self.y = m._advance(self.y, j / N, (j + 1) / N, self.c_prev, self.c_now)
-            self.grid += 1
-        return self.state_at(t)
-
-    def state_at(self, t: float) -> np.ndarray:
-        """The state at ``t`` between the kept grid point and the next (not kept)."""
-        N = self.N
-        dt = t - self.grid / N
-        if abs(dt) <= self._tolerance():
-            return self.y.copy()
-        if not 0.0 < dt < 1.0 / N + self._tolerance():
-            raise FlappingError(f"time {t!r} is not within one grid step after the state")
-        k, j = divmod(self.grid, N)
-        self._latch(k)
-        return self.model.advance(self.y, j / N, min(1.0, j / N + dt), self.c_prev, self.c_now)
-
-    def phase(self, t: float) -> tuple[float, tuple[float, ...], tuple[float, ...]]:
-        """(phase in the beat, its previous and current controls) at ``t`` (at or after the
-        kept state, within a step): at the start of a beat not yet entered, the end of the
-        last one (its angles are the same: the controls act from the beat's first instant
-        on)."""
-        k = int(math.floor(t + self._tolerance()))
-        if k > self.latched:
-            return (0.0 if self.latched < 0 else 1.0), self.c_prev, self.c_now
-        return max(0.0, min(1.0, t - k)), self.c_prev, self.c_now
-
-    def snapshot(self) -> dict:
-        """Everything the flight's future depends on (plain values)."""
-        return {"grid": self.grid, "y": [float(v) for v in self.y], "pending": self.pending,
-                "c_prev": self.c_prev, "c_now": self.c_now, "latched": self.latched}
-
-    def restore(self, snap: Mapping) -> None:
-        """Return to a :meth:`snapshot`."""
-        self.grid = int(snap["grid"])
-        self.y = np.array(snap["y"], dtype=float)
-        self.pending = wing_beat_controls(snap["pending"])
-        self.c_prev = wing_beat_controls(snap["c_prev"])
-        self.c_now = wing_beat_controls(snap["c_now"])
-        self.latched = int(snap["latched"])
-
-
-@dataclass
-class PeriodicOrbit:
-    """The periodic orbit: its start (reduced coordinates), the Newton residuals, and the
-    body's motion within the beat."""
-
-    model: FlappingModel
-    z0: np.ndarray
-    control: Sequence[float] | None
-    residuals: list
-    samples: int
-
-    def trajectory(self) -> np.ndarray:
-        """The 13-value state at ``samples`` + 1 equally spaced phases of one beat."""
-        flight = Flight(self.model, self.model.state_from_z(self.z0), self.control)
-        return np.array([flight.advance_to(j / self.samples) for j in range(self.samples + 1)])
-
-    def oscillation(self) -> dict[str, float]:
-        """Peak-to-peak excursions within the beat: the position (micrometres, the mean drift
-        over the beat removed) and the attitude (deg), and the mean drift velocity [mm/s]."""
-        X = self.trajectory()
-        m = self.model
-        L_um = m.U / m.n * 1e6  # U t_w in micrometres
-        tau = np.linspace(0.0, 1.0, len(X))
-        out: dict[str, float] = {}
-        for i, name in zip((10, 11, 12), ("x", "y", "z")):
-            drift = X[-1, i] - X[0, i]
-            pos = X[:, i] - X[0, i] - drift * tau
-            out[f"{name}_pp_um"] = float((pos.max() - pos.min()) * L_um)
-            out[f"{name}_drift_mm_per_s"] = float(drift / m.period * m.U * 1e3)
-        eul = np.array([euler_from_quaternion(x[6:10]) for x in X])
-        for i, name in enumerate(("phi", "theta", "psi")):
-            out[f"{name}_pp_deg"] = float(np.degrees(eul[:, i].max() - eul[:, i].min()))
-        out["theta_mean_deg"] = float(np.degrees(eul[:-1, 1].mean()))
-        return out
-
-
-@dataclass
-class Floquet:
-    """Floquet multipliers of the periodic orbit and the exponents log(mu) per wing beat,
-    beside the averaged model's eigenvalues in the same coordinates."""
-
-    monodromy: np.ndarray
-    multipliers: np.ndarray
-    exponents: np.ndarray
-
-    @classmethod
-    def of(cls, model: FlappingModel, orbit: PeriodicOrbit, step: float = 1e-6) -> "Floquet":
-        M = model.monodromy(orbit.z0, orbit.control, step)
-        mu = np.linalg.eigvals(M)
-        lam = np.log(mu.astype(complex)) / model.period  # per wing beat of the insect
-        order = sorted(range(len(lam)), key=lambda i: (-lam[i].real, -lam[i].imag))
-        return cls(M, mu[order], lam[order])

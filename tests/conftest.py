@@ -66,35 +66,19 @@ def pytest_report_header(config: pytest.Config) -> str:
 _KERNEL_OF = {"prescott": "katmai", "core2": "katmai", "zen": "haswell", "cooperlake": "skylakex"}
 
 
-#: the longest tests (tens of seconds each on 2 cores; ``pytest --durations``), run first: the
-#: pytest-xdist workers then end together instead of one finishing a long test alone. A test
-#: missing from this list only runs in its collected place.
-LONGEST_FIRST = (
-    "test_core_install.py::test_every_help_and_every_help_example_runs_on_the_core_install",
-    "test_native.py::test_dronefly_check_passes_every_native_fmu",
-    "test_validity.py::test_docs_in_box_numbers_through_the_fmus",
-    "test_reliability.py::test_no_invalid_read_at_exit_under_valgrind",
-    "test_interrupt.py::test_ctrl_c_stops_a_parallel_sweep_within_a_chunk_and_a_rerun_resumes_it",
-    "test_native.py::test_native_cases_under_address_and_undefined_behaviour_sanitizers",
-    "test_flapping_docs.py::test_flapping_doc_master_run_is_what_the_code_computes",
-    "test_figures.py::test_every_figure_of_docs_is_made",
-    "test_docs.py::test_block_runs_verbatim[averaging.md",
-    "test_flapping.py::test_fixed_step_against_solve_ivp_from_a_disturbance_with_new_controls",
-    "test_interrupt.py::test_ctrl_c_during_an_in_process_run_stops_cleanly",
-    "test_flapping_master.py::test_exponents_identified_from_the_runs_are_the_linearised_maps",
-    "test_docs.py::test_block_runs_verbatim[validity.md",
-    "test_validity_halves.py::test_docs_halves_table",
-    "test_reliability.py::test_fuzz_finds_no_crash_no_fatal_no_silent_refusal",
-)
+#: the files of the longest tests (tens of seconds each on 2 cores; ``pytest --durations``),
+#: run first, each file's tests together and in their order (a module's fixtures are made
+#: once): the pytest-xdist workers then end together instead of one finishing a long test
+#: alone. A file missing from this list only runs later.
+LONGEST_FIRST = ("test_core_install.py", "test_native.py", "test_validity.py",
+                 "test_reliability.py", "test_interrupt.py", "test_figures.py",
+                 "test_flapping_docs.py", "test_flapping_master.py", "test_cosim_verdicts.py",
+                 "test_doc_claims.py", "test_validity_halves.py", "test_flapping.py")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    def rank(item: pytest.Item) -> int:
-        nodeid = item.nodeid.removeprefix("tests/")
-        return next((k for k, prefix in enumerate(LONGEST_FIRST) if nodeid.startswith(prefix)),
-                    len(LONGEST_FIRST))
-
-    items.sort(key=rank)  # stable: the rest keep their order
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONGEST_FIRST)))  # stable
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -385,3 +385,69 @@ def test_integral_action_switched_off_freezes_z():
     s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
     s.advance(1.0, 1.0, (2.0,), (1.0,), 1.0, tm, False)
     assert s.integral(1.0) == s.integral(5.0) == (2.0,)
+
+
+# --- controller/delay.py: the integral term of a step of several instants, and the grid index
+# carried from one step to the next when the step size changes. Oracles: the module's
+# definition (each sample instant taken once, by the step that holds it; u uses z at the
+# instant the latest sample due took effect) worked by hand, z the closed form
+# z(t) = z(t_b) + x+ (t - t_b) n of a held sample (n = 1 Hz, scale 1: x+ = x).
+
+def test_integral_in_effect_stops_at_the_last_instant_of_a_step_entry():
+    """From t_start = 10 s, period 0.25 s, delay 0.5 s: the step [10, 11) holds the instants
+    10, 10.25, 10.5, 10.75 (one entry, x = 2), in effect from 10.5, 10.75, 11, 11.25 s. Then
+    the period becomes 2 s: the next instant is 10 + 2 = 12 s, not in [11, 12), so at t = 12 s
+    the latest sample due is still 10.75 s, in effect from 11.25 s (not 12 s). z is 0 up to
+    10.5 s (the equilibrium held), then x = 2: z(11.25) = 2 * 0.75 = 1.5 (exact)."""
+    s = delay_mod.Sensor(1, 10.0)
+    s.advance(10.0, 1.0, (2.0,), (1.0,), 1.0, timing.Timing(0.5, 0.25), True)
+    late = timing.Timing(0.5, 2.0)
+    s.advance(11.0, 1.0, (3.0,), (1.0,), 1.0, late, True)
+    assert s.integral_in_effect(12.0, late, True) == (1.5,)
+    assert s.integral(12.0) == (3.0,)  # (what the control would use if 12 s were the instant)
+
+
+def test_integral_in_effect_snaps_to_the_tolerance_of_a_long_step():
+    """Steps of 1024 s: times within 1e-9 of the step (1.024e-6 s) count as equal. Period
+    256 s, delay 256 s - 1e-7 s: the instants 0, 256, 512, 768 s of the first step take effect
+    1e-7 s before 256, 512, 768 and 1024 s; at the point t = 1024 s the last of them counts as
+    in effect at t. z runs from the first effect t_b = 256 - 1e-7 s with x = 1:
+    z(1024) = 1024 - t_b = 768 + 1e-7 (z(1024 - 1e-7) = 768 would be the effect instant
+    taken as distinct from t)."""
+    d = 256.0 - 1e-7
+    tm = timing.Timing(d, 256.0)
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1024.0, (1.0,), (1.0,), 1.0, tm, True)
+    (z,) = s.integral_in_effect(1024.0, tm, True)
+    assert z == pytest.approx(1024.0 - d, abs=1e-10)  # (ulp of 768: 1.1e-13)
+    assert abs(z - 768.0) > 9e-8
+
+
+def test_an_instant_taken_near_the_end_of_a_step_is_not_taken_again_by_a_longer_step():
+    """Period 1 s from 0. [0, 1): instant 0 (x = 1). [1, 2.000001): instants 1 and 2 (x = 2; 2 s
+    lies 1e-6 s before the step's end, beyond its tolerance of 1e-9 s). [2.000001, 10002.000001)
+    with a tolerance of 1e-5 s: instant 2 is already taken; the next is 3 s, x = 4 in effect
+    from 3 s (delay 0). z = 1 * 1 + 2 * (3 - 1) + 4 * (10002.000001 - 3)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 1.0)
+    s.advance(0.0, 1.0, (1.0,), (1.0,), 1.0, tm, True)
+    s.advance(1.0, 1.000001, (2.0,), (1.0,), 1.0, tm, True)
+    t = 1.0 + 1.000001
+    s.advance(t, 1e4, (4.0,), (1.0,), 1.0, tm, True)
+    assert s.current[0] == 3.0 and s.t_effect == 3.0
+    end = t + 1e4
+    assert s.integral(end)[0] == pytest.approx(1.0 + 2.0 * 2.0 + 4.0 * (end - 3.0), rel=1e-14)
+
+
+def test_an_instant_a_long_step_left_to_the_next_is_taken_by_a_shorter_step():
+    """Period p = 5000 s - 5e-7 s from 0. [0, 1e4 s) with a tolerance of 1e-5 s holds the
+    instants 0 and p; 2p = 1e4 s - 1e-6 s lies within that tolerance of its end, so it belongs
+    to the next step [1e4, 1e4 + 1e-3) s (whose own tolerance is far smaller): taken there with
+    the input set at 1e4 s (x = 2), in effect at once (delay 0)."""
+    p = 5000.0 - 5e-7
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, p)
+    s.advance(0.0, 1e4, (1.0,), (1.0,), 1.0, tm, False)
+    assert s.current == (0.0, (1.0,), p, p) and s.held == (1.0,)
+    s.advance(1e4, 1e-3, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (2.0,) and s.current[0] == 2 * p

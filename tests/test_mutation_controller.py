@@ -11,7 +11,10 @@ from fractions import Fraction as F
 import pytest
 
 from dronefly.controller import delay as delay_mod
+from dronefly.controller import slave as slave_mod
 from dronefly.controller import timing, variables
+from dronefly.fmu_src.lateral.slave import DroneFlyLateral
+from dronefly.fmu_src.longitudinal.slave import DroneFlyLongitudinal
 from dronefly.models import lateral_interface
 
 from test_mutation_models import N_HZ, U_M_PER_S
@@ -451,3 +454,132 @@ def test_an_instant_a_long_step_left_to_the_next_is_taken_by_a_shorter_step():
     assert s.current == (0.0, (1.0,), p, p) and s.held == (1.0,)
     s.advance(1e4, 1e-3, (2.0,), (1.0,), 1.0, tm, False)
     assert s.held == (2.0,) and s.current[0] == 2 * p
+
+
+# Late in a run the tolerance is 1e-9 of the step plus the drift term, capped at 5e-5 of the
+# step (timing.DRIFT_CAP): at t = 1e6 s on steps of 1 s from 0 the drift 2^-52 t^2 / h = 2.2e-4 s
+# is capped, so times within 5e-5 s count as equal (test_tolerance_is_the_documented_bound).
+_LATE = 1e6
+
+
+def test_late_in_a_run_a_sample_instant_is_sensed_live_and_integrated_up_to_it():
+    """Period 1 s, no delay: the instant 1e6 - 1 s takes x = 1 (held from then, z from 0);
+    at the instant 1e6 s the live input is sensed and z(1e6) = 1 * 1 s (Sensor.sensed,
+    integral_in_effect: the sample at t in effect at once)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 1.0)
+    s.advance(_LATE - 1.0, 1.0, (1.0,), (1.0,), 1.0, tm, True)
+    assert s.drift == timing.DRIFT_CAP * 1.0
+    assert s.sensed(_LATE, (5.0,), tm, True) == (5.0,)
+    assert s.integral_in_effect(_LATE, tm, True) == (1.0,)
+
+
+def test_late_in_a_run_the_latest_instant_of_a_step_entry_is_found():
+    """Period 0.25 s, delay 0.5 s: the step [1e6 - 1, 1e6) takes 4 instants (x = 2), in effect
+    from 1e6 - 0.5 s on; at t = 1e6 s the instant 1e6 - 0.5 s takes effect (the third), so
+    z = 2 * (1e6 - (1e6 - 0.5)) = 1 (exact), not z at the second (1e6 - 0.25 s: 0.5)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.5, 0.25)
+    s.advance(_LATE - 1.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
+    assert s.integral_in_effect(_LATE, tm, True) == (1.0,)
+
+
+def test_late_in_a_run_an_instant_left_to_a_shorter_step_is_taken():
+    """Period p = 0.5 s - 5e-12 s: the instant 2e6 p = 1e6 s - 1e-5 s lies within the tolerance
+    (5e-5 s) of the end of the step [1e6 - 1, 1e6), so that step leaves it to the next, a step
+    of 1e-3 s (tolerance 5e-8 s): taken there with the input set at 1e6 s (x = 3, delay 0)."""
+    p = 0.5 - 5e-12
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, p)
+    s.advance(_LATE - 2.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    s.advance(_LATE - 1.0, 1.0, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (2.0,) and s.last_k == 2 * 10**6 - 1
+    s.advance(_LATE, 1e-3, (3.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (3.0,) and s.current[0] == 2e6 * p
+
+
+def test_instants_on_the_communication_points_are_not_off_the_grid():
+    """Period 2 s on steps of 1 s, delay 0 or 1 s: every instant and every effect lands on a
+    communication point, so nothing is recorded for the off-grid warning."""
+    for d in (0.0, 1.0):
+        s = delay_mod.Sensor(1)
+        tm = timing.Timing(d, 2.0)
+        for k in range(6):
+            s.advance(float(k), 1.0, (float(k + 1),), (1.0,), 1.0, tm, False)
+        assert s.off_grid is None
+        assert s.held == (5.0,)  # the instant 4 s, in effect at 4 s + d <= 6 s
+
+
+# --- controller/slave.py: the slave classes called in-process (no FMU, no fmpy). Oracles: the
+# plants' own classes, the FMI call sequence and the module's documented behaviour.
+
+def _slave(cls, **params):
+    s = cls(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    if params:
+        s.set_real([s._vr[n] for n in params], [float(v) for v in params.values()])
+    s.exit_initialization_mode()
+    return s
+
+
+def _set(s, values):
+    s.set_real([s._vr[n] for n in values], [float(v) for v in values.values()])
+
+
+@pytest.mark.parametrize("controller, plant, wing_beats", [
+    (slave_mod.StateFeedback, DroneFlyLateral, 30),
+    (slave_mod.StateFeedbackDelayed, DroneFlyLateral, 30),
+    (slave_mod.StateFeedbackLongitudinal, DroneFlyLongitudinal, 60),
+    (slave_mod.StateFeedbackLongitudinalDelayed, DroneFlyLongitudinal, 60),
+])
+def test_a_controllers_default_experiment_is_its_plants(controller, plant, wing_beats):
+    """The closed loop runs controller and plant on one grid: the controller's default
+    experiment is its plant's, from 0 over 30 (lateral: the open loop diverges) or 60
+    (longitudinal: it oscillates) wing beats of 1 / 164 s, in steps of 0.1 wing beat."""
+    assert controller.DEFAULT_EXPERIMENT == plant.DEFAULT_EXPERIMENT
+    start, stop, step = controller.DEFAULT_EXPERIMENT
+    assert start == 0.0
+    assert stop * N_HZ == pytest.approx(wing_beats, rel=1e-15)
+    assert step * N_HZ == pytest.approx(0.1, rel=1e-15)
+
+
+@pytest.mark.parametrize("cls", [slave_mod.StateFeedbackDelayed,
+                                 slave_mod.StateFeedbackLongitudinalDelayed])
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_non_finite_input_refuses_the_step_even_when_its_control_comes_later(cls, bad):
+    """With a sensing delay the step's own output is the control of an earlier sample, so
+    only the input check stops a non-finite value entering the delay line: the step is refused
+    naming the input, changes nothing, and the run continues with finite outputs."""
+    s = _slave(cls)
+    name = s.AXIS.state_names[1]
+    h = 0.25 / N_HZ
+    assert s.do_step(0.0, h)
+    _set(s, {name: bad})
+    assert s.do_step(h, h) is False
+    assert f"{name} = {bad!r} is not finite" in s.log_queue[-1].msg
+    _set(s, {name: 0.5})
+    for k in range(1, 12):  # past the delay of one wing beat
+        assert s.do_step(k * h, h)
+    u = s.get_real([s._vr[c] for c in s.AXIS.control_names])
+    assert all(math.isfinite(v) for v in u) and any(u)
+
+
+def test_the_off_grid_warning_is_once_per_instance_across_a_state_restore():
+    """The warning belongs to the instance: a state saved in initialization mode and restored
+    after the warning, then initialized and run off the grid again, logs no second one."""
+    s = slave_mod.StateFeedbackDelayed(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    saved = s._get_fmu_state()  # (pythonfmu's fmi2GetFMUstate)
+    s.exit_initialization_mode()
+    wb = 1.0 / N_HZ
+    _set(s, {"sensing_delay": 1.3 * wb})  # effects 0.3 wing beat into a step of one
+    assert s.do_step(0.0, wb) and s.do_step(wb, wb)
+    assert [m.status for m in s.log_queue] == [1]  # (fmi2Warning)
+    s._set_fmu_state(saved)
+    _set(s, {"sensing_delay": 1.3 * wb})
+    s.exit_initialization_mode()
+    for k in range(3):
+        assert s.do_step(k * wb, wb)
+    assert len(s.log_queue) == 1, [m.msg for m in s.log_queue]

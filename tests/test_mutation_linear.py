@@ -33,9 +33,11 @@ def _exact(rows, x, u):
     return [float(sum(Fraction(a) * v for a, v in zip(row, xu))) for row in rows]
 
 
-# distinct integers, none 0 or +-1; (x, u) of 4 states and 3 or 4 controls, and a general shape
-_X = (3.0, -5.0, 7.0, 11.0)
-_SHAPES = [(4, 3), (4, 4), (2, 1), (3, 2)]
+# distinct integers, none 0 or +-1; (x, u) of 4 states and 3 or 4 controls (the plants' shapes,
+# written out), and general shapes, among them those whose rows are as long as the plants'
+# (3 x 4: 7 columns, 5 x 3: 8) or that have 4 rows (4 x 2)
+_X = (3.0, -5.0, 7.0, 11.0, -2.0)
+_SHAPES = [(4, 3), (4, 4), (2, 1), (3, 2), (4, 2), (3, 4), (5, 3)]
 
 
 @pytest.mark.parametrize("n, m", _SHAPES)
@@ -51,7 +53,7 @@ def test_the_stepper_reads_its_controls_and_writes_its_scaled_outputs(n, m):
     power of two: exact); every other row keeps its marker value."""
     rows = _rows(n, m)
     x, u = _X[:n], (13.0, -17.0, 19.0, -23.0)[:m]
-    scale = (2.0, 0.5, 4.0, 0.25)[:n]
+    scale = (2.0, 0.5, 4.0, 0.25, 8.0)[:n]
     r = [1000.0 + i for i in range(30)]
     r[5:5 + m] = u
     before = list(r)
@@ -114,3 +116,31 @@ def test_an_overflowing_step_names_the_growth_rate_and_the_longest_step():
             "representable result; take steps of at most 1382 wing beats")):
         model.step_list([1.0, 0.0], [0.0], 2000.0)
     assert model.step_list([0.0, 0.0], [0.0], 2000.0) == [0.0, 0.0]  # zero stays zero
+
+
+@pytest.mark.parametrize("n, m", _SHAPES)
+def test_the_stepper_declines_outputs_whose_sum_overflows(n, m):
+    """The documented screen: None also where the outputs are finite but their plain sum
+    overflows (the caller then checks each value). Outputs 1e308, 0, 1e308, 0, ...: the sum
+    of the first three is 2e308 = inf."""
+    rows = tuple(tuple(1.0 if j == i else 0.0 for j in range(n + m)) for i in range(n))
+    x = tuple(1e308 if i % 2 == 0 else 0.0 for i in range(n))
+    if n < 3:
+        x = (1e308, 1e308)[:n]
+    r = [0.0] * 30
+    before = list(r)
+    assert linear._stepper(rows, (1.0,) * n, range(5, 5 + m), range(20, 20 + n))(x, r) is None
+    assert r == before
+
+
+def test_discretize_zoh_is_the_double_integrators_closed_form():
+    """x'' = u: A = [[0, 1], [0, 0]], B = [[0], [1]]; over h, Phi = [[1, h], [0, 1]] and
+    Gamma = [[h^2 / 2], [h]] (integrate u twice). Exact in floats for h = 0.75."""
+    A, B = np.array([[0.0, 1.0], [0.0, 0.0]]), np.array([[0.0], [1.0]])
+    Phi, Gamma = linear.discretize_zoh(A, B, 0.75)
+    np.testing.assert_allclose(Phi, [[1.0, 0.75], [0.0, 1.0]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(Gamma, [[0.75 ** 2 / 2], [0.75]], rtol=0, atol=1e-15)
+    Phi, Gamma = linear.zoh_rows(A.tolist(), B.tolist(), 0.75)  # the FMUs' plain-Python path
+    np.testing.assert_allclose(Phi, [[1.0, 0.75], [0.0, 1.0]], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(Gamma, [[0.75 ** 2 / 2], [0.75]], rtol=0, atol=1e-15)
+

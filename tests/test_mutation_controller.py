@@ -15,7 +15,7 @@ from dronefly.controller import slave as slave_mod
 from dronefly.controller import timing, variables
 from dronefly.fmu_src.lateral.slave import DroneFlyLateral
 from dronefly.fmu_src.longitudinal.slave import DroneFlyLongitudinal
-from dronefly.models import lateral_interface
+from dronefly.models import feedback, lateral_interface
 
 from test_mutation_models import N_HZ, U_M_PER_S
 
@@ -583,3 +583,97 @@ def test_the_off_grid_warning_is_once_per_instance_across_a_state_restore():
     for k in range(3):
         assert s.do_step(k * wb, wb)
     assert len(s.log_queue) == 1, [m.msg for m in s.log_queue]
+
+
+def test_a_state_restored_before_any_warning_still_warns_once():
+    """A state saved before any instant fell inside a step and restored at once: the instance has
+    not warned yet, so the first off-grid step logs the warning (once)."""
+    s = _slave(slave_mod.StateFeedbackDelayed)
+    s._set_fmu_state(s._get_fmu_state())
+    wb = 1.0 / N_HZ
+    _set(s, {"sensing_delay": 1.3 * wb})
+    for k in range(3):
+        assert s.do_step(k * wb, wb)
+    assert [m.status for m in s.log_queue] == [1]
+
+
+@pytest.mark.parametrize("cls", [slave_mod.StateFeedback, slave_mod.StateFeedbackLongitudinal])
+def test_a_non_finite_input_set_just_before_a_step_refuses_it(cls):
+    """No output read between the set and the step: the step itself computes u from the new
+    input, refuses it naming the input, and changes nothing."""
+    s = _slave(cls)
+    names = s.AXIS.state_names
+    _set(s, {names[0]: 0.25})
+    controls = [s._vr[c] for c in s.AXIS.control_names]
+    before = s.get_real(controls)
+    _set(s, {names[2]: math.nan})
+    assert s.do_step(0.0, 0.1 / N_HZ) is False
+    assert f"{names[2]} = nan is not finite" in s.log_queue[-1].msg
+    _set(s, {names[2]: 0.0})
+    assert s.do_step(0.0, 0.1 / N_HZ) and s.get_real(controls) == before
+
+
+@pytest.fixture
+def computations(monkeypatch):
+    """The control computations of the controller slaves, counted: each output computation
+    (``_outputs_at``) and each run of the value-table law (``FeedbackLaw.on_table``)."""
+    calls: list[str] = []
+    outputs_at = slave_mod._Feedback._outputs_at
+    on_table = feedback.FeedbackLaw.on_table
+
+    def counted_outputs_at(self, *args):
+        calls.append("outputs_at")
+        return outputs_at(self, *args)
+
+    def counted_on_table(self, *args):
+        table = on_table(self, *args)
+
+        def run(r):
+            calls.append("on_table")
+            return table(r)
+
+        return run
+
+    monkeypatch.setattr(slave_mod._Feedback, "_outputs_at", counted_outputs_at)
+    monkeypatch.setattr(feedback.FeedbackLaw, "on_table", counted_on_table)
+    return calls
+
+
+def test_outputs_are_computed_once_per_change(computations):
+    """The module's contract: the outputs are recomputed when an output is read after a value
+    was set, and at the end of a step; not again for a second read, nor for a step of the law
+    without delay, sampling or integral whose outputs (of the inputs, valid at t) hold at t + h."""
+    s = _slave(slave_mod.StateFeedback)
+    h, reads = 0.1 / N_HZ, [s._vr[c] for c in s.AXIS.control_names]
+    computations.clear()
+    _set(s, {"delta_p": 0.1})
+    s.get_real(reads)
+    s.get_real(reads)
+    assert len(computations) == 1  # the read after the set
+    assert s.do_step(0.0, h)
+    s.get_real(reads)
+    assert len(computations) == 1  # the outputs of the same inputs hold
+    _set(s, {"K[1,1]": 0.5})  # a parameter: the law is rebuilt at the next read
+    s.get_real(reads)
+    assert len(computations) == 2
+    assert s.do_step(h, h)
+    assert len(computations) == 2
+    _set(s, {"delta_p": 0.2})
+    assert s.do_step(2 * h, h)  # the step computes the outputs of the new input ...
+    assert len(computations) == 3
+    assert s.do_step(3 * h, h)  # ... which hold over the next step
+    s.get_real(reads)
+    assert len(computations) == 3
+
+
+def test_a_delayed_controller_computes_its_outputs_once_a_step(computations):
+    """With a sensing delay the outputs change with the steps only: one computation a step,
+    none for reading them."""
+    s = _slave(slave_mod.StateFeedbackDelayed)
+    h, reads = 0.1 / N_HZ, [s._vr[c] for c in s.AXIS.control_names]
+    computations.clear()
+    for k in range(3):
+        assert s.do_step(k * h, h)
+        s.get_real(reads)
+        s.get_real(reads)
+    assert computations == ["outputs_at"] * 3

@@ -677,3 +677,72 @@ def test_a_delayed_controller_computes_its_outputs_once_a_step(computations):
         s.get_real(reads)
         s.get_real(reads)
     assert computations == ["outputs_at"] * 3
+
+
+def test_an_input_set_between_steps_of_an_integral_law_reads_k_x_plus_ki_z():
+    """u = K x+_s + KI z (Eq. 22 with integral action), also for a read right after a set, no
+    step between. K = 0 but K[1,4] = 1, KI[1,4] = 0.5; delta_gamma (x+4 = x4, an angle) = 0.1
+    over 10 steps of 0.1 wing beat: z4 = 0.1 * 1 wing beat = 0.1. Then delta_gamma = 0.2 is in
+    effect at once (no delay): u1 = 1 * 0.2 + 0.5 * 0.1 = 0.25."""
+    zero = {f"K[{i + 1},{j + 1}]": 0.0 for i in range(3) for j in range(4)}
+    s = _slave(slave_mod.StateFeedback, **{**zero, "K[1,4]": 1.0, "KI[1,4]": 0.5})
+    h = 0.1 / N_HZ
+    _set(s, {"delta_gamma": 0.1})
+    for k in range(10):
+        assert s.do_step(k * h, h)
+    _set(s, {"delta_gamma": 0.2})
+    (u1,) = s.get_real([s._vr["delta_Phi_a"]])
+    assert u1 == pytest.approx(0.25, rel=1e-14)  # (z: ten sums of 0.01)
+
+
+def test_a_logger_that_fails_on_the_off_grid_warning_does_not_fail_the_step(monkeypatch):
+    """The warning is logged after the step is committed: if logging it raises, the step is
+    still OK (nothing is left to log with)."""
+    s = _slave(slave_mod.StateFeedbackDelayed)
+    wb = 1.0 / N_HZ
+    _set(s, {"sensing_delay": 1.3 * wb})
+
+    def broken(msg, status):
+        raise RuntimeError("the logger is gone")
+
+    monkeypatch.setattr(s, "_report", broken)
+    assert s.do_step(0.0, wb) and s.do_step(wb, wb)  # the second step warns
+    assert s._sensor.off_grid is False and s._time == 2 * wb
+
+
+def test_samples_pending_when_the_delay_is_set_to_zero_never_take_effect():
+    """The output at t is the control of the latest sample with t_k + sensing_delay <= t.
+    Delay 2 wing beats while x = 1 (samples pending), then 0 for 4 steps of a wing beat with
+    x = 2, then 2 again: at the next points the latest such sample is one of x = 2 (taken at
+    most 4 wing beats ago), never a pending one of x = 1."""
+    zero = {f"K[{i + 1},{j + 1}]": 0.0 for i in range(3) for j in range(4)}
+    wb = 1.0 / N_HZ
+    s = _slave(slave_mod.StateFeedback, **{**zero, "K[1,4]": 1.0}, sensing_delay=2 * wb)
+    read = [s._vr["delta_Phi_a"]]
+    t = 0.0
+    _set(s, {"delta_gamma": 1.0})
+    for _ in range(2):
+        assert s.do_step(t, wb)
+        t += wb
+    _set(s, {"sensing_delay": 0.0, "delta_gamma": 2.0})
+    assert s.get_real(read) == [2.0]
+    for _ in range(4):
+        assert s.do_step(t, wb)
+        t += wb
+        assert s.get_real(read) == [2.0]
+    _set(s, {"sensing_delay": 2 * wb})
+    for _ in range(3):
+        assert s.do_step(t, wb)
+        t += wb
+        assert s.get_real(read) == [2.0]
+
+
+def test_a_controller_class_keeps_at_most_laws_parameter_sets():
+    """slave.LAWS bounds the validated laws a class keeps for its instances (oldest first)."""
+    s = _slave(slave_mod.StateFeedbackLongitudinal)
+    for k in range(slave_mod.LAWS + 5):
+        _set(s, {"K[1,1]": 0.01 * (k + 1)})
+        s.get_real([s._vr[s.AXIS.control_names[0]]])
+    laws = slave_mod.StateFeedbackLongitudinal._LAWS
+    assert len(laws) == slave_mod.LAWS
+    assert s._law_key in laws

@@ -77,6 +77,7 @@ def test_the_stepper_declines_a_control_that_is_not_finite(n, m, bad):
     assert [str(v) for v in r] == [str(v) for v in before]  # (nan != nan: compared by name)
 
 
+@pytest.mark.numeric  # scipy's expm (BLAS) as the oracle
 def test_zoh_model_stepper_is_the_exact_discretisation():
     """x' = A x + B u held over h: x1 = Phi x + Gamma u with [Phi, Gamma] the blocks of
     expm([[A, B], [0, 0]] h) (scipy's expm: an independent Pade implementation). A 2 x 1
@@ -133,6 +134,7 @@ def test_the_stepper_declines_outputs_whose_sum_overflows(n, m):
             assert r == [0.0] * 30
 
 
+@pytest.mark.numeric  # discretize_zoh is scipy's expm (BLAS)
 def test_discretize_zoh_is_the_double_integrators_closed_form():
     """x'' = u: A = [[0, 1], [0, 0]], B = [[0], [1]]; over h, Phi = [[1, h], [0, 1]] and
     Gamma = [[h^2 / 2], [h]] (integrate u twice). Exact in floats for h = 0.75."""

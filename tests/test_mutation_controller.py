@@ -664,6 +664,11 @@ def test_outputs_are_computed_once_per_change(computations):
     assert s.do_step(3 * h, h)  # ... which hold over the next step
     s.get_real(reads)
     assert len(computations) == 3
+    _set(s, {"KI[1,1]": 0.5})  # integral action: every step computes
+    assert s.do_step(4 * h, h) and len(computations) == 4
+    _set(s, {"KI[1,1]": 0.0})  # off again: the step that freezes z computes, ...
+    assert s.do_step(5 * h, h) and len(computations) == 5
+    assert s.do_step(6 * h, h) and len(computations) == 5  # ... the next holds the outputs
 
 
 def test_a_delayed_controller_computes_its_outputs_once_a_step(computations):
@@ -746,3 +751,43 @@ def test_a_controller_class_keeps_at_most_laws_parameter_sets():
     laws = slave_mod.StateFeedbackLongitudinal._LAWS
     assert len(laws) == slave_mod.LAWS
     assert s._law_key in laws
+
+
+@pytest.mark.parametrize("read_between", [False, True])
+def test_integral_action_off_freezes_z_and_on_again_resumes_it(read_between):
+    """z integrates while integral action is on (any KI non-zero): KI[1,4] = 1 and
+    delta_gamma = 0.1 for 10 steps of 0.1 wing beat (z4 = 0.1 * 1 = 0.1), KI = 0 for 10 steps
+    (z frozen; the outputs read or not between set and step), KI[1,4] = 1 again: u1 = KI z4
+    = 0.1 at once (K = 0), and 0.1 + 0.1 * 1 after 10 more steps."""
+    zero = {f"K[{i + 1},{j + 1}]": 0.0 for i in range(3) for j in range(4)}
+    s = _slave(slave_mod.StateFeedback, **zero, **{"KI[1,4]": 1.0})
+    h, read = 0.1 / N_HZ, [s._vr["delta_Phi_a"]]
+    _set(s, {"delta_gamma": 0.1})
+    for k in range(10):
+        assert s.do_step(k * h, h)
+    _set(s, {"KI[1,4]": 0.0})
+    if read_between:
+        assert s.get_real(read) == [0.0]
+    for k in range(10, 20):
+        assert s.do_step(k * h, h)
+    _set(s, {"KI[1,4]": 1.0})
+    assert s.get_real(read)[0] == pytest.approx(0.1, rel=1e-14)  # (ten sums of 0.01)
+    for k in range(20, 30):
+        assert s.do_step(k * h, h)
+    assert s.get_real(read)[0] == pytest.approx(0.2, rel=1e-14)
+
+
+@pytest.mark.parametrize("missing", ["_law", "_timing"])
+def test_a_step_makes_a_law_or_timing_it_lacks(missing):
+    """The base class makes the law and the timing before any step; if one were missing, the
+    step makes it from the parameters: the same outputs as an intact instance's."""
+    a, b = _slave(slave_mod.StateFeedbackDelayed), _slave(slave_mod.StateFeedbackDelayed)
+    wb = 1.0 / N_HZ
+    for s in (a, b):
+        _set(s, {"delta_gamma": 0.1, "delta_v": 0.2})
+        assert s.do_step(0.0, wb)
+    setattr(b, missing, None)
+    reads = [a._vr[c] for c in a.AXIS.control_names]
+    for k in range(1, 4):
+        assert a.do_step(k * wb, wb) and b.do_step(k * wb, wb)
+        assert b.get_real(reads) == a.get_real(reads) and any(a.get_real(reads))

@@ -134,6 +134,20 @@ def test_the_stepper_declines_outputs_whose_sum_overflows(n, m):
             assert r == [0.0] * 30
 
 
+@pytest.mark.parametrize("n, m", [(2, 1), (3, 2)])
+def test_the_general_stepper_screens_the_controls_and_outputs_together(n, m):
+    """The general stepper's plain sum holds the controls and the outputs: a control of 1e308
+    (weighted 0 in every row) and an output of 1e308 sum to inf, so None (the caller checks each
+    value); a difference of the two sums would be 0."""
+    rows = tuple(tuple(1.0 if j == i else 0.0 for j in range(n + m)) for i in range(n))
+    r = [0.0] * 30
+    r[5] = 1e308
+    before = list(r)
+    x = (1e308,) + (0.0,) * (n - 1)
+    assert linear._stepper(rows, (1.0,) * n, range(5, 5 + m), range(20, 20 + n))(x, r) is None
+    assert r == before
+
+
 @pytest.mark.numeric  # discretize_zoh is scipy's expm (BLAS)
 def test_discretize_zoh_is_the_double_integrators_closed_form():
     """x'' = u: A = [[0, 1], [0, 0]], B = [[0], [1]]; over h, Phi = [[1, h], [0, 1]] and

@@ -181,3 +181,11 @@ def test_the_growth_rate_of_a_non_normal_A_follows_the_documented_rule():
         t *= 2.0
     assert t == pytest.approx(700.0 / 100.5 * 2 ** 7, rel=1e-15)
     assert growth == pytest.approx(log_norm(t) / t, abs=5e-5)  # (printed to 4 decimals)
+
+
+def test_zoh_rows_of_a_scalar_system_is_its_closed_form():
+    """x' = a x + b u held over h: Phi = exp(a h), Gamma = b (exp(a h) - 1) / a. a = -0.5,
+    b = 3, h = 2: a few ulps apart (expm's Pade approximant; the closed form's two roundings)."""
+    Phi, Gamma = linear.zoh_rows([[-0.5]], [[3.0]], 2.0)
+    assert Phi[0][0] == pytest.approx(math.exp(-1.0), rel=1e-14)
+    assert Gamma[0][0] == pytest.approx(3.0 * math.expm1(-1.0) / -0.5, rel=1e-14)

@@ -49,10 +49,14 @@ TARGETS: dict[str, list[str]] = {
     "models/longitudinal_dynamics.py": [_MODELS],
     "models/feedback.py": [_MODELS, "tests/test_controller_law.py"],
     "models/linear_algebra.py": ["tests/test_mutation_linear_algebra.py", *_EXPM],
-    "models/linear.py": [_MODELS, "tests/test_model.py", *_EXPM],
+    "models/linear.py": ["tests/test_mutation_linear.py", _MODELS, "tests/test_model.py", *_EXPM],
     "controller/variables.py": [_CONTROLLER, "tests/test_controller_slave.py"],
     "controller/timing.py": [_CONTROLLER],
     "controller/delay.py": [_CONTROLLER, "tests/test_controller_delay.py"],
+    # the slave class called in-process (the few built-FMU cases of test_controller_delay.py
+    # build from the mutated source too: seconds)
+    "controller/slave.py": [_CONTROLLER, "tests/test_controller_slave.py",
+                            "tests/test_controller_delay.py", "tests/test_fmi_base.py"],
     # tests/test_cosim_verdicts.py runs the FMUs: a minute a mutant
     "harness/cosim/identification.py": ["tests/test_mutation_stability.py"],
     # the checker's checks: unit tests on small in-memory descriptions (the checks that run an

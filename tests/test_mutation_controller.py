@@ -11,8 +11,11 @@ from fractions import Fraction as F
 import pytest
 
 from dronefly.controller import delay as delay_mod
+from dronefly.controller import slave as slave_mod
 from dronefly.controller import timing, variables
-from dronefly.models import lateral_interface
+from dronefly.fmu_src.lateral.slave import DroneFlyLateral
+from dronefly.fmu_src.longitudinal.slave import DroneFlyLongitudinal
+from dronefly.models import feedback, lateral_interface
 
 from test_mutation_models import N_HZ, U_M_PER_S
 
@@ -385,3 +388,406 @@ def test_integral_action_switched_off_freezes_z():
     s.advance(0.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
     s.advance(1.0, 1.0, (2.0,), (1.0,), 1.0, tm, False)
     assert s.integral(1.0) == s.integral(5.0) == (2.0,)
+
+
+# --- controller/delay.py: the integral term of a step of several instants, and the grid index
+# carried from one step to the next when the step size changes. Oracles: the module's
+# definition (each sample instant taken once, by the step that holds it; u uses z at the
+# instant the latest sample due took effect) worked by hand, z the closed form
+# z(t) = z(t_b) + x+ (t - t_b) n of a held sample (n = 1 Hz, scale 1: x+ = x).
+
+def test_integral_in_effect_stops_at_the_last_instant_of_a_step_entry():
+    """From t_start = 10 s, period 0.25 s, delay 0.5 s: the step [10, 11) holds the instants
+    10, 10.25, 10.5, 10.75 (one entry, x = 2), in effect from 10.5, 10.75, 11, 11.25 s. Then
+    the period becomes 2 s: the next instant is 10 + 2 = 12 s, not in [11, 12), so at t = 12 s
+    the latest sample due is still 10.75 s, in effect from 11.25 s (not 12 s). z is 0 up to
+    10.5 s (the equilibrium held), then x = 2: z(11.25) = 2 * 0.75 = 1.5 (exact)."""
+    s = delay_mod.Sensor(1, 10.0)
+    s.advance(10.0, 1.0, (2.0,), (1.0,), 1.0, timing.Timing(0.5, 0.25), True)
+    late = timing.Timing(0.5, 2.0)
+    s.advance(11.0, 1.0, (3.0,), (1.0,), 1.0, late, True)
+    assert s.integral_in_effect(12.0, late, True) == (1.5,)
+    assert s.integral(12.0) == (3.0,)  # (what the control would use if 12 s were the instant)
+
+
+def test_integral_in_effect_snaps_to_the_tolerance_of_a_long_step():
+    """Steps of 1024 s: times within 1e-9 of the step (1.024e-6 s) count as equal. Period
+    256 s, delay 256 s - 1e-7 s: the instants 0, 256, 512, 768 s of the first step take effect
+    1e-7 s before 256, 512, 768 and 1024 s; at the point t = 1024 s the last of them counts as
+    in effect at t. z runs from the first effect t_b = 256 - 1e-7 s with x = 1:
+    z(1024) = 1024 - t_b = 768 + 1e-7 (z(1024 - 1e-7) = 768 would be the effect instant
+    taken as distinct from t)."""
+    d = 256.0 - 1e-7
+    tm = timing.Timing(d, 256.0)
+    s = delay_mod.Sensor(1)
+    s.advance(0.0, 1024.0, (1.0,), (1.0,), 1.0, tm, True)
+    (z,) = s.integral_in_effect(1024.0, tm, True)
+    assert z == pytest.approx(1024.0 - d, abs=1e-10)  # (ulp of 768: 1.1e-13)
+    assert abs(z - 768.0) > 9e-8
+
+
+def test_an_instant_taken_near_the_end_of_a_step_is_not_taken_again_by_a_longer_step():
+    """Period 1 s from 0. [0, 1): instant 0 (x = 1). [1, 2.000001): instants 1 and 2 (x = 2; 2 s
+    lies 1e-6 s before the step's end, beyond its tolerance of 1e-9 s). [2.000001, 10002.000001)
+    with a tolerance of 1e-5 s: instant 2 is already taken; the next is 3 s, x = 4 in effect
+    from 3 s (delay 0). z = 1 * 1 + 2 * (3 - 1) + 4 * (10002.000001 - 3)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 1.0)
+    s.advance(0.0, 1.0, (1.0,), (1.0,), 1.0, tm, True)
+    s.advance(1.0, 1.000001, (2.0,), (1.0,), 1.0, tm, True)
+    t = 1.0 + 1.000001
+    s.advance(t, 1e4, (4.0,), (1.0,), 1.0, tm, True)
+    assert s.current[0] == 3.0 and s.t_effect == 3.0
+    end = t + 1e4
+    assert s.integral(end)[0] == pytest.approx(1.0 + 2.0 * 2.0 + 4.0 * (end - 3.0), rel=1e-14)
+
+
+def test_an_instant_a_long_step_left_to_the_next_is_taken_by_a_shorter_step():
+    """Period p = 5000 s - 5e-7 s from 0. [0, 1e4 s) with a tolerance of 1e-5 s holds the
+    instants 0 and p; 2p = 1e4 s - 1e-6 s lies within that tolerance of its end, so it belongs
+    to the next step [1e4, 1e4 + 1e-3) s (whose own tolerance is far smaller): taken there with
+    the input set at 1e4 s (x = 2), in effect at once (delay 0)."""
+    p = 5000.0 - 5e-7
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, p)
+    s.advance(0.0, 1e4, (1.0,), (1.0,), 1.0, tm, False)
+    assert s.current == (0.0, (1.0,), p, p) and s.held == (1.0,)
+    s.advance(1e4, 1e-3, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (2.0,) and s.current[0] == 2 * p
+
+
+# Late in a run the tolerance is 1e-9 of the step plus the drift term, capped at 5e-5 of the
+# step (timing.DRIFT_CAP): at t = 1e6 s on steps of 1 s from 0 the drift 2^-52 t^2 / h = 2.2e-4 s
+# is capped, so times within 5e-5 s count as equal (test_tolerance_is_the_documented_bound).
+_LATE = 1e6
+
+
+def test_late_in_a_run_a_sample_instant_is_sensed_live_and_integrated_up_to_it():
+    """Period 1 s, no delay: the instant 1e6 - 1 s takes x = 1 (held from then, z from 0);
+    at the instant 1e6 s the live input is sensed and z(1e6) = 1 * 1 s (Sensor.sensed,
+    integral_in_effect: the sample at t in effect at once)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, 1.0)
+    s.advance(_LATE - 1.0, 1.0, (1.0,), (1.0,), 1.0, tm, True)
+    assert s.drift == timing.DRIFT_CAP * 1.0
+    assert s.sensed(_LATE, (5.0,), tm, True) == (5.0,)
+    assert s.integral_in_effect(_LATE, tm, True) == (1.0,)
+
+
+def test_late_in_a_run_the_latest_instant_of_a_step_entry_is_found():
+    """Period 0.25 s, delay 0.5 s: the step [1e6 - 1, 1e6) takes 4 instants (x = 2), in effect
+    from 1e6 - 0.5 s on; at t = 1e6 s the instant 1e6 - 0.5 s takes effect (the third), so
+    z = 2 * (1e6 - (1e6 - 0.5)) = 1 (exact), not z at the second (1e6 - 0.25 s: 0.5)."""
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.5, 0.25)
+    s.advance(_LATE - 1.0, 1.0, (2.0,), (1.0,), 1.0, tm, True)
+    assert s.integral_in_effect(_LATE, tm, True) == (1.0,)
+
+
+def test_late_in_a_run_an_instant_left_to_a_shorter_step_is_taken():
+    """Period p = 0.5 s - 5e-12 s: the instant 2e6 p = 1e6 s - 1e-5 s lies within the tolerance
+    (5e-5 s) of the end of the step [1e6 - 1, 1e6), so that step leaves it to the next, a step
+    of 1e-3 s (tolerance 5e-8 s): taken there with the input set at 1e6 s (x = 3, delay 0)."""
+    p = 0.5 - 5e-12
+    s = delay_mod.Sensor(1)
+    tm = timing.Timing(0.0, p)
+    s.advance(_LATE - 2.0, 1.0, (1.0,), (1.0,), 1.0, tm, False)
+    s.advance(_LATE - 1.0, 1.0, (2.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (2.0,) and s.last_k == 2 * 10**6 - 1
+    s.advance(_LATE, 1e-3, (3.0,), (1.0,), 1.0, tm, False)
+    assert s.held == (3.0,) and s.current[0] == 2e6 * p
+
+
+def test_instants_on_the_communication_points_are_not_off_the_grid():
+    """Period 2 s on steps of 1 s, delay 0 or 1 s: every instant and every effect lands on a
+    communication point, so nothing is recorded for the off-grid warning."""
+    for d in (0.0, 1.0):
+        s = delay_mod.Sensor(1)
+        tm = timing.Timing(d, 2.0)
+        for k in range(6):
+            s.advance(float(k), 1.0, (float(k + 1),), (1.0,), 1.0, tm, False)
+        assert s.off_grid is None
+        assert s.held == (5.0,)  # the instant 4 s, in effect at 4 s + d <= 6 s
+
+
+# --- controller/slave.py: the slave classes called in-process (no FMU, no fmpy). Oracles: the
+# plants' own classes, the FMI call sequence and the module's documented behaviour.
+
+def _slave(cls, **params):
+    s = cls(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    if params:
+        s.set_real([s._vr[n] for n in params], [float(v) for v in params.values()])
+    s.exit_initialization_mode()
+    return s
+
+
+def _set(s, values):
+    s.set_real([s._vr[n] for n in values], [float(v) for v in values.values()])
+
+
+@pytest.mark.parametrize("controller, plant, wing_beats", [
+    (slave_mod.StateFeedback, DroneFlyLateral, 30),
+    (slave_mod.StateFeedbackDelayed, DroneFlyLateral, 30),
+    (slave_mod.StateFeedbackLongitudinal, DroneFlyLongitudinal, 60),
+    (slave_mod.StateFeedbackLongitudinalDelayed, DroneFlyLongitudinal, 60),
+])
+def test_a_controllers_default_experiment_is_its_plants(controller, plant, wing_beats):
+    """The closed loop runs controller and plant on one grid: the controller's default
+    experiment is its plant's, from 0 over 30 (lateral: the open loop diverges) or 60
+    (longitudinal: it oscillates) wing beats of 1 / 164 s, in steps of 0.1 wing beat."""
+    assert controller.DEFAULT_EXPERIMENT == plant.DEFAULT_EXPERIMENT
+    start, stop, step = controller.DEFAULT_EXPERIMENT
+    assert start == 0.0
+    assert stop * N_HZ == pytest.approx(wing_beats, rel=1e-15)
+    assert step * N_HZ == pytest.approx(0.1, rel=1e-15)
+
+
+@pytest.mark.parametrize("cls", [slave_mod.StateFeedbackDelayed,
+                                 slave_mod.StateFeedbackLongitudinalDelayed])
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_non_finite_input_refuses_the_step_even_when_its_control_comes_later(cls, bad):
+    """With a sensing delay the step's own output is the control of an earlier sample, so
+    only the input check stops a non-finite value entering the delay line: the step is refused
+    naming the input, changes nothing, and the run continues with finite outputs."""
+    s = _slave(cls)
+    name = s.AXIS.state_names[1]
+    h = 0.25 / N_HZ
+    assert s.do_step(0.0, h)
+    _set(s, {name: bad})
+    assert s.do_step(h, h) is False
+    assert f"{name} = {bad!r} is not finite" in s.log_queue[-1].msg
+    _set(s, {name: 0.5})
+    for k in range(1, 12):  # past the delay of one wing beat
+        assert s.do_step(k * h, h)
+    u = s.get_real([s._vr[c] for c in s.AXIS.control_names])
+    assert all(math.isfinite(v) for v in u) and any(u)
+
+
+def test_the_off_grid_warning_is_once_per_instance_across_a_state_restore():
+    """The warning belongs to the instance: a state saved in initialization mode and restored
+    after the warning, then initialized and run off the grid again, logs no second one."""
+    s = slave_mod.StateFeedbackDelayed(instance_name="unit")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    saved = s._get_fmu_state()  # (pythonfmu's fmi2GetFMUstate)
+    s.exit_initialization_mode()
+    wb = 1.0 / N_HZ
+    _set(s, {"sensing_delay": 1.3 * wb})  # effects 0.3 wing beat into a step of one
+    assert s.do_step(0.0, wb) and s.do_step(wb, wb)
+    assert [m.status for m in s.log_queue] == [1]  # (fmi2Warning)
+    s._set_fmu_state(saved)
+    _set(s, {"sensing_delay": 1.3 * wb})
+    s.exit_initialization_mode()
+    for k in range(3):
+        assert s.do_step(k * wb, wb)
+    assert len(s.log_queue) == 1, [m.msg for m in s.log_queue]
+
+
+def test_a_state_restored_before_any_warning_still_warns_once():
+    """A state saved before any instant fell inside a step and restored at once: the instance has
+    not warned yet, so the first off-grid step logs the warning (once)."""
+    s = _slave(slave_mod.StateFeedbackDelayed)
+    s._set_fmu_state(s._get_fmu_state())
+    wb = 1.0 / N_HZ
+    _set(s, {"sensing_delay": 1.3 * wb})
+    for k in range(3):
+        assert s.do_step(k * wb, wb)
+    assert [m.status for m in s.log_queue] == [1]
+
+
+@pytest.mark.parametrize("cls", [slave_mod.StateFeedback, slave_mod.StateFeedbackLongitudinal])
+def test_a_non_finite_input_set_just_before_a_step_refuses_it(cls):
+    """No output read between the set and the step: the step itself computes u from the new
+    input, refuses it naming the input, and changes nothing."""
+    s = _slave(cls)
+    names = s.AXIS.state_names
+    _set(s, {names[0]: 0.25})
+    controls = [s._vr[c] for c in s.AXIS.control_names]
+    before = s.get_real(controls)
+    _set(s, {names[2]: math.nan})
+    assert s.do_step(0.0, 0.1 / N_HZ) is False
+    assert f"{names[2]} = nan is not finite" in s.log_queue[-1].msg
+    _set(s, {names[2]: 0.0})
+    assert s.do_step(0.0, 0.1 / N_HZ) and s.get_real(controls) == before
+
+
+@pytest.fixture
+def computations(monkeypatch):
+    """The control computations of the controller slaves, counted: each output computation
+    (``_outputs_at``) and each run of the value-table law (``FeedbackLaw.on_table``)."""
+    calls: list[str] = []
+    outputs_at = slave_mod._Feedback._outputs_at
+    on_table = feedback.FeedbackLaw.on_table
+
+    def counted_outputs_at(self, *args):
+        calls.append("outputs_at")
+        return outputs_at(self, *args)
+
+    def counted_on_table(self, *args):
+        table = on_table(self, *args)
+
+        def run(r):
+            calls.append("on_table")
+            return table(r)
+
+        return run
+
+    monkeypatch.setattr(slave_mod._Feedback, "_outputs_at", counted_outputs_at)
+    monkeypatch.setattr(feedback.FeedbackLaw, "on_table", counted_on_table)
+    return calls
+
+
+def test_outputs_are_computed_once_per_change(computations):
+    """The module's contract: the outputs are recomputed when an output is read after a value
+    was set, and at the end of a step; not again for a second read, nor for a step of the law
+    without delay, sampling or integral whose outputs (of the inputs, valid at t) hold at t + h."""
+    s = _slave(slave_mod.StateFeedback)
+    h, reads = 0.1 / N_HZ, [s._vr[c] for c in s.AXIS.control_names]
+    computations.clear()
+    _set(s, {"delta_p": 0.1})
+    s.get_real(reads)
+    s.get_real(reads)
+    assert len(computations) == 1  # the read after the set
+    assert s.do_step(0.0, h)
+    s.get_real(reads)
+    assert len(computations) == 1  # the outputs of the same inputs hold
+    _set(s, {"K[1,1]": 0.5})  # a parameter: the law is rebuilt at the next read
+    s.get_real(reads)
+    assert len(computations) == 2
+    assert s.do_step(h, h)
+    assert len(computations) == 2
+    _set(s, {"delta_p": 0.2})
+    assert s.do_step(2 * h, h)  # the step computes the outputs of the new input ...
+    assert len(computations) == 3
+    assert s.do_step(3 * h, h)  # ... which hold over the next step
+    s.get_real(reads)
+    assert len(computations) == 3
+    _set(s, {"KI[1,1]": 0.5})  # integral action: every step computes
+    assert s.do_step(4 * h, h) and len(computations) == 4
+    _set(s, {"KI[1,1]": 0.0})  # off again: the step that freezes z computes, ...
+    assert s.do_step(5 * h, h) and len(computations) == 5
+    assert s.do_step(6 * h, h) and len(computations) == 5  # ... the next holds the outputs
+
+
+def test_a_delayed_controller_computes_its_outputs_once_a_step(computations):
+    """With a sensing delay the outputs change with the steps only: one computation a step,
+    none for reading them."""
+    s = _slave(slave_mod.StateFeedbackDelayed)
+    h, reads = 0.1 / N_HZ, [s._vr[c] for c in s.AXIS.control_names]
+    computations.clear()
+    for k in range(3):
+        assert s.do_step(k * h, h)
+        s.get_real(reads)
+        s.get_real(reads)
+    assert computations == ["outputs_at"] * 3
+
+
+def test_an_input_set_between_steps_of_an_integral_law_reads_k_x_plus_ki_z():
+    """u = K x+_s + KI z (Eq. 22 with integral action), also for a read right after a set, no
+    step between. K = 0 but K[1,4] = 1, KI[1,4] = 0.5; delta_gamma (x+4 = x4, an angle) = 0.1
+    over 10 steps of 0.1 wing beat: z4 = 0.1 * 1 wing beat = 0.1. Then delta_gamma = 0.2 is in
+    effect at once (no delay): u1 = 1 * 0.2 + 0.5 * 0.1 = 0.25."""
+    zero = {f"K[{i + 1},{j + 1}]": 0.0 for i in range(3) for j in range(4)}
+    s = _slave(slave_mod.StateFeedback, **{**zero, "K[1,4]": 1.0, "KI[1,4]": 0.5})
+    h = 0.1 / N_HZ
+    _set(s, {"delta_gamma": 0.1})
+    for k in range(10):
+        assert s.do_step(k * h, h)
+    _set(s, {"delta_gamma": 0.2})
+    (u1,) = s.get_real([s._vr["delta_Phi_a"]])
+    assert u1 == pytest.approx(0.25, rel=1e-14)  # (z: ten sums of 0.01)
+
+
+def test_a_logger_that_fails_on_the_off_grid_warning_does_not_fail_the_step(monkeypatch):
+    """The warning is logged after the step is committed: if logging it raises, the step is
+    still OK (nothing is left to log with)."""
+    s = _slave(slave_mod.StateFeedbackDelayed)
+    wb = 1.0 / N_HZ
+    _set(s, {"sensing_delay": 1.3 * wb})
+
+    def broken(msg, status):
+        raise RuntimeError("the logger is gone")
+
+    monkeypatch.setattr(s, "_report", broken)
+    assert s.do_step(0.0, wb) and s.do_step(wb, wb)  # the second step warns
+    assert s._sensor.off_grid is False and s._time == 2 * wb
+
+
+def test_samples_pending_when_the_delay_is_set_to_zero_never_take_effect():
+    """The output at t is the control of the latest sample with t_k + sensing_delay <= t.
+    Delay 2 wing beats while x = 1 (samples pending), then 0 for 4 steps of a wing beat with
+    x = 2, then 2 again: at the next points the latest such sample is one of x = 2 (taken at
+    most 4 wing beats ago), never a pending one of x = 1."""
+    zero = {f"K[{i + 1},{j + 1}]": 0.0 for i in range(3) for j in range(4)}
+    wb = 1.0 / N_HZ
+    s = _slave(slave_mod.StateFeedback, **{**zero, "K[1,4]": 1.0}, sensing_delay=2 * wb)
+    read = [s._vr["delta_Phi_a"]]
+    t = 0.0
+    _set(s, {"delta_gamma": 1.0})
+    for _ in range(2):
+        assert s.do_step(t, wb)
+        t += wb
+    _set(s, {"sensing_delay": 0.0, "delta_gamma": 2.0})
+    assert s.get_real(read) == [2.0]
+    for _ in range(4):
+        assert s.do_step(t, wb)
+        t += wb
+        assert s.get_real(read) == [2.0]
+    _set(s, {"sensing_delay": 2 * wb})
+    for _ in range(3):
+        assert s.do_step(t, wb)
+        t += wb
+        assert s.get_real(read) == [2.0]
+
+
+def test_a_controller_class_keeps_at_most_laws_parameter_sets():
+    """slave.LAWS bounds the validated laws a class keeps for its instances (oldest first)."""
+    s = _slave(slave_mod.StateFeedbackLongitudinal)
+    for k in range(slave_mod.LAWS + 5):
+        _set(s, {"K[1,1]": 0.01 * (k + 1)})
+        s.get_real([s._vr[s.AXIS.control_names[0]]])
+    laws = slave_mod.StateFeedbackLongitudinal._LAWS
+    assert len(laws) == slave_mod.LAWS
+    assert s._law_key in laws
+
+
+@pytest.mark.parametrize("read_between", [False, True])
+def test_integral_action_off_freezes_z_and_on_again_resumes_it(read_between):
+    """z integrates while integral action is on (any KI non-zero): KI[1,4] = 1 and
+    delta_gamma = 0.1 for 10 steps of 0.1 wing beat (z4 = 0.1 * 1 = 0.1), KI = 0 for 10 steps
+    (z frozen; the outputs read or not between set and step), KI[1,4] = 1 again: u1 = KI z4
+    = 0.1 at once (K = 0), and 0.1 + 0.1 * 1 after 10 more steps."""
+    zero = {f"K[{i + 1},{j + 1}]": 0.0 for i in range(3) for j in range(4)}
+    s = _slave(slave_mod.StateFeedback, **zero, **{"KI[1,4]": 1.0})
+    h, read = 0.1 / N_HZ, [s._vr["delta_Phi_a"]]
+    _set(s, {"delta_gamma": 0.1})
+    for k in range(10):
+        assert s.do_step(k * h, h)
+    _set(s, {"KI[1,4]": 0.0})
+    if read_between:
+        assert s.get_real(read) == [0.0]
+    for k in range(10, 20):
+        assert s.do_step(k * h, h)
+    _set(s, {"KI[1,4]": 1.0})
+    assert s.get_real(read)[0] == pytest.approx(0.1, rel=1e-14)  # (ten sums of 0.01)
+    for k in range(20, 30):
+        assert s.do_step(k * h, h)
+    assert s.get_real(read)[0] == pytest.approx(0.2, rel=1e-14)
+
+
+@pytest.mark.parametrize("missing", ["_law", "_timing"])
+def test_a_step_makes_a_law_or_timing_it_lacks(missing):
+    """The base class makes the law and the timing before any step; if one were missing, the
+    step makes it from the parameters: the same outputs as an intact instance's."""
+    a, b = _slave(slave_mod.StateFeedbackDelayed), _slave(slave_mod.StateFeedbackDelayed)
+    wb = 1.0 / N_HZ
+    for s in (a, b):
+        _set(s, {"delta_gamma": 0.1, "delta_v": 0.2})
+        assert s.do_step(0.0, wb)
+    setattr(b, missing, None)
+    reads = [a._vr[c] for c in a.AXIS.control_names]
+    for k in range(1, 4):
+        assert a.do_step(k * wb, wb) and b.do_step(k * wb, wb)
+        assert b.get_real(reads) == a.get_real(reads) and any(a.get_real(reads))

@@ -176,7 +176,11 @@ def expm(a: Sequence[Sequence[float]]) -> Matrix:
         if norm <= theta:
             u, v = _pade(rows, m)
             return solve(_combine([(1.0, v), (-1.0, u)]), _combine([(1.0, v), (1.0, u)]))
-    s = max(0, math.ceil(math.log2(norm / _THETA13))) if norm > _THETA13 else 0
+    if math.isinf(norm):  # finite entries whose column sum overflows: bound it by n max|a|
+        big = max(abs(x) for row in rows for x in row)
+        s = math.ceil(math.log2(n) + math.log2(big) - math.log2(_THETA13))
+    else:
+        s = max(0, math.ceil(math.log2(norm / _THETA13))) if norm > _THETA13 else 0
     scaled = [[math.ldexp(x, -s) for x in row] for row in rows]
     u, v = _pade(scaled, 13)
     r = solve(_combine([(1.0, v), (-1.0, u)]), _combine([(1.0, v), (1.0, u)]))

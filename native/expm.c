@@ -228,7 +228,15 @@ void fmu_expm(const double *a, int n, double *e) {
         }
     }
     if (!done) {
-        int s = norm > THETA13 ? (int)ceil(log2(norm / THETA13)) : 0;
+        int s;
+        if (isinf(norm)) { /* finite entries whose column sum overflows: n max|a| bounds it */
+            double big = 0.0;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++) big = fmax(big, fabs(rows[i][j]));
+            s = (int)ceil(log2((double)n) + log2(big) - log2(THETA13));
+        } else {
+            s = norm > THETA13 ? (int)ceil(log2(norm / THETA13)) : 0;
+        }
         if (s < 0) s = 0;
         Mat scaled;
         memset(scaled, 0, sizeof scaled);

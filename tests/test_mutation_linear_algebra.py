@@ -134,3 +134,12 @@ def test_sums_that_overflow_are_infinite_rather_than_an_error():
 def test_expm_refuses_an_empty_matrix_as_not_square():
     with pytest.raises(ValueError, match="square"):
         la.expm([])
+
+
+def test_expm_of_entries_whose_norm_overflows_is_computed():
+    """Finite entries whose 1-norm overflows the float range (a column of two 1e308): scaled by
+    n max|a| instead. The oracle: N is nilpotent (N^2 = 0), so exp(N) = I + N exactly, and so
+    is every squaring of I + N / 2^s in floating point ((I + M)^2 = I + 2 M, exact doublings)."""
+    n = [[0.0, 0.0, 1e308], [0.0, 0.0, 1e308], [0.0, 0.0, 0.0]]
+    assert la.norm1(n) == math.inf
+    assert la.expm(n) == [[1.0, 0.0, 1e308], [0.0, 1.0, 1e308], [0.0, 0.0, 1.0]]

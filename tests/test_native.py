@@ -230,6 +230,15 @@ def test_expm_in_c_against_python_and_scipy(native_fmus, tmp_path, norm):
         assert rel <= 1e3 * n * _EPS * max(norm, 1.0), (norm, rel)
 
 
+def test_expm_in_c_of_entries_whose_norm_overflows(native_fmus, tmp_path):
+    """Finite entries whose 1-norm overflows (a column of two 1e308; converting the infinite
+    log2 to int would be undefined behaviour): exp(N) = I + N exactly for this nilpotent N,
+    in C as in Python."""
+    expm = _exported_expm(native_fmus["DroneFlyLateral", 2], tmp_path)
+    n = np.array([[0.0, 0.0, 1e308], [0.0, 0.0, 1e308], [0.0, 0.0, 0.0]])
+    assert expm(n).tolist() == [[1.0, 0.0, 1e308], [0.0, 1.0, 1e308], [0.0, 0.0, 1.0]]
+
+
 def _run_messages(path: Path, fmi: int, prepare, t0: float = 0.0, h: float = 1e-3):
     """Status of one step after ``prepare(slave, vr)`` and the messages logged."""
     from dronefly.harness.cosim.fmu import FMU

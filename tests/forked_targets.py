@@ -39,3 +39,8 @@ def printf_and_atexit(path: str) -> None:
     atexit.register(lambda: open(path, "w").write("atexit ran"))
     libc = ctypes.CDLL(None)
     libc.printf(b"%s", b"buffered by the C library")
+
+
+def loaded(name: str) -> None:
+    """Print whether the module ``name`` was imported before this function ran."""
+    print(name in sys.modules)

@@ -128,3 +128,14 @@ def _state(pid: str) -> str:
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
     except OSError:
         return "Z"
+
+
+def test_the_later_modules_are_preloaded_from_the_second_child_on(monkeypatch):
+    """A fresh server imports the checks; SciPy (the reference check's, through FMPy) from the
+    second child on: a one-FMU check does not pay for it, several FMUs pay once."""
+    monkeypatch.setenv("DRONEFLY_CHECK_FORK", "1")
+    monkeypatch.setattr(child, "_SERVER", None)  # a server of this test's own
+    name = child.PRELOAD_LATER[0]
+    seen = [_run("loaded", name).stdout.strip() for _ in range(3)]
+    assert seen == ["False", "True", "True"], seen
+    assert _run("loaded", child.PRELOAD[0]).stdout.strip() == "True"

@@ -33,7 +33,8 @@ from typing import Any, Sequence
 
 from ...core.interrupt import pending
 
-__all__ = ["ChildRun", "POLL_S", "PRELOAD", "die_with_parent", "run_child", "run_function"]
+__all__ = ["ChildRun", "POLL_S", "PRELOAD", "PRELOAD_LATER", "die_with_parent", "run_child",
+           "run_function"]
 
 #: how often the parent asks whether Ctrl-C came while a child works [s]
 POLL_S = 0.05
@@ -108,9 +109,12 @@ def run_child(cmd: Sequence[str], timeout_s: float, tmp: str | None = None) -> C
             shutil.rmtree(folder, ignore_errors=True)
 
 
-#: what the fork server imports before it forks: the checks, and what FMPy imports only on
-#: use (SciPy, in the reference check's ``validate_result``)
-PRELOAD = ("dronefly.harness.compliance.suite", "scipy.interpolate", "scipy.ndimage")
+#: what the fork server imports before it forks: the checks
+PRELOAD = ("dronefly.harness.compliance.suite",)
+#: what it imports once a second child is asked for: what FMPy imports only on use (SciPy, in
+#: the reference check's ``validate_result``), worth importing once for several FMUs, not for
+#: one (a child that needs it imports it)
+PRELOAD_LATER = ("scipy.interpolate", "scipy.ndimage")
 
 
 #: the fresh interpreter's program: ``python -c _FRESH module function args...``
@@ -134,6 +138,7 @@ class _ForkServer:
         self.pid: dict[int, int] = {}
         self.code: dict[int, int] = {}
         self.alive = True
+        self.runs = 0
         threading.Thread(target=self._read, name="dronefly-forkserver", daemon=True).start()
 
     def _read(self) -> None:
@@ -227,6 +232,9 @@ def run_function(module: str, function: str, args: Sequence[str], timeout_s: flo
         request = {"run": rid, "module": module, "function": function, "args": list(args),
                    "env": {**os.environ, "TMPDIR": folder, "TEMP": folder, "TMP": folder},
                    "cwd": os.getcwd(), "path": sys.path, "stdout": str(out), "stderr": str(err)}
+        server.runs += 1
+        if server.runs == 2:
+            server.send({"preload": list(PRELOAD_LATER)})
         if not server.send(request):
             return run_child(fresh, timeout_s, tmp)
         deadline = time.monotonic() + timeout_s

@@ -13,7 +13,8 @@ interpreters (:mod:`.fuzz`).
 Protocol, one JSON object per line. On stdin: ``{"run": id, "module", "function", "args",
 "env", "cwd", "path", "stdout", "stderr"}`` forks a child that runs
 ``module.function(*args)`` with ``sys.path = path``; ``{"kill": id}`` sends SIGKILL to that
-child if it still runs. On stdout: ``{"id": id, "pid": pid}`` once forked, then
+child if it still runs; ``{"preload": [module, ...]}`` imports more modules for the children
+to come. On stdout: ``{"id": id, "pid": pid}`` once forked, then
 ``{"id": id, "code": code}`` when it ended (0, the exit code, or minus the signal that ended
 it; 1 for an exception, whose traceback is on the child's stderr). The server ignores SIGINT
 (a Ctrl-C typed in the terminal is the parent's to handle) and exits at the end of its stdin,
@@ -124,6 +125,10 @@ def serve(preload: list[str]) -> None:
         while b"\n" in buffer:
             line, buffer = buffer.split(b"\n", 1)
             req = json.loads(line)
+            if "preload" in req:  # more modules for the children to come
+                for name in req["preload"]:
+                    importlib.import_module(name)
+                continue
             if "kill" in req:
                 pid = pids.get(req["kill"])
                 if pid is not None:

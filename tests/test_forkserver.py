@@ -101,8 +101,10 @@ def test_the_fork_server_ends_with_its_parent(tmp_path):
     code = ("import sys; sys.path.insert(0, sys.argv[1])\n"
             "from dronefly.harness.compliance.child import run_function\n"
             "run_function('forked_targets', 'hang', [], 600)\n")
+    # (the killed parent cannot remove its temporary folder: it is in tmp_path)
     parent = subprocess.Popen([sys.executable, "-c", code, str(Path(__file__).parent)],
-                              env={**os.environ, "DRONEFLY_CHECK_FORK": "1"})
+                              env={**os.environ, "DRONEFLY_CHECK_FORK": "1",
+                                   "TMPDIR": str(tmp_path)})
     try:
         deadline = time.monotonic() + 60
         pids: list[str] = []

@@ -58,8 +58,9 @@ def _status() -> str:
                           capture_output=True, text=True).stdout
 
 
-def _env(bin_dir: Path) -> dict[str, str]:
+def _env(bin_dir: Path, tmp: Path) -> dict[str, str]:
     env = dict(os.environ)
+    env["TMPDIR"] = str(tmp)  # a block's `mktemp -d` folders: in the test's own, removed with it
     env["PATH"] = f"{bin_dir}{os.pathsep}{env.get('PATH', '')}"
     env.pop("PYTHONPATH", None)
     env["DRONEFLY_REPO"] = str(ROOT)
@@ -109,13 +110,15 @@ def test_block_runs_verbatim(doc, lang, body, mark, printed, tmp_path, request):
 
         require_ecos(ecos_available())  # fails where the test extra installs it (Linux x86_64)
     before = _status()
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
     if lang == "python":
         script = tmp_path / "block.py"
         script.write_text(body)
         r = subprocess.run([str(bin_dir / "python"), str(script)], cwd=cwd,
-                           env=_env(bin_dir), capture_output=True, text=True, timeout=300)
+                           env=_env(bin_dir, tmp), capture_output=True, text=True, timeout=300)
     else:
-        r = subprocess.run(["bash", "-c", body], cwd=cwd, env=_env(bin_dir),
+        r = subprocess.run(["bash", "-c", body], cwd=cwd, env=_env(bin_dir, tmp),
                            capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{doc.name}: exit {r.returncode}\n{r.stdout[-1500:]}\n{r.stderr[-1500:]}"
     assert _status() == before, f"{doc.name}: the block changed the checkout"

@@ -244,3 +244,17 @@ def test_doc_and_readme_numbers_are_the_code_s():
     assert all(math.isinf(x.recovery) for k, x in c.items() if k[0] == P)
     assert f"({100 * min(left):.0f} % to {100 * max(left):.0f} % of the roll remain)" in doc
     assert f"up to 5 wing beats, {1e3 * 5 / 164:.1f} ms" in doc
+
+
+def test_a_delay_sweep_on_workers_leaves_no_extracted_fmu(fmus, tmp_path, monkeypatch):
+    """The delay axes' verdicts open the pair in the parent before the workers start: those
+    extractions are removed there too (they were left in the temporary folder)."""
+    import tempfile
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))  # this process and its forked workers
+    spec = SweepSpec(disturbances=("directions",), directions=("+dgamma",), amplitudes=1,
+                     gains=("paper",), steps_wb=(1.0,), stop_wb=2.0, delays_wb=(0.0, 1.0))
+    run_sweep(spec, tmp_path / "out", workers=2, plot=False, progress_bar=False, **fmus)
+    assert list(tmp.iterdir()) == []

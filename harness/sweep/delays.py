@@ -43,7 +43,7 @@ from ..latency.loop import FeedbackLoop, LatencyInputError
 from ..latency.sampled import delay_split, sampled_rates
 from .cases import Case, SweepInputError
 from .results import DELAY_COLUMNS
-from .worker import FmuRef, loop_for
+from .worker import FmuRef, close_all, loop_for
 
 __all__ = ["DELAY_COLUMNS", "MAX_LAG", "delay_results", "delay_summary", "is_delay_sweep",
            "loop_verdict"]
@@ -135,6 +135,13 @@ def delay_results(cases: Sequence[Case], refs: tuple) -> dict[str, dict[str, Any
     """
     if not is_delay_sweep(cases):
         return {}
+    try:
+        return _delay_results(cases, refs)
+    finally:
+        close_all()  # this process's FMUs (a pool's workers open their own; run_here again)
+
+
+def _delay_results(cases: Sequence[Case], refs: tuple) -> dict[str, dict[str, Any]]:
 
     if not isinstance(refs[0], FmuRef):
         raise SweepInputError("--delays/--sample-periods need the plant/controller pair, not "

@@ -135,10 +135,8 @@ class _ForkServer:
         self.ids = itertools.count(1)
         self.lock = threading.Lock()
         self.replies = threading.Condition()
-        self.pid: dict[int, int] = {}
         self.code: dict[int, int] = {}
         self.alive = True
-        self.runs = 0
         threading.Thread(target=self._read, name="dronefly-forkserver", daemon=True).start()
 
     def _read(self) -> None:
@@ -146,8 +144,7 @@ class _ForkServer:
         for line in self.proc.stdout:
             msg = json.loads(line)
             with self.replies:
-                (self.pid if "pid" in msg else self.code)[msg["id"]] = msg.get("pid",
-                                                                             msg.get("code"))
+                self.code[msg["id"]] = msg["code"]
                 self.replies.notify_all()
         with self.replies:
             self.alive = False
@@ -171,7 +168,6 @@ class _ForkServer:
             if rid not in self.code and self.alive:
                 self.replies.wait(timeout_s)
             if rid in self.code:
-                self.pid.pop(rid, None)
                 return True, self.code.pop(rid)
             return (not self.alive), None
 
@@ -232,8 +228,7 @@ def run_function(module: str, function: str, args: Sequence[str], timeout_s: flo
         request = {"run": rid, "module": module, "function": function, "args": list(args),
                    "env": {**os.environ, "TMPDIR": folder, "TEMP": folder, "TMP": folder},
                    "cwd": os.getcwd(), "path": sys.path, "stdout": str(out), "stderr": str(err)}
-        server.runs += 1
-        if server.runs == 2:
+        if rid == 2:  # (the ids count this server's children)
             server.send({"preload": list(PRELOAD_LATER)})
         if not server.send(request):
             return run_child(fresh, timeout_s, tmp)

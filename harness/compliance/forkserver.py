@@ -14,9 +14,9 @@ Protocol, one JSON object per line. On stdin: ``{"run": id, "module", "function"
 "env", "cwd", "path", "stdout", "stderr"}`` forks a child that runs
 ``module.function(*args)`` with ``sys.path = path``; ``{"kill": id}`` sends SIGKILL to that
 child if it still runs; ``{"preload": [module, ...]}`` imports more modules for the children
-to come. On stdout: ``{"id": id, "pid": pid}`` once forked, then
-``{"id": id, "code": code}`` when it ended (0, the exit code, or minus the signal that ended
-it; 1 for an exception, whose traceback is on the child's stderr). The server ignores SIGINT
+to come. On stdout: ``{"id": id, "code": code}`` when the child ended (0, the exit code,
+or minus the signal that ended it; 1 for an exception, whose traceback is on the child's
+stderr). The server ignores SIGINT
 (a Ctrl-C typed in the terminal is the parent's to handle) and exits at the end of its stdin,
 that is when the parent ends, however it ends; each child dies with it (SIGKILL, Linux).
 
@@ -138,7 +138,6 @@ def serve(preload: list[str]) -> None:
             if pid == 0:
                 _child(req, reply_fd)
             running[pid], pids[req["run"]] = req["run"], pid
-            send({"id": req["run"], "pid": pid})
 
 
 if __name__ == "__main__":

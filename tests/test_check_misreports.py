@@ -338,8 +338,8 @@ OUTPUTS_LIE = {
 
 #: what ``me:dependencies`` says of the lie: found by a get after a set in Continuous-Time Mode
 ME_LIE = ("Float64_continuous_output (declared in Outputs with no dependency among the inputs) "
-          "changed when only Float64_continuous_input was set, in Continuous-Time Mode (set, "
-          "then get)")
+          "changed when only Float64_continuous_input was set, through Model Exchange (set, "
+          "then get")
 
 
 @pytest.mark.parametrize("version", list(OUTPUTS_LIE))
@@ -419,6 +419,33 @@ def test_an_outputs_dependency_lie_in_a_model_exchange_only_fmu(tmp_path, versio
     failed = _failed(report)
     assert set(failed) == {"me:dependencies"}, report.checks
     assert failed["me:dependencies"].detail.startswith(ME_LIE), failed["me:dependencies"].detail
+
+
+#: Float64_discrete_output declared in <Outputs> without its dependency on
+#: Float64_discrete_input (InitialUnknowns left truthful)
+DISCRETE_LIE = {
+    "fmi2": (b'<Unknown index="7" dependencies="6" dependenciesKind="constant"/>',
+             b'<Unknown index="7" dependencies=""/>'),
+    "fmi3": (b'<Output valueReference="10" dependencies="9" dependenciesKind="constant"/>',
+             b'<Output valueReference="10" dependencies=""/>'),
+}
+
+
+@pytest.mark.parametrize("version", list(DISCRETE_LIE))
+def test_a_discrete_outputs_dependency_lie_in_a_model_exchange_only_fmu(tmp_path, version):
+    """The Outputs dependency lie on a discrete input, through Model Exchange only: the input
+    can be set in Event Mode only (FMI 2.0 3.2.3, FMI 3.0 3.2.3), and a get after the set there
+    sees Float64_discrete_output follow Float64_discrete_input; only ``me:dependencies``
+    fails, FMI 2.0 and 3.0 alike."""
+    fmu = _me_only(REF / version / "Feedthrough.fmu", tmp_path / "Feedthrough.fmu",
+                   (DISCRETE_LIE[version],))
+    report = check_fmu(fmu, fuzz=False, isolate=False)
+    failed = _failed(report)
+    assert set(failed) == {"me:dependencies"}, report.checks
+    assert failed["me:dependencies"].detail.startswith(
+        "Float64_discrete_output (declared in Outputs with no dependency among the inputs) "
+        "changed when only Float64_discrete_input was set, through Model Exchange"), \
+        failed["me:dependencies"].detail
 
 
 @pytest.mark.parametrize("version", ["fmi2", "fmi3"])

@@ -105,11 +105,13 @@ RULES: dict[str, tuple[str, str, str]] = {
         "initialized with its start value", ""),
     "me:dependencies": (
         "FMI 2.0 2.2.8 (ModelStructure dependencies), through Model Exchange: InitialUnknowns "
-        "tested in Initialization Mode; Outputs and Derivatives in Continuous-Time Mode, where "
-        "3.2.3 allows a get after a set (each continuous input moved alone)",
+        "tested in Initialization Mode; Outputs and Derivatives where 3.2.3 allows a get after "
+        "a set (each input moved alone: continuous ones in Continuous-Time Mode, discrete ones "
+        "in Event Mode)",
         "FMI 3.0 2.4.8 (ModelStructure dependencies), through Model Exchange: InitialUnknown "
-        "tested in Initialization Mode; Output and ContinuousStateDerivative in Continuous-Time "
-        "Mode, where a get after a set is allowed", ""),
+        "tested in Initialization Mode; Output and ContinuousStateDerivative where a get after "
+        "a set is allowed (continuous inputs in Continuous-Time Mode, discrete ones in Event "
+        "Mode)", ""),
     "me:reset": (
         "FMI 2.0 2.1.6 (fmi2Reset), through Model Exchange: the FMU goes into the same state "
         "as after fmi2Instantiate",

@@ -293,17 +293,25 @@ def _initial_part(ctx: Context, initial: dict[str, set[str] | None]
 
 def _continuous_time_probe(ctx: Context, unknowns: list[Var]
                            ) -> tuple[dict[str, set[str]], set[str]]:
-    """Which continuous inputs move which ``unknowns`` (outputs, derivatives) in Model
-    Exchange's Continuous-Time Mode, where a get after a set is allowed (FMI 2.0 3.2.3, FMI 3.0
-    3.2.3): each input moved alone, the unknowns read, the input put back."""
+    """Which inputs move which ``unknowns`` (outputs, derivatives) through Model Exchange, where
+    a get after a set is allowed (FMI 2.0 3.2.3, FMI 3.0 3.2.3): each continuous input moved
+    alone in Continuous-Time Mode, then each discrete input (settable in Event Mode only) moved
+    alone in Event Mode; the unknowns read after the set, the input put back."""
     seen: dict[str, set[str]] = {o.name: set() for o in unknowns}
     tried: set[str] = set()
+    continuous = [u for u in ctx.inputs if u.var.variability == "continuous"]
+    discrete = [u for u in ctx.inputs if u.var.variability != "continuous"]
     with ctx.instantiate("check") as inst:
         initialize(ctx, inst)
         if getattr(inst.slave, "terminated", False):
             raise CheckSkipped("the FMU asked to terminate at its initialization")
-        _probe(inst, [u for u in ctx.inputs  # the others are set in Event Mode only
-                      if u.var.variability == "continuous"], unknowns, seen, tried)
+        _probe(inst, continuous, unknowns, seen, tried)
+        if discrete:
+            ctx.event(call=f"{ctx.fmi}EnterEventMode()")
+            inst.slave.enter_event_mode()
+            _probe(inst, discrete, unknowns, seen, tried)
+            ctx.event(call=f"the event iteration, {ctx.fmi}EnterContinuousTimeMode()")
+            inst.slave.leave_event_mode()
         ctx.event(call=f"{ctx.fmi}Terminate()")
         inst.slave.terminate()
     return seen, tried
@@ -311,7 +319,8 @@ def _continuous_time_probe(ctx: Context, unknowns: list[Var]
 
 def _dependencies_me(ctx: Context) -> str:
     """The dependencies through Model Exchange: InitialUnknowns in Initialization Mode,
-    Outputs and Derivatives in Continuous-Time Mode (set an input, get the unknowns)."""
+    Outputs and Derivatives after a set of one input (continuous inputs in Continuous-Time
+    Mode, discrete ones in Event Mode)."""
     if not ctx.inputs:
         raise CheckSkipped("no inputs")
     initial = _declared(ctx, "initialUnknowns")
@@ -327,11 +336,13 @@ def _dependencies_me(ctx: Context) -> str:
     if unknowns and not lies:
         seen, tried = _continuous_time_probe(ctx, unknowns)
         for which, name in (("outputs", "Outputs"), ("derivatives", "Derivatives")):
-            lies += _lies(declared[which], seen, "in Continuous-Time Mode (set, then get)",
-                          name)
+            lies += _lies(declared[which], seen, "through Model Exchange (set, then get: "
+                          "continuous inputs in Continuous-Time Mode, discrete ones in Event "
+                          "Mode)", name)
         parts.append(f"{len(declared['outputs'])} output(s) and {len(declared['derivatives'])} "
-                     f"derivative(s) with declared dependencies, {len(tried)} continuous "
-                     "input(s) set one at a time in Continuous-Time Mode")
+                     f"derivative(s) with declared dependencies, {len(tried)} input(s) set one at "
+                     "a time (continuous ones in Continuous-Time Mode, discrete ones in Event "
+                     "Mode)")
     require(not lies, "; ".join(lies[:4]) + (" ..." if len(lies) > 4 else ""))
     return "; ".join(parts) + ": no undeclared dependency"
 
@@ -342,8 +353,9 @@ def check_dependencies(ctx: Context) -> str:
     # InitialUnknowns are tested there. In Step Mode a get after a set without a step is not
     # allowed: the Outputs' dependencies are tested by two continuations from one saved FMU
     # state over a small step (where the FMU can save its state).
-    # Through Model Exchange a get after a set is allowed in Continuous-Time Mode: the Outputs
-    # and the Derivatives are probed there (:func:`_dependencies_me`).
+    # Through Model Exchange a get after a set is allowed in Continuous-Time Mode (continuous
+    # inputs) and Event Mode (any input): the Outputs and the Derivatives are probed there
+    # (:func:`_dependencies_me`).
     if ctx.interface == "me":
         return _dependencies_me(ctx)
     if not ctx.inputs or not ctx.outputs:

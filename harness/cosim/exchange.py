@@ -18,6 +18,8 @@ its own state machine (FMI 2.0 3.2.3, FMI 3.0 3.2):
   event indicators) and step events (fmi2CompletedIntegratorStep), each handled in Event Mode
   with the event iteration; it returns FMI 3.0's ``(eventHandlingNeeded, terminateSimulation,
   earlyReturn, lastSuccessfulTime)``, terminateSimulation when the FMU asked to end the run;
+- ``enter_event_mode`` and ``leave_event_mode`` take the instance into Event Mode between
+  steps and back (the event iteration on the way out), for a caller that sets discrete inputs;
 - an FMU state saved with ``getFMUstate`` keeps the next event time with the FMU's own state
   (the serialized form: 10 bytes of it before the FMU's).
 
@@ -141,6 +143,20 @@ class MEStepper:
             f"the event iteration did not terminate in {MAX_EVENT_ITERATIONS} iterations "
             f"(fmi{self._v}{'NewDiscreteStates' if self._v == 2 else 'UpdateDiscreteStates'} "
             "asked for another each time)")
+
+    def enter_event_mode(self) -> None:
+        """From Continuous-Time Mode into Event Mode (fmi2EnterEventMode / fmi3EnterEventMode),
+        where inputs of any variability may be set and the unknowns read after them."""
+        self._raw.enterEventMode()
+
+    def leave_event_mode(self) -> None:
+        """From Event Mode back to Continuous-Time Mode: the event iteration, then
+        fmi2EnterContinuousTimeMode / fmi3EnterContinuousTimeMode unless the FMU asked to
+        terminate; CVODE restarts at the next step."""
+        self._event_iteration()
+        self._fresh = True
+        if not self.terminated:
+            self._raw.enterContinuousTimeMode()
 
     def reset(self) -> Any:
         self._next_event, self.terminated, self._fresh = None, False, True

@@ -70,8 +70,10 @@ if [ -n "$wine" ]; then
 fi
 # zig's cache: one probe per FMI platform (a no-op where it is filled already)
 "$PY" - <<'PYEOF'
-import importlib.util, sys, tempfile, time
+import importlib.util, os, sys, tempfile, time
 from pathlib import Path
+# zig itself compiles (the project's binary cache would answer the probe without running zig)
+os.environ["DRONEFLY_CACHE_DIR"] = "0"
 if importlib.util.find_spec("ziglang") is None or importlib.util.find_spec("dronefly") is None:
     print("setup-c-host: no ziglang or dronefly in this interpreter: zig's cache not filled")
     sys.exit(0)

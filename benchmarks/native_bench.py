@@ -12,8 +12,10 @@ Measures, interleaved repeat by repeat (the machine is shared and noisy):
            (``native_limit.c``), both built by zig cc (harness/builder/toolchain.py)
   simulate ``fmpy.simulate_fmu`` of the lateral plant alone over its default experiment
            (300 steps of 0.1 wing beat), native against pythonfmu, wall time (target: the
-           native plant at least 3 times faster), and what one fmi2GetReal and one fmi2DoStep
-           cost through FMPy's FMU2Slave: FMPy's own cost per call is most of it
+           native plant at least 3 times faster), against the floor of simulate_fmu itself
+           (the native FMU with fmi2DoStep and fmi2GetReal made free: pythonfmu/floor bounds
+           the ratio any FMU can reach), and what one fmi2GetReal and one fmi2DoStep cost
+           through FMPy's FMU2Slave: FMPy's own cost per call is most of it
   memory   the growth of the process's resident memory over ``--cycles`` (default 10,000)
            fmi2Instantiate/fmi2FreeInstance cycles of the lateral plant through FMPy in a fresh
            process, after 100 cycles of warm-up: native (target < 1 MB) and pythonfmu
@@ -201,21 +203,51 @@ def bench_calls(fmus: dict[str, Path], calls: int, repeats: int) -> dict[str, li
     return out
 
 
+@contextlib.contextmanager
+def _free_calls():
+    """FMPy's FMU2Slave with fmi2DoStep and fmi2GetReal costing nothing (the methods return
+    at once, no call into the FMU): ``simulate_fmu`` of any FMU, native or not, costs at least
+    what it costs then (FMPy's own loop, recorder and set-up, and the native FMU's
+    instantiate, initialize, terminate and free, microseconds in C)."""
+    from fmpy.fmi2 import FMU2Slave
+
+    step, get = FMU2Slave.doStep, FMU2Slave.getReal
+    FMU2Slave.doStep = lambda self, *a, **k: 0  # fmi2OK
+    FMU2Slave.getReal = lambda self, vr: [0.0] * len(vr)
+    try:
+        yield
+    finally:
+        FMU2Slave.doStep, FMU2Slave.getReal = step, get
+
+
 def bench_simulate(fmus: dict[str, Path], repeats: int) -> dict[str, list[float]]:
+    """Wall seconds of ``fmpy.simulate_fmu`` of the lateral plant over its default experiment:
+    native, pythonfmu, and ``floor``: the native FMU with fmi2DoStep and fmi2GetReal free
+    (:func:`_free_calls`), the least any FMU can cost in ``simulate_fmu``."""
     import fmpy
 
-    times: dict[str, list[float]] = {"native": [], "pythonfmu": []}
+    times: dict[str, list[float]] = {"native": [], "pythonfmu": [], "floor": []}
     paths = {"native": fmus["native:DroneFlyLateral"], "pythonfmu": fmus["DroneFlyLateral"]}
     dirs = {k: fmpy.extract(str(p)) for k, p in paths.items()}
     mds = {k: fmpy.read_model_description(str(p)) for k, p in paths.items()}
+
+    def run(key: str) -> float:
+        t0 = time.perf_counter()
+        res = fmpy.simulate_fmu(dirs[key], model_description=mds[key])
+        dt = time.perf_counter() - t0
+        assert len(res) == 301, len(res)
+        return dt
+
     for key in paths:  # warm up: the first load of each binary and of pythonfmu's interpreter
-        fmpy.simulate_fmu(dirs[key], model_description=mds[key])
+        run(key)
     for r in range(repeats):
-        for key in (list(paths) if r % 2 == 0 else list(paths)[::-1]):
-            t0 = time.perf_counter()
-            res = fmpy.simulate_fmu(dirs[key], model_description=mds[key])
-            times[key].append(time.perf_counter() - t0)
-            assert len(res) == 301, len(res)
+        for key in (["native", "pythonfmu", "floor"] if r % 2 == 0
+                    else ["floor", "pythonfmu", "native"]):
+            if key == "floor":
+                with _free_calls():
+                    times[key].append(run("native"))
+            else:
+                times[key].append(run(key))
     return times
 
 
@@ -334,6 +366,10 @@ def main(argv: list[str] | None = None) -> int:
                   f"{args.repeats}: native {1e3 * med(t['native']):.2f}, pythonfmu "
                   f"{1e3 * med(t['pythonfmu']):.2f}; pythonfmu/native {ratio:.2f} "
                   f"(target >= {TARGET_SIMULATE:g})")
+            bound = med(t["pythonfmu"]) / med(t["floor"])
+            print(f"  floor (fmi2DoStep and fmi2GetReal free: FMPy's own cost) "
+                  f"{1e3 * med(t['floor']):.2f}; pythonfmu/floor {bound:.2f}: the largest ratio "
+                  "any FMU can reach through simulate_fmu")
             ok &= ratio >= TARGET_SIMULATE
             c = bench_calls(fmus, 3000, args.repeats)
             print("  through FMPy's FMU2Slave, us per call (median of "

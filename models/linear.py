@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Callable, List, Sequence, Tuple, TypeVar
 from ..core.errors import DroneflyError
 from .axes import dot
 from .lateral_interface import sort_eigenvalues
-from .linear_algebra import expm, norm1
+from .linear_algebra import expm, hold_exponential, hold_shift, norm1
 
 if TYPE_CHECKING:
     import numpy as np
@@ -313,14 +313,12 @@ def zoh_rows(A: Sequence[Sequence[float]], B: Sequence[Sequence[float]],
     -------
     Phi, Gamma : tuple of rows
         x[k+1] = Phi x[k] + Gamma u[k]: the blocks of exp([[A h, B h], [0, 0]])
-        (:func:`dronefly.models.linear_algebra.expm`); entries may be inf or nan where exp(A h)
-        overflows.
+        (:func:`dronefly.models.linear_algebra.hold_exponential`); entries may be inf or nan
+        where exp(A h) overflows.
     """
-    n, m = len(A), len(B[0])
-    aug = [[float(x) * h for x in A[i]] + [float(x) * h for x in B[i]] for i in range(n)]
-    aug += [[0.0] * (n + m) for _ in range(m)]
-    e = expm(aug)
-    return tuple(tuple(row[:n]) for row in e[:n]), tuple(tuple(row[n:]) for row in e[:n])
+    Phi, Gamma = hold_exponential([[float(x) * h for x in row] for row in A],
+                                  [[float(x) * h for x in row] for row in B])
+    return tuple(map(tuple, Phi)), tuple(map(tuple, Gamma))
 
 
 def discretize_zoh(A: "Array", B: "Array", h: float) -> "tuple[Array, Array]":
@@ -328,7 +326,8 @@ def discretize_zoh(A: "Array", B: "Array", h: float) -> "tuple[Array, Array]":
     analyses (numpy arrays; ``scipy.linalg.expm``).
 
     Returns ``(Phi, Gamma)`` with x[k+1] = Phi x[k] + Gamma u[k], from the
-    matrix exponential of the augmented matrix [[A, B], [0, 0]] h.
+    matrix exponential of the augmented matrix [[A, B], [0, 0]] h, with B h scaled as
+    :func:`dronefly.models.linear_algebra.hold_exponential` scales it.
     """
     from scipy.linalg import expm as scipy_expm  # the analyses' API only, as :func:`_numpy`
 
@@ -337,8 +336,11 @@ def discretize_zoh(A: "Array", B: "Array", h: float) -> "tuple[Array, Array]":
     aug = np.zeros((n + m, n + m))
     aug[:n, :n] = A * h
     aug[:n, n:] = B * h
+    k = hold_shift(aug[:n, :n].tolist(), aug[:n, n:].tolist()) if np.all(np.isfinite(aug)) \
+        else 0
+    aug[:n, n:] = np.ldexp(aug[:n, n:], -k)  # B h no larger than A h needs (hold_exponential)
     e = scipy_expm(aug)
-    return e[:n, :n].copy(), e[:n, n:].copy()
+    return e[:n, :n].copy(), np.ldexp(e[:n, n:], k)
 
 
 class ZohModel:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from typing import List, Sequence
 
-__all__ = ["Matrix", "expm", "identity", "matmul", "norm1", "solve"]
+__all__ = ["Matrix", "expm", "hold_exponential", "hold_shift", "identity", "matmul", "norm1", "solve"]
 
 #: a dense matrix as a list of rows
 Matrix = List[List[float]]  # (typing.List: Python 3.8 hosts)
@@ -193,3 +193,83 @@ def expm(a: Sequence[Sequence[float]]) -> Matrix:
         if not all(math.isfinite(x) for row in r for x in row):
             break  # overflowed: stays inf or nan (and fsum would only be slower)
     return r
+
+
+#: the norms that choose the hold's scaling are taken of the entries times 2**-11, so that a
+#: column of up to 2**11 finite entries sums to a finite float (2**11 * 2**1024 * 2**-11)
+_NORM_SHIFT = -11
+
+
+def _shifted_norm(a: Sequence[Sequence[float]]) -> float:
+    """1-norm of ``a`` times 2**_NORM_SHIFT, finite for finite entries (under 2**11 rows)."""
+    return max(_fsum([math.ldexp(abs(x), _NORM_SHIFT) for x in col]) for col in zip(*a))
+
+
+def hold_shift(ah: Sequence[Sequence[float]], bh: Sequence[Sequence[float]]) -> int:
+    """The least k >= 0 for which the 1-norm of B h 2**-k is at most theta_13 2**s_A, where
+    s_A is the number of squarings that :func:`expm` takes for A h alone: B h scaled by
+    2**-k no longer raises them (:func:`hold_exponential`). 0 where B h does not exceed that
+    bound. Finite entries, under 2**11 rows."""
+    cap = math.ldexp(_THETA13, _NORM_SHIFT)  # theta_13 2**s_A, shifted as the norms are
+    norm_a, norm_b = _shifted_norm(ah), _shifted_norm(bh)
+    while norm_a > cap:
+        cap *= 2.0
+    k = 0
+    while norm_b > math.ldexp(cap, k):
+        k += 1
+    return k
+
+
+def hold_exponential(ah: Sequence[Sequence[float]],
+                     bh: Sequence[Sequence[float]]) -> tuple[Matrix, Matrix]:
+    """The blocks Phi = exp(A h) and Gamma = (integral of exp(A s) over [0, h]) B of
+    exp([[A h, B h], [0, 0]]): the zero-order hold of x' = A x + B u over a step h.
+
+    :func:`expm` chooses its squarings from the 1-norm of the whole matrix. Where the columns
+    of B h are far larger than those of A h, that norm would take more squarings than A h
+    needs, and their rounding errors reach Phi (Phi 7.5e-8 off exp(10) for A = 0.5, B = 1e10,
+    h = 20). Gamma is linear in B, so B h is scaled by 2**-k, the least k for which its 1-norm
+    no longer raises the squarings that A h alone needs (it is at most theta_13 2**s_A), and
+    Gamma is scaled back by 2**k: both exact in binary floating point (the scaled entries of B
+    may lose bits only where they become subnormal). Where B h does not exceed that bound,
+    k = 0 and the result is :func:`expm`'s of the augmented matrix, bit for bit. The native
+    FMUs' ``fmu_expm_hold`` (native/expm.c) computes the same operations.
+
+    Parameters
+    ----------
+    ah : (n, n) rows of float
+        A h, finite (unit 1: per wing beat times wing beats in the plants).
+    bh : (n, m) rows of float
+        B h, finite, one row per row of ``ah``.
+
+    Returns
+    -------
+    Phi, Gamma : list of list of float
+        (n, n) and (n, m); entries may be inf or nan where the hold overflows the float range.
+
+    Raises
+    ------
+    ValueError
+        The blocks' shapes do not fit, or an entry is not finite.
+    """
+    n = len(ah)
+    if n == 0 or len(bh) != n or any(len(row) != n for row in ah) or not bh[0] \
+            or any(len(row) != len(bh[0]) for row in bh):
+        raise ValueError(f"hold_exponential needs A h of n x n and B h of n x m, got rows of "
+                         f"lengths {[len(row) for row in ah]} and {[len(row) for row in bh]}")
+    if not all(map(math.isfinite, (x for rows in (ah, bh) for row in rows for x in row))):
+        raise ValueError("expm needs finite entries")
+    m, k = len(bh[0]), hold_shift(ah, bh)
+    aug = [[float(x) for x in ah[i]] + [math.ldexp(float(x), -k) for x in bh[i]]
+           for i in range(n)]
+    aug += [[0.0] * (n + m) for _ in range(m)]
+    e = expm(aug)
+    return [row[:n] for row in e[:n]], [[_ldexp(x, k) for x in row[n:]] for row in e[:n]]
+
+
+def _ldexp(x: float, k: int) -> float:
+    """x 2**k, infinite where it overflows (as C's ldexp; Python's raises)."""
+    try:
+        return math.ldexp(x, k)
+    except OverflowError:
+        return math.copysign(math.inf, x)

@@ -255,3 +255,41 @@ void fmu_expm(const double *a, int n, double *e) {
     for (int i = 0; i < n; i++)
         for (int j = 0; j < n; j++) e[i * n + j] = r[i][j];
 }
+
+/* 1-norm of the rows x cols block at a (row stride `stride`) times 2^NORM_SHIFT: finite for
+ * finite entries, at most EXPM_MAX rows (the Python's _shifted_norm, the same sums) */
+#define NORM_SHIFT (-11)
+static double shifted_norm(const double *a, int rows, int cols, int stride) {
+    double best = 0.0, terms[N];
+    for (int j = 0; j < cols; j++) {
+        for (int i = 0; i < rows; i++) terms[i] = ldexp(fabs(a[i * stride + j]), NORM_SHIFT);
+        double s = fmu_fsum(terms, (size_t)rows);
+        if (j == 0 || s > best) best = s;
+    }
+    return best;
+}
+
+/* The blocks of exp([[A h, B h], [0, 0]]), the Python's hold_exponential operation for
+ * operation: B h scaled by 2^-k, the least k for which its 1-norm does not raise the
+ * squarings that A h alone needs (at most theta_13 2^s_A), and Gamma scaled back by 2^k
+ * (exact in binary floating point; k = 0 wherever B h does not exceed that bound). */
+void fmu_expm_hold(const double *ah, const double *bh, int n, int m, double *phi,
+                   double *gamma) {
+    double aug[N * N], e[N * N];
+    const int w = n + m;
+    double cap = ldexp(THETA13, NORM_SHIFT);
+    double norm_a = shifted_norm(ah, n, n, n), norm_b = shifted_norm(bh, n, m, m);
+    int k = 0;
+    while (norm_a > cap) cap *= 2.0;
+    while (norm_b > ldexp(cap, k)) k++;
+    memset(aug, 0, sizeof aug);
+    for (int i = 0; i < n; i++) {
+        for (int j = 0; j < n; j++) aug[i * w + j] = ah[i * n + j];
+        for (int j = 0; j < m; j++) aug[i * w + n + j] = ldexp(bh[i * m + j], -k);
+    }
+    fmu_expm(aug, w, e);
+    for (int i = 0; i < n; i++) {
+        for (int j = 0; j < n; j++) phi[i * n + j] = e[i * w + j];
+        for (int j = 0; j < m; j++) gamma[i * m + j] = ldexp(e[i * w + n + j], k);
+    }
+}

@@ -9,4 +9,9 @@
 double fmu_fsum(const double *x, size_t n);
 /* exp(a) of the n x n matrix a (row-major, n <= EXPM_MAX, finite entries) into e */
 void fmu_expm(const double *a, int n, double *e);
+/* Phi (n x n) and Gamma (n x m) of exp([[A h, B h], [0, 0]]) from A h and B h (row-major,
+ * finite entries, n + m <= EXPM_MAX), with B h scaled so that it takes no more squarings than
+ * A h needs (models/linear_algebra.py, hold_exponential) */
+void fmu_expm_hold(const double *ah, const double *bh, int n, int m, double *phi,
+                   double *gamma);
 #endif

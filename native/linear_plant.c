@@ -76,23 +76,27 @@ int model_initialize(Instance *c, char *why) {
 
 /* [Phi, Gamma] of a step of h wing beats: the blocks of exp([[A h, B h], [0, 0]]) */
 static int make_step(PlantState *m, double h, char *why) {
-    double aug[(NX + NU) * (NX + NU)], e[(NX + NU) * (NX + NU)];
-    const int n = NX + NU;
-    memset(aug, 0, sizeof aug);
+    double ah[NX * NX], bh[NX * NU], phi[NX * NX], gamma[NX * NU];
+    int finite = 1;
     for (int i = 0; i < NX; i++) {
-        for (int j = 0; j < NX; j++) aug[i * n + j] = m->A[i][j] * h;
-        for (int j = 0; j < NU; j++) aug[i * n + NX + j] = m->B[i][j] * h;
-    }
-    for (int k = 0; k < n * n; k++)
-        if (!isfinite(aug[k])) {
-            snprintf(why, FMU_WHY, "expm needs finite entries");
-            return 1;
+        for (int j = 0; j < NX; j++) {
+            ah[i * NX + j] = m->A[i][j] * h;
+            if (!isfinite(ah[i * NX + j])) finite = 0;
         }
-    fmu_expm(aug, n, e);
+        for (int j = 0; j < NU; j++) {
+            bh[i * NU + j] = m->B[i][j] * h;
+            if (!isfinite(bh[i * NU + j])) finite = 0;
+        }
+    }
+    if (!finite) {
+        snprintf(why, FMU_WHY, "expm needs finite entries");
+        return 1;
+    }
+    fmu_expm_hold(ah, bh, NX, NU, phi, gamma);
     m->step_finite = 1;
     for (int i = 0; i < NX; i++)
-        for (int j = 0; j < n; j++) {
-            m->M[i][j] = e[i * n + j];
+        for (int j = 0; j < NX + NU; j++) {
+            m->M[i][j] = j < NX ? phi[i * NX + j] : gamma[i * NU + j - NX];
             if (!isfinite(m->M[i][j])) m->step_finite = 0;
         }
     m->h_wb = h;

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm as scipy_expm
 
-from dronefly.models.linear import zoh_rows
+from dronefly.models.linear import discretize_zoh, zoh_rows
 from dronefly.models.linear_algebra import expm, matmul, solve
 from dronefly.models import lateral_dynamics
 from dronefly.models import longitudinal_dynamics
@@ -134,7 +134,7 @@ def test_zero_order_hold_is_the_same_under_another_blas_kernel(tmp_path):
     import sys
 
     code = ("from dronefly.models import lateral_dynamics as m; "
-            "from dronefly.models.linear import zoh_rows; "
+            "from dronefly.models.linear import discretize_zoh, zoh_rows; "
             "A, B = m.system_rows(m.default_parameters()); "
             "print(*[x.hex() for M in zoh_rows(A, B, 0.1) for r in M for x in r])")
     runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -148,3 +148,54 @@ def test_expm_beyond_the_float_range_is_not_finite_rather_than_an_error():
     or keeps the zero state, tests/test_plant_slave.py)."""
     E = expm([[1000.0, 1.0], [0.0, 1000.0]])
     assert not all(math.isfinite(x) for row in E for x in row)
+
+
+@pytest.mark.parametrize("b", [1e10, 1e100, 1e300])
+def test_a_hold_whose_control_matrix_dwarfs_the_system_matrix_is_exact(b):
+    """x' = a x + b u over h = 20 with a = 0.5: Phi = e^(a h) and Gamma = (e^(a h) - 1) b / a
+    (closed form), however large b. The exponential of [[a h, b h], [0, 0]] as it stands would
+    take its squarings from b h (over 30 more than a h = 10 needs) and their rounding reaches Phi
+    (7.5e-8 off at b = 1e10): hold_exponential scales b h down first. Bound: each is a backward-
+    stable exponential of a h, relative error cond(exp, a h) u = |a h| u, with FACTOR's margin."""
+    a, h = 0.5, 20.0
+    Phi, Gamma = zoh_rows([[a]], [[b]], h)
+    phi, gamma = math.exp(a * h), math.expm1(a * h) / a * b
+    assert abs(Phi[0][0] / phi - 1.0) <= FACTOR * U * a * h
+    assert abs(Gamma[0][0] / gamma - 1.0) <= FACTOR * U * a * h
+
+
+@pytest.mark.parametrize("scale", [1e3, 1e12, 1e100])
+@pytest.mark.parametrize("model", [lateral_dynamics, longitudinal_dynamics],
+                         ids=["lateral", "longitudinal"])
+def test_a_plant_with_control_derivatives_far_above_the_paper_keeps_its_phi(model, scale):
+    """The plant's B times ``scale`` over a step of 20 wing beats, through the FMUs' hold
+    (zoh_rows) and the analyses' (discretize_zoh). Oracles: Phi is scipy's
+    exp(A h); Gamma, linear in B, is ``scale`` times scipy's hold at the paper's B (scipy's
+    exponential of the augmented matrix is itself driven by B h: its Phi is 360 u off at 1e12
+    and 1e13 u at 1e100). Each within FACTOR u max(1, ||A h||_1) of its own norm, the
+    conditioning of exp(A h), plus one rounding of the product by ``scale``."""
+    A, B = model.system_rows(model.default_parameters())
+    n, m, h = len(A), len(B[0]), 20.0
+    M = np.zeros((n + m, n + m))
+    M[:n, :n], M[:n, n:] = np.array(A) * h, np.array(B) * h
+    Bs = [[x * scale for x in row] for row in B]
+    bound = FACTOR * U * max(1.0, np.linalg.norm(M[:n, :n], 1)) + U
+    # the FMUs' plain-Python hold, and the analyses' (scipy's expm, B h scaled the same way)
+    for Phi, Gamma in (zoh_rows(A, Bs, h), discretize_zoh(np.array(A), np.array(Bs), h)):
+        assert _rel_error(Phi, scipy_expm(M[:n, :n])) <= bound
+        assert _rel_error(Gamma, scale * scipy_expm(M)[:n, n:]) <= bound
+
+
+@pytest.mark.parametrize("model", [lateral_dynamics, longitudinal_dynamics],
+                         ids=["lateral", "longitudinal"])
+def test_a_hold_whose_control_matrix_does_not_dwarf_the_system_matrix_is_expms(model):
+    """At the paper's parameters B h never raises the squarings (no scaling): the hold is the
+    augmented exponential's blocks bit for bit, over steps of 0.01 to 100 wing beats."""
+    A, B = model.system_rows(model.default_parameters())
+    n, m = len(A), len(B[0])
+    for h in (0.01, 0.1, 1.0, 10.0, 100.0):
+        Phi, Gamma = zoh_rows(A, B, h)
+        E = expm([[x * h for x in A[i]] + [x * h for x in B[i]] for i in range(n)]
+                 + [[0.0] * (n + m) for _ in range(m)])
+        assert [list(r) for r in Phi] == [r[:n] for r in E[:n]], h
+        assert [list(r) for r in Gamma] == [r[n:] for r in E[:n]], h

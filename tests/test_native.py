@@ -230,6 +230,37 @@ def test_expm_in_c_against_python_and_scipy(native_fmus, tmp_path, norm):
         assert rel <= 1e3 * n * _EPS * max(norm, 1.0), (norm, rel)
 
 
+@pytest.mark.parametrize("plant", ("DroneFlyLateral", "DroneFlyLongitudinal"))
+@pytest.mark.parametrize("fmi", (2, 3))
+def test_a_hold_whose_control_derivatives_dwarf_the_plant_is_the_pythons(native_fmus,
+                                                                        python_fmus, fmi,
+                                                                        plant):
+    """Control derivatives 1e12 times the paper's, over steps of 20 wing beats from a
+    non-zero state with a small constant input: B h dwarfs A h, and the hold scales it down
+    (fmu_expm_hold in C, hold_exponential in Python, whose accuracy tests/test_expm.py checks
+    against scipy). Every output equals the pythonfmu plant's bit for bit."""
+    import fmpy
+
+    md = fmpy.read_model_description(str(python_fmus[plant, fmi]))
+    values = {v.name: v for v in md.modelVariables}
+    controls = {v.name for v in md.modelVariables if v.causality == "input"}
+    start = {name: 1e12 * float(v.start) for name, v in values.items()
+             if v.causality == "parameter" and "_" in name and name.endswith("_plus")
+             and any(name.split("_", 1)[1].startswith(c.split("_", 1)[1]) for c in controls)}
+    assert len(start) == 3 * len(controls), sorted(start)  # Y, L, N (X, Z, M) of each
+    start.update({name: 0.01 for name in values if name.endswith("_start")})
+    start.update({name: 1e-13 for name in controls})
+    wing_beat_s = 1.0 / float(values["n"].start)
+    kw = dict(stop_time=30 * 20 * wing_beat_s, output_interval=20 * wing_beat_s,
+              start_values=start)
+    got = fmpy.simulate_fmu(str(native_fmus[plant, fmi]), **kw)
+    want = fmpy.simulate_fmu(str(python_fmus[plant, fmi]), **kw)
+    assert len(got) == 31
+    for name in got.dtype.names[1:]:
+        assert np.array_equal(got[name], want[name]), name
+        assert np.all(np.isfinite(got[name])), name
+
+
 def test_expm_in_c_of_entries_whose_norm_overflows(native_fmus, tmp_path):
     """Finite entries whose 1-norm overflows (a column of two 1e308; converting the infinite
     log2 to int would be undefined behaviour): exp(N) = I + N exactly for this nilpotent N,
@@ -450,8 +481,9 @@ int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a
 #: this file's cases that run native code, rerun on sanitized binaries
 #: (the cases that also run the pythonfmu twins run them in a Python whose every allocation goes
 #: through the sanitizer: a few only)
-_SANITIZED_CASES = ("expm or state_get or delay_line or reproduces and DroneFlyLateral or "
-                    "aerodynamics or variants and sampled-delayed-integral-2")
+_SANITIZED_CASES = ("expm or dwarf and 2-DroneFlyLateral or state_get or delay_line or "
+                    "reproduces and DroneFlyLateral or aerodynamics or "
+                    "variants and sampled-delayed-integral-2")
 
 
 @pytest.mark.skipif(_SANITIZE, reason="(this is the run the test starts)")

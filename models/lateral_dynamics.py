@@ -216,6 +216,7 @@ class LateralModel(ZohModel):
     """
 
     A_NAME = "A1"
+    B_NAME = "B1"
 
     def __init__(self, params: LateralParameters) -> None:
         self.params = params

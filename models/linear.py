@@ -363,6 +363,7 @@ class ZohModel:
     _CACHE_SIZE = 16
     #: how messages name the system matrix (the paper's symbol)
     A_NAME = "A"
+    B_NAME = "B"
 
     def __init__(self, A: Any, B: Any) -> None:
         self.A_rows, self.B_rows = _rows(A), _rows(B)
@@ -413,14 +414,22 @@ class ZohModel:
         Raises
         ------
         ValueError
-            exp(A h) overflows and the state is not zero (the zero state stays zero).
+            The hold of ``h`` overflows (exp(A h), or only Gamma where B h is too large) and
+            the state or the controls are not zero (the zero state stays zero).
         """
         product = self._products.get(h)
         if product is None:
             product = self._product(h)
-        if product is False:  # exp(A h) overflows: only the zero solution is representable
+        if product is False:  # Phi or Gamma overflows: only the zero solution is representable
             if not any(x) and not any(u):
                 return [0.0] * len(x)
+            if all(math.isfinite(v) for row in self.transition_rows(h)[0] for v in row):
+                raise ValueError(
+                    f"a step of {h!r} wing beats overflows the hold of the controls (Gamma = "
+                    f"the integral of exp({self.A_NAME} s) over the step, times "
+                    f"{self.B_NAME}; exp({self.A_NAME} h) is finite, {self.B_NAME} h too large "
+                    f"for the float range), so only the zero state has a representable result; "
+                    f"take shorter steps or smaller control derivatives")
             growth = self._growth_rate(h)
             raise ValueError(
                 f"a step of {h!r} wing beats overflows exp({self.A_NAME} h) (fastest growth "

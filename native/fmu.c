@@ -47,14 +47,26 @@ static const char *const MODE_NAMES[] = {"instantiated", "initialization", "step
 
 /* ---- messages ---------------------------------------------------------------------- */
 void fmu_repr(char *buf, size_t n, double x) {
+    /* Python's repr: the shortest digits that read back; positional where the decimal
+     * exponent is in [-4, 16), with a point (1000.0, 0.0001), else 1e+16 and 1e-05 */
     if (n == 0) return;
     if (isnan(x)) { snprintf(buf, n, "nan"); return; }
     if (isinf(x)) { snprintf(buf, n, x > 0 ? "inf" : "-inf"); return; }
-    for (int digits = 1; digits <= 17; digits++) { /* the shortest that reads back */
-        snprintf(buf, n, "%.*g", digits, x);
-        if (strtod(buf, NULL) == x) break;
+    char e_form[40];
+    int digits = 1;
+    for (; digits <= 17; digits++) {
+        snprintf(e_form, sizeof e_form, "%.*e", digits - 1, x);
+        if (strtod(e_form, NULL) == x) break;
     }
-    if (!strpbrk(buf, ".e")) { /* Python writes a float with a point: 1.0 */
+    if (digits > 17) digits = 17;
+    int exponent = atoi(strchr(e_form, 'e') + 1);
+    if (exponent < -4 || exponent >= 16) {
+        snprintf(buf, n, "%s", e_form);
+        return;
+    }
+    int decimals = digits - 1 - exponent;
+    snprintf(buf, n, "%.*f", decimals > 0 ? decimals : 0, x);
+    if (!strchr(buf, '.')) {
         size_t len = strlen(buf);
         if (len + 2 < n) { buf[len] = '.'; buf[len + 1] = '0'; buf[len + 2] = '\0'; }
     }

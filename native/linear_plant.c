@@ -94,10 +94,14 @@ static int make_step(PlantState *m, double h, char *why) {
     }
     fmu_expm_hold(ah, bh, NX, NU, phi, gamma);
     m->step_finite = 1;
+    m->phi_finite = 1;
     for (int i = 0; i < NX; i++)
         for (int j = 0; j < NX + NU; j++) {
             m->M[i][j] = j < NX ? phi[i * NX + j] : gamma[i * NU + j - NX];
-            if (!isfinite(m->M[i][j])) m->step_finite = 0;
+            if (!isfinite(m->M[i][j])) {
+                m->step_finite = 0;
+                if (j < NX) m->phi_finite = 0;
+            }
         }
     m->h_wb = h;
     m->has_step = 1;
@@ -125,8 +129,16 @@ int model_advance(Instance *c, double t, double h_s, char *why, int *warned) {
         }
         char hb[32];
         fmu_repr(hb, sizeof hb, h);
-        snprintf(why, FMU_WHY, "a step of %s wing beats overflows exp(%s h), so only the zero "
-                 "state has a representable result; take shorter steps", hb, PLANT_A_NAME);
+        if (m->phi_finite)
+            snprintf(why, FMU_WHY, "a step of %s wing beats overflows the hold of the controls "
+                     "(Gamma = the integral of exp(%s s) over the step, times %s; exp(%s h) is "
+                     "finite, %s h too large for the float range), so only the zero state has a "
+                     "representable result; take shorter steps or smaller control derivatives",
+                     hb, PLANT_A_NAME, PLANT_B_NAME, PLANT_A_NAME, PLANT_B_NAME);
+        else
+            snprintf(why, FMU_WHY, "a step of %s wing beats overflows exp(%s h), so only the "
+                     "zero state has a representable result; take shorter steps", hb,
+                     PLANT_A_NAME);
         return 1;
     }
     for (int i = 0; i < NX; i++) {

@@ -19,7 +19,8 @@ typedef struct {
     double n, scale[PLANT_NX];
     int has_step;                        /* M holds the step of h_wb wing beats */
     double h_wb;
-    int step_finite;                     /* M is finite (exp(A h) does not overflow) */
+    int step_finite;                     /* M is finite (Phi and Gamma do not overflow) */
+    int phi_finite;                      /* Phi = exp(A h) is finite (else Gamma alone is not) */
     double M[PLANT_NX][PLANT_NX + PLANT_NU]; /* [Phi, Gamma] */
 } PlantState;
 

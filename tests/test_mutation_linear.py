@@ -119,6 +119,20 @@ def test_an_overflowing_step_names_the_growth_rate_and_the_longest_step():
     assert model.step_list([0.0, 0.0], [0.0], 2000.0) == [0.0, 0.0]  # zero stays zero
 
 
+def test_a_step_whose_control_hold_alone_overflows_says_so():
+    """A = 0.5, B = 1e300, h = 1000: exp(A h) = e^500 is finite (1.4e217), Gamma = (e^500 - 1)
+    B / A is not. The refusal names Gamma and B, not exp(A h); zero stays zero."""
+    model = linear.ZohModel([[0.5]], [[1e300]])
+    Phi, Gamma = model.transition_rows(1000.0)
+    assert math.isfinite(Phi[0][0]) and math.isinf(Gamma[0][0])
+    with pytest.raises(ValueError, match=re.escape(
+            "a step of 1000.0 wing beats overflows the hold of the controls (Gamma = the "
+            "integral of exp(A s) over the step, times B; exp(A h) is finite, B h too large "
+            "for the float range)")):
+        model.step_list([1.0], [0.0], 1000.0)
+    assert model.step_list([0.0], [0.0], 1000.0) == [0.0]
+
+
 @pytest.mark.parametrize("n, m", _SHAPES)
 def test_the_stepper_declines_outputs_whose_sum_overflows(n, m):
     """The documented screen: None also where the outputs are finite but their plain sum

@@ -310,6 +310,53 @@ def test_the_same_refusals_with_the_same_message(native_fmus, python_fmus, name,
     assert [m.split(": ", 1)[1] for m in got[1]] == [m.split(": ", 1)[1] for m in want[1]]
 
 
+def _gamma_overflow(s, fmu):
+    """A control derivative of 1e290 and a step of 1000 wing beats: exp(A1 h) is finite (the
+    fastest growth, 0.079 per wing beat, gives e^79), Gamma = (integral of exp(A1 s)) B1 is not."""
+    s.setReal([fmu.vr("L_Phi_a_plus"), fmu.vr("delta_Phi_a")], [1e290, 0.1])
+    return 0.0, 1000.0 / float(fmu.variables["n"].start)
+
+
+@pytest.mark.parametrize("fmi", (2, 3))
+def test_an_overflowing_hold_of_the_controls_is_refused_as_the_pythonfmu_plant_refuses(
+        native_fmus, python_fmus, fmi):
+    """Where only Gamma overflows, the refusal says so (not that exp(A1 h) overflows, which is
+    finite), in C as in Python: the same status and message."""
+    got = _run_messages(native_fmus["DroneFlyLateral", fmi], fmi, _gamma_overflow)
+    want = _run_messages(python_fmus["DroneFlyLateral", fmi], fmi, _gamma_overflow)
+    assert got[0] == want[0] != 0
+    assert any("overflows the hold of the controls" in m and "exp(A1 h) is finite" in m
+               for m in got[1]), got[1]
+    assert [m.split(": ", 1)[1] for m in got[1]] == [m.split(": ", 1)[1] for m in want[1]]
+
+
+def _initialization_messages(path: Path, name: str, value: float) -> tuple[list[int], list[str]]:
+    """Statuses of setReal(``name`` = ``value``) before initialization and of entering and
+    leaving Initialization Mode, and the messages logged (the instance name cut off)."""
+    from dronefly.harness.compliance.fuzzkit import status_of
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(path) as fmu, fmu.instantiate("probe") as inst:
+        s = inst.slave
+        s.setupExperiment(startTime=0.0)
+        statuses = [status_of(lambda: s.setReal([fmu.vr(name)], [value])),
+                    status_of(s.enterInitializationMode), status_of(s.exitInitializationMode)]
+        return statuses, [m.message.split(": ", 1)[1] for m in inst.messages]
+
+
+@pytest.mark.parametrize("value", (-1000.0, -1e-05, -0.0001, -1e16, -1e15, -123.456, -0.1,
+                                   -2.5e-07, -1e300, -5e-324, -1.7976931348623157e308, 0.0,
+                                   -0.0, -123456789012.25, -3.0000000000000004))
+def test_a_refused_value_is_written_as_python_writes_it(native_fmus, python_fmus, value):
+    """The native FMUs write the values their messages name as Python's repr does (shortest
+    digits that read back; positional from 1e-4 to below 1e16, with a point; else 1e+16,
+    1e-05): the longitudinal plant refusing m_plus <= 0 logs the pythonfmu plant's message."""
+    got = _initialization_messages(native_fmus["DroneFlyLongitudinal", 2], "m_plus", value)
+    want = _initialization_messages(python_fmus["DroneFlyLongitudinal", 2], "m_plus", value)
+    assert any(f"m_plus = {value!r} must be > 0" in m for m in got[1]), got[1]
+    assert got == want
+
+
 @pytest.mark.parametrize("fmi", (2, 3))
 @pytest.mark.parametrize("name", ("DroneFlyLateral", "DroneFlyHover6DOF"))
 def test_state_get_set_serialize_and_reset(native_fmus, name, fmi):
@@ -481,7 +528,8 @@ int canary(int n) { int *a = (int *)malloc(4 * sizeof(int)); a[n] = 1; int v = a
 #: this file's cases that run native code, rerun on sanitized binaries
 #: (the cases that also run the pythonfmu twins run them in a Python whose every allocation goes
 #: through the sanitizer: a few only)
-_SANITIZED_CASES = ("expm or dwarf and 2-DroneFlyLateral or state_get or delay_line or "
+_SANITIZED_CASES = ("expm or dwarf and 2-DroneFlyLateral or written_as_python or "
+                    "overflowing_hold or state_get or delay_line or "
                     "reproduces and DroneFlyLateral or aerodynamics or "
                     "variants and sampled-delayed-integral-2")
 

@@ -9,6 +9,7 @@
 #define PLANT_A0 VR_A_1_1
 #define PLANT_B0 VR_B_1_1
 #define PLANT_A_NAME "A"
+#define PLANT_B_NAME "B"
 /* x = x+ * scale: delta_u and delta_w by U, delta_q by n, delta_theta by 1 */
 #define PLANT_SCALES {SCALE_U, SCALE_U, SCALE_N, SCALE_ONE}
 #include "linear_plant.h"

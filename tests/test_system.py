@@ -168,15 +168,20 @@ def test_three_fmus_with_a_foreign_one_in_the_loop(built_fmus, gain, plant, cont
     np.testing.assert_array_equal(run.signals, ref.signals[:, :4])
 
 
-def _write_ssp(system: System, path: Path) -> Path:
-    """A hand-written SSP (SSD + one SSV per instance) of a system: a foreign writer."""
+def _write_ssp(system: System, path: Path, prefixed: bool = False) -> Path:
+    """A hand-written SSP (SSD + one SSV per instance) of a system: a foreign writer.
+    ``prefixed``: each SSV names its parameters ``<instance>.NAME`` and the binding declares
+    the prefix ``<instance>.`` (SSP 1.0 ParameterBinding prefix, removed by the reader)."""
     comps, ssvs = [], {}
     for inst, fmu in system.fmus.items():
+        prefix = f"{inst}." if prefixed else ""
+        attr = f' prefix="{prefix}"' if prefixed else ""
         comps.append(f'<ssd:Component name="{inst}" source="resources/{fmu.name}" '
                      f'type="application/x-fmu-sharedlibrary"><ssd:ParameterBindings>'
-                     f'<ssd:ParameterBinding source="resources/{inst}.ssv"/>'
+                     f'<ssd:ParameterBinding source="resources/{inst}.ssv"{attr}/>'
                      f'</ssd:ParameterBindings></ssd:Component>')
-        params = "".join(f'<ssv:Parameter name="{k}"><ssv:Real value="{v!r}"/></ssv:Parameter>'
+        params = "".join(f'<ssv:Parameter name="{prefix}{k}"><ssv:Real value="{v!r}"/>'
+                         '</ssv:Parameter>'
                          for k, v in system.parameters.get(inst, {}).items())
         ssvs[inst] = ('<?xml version="1.0" encoding="UTF-8"?><ssv:ParameterSet version="1.0" '
                       f'name="{inst}" xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">'
@@ -205,6 +210,16 @@ def test_ssp_and_python_give_the_same_trajectory(built_fmus, gain, tmp_path):
     assert ra.complete and rb.complete
     np.testing.assert_allclose(rb.signals, ra.signals, rtol=1e-12, atol=0)
     assert np.max(np.abs(ra.signals)) > 0.05  # it moved
+
+
+def test_a_binding_prefix_is_removed_from_the_parameter_names(built_fmus, gain, tmp_path):
+    """SSP 1.0: a ParameterBinding's prefix is removed from the names of its parameter values;
+    the system read back binds each value to the FMU variable it names."""
+    system = _three(built_fmus, gain)
+    assert any(system.parameters.values())
+    from_ssp = System.from_ssp(_write_ssp(system, tmp_path / "three.ssp", prefixed=True))
+    assert {k: v for k, v in from_ssp.parameters.items() if v} == \
+        {k: v for k, v in system.parameters.items() if v}
 
 
 def test_algebraic_loop_is_refused_with_its_cycle_and_runs_under_jacobi(gain):

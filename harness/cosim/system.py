@@ -153,9 +153,11 @@ class System:
                                       f"{str(e.source)!r}, which the SSP does not contain")
             values = {}
             for binding in e.parameterBindings or []:
+                prefix = binding.prefix or ""  # SSP 1.0: removed from the names it binds
                 for pset in binding.parameterValues or []:
                     for p in pset.parameters:
-                        values[p.name] = _ssv_value(p)
+                        name = p.name[len(prefix):] if p.name.startswith(prefix) else p.name
+                        values[name] = _ssv_value(p)
             if values:
                 params[e.name] = values
         cons = [Connection(c.startElement, c.startConnector, c.endElement, c.endConnector)

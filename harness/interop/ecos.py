@@ -40,11 +40,9 @@ import signal
 import subprocess
 import sys
 import tempfile
-import zipfile
 from importlib import metadata
 from pathlib import Path
-from typing import Mapping
-from xml.etree import ElementTree as ET
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -52,7 +50,7 @@ from ..builder.closedloop import plant_md_scales
 from ...models.lateral_interface import STATE_NAMES
 from ..cosim.fmu3 import read_view
 from ..cosim.master import CoSimError
-from ..cosim.ssp import SSD_NS
+from ..cosim.system import System, SystemSpecError
 from ..cosim.identification import Verdict, unit_start_values, verdict_of
 from .libcosim import InteropRun
 from .ssp import ssp_parameter_set
@@ -148,31 +146,29 @@ def ecos_available() -> str | None:
     return None
 
 
-def _component(ssp: Path, name: str) -> ET.Element:
-    """The SSD's ``Component`` element of that name."""
-    with zipfile.ZipFile(ssp) as z:
-        root = ET.fromstring(z.read("SystemStructure.ssd"))
-    for comp in root.iter(f"{{{SSD_NS}}}Component"):
-        if comp.get("name") == name:
-            return comp
-    raise CoSimError(f"the SSP {str(ssp)!r} has no component {name!r}")
+def _plant_md(ssp: Path, plant: str) -> Any:
+    """The model description of the SSP component ``plant``'s FMU (the one SSP reader,
+    :meth:`System.from_ssp`)."""
+    try:
+        system = System.from_ssp(ssp)
+    except SystemSpecError as e:
+        raise CoSimError(str(e)) from e
+    if plant not in system.fmus:
+        raise CoSimError(f"the SSP {str(ssp)!r} has no component {plant!r}")
+    return read_view(system.fmus[plant])
 
 
 def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
-    """The plant component's output and input connector names, in SSD order."""
-    cons = list(_component(ssp, plant).iter(f"{{{SSD_NS}}}Connector"))
-    return ([c.get("name") for c in cons if c.get("kind") == "output"],
-            [c.get("name") for c in cons if c.get("kind") == "input"])
+    """The plant's output and input names, in the order of its FMU's model description (the
+    order of the connectors that the project's SSP writer declares)."""
+    variables = _plant_md(ssp, plant).modelVariables
+    return ([v.name for v in variables if v.causality == "output"],
+            [v.name for v in variables if v.causality == "input"])
 
 
 def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
     """n [Hz] and the state scales of the plant component's FMU."""
-
-    source = _component(ssp, plant).get("source")
-    with zipfile.ZipFile(ssp) as z, tempfile.TemporaryDirectory(prefix="dronefly_ecos_") as tmp:
-        fmu = Path(tmp, "plant.fmu")
-        fmu.write_bytes(z.read(source))
-        return plant_md_scales(read_view(fmu))
+    return plant_md_scales(_plant_md(ssp, plant))
 
 
 def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],

@@ -8,8 +8,8 @@
     (SSP 1.0 ParameterBinding; names are the FMU's variable names). fmpy's ``simulate_ssp``
     does not apply an SSD's bindings itself; it takes one parameter set with hierarchical
     names (``plant.delta_gamma_start``, ``controller.K[1,1]``), so :func:`ssp_parameter_set`
-    reads the bound sets with fmpy's ``read_ssd`` and prefixes each name with its component's
-    name. libcosim (``CosimExecution.from_ssp_file``) applies component bindings itself and
+    reads the bound sets with the project's one SSP reader (:meth:`System.from_ssp`) and
+    prefixes each name with its component's name. libcosim (``CosimExecution.from_ssp_file``) applies component bindings itself and
     runs the same file; a system-level binding it would ignore.
 
 ``build/fmi3/DroneFlyClosedLoop.ssp`` is the same system of the FMI 3.0 FMUs (SSD and SSV files
@@ -20,73 +20,66 @@ every FMU as FMI 2.0), so :func:`run_ssp` refuses it; docs/fmi3.md says what Eco
 
 from __future__ import annotations
 
-import io
-import re
-import tempfile
-import zipfile
 from pathlib import Path
-from typing import Mapping
-from xml.etree import ElementTree as ET
+from typing import Any, Mapping
 
 import numpy as np
 from fmpy.ssp.simulation import simulate_ssp
-from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
+from fmpy.ssp.ssd import Parameter, ParameterSet
 
-from ..builder.closedloop import CLOSED_LOOP, PLANT, plant_md_scales
+from ..builder.closedloop import CLOSED_LOOP, plant_md_scales
 from ...models.lateral_interface import STATE_NAMES
 from ..cosim.fmu3 import read_view
 from ..cosim.master import CoSimError
-from ..cosim.ssp import SSD_NS
+from ..cosim.system import System, SystemSpecError
 from ..cosim.identification import Verdict, unit_start_values, verdict_of
 
-__all__ = ["run_ssp", "ssp_parameter_set", "ssp_verdict"]
+__all__ = ["PLANT_INSTANCE", "run_ssp", "ssp_parameter_set", "ssp_verdict"]
+
+#: the closed loop's plant component (docs: ``plant`` and ``controller``)
+PLANT_INSTANCE = "plant"
 
 
 def ssp_parameter_set(ssp: str | Path):
-    """One fmpy ``ParameterSet`` of every component binding of the SSP, named
-    ``<component>.<variable>`` as fmpy's ``simulate_ssp`` expects."""
+    """One fmpy ``ParameterSet`` of every component binding of the SSP (read by
+    :meth:`System.from_ssp`, which validates the SSD and the SSV files against the SSP 1.0
+    schema and removes each binding's prefix), named ``<component>.<variable>`` as fmpy's
+    ``simulate_ssp`` expects."""
 
-    ssd = read_ssd(str(ssp))  # validates the SSD and the SSV files against the SSP 1.0 schema
+    system, _ = _read(ssp)
     merged = ParameterSet(name=CLOSED_LOOP)
-    for comp in find_components(ssd.system):
-        for binding in comp.parameterBindings:
-            prefix = binding.prefix or ""
-            for pset in binding.parameterValues:
-                for p in pset.parameters:
-                    name = p.name[len(prefix):] if p.name.startswith(prefix) else p.name
-                    merged.parameters.append(Parameter(name=f"{comp.name}.{name}", type=p.type,
-                                                       value=p.value, unit=p.unit))
+    for inst, values in system.parameters.items():
+        for name, value in values.items():
+            merged.parameters.append(Parameter(name=f"{inst}.{name}",
+                                               type=_SSV_TYPES[type(value)], value=value))
     return merged
 
 
-def _ssp_step_stop(ssp: str | Path) -> tuple[float, float]:
-    with zipfile.ZipFile(ssp) as z:
-        root = ET.fromstring(z.read("SystemStructure.ssd"))
-    stop = float(root.find(f"{{{SSD_NS}}}DefaultExperiment").get("stopTime"))
-    with zipfile.ZipFile(ssp) as z:
-        n = plant_md_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))[0]
-    return 0.1 / n, stop
+#: the SSV type of a value as :meth:`System.from_ssp` reads it
+_SSV_TYPES = {float: "Real", int: "Integer", bool: "Boolean", str: "String"}
 
 
-def _fmi_versions(ssp: str | Path) -> dict[str, str]:
-    """fmiVersion of every FMU in the SSP's resources, by file name."""
-
-    out = {}
-    with zipfile.ZipFile(ssp) as z:
-        for name in z.namelist():
-            if name.startswith("resources/") and name.endswith(".fmu"):
-                with zipfile.ZipFile(io.BytesIO(z.read(name))) as fmu:
-                    head = fmu.read("modelDescription.xml")[:4096].decode("utf-8", "replace")
-                m = re.search(r'fmiVersion\s*=\s*"([^"]*)"', head)
-                out[name[len("resources/"):]] = m.group(1) if m else "?"
-    return out
+def _read(ssp: str | Path) -> tuple[System, dict[str, Any]]:
+    """The SSP through the project's one reader (:meth:`System.from_ssp`), and the model
+    description of each component's FMU, by instance (FMI 3.0 ones as the harness's view)."""
+    try:
+        system = System.from_ssp(ssp)
+    except SystemSpecError as e:
+        raise CoSimError(str(e)) from e
+    return system, {inst: read_view(path) for inst, path in system.fmus.items()}
 
 
-def _md_from_bytes(data: bytes):
-    with tempfile.TemporaryDirectory(prefix="dronefly_md_") as tmp:
-        p = Path(tmp, "x.fmu")
-        p.write_bytes(data)
-        return read_view(p)
+def _plant_step_stop(ssp: str | Path) -> tuple[float, float, np.ndarray, float]:
+    """The plant component's n [Hz] and state scales, the default step (0.1 wing beat, s) and
+    the SSD's DefaultExperiment stop time, s."""
+    system, mds = _read(ssp)
+    if PLANT_INSTANCE not in mds:
+        raise CoSimError(f"the SSP {str(ssp)!r} has no component {PLANT_INSTANCE!r} "
+                         f"(components: {', '.join(mds)})")
+    if system.stop_s is None:
+        raise CoSimError(f"the SSP {str(ssp)!r} gives no DefaultExperiment stopTime")
+    n, scale = plant_md_scales(mds[PLANT_INSTANCE])
+    return n, scale, 0.1 / n, system.stop_s
 
 
 def run_ssp(ssp: str | Path, *, step_s: float | None = None, stop_s: float | None = None,
@@ -103,11 +96,13 @@ def run_ssp(ssp: str | Path, *, step_s: float | None = None, stop_s: float | Non
     u_k = K x_(k-1) for k >= 2, with u_0 = u_1 = 0 (the controller sees 0 in its first step).
     """
 
-    fmi3 = [name for name, version in _fmi_versions(ssp).items() if version.startswith("3")]
+    system, mds = _read(ssp)
+    fmi3 = [system.fmus[inst].name for inst, md in mds.items()
+            if str(md.fmiVersion).startswith("3")]
     if fmi3:  # fmpy/ssp/simulation.py instantiates every FMU as an FMU2Slave
         raise CoSimError(f"fmpy's simulate_ssp runs FMI 2.0 FMUs only, and {str(ssp)!r} holds "
                          f"FMI 3.0 ones ({', '.join(fmi3)}): run it with dronefly cosim --system")
-    d_step, d_stop = _ssp_step_stop(ssp)
+    _, _, d_step, d_stop = _plant_step_stop(ssp)
     pset = ssp_parameter_set(ssp)
     for name, value in (overrides or {}).items():
         hits = [p for p in pset.parameters if p.name == name]
@@ -136,9 +131,7 @@ def ssp_verdict(ssp: str | Path, n_steps: int = 20) -> Verdict:
         The fit's residual exceeds :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`
         (the runs are not the loop identified, e.g. a controller with a sensing delay).
     """
-    d_step, _ = _ssp_step_stop(ssp)
-    with zipfile.ZipFile(ssp) as z:
-        n, scale = plant_md_scales(_md_from_bytes(z.read(f"resources/{PLANT}.fmu")))
+    n, scale, d_step, _ = _plant_step_stop(ssp)
     runs = []
     for start in unit_start_values(scale, prefix="plant."):
         res = run_ssp(ssp, stop_s=(n_steps + 0.5) * d_step, overrides=start)

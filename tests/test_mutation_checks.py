@@ -7,6 +7,7 @@ the model description), and defects seeded by hand. No FMU is built: a mutant co
 
 from __future__ import annotations
 
+import dataclasses
 import zipfile
 from pathlib import Path
 from types import SimpleNamespace
@@ -131,6 +132,8 @@ _FILES2 = ("binaries/linux64/m.so", "binaries/win64/m.dll", "binaries/darwin64/m
            "binaries/linux32/", "binaries/linux32/other.so", "binaries/linux64/x/m.so",
            "binaries/Linux64/m.so",  # no system "Linux": no binary, an unknown folder
            "binaries/x86_64-linux/m.so", "documentation/m.so",
+           "resources/linux/m.so", "documentation/win64/m.dll",  # 2.3: only binaries/ holds binaries
+           "binaries//m.so",  # a folder with no name is no platform folder either
            "sources/")
 
 
@@ -138,12 +141,14 @@ def test_layout_fmi2_reads_binaries_by_platform_folder(tmp_path):
     lay = static.layout(_archive(tmp_path, _xml(2), _FILES2), 2)
     assert lay.binaries == {"linux64": ["m"], "win64": ["m"], "darwin64": ["m"],
                             "linux32": ["other"], "x86_64-linux": ["m"]}
-    assert lay.unknown_platforms == ["Linux64", "x86_64-linux"]  # each once, in order
+    assert lay.unknown_platforms == ["Linux64", "x86_64-linux", ""]  # each once, in order
     assert lay.sources is False  # an empty folder is no sources
     assert lay.here == platform == "linux64"
     assert lay.runs_here("m") and not lay.runs_here("other")
     assert lay.platforms_with("m") == ["darwin64", "linux64", "win64", "x86_64-linux"]
     assert lay.platforms_with("nothing") == []
+    with pytest.raises(dataclasses.FrozenInstanceError):  # what the archive holds: a value
+        lay.sources = True  # type: ignore[misc]
 
 
 def test_layout_fmi3_platform_tuples(tmp_path):

@@ -66,6 +66,7 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/structure.py": [_COMPLIANCE],
     # the checks that read an archive or call a binary, on tiny archives and stub contexts
     "harness/compliance/static.py": [_CHECKS],
+    "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -46,10 +46,11 @@ def _xml(fmi: int = 2, variables: str | None = None, structure: str | None = Non
             f'<ModelStructure>\n{structure}\n</ModelStructure>\n</fmiModelDescription>\n')
 
 
-def _archive(tmp_path: Path, xml: str, files=("sources/m.c",), name: str = "m.fmu") -> Path:
+def _archive(tmp_path: Path, xml: str | None, files=("sources/m.c",), name: str = "m.fmu") -> Path:
     path = tmp_path / name
     with zipfile.ZipFile(path, "w") as z:
-        z.writestr("modelDescription.xml", xml)
+        if xml is not None:
+            z.writestr("modelDescription.xml", xml)
         for f in files:
             z.writestr(f, "")
     return path
@@ -225,3 +226,71 @@ def test_cannot_run_says_why_the_fmu_cannot_run_here(tmp_path):
                               '<CoSimulation modelIdentifier="c"/>')
     assert why(("binaries/linux64/e.so",), xml=both, name="g.fmu") == \
         "cannot run on linux64: no implementation (see archive)"
+
+
+# --- names.py: validate_fmu, FMPy's validate_fmu with the names decided here -------------------
+
+def _same_as_fmpys(path) -> list[str]:
+    """Our problems of ``path``, checked against FMPy's own validation of it (the oracle: the
+    same problems in the same words; FMPy leaves out an archive's backslash paths when the
+    description fails)."""
+    import fmpy.validation
+
+    ours, theirs = names.validate_fmu(str(path)), fmpy.validation.validate_fmu(str(path))
+    assert sorted(ours) == sorted(theirs), (ours, theirs)
+    return ours
+
+
+def test_flat_names_must_not_hold_a_carriage_return_line_feed_or_tab(tmp_path):
+    # FMI 2.0 2.2.9: a flat name is any Unicode string without CR (#xD), LF (#xA) nor tab (#x9)
+    variables = _OUT2 + "".join(
+        f'<ScalarVariable name="{n}" valueReference="{k}"><Real/></ScalarVariable>'
+        for k, n in ((2, "a&#13;b"), (3, "c&#10;d"), (4, "e&#9;f"), (5, "g h.'i'[1]"),
+                     (6, "&#9;x&#10;"), (7, "1x")))
+    got = _same_as_fmpys(_archive(tmp_path, _xml(2, variables)))
+    assert sorted(p.split(" contains an illegal ")[1] for p in got) == sorted([
+        "carriage return character (U+000D).", "line feed character (U+000A).",
+        "tab character (U+0009).", "line feed character (U+000A).", "tab character (U+0009)."])
+    assert all(p.startswith('Variable "') for p in got)
+
+
+def test_structured_names_outside_the_grammar_are_listed(tmp_path):
+    variables = _OUT2 + "".join(
+        f'<ScalarVariable name="{n}" valueReference="{k}"><Real/></ScalarVariable>'
+        for k, n in ((2, "1x"), (3, "a.b[1,2]"), (4, "der(a.b)"), (5, "a b")))
+    got = names.validate_fmu(str(_archive(tmp_path, _xml(
+        2, variables, naming='variableNamingConvention="structured"'))))
+    assert [p.split(" (line ")[0] for p in got] == ['"1x"', '"a b"']
+    assert all(p.endswith('is not a legal variable name for naming convention "structured".')
+               for p in got)
+
+
+def test_a_schema_violation_is_listed_alone_as_fmpy_lists_it(tmp_path):
+    """FMPy checks the names in the pass after the schema: a description that fails the schema
+    lists the schema's problems, not the names'."""
+    variables = _OUT2 + ('<ScalarVariable name="1x" valueReference="2" bogus="1"><Real/>'
+                         '</ScalarVariable>')
+    got = _same_as_fmpys(_archive(tmp_path, _xml(
+        2, variables, naming='variableNamingConvention="structured"')))
+    assert got and not any("legal variable name" in p for p in got)
+    assert any("bogus" in p for p in got), got
+
+
+def test_a_backslash_in_an_archive_path_is_listed(tmp_path):
+    # a zip file's paths are separated by "/" (FMPy's rule, ZIP's APPNOTE 4.4.17)
+    path = _archive(tmp_path, _xml(2), ("sources\\m.c", "sources/n.c"))
+    assert _same_as_fmpys(path) == ['The file path "sources\\m.c" contains a backslash.']
+    # kept beside the description's problems (FMPy's validate_fmu drops it there)
+    path = _archive(tmp_path, _xml(2, structure=""), ("sources\\m.c",), "b.fmu")
+    got = names.validate_fmu(str(path))
+    assert got[0] == 'The file path "sources\\m.c" contains a backslash.' and len(got) > 1
+
+
+def test_an_extracted_fmu_and_an_unreadable_one(tmp_path):
+    folder = tmp_path / "extracted"
+    folder.mkdir()
+    (folder / "modelDescription.xml").write_text(_xml(2))
+    assert _same_as_fmpys(folder) == []
+    # an archive without modelDescription.xml: FMPy's failure, as text
+    got = _same_as_fmpys(_archive(tmp_path, None, ("sources/m.c",), "none.fmu"))
+    assert len(got) == 1 and "modelDescription.xml" in got[0], got

@@ -67,6 +67,8 @@ TARGETS: dict[str, list[str]] = {
     # the checks that read an archive or call a binary, on tiny archives and stub contexts
     "harness/compliance/static.py": [_CHECKS],
     "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],
+    # stub libraries and slaves, and the Reference-FMUs' Dahlquist loaded in-process
+    "harness/compliance/binary.py": [_CHECKS],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -7,6 +7,7 @@ the model description), and defects seeded by hand. No FMU is built: a mutant co
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import zipfile
 from pathlib import Path
@@ -16,7 +17,7 @@ import pytest
 
 from fmpy import platform, platform_tuple, read_model_description
 
-from dronefly.harness.compliance import names, static
+from dronefly.harness.compliance import binary, names, static
 from dronefly.harness.compliance.rules import CheckFailed
 
 
@@ -294,3 +295,343 @@ def test_an_extracted_fmu_and_an_unreadable_one(tmp_path):
     # an archive without modelDescription.xml: FMPy's failure, as text
     got = _same_as_fmpys(_archive(tmp_path, None, ("sources/m.c",), "none.fmu"))
     assert len(got) == 1 and "modelDescription.xml" in got[0], got
+
+
+# --- binary.py: the functions a binary exports, its version strings, what its logger gets ------
+
+REF = Path(__file__).resolve().parents[1].parent / "shared" / "reference-fmus"
+
+# fmi2Functions.h (FMI 2.0 2.1.1, 3.2, 4.2): the common functions, then Model Exchange's and
+# Co-Simulation's, and those a capability flag asks for
+_FMI2_COMMON = {"fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging",
+                "fmi2Instantiate", "fmi2FreeInstance", "fmi2SetupExperiment",
+                "fmi2EnterInitializationMode", "fmi2ExitInitializationMode", "fmi2Terminate",
+                "fmi2Reset", "fmi2GetReal", "fmi2GetInteger", "fmi2GetBoolean", "fmi2GetString",
+                "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2SetString"}
+_FMI2_STATE = {"fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"}
+_FMI2_SERIAL = {"fmi2SerializedFMUstateSize", "fmi2SerializeFMUstate",
+                "fmi2DeSerializeFMUstate"}
+_FMI2_ME = {"fmi2EnterEventMode", "fmi2NewDiscreteStates", "fmi2EnterContinuousTimeMode",
+            "fmi2CompletedIntegratorStep", "fmi2SetTime", "fmi2SetContinuousStates",
+            "fmi2GetDerivatives", "fmi2GetEventIndicators", "fmi2GetContinuousStates",
+            "fmi2GetNominalsOfContinuousStates"}
+_FMI2_CS = {"fmi2SetRealInputDerivatives", "fmi2GetRealOutputDerivatives", "fmi2DoStep",
+            "fmi2CancelStep", "fmi2GetStatus", "fmi2GetRealStatus", "fmi2GetIntegerStatus",
+            "fmi2GetBooleanStatus", "fmi2GetStringStatus"}
+# fmi3Functions.h (FMI 3.0 2.2.1, 3.2, 4.2)
+_FMI3_COMMON = {"fmi3GetVersion", "fmi3SetDebugLogging", "fmi3FreeInstance",
+                "fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate",
+                "fmi3Reset", "fmi3EnterConfigurationMode", "fmi3ExitConfigurationMode"} | {
+    f"fmi3{a}{t}" for a in ("Get", "Set") for t in (
+        "Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64",
+        "UInt64", "Boolean", "String", "Binary")}
+_FMI3_STATE = {"fmi3GetFMUState", "fmi3SetFMUState", "fmi3FreeFMUState"}
+_FMI3_SERIAL = {"fmi3SerializedFMUStateSize", "fmi3SerializeFMUState",
+                "fmi3DeserializeFMUState"}
+_FMI3_CS = {"fmi3InstantiateCoSimulation", "fmi3DoStep", "fmi3EnterStepMode"}
+_FMI3_ME = {"fmi3InstantiateModelExchange", "fmi3EnterEventMode", "fmi3UpdateDiscreteStates",
+            "fmi3EnterContinuousTimeMode", "fmi3CompletedIntegratorStep", "fmi3SetTime",
+            "fmi3SetContinuousStates", "fmi3GetContinuousStateDerivatives",
+            "fmi3GetEventIndicators", "fmi3GetContinuousStates",
+            "fmi3GetNominalsOfContinuousStates", "fmi3GetNumberOfEventIndicators",
+            "fmi3GetNumberOfContinuousStates"}
+
+
+def _caps(state=False, serial=False, dd=False, dd_attr="providesDirectionalDerivative",
+          ident="m"):
+    return SimpleNamespace(modelIdentifier=ident, canGetAndSetFMUstate=state,
+                           canSerializeFMUstate=serial, **{dd_attr: dd})
+
+
+@pytest.mark.parametrize("fmi, interface, common, own, state, serial", [
+    (2, "cs", _FMI2_COMMON, _FMI2_CS, _FMI2_STATE, _FMI2_SERIAL),
+    (2, "me", _FMI2_COMMON, _FMI2_ME, _FMI2_STATE, _FMI2_SERIAL),
+    (3, "cs", _FMI3_COMMON, _FMI3_CS, _FMI3_STATE, _FMI3_SERIAL),
+    (3, "me", _FMI3_COMMON, _FMI3_ME, _FMI3_STATE, _FMI3_SERIAL),
+])
+def test_required_functions_are_the_interfaces_and_the_declared_capabilities(
+        fmi, interface, common, own, state, serial):
+    # the capabilities of the interface asked for count, not the other one's
+    def md(caps):
+        other = _caps(True, True, True, "providesDirectionalDerivative")
+        return SimpleNamespace(modelExchange=caps if interface == "me" else other,
+                               coSimulation=caps if interface == "cs" else other)
+
+    dd = f"fmi{fmi}GetDirectionalDerivative"
+    got = binary.required_functions(md(_caps()), fmi, interface)
+    assert len(got) == len(set(got)) and set(got) == common | own
+    assert set(binary.required_functions(md(_caps(state=True)), fmi, interface)) == \
+        common | own | state
+    assert set(binary.required_functions(md(_caps(serial=True)), fmi, interface)) == \
+        common | own | serial
+    assert set(binary.required_functions(md(_caps(dd=True)), fmi, interface)) == \
+        common | own | {dd}
+    # FMI 3.0 names the attribute providesDirectionalDerivatives
+    assert set(binary.required_functions(
+        md(_caps(dd=True, dd_attr="providesDirectionalDerivatives")), fmi, interface)) == \
+        common | own | {dd}
+    if interface == "cs":
+        assert set(binary.required_functions(md(_caps()), fmi)) == common | own  # the default
+
+
+class _Function:
+    def __init__(self, value):
+        self.value, self.restype, self.argtypes, self.calls = value, None, None, 0
+
+    def __call__(self):
+        assert self.restype is ctypes.c_char_p and self.argtypes == []  # as the header declares
+        self.calls += 1
+        return self.value
+
+
+def _fake_libraries(monkeypatch, exports: dict[str, set[str]], versions=None):
+    """ctypes.CDLL as binary.py calls it, on libraries (by file name) that export ``exports``;
+    the version functions answer ``versions`` (name -> bytes or None)."""
+    versions = {"fmi2GetVersion": b"2.0", "fmi2GetTypesPlatform": b"default",
+                "fmi3GetVersion": b"3.0", **(versions or {})}
+
+    def cdll(path, mode=0):
+        lib = SimpleNamespace()
+        for n in exports[Path(path).name]:
+            setattr(lib, n, _Function(versions[n]) if n in versions else object())
+        return lib
+
+    monkeypatch.setattr(binary.ctypes, "CDLL", cdll)
+
+
+def _binary_ctx(tmp_path, fmi, interfaces=("cs",), files=("m.so",), cs="m", me="m",
+                caps=None):
+    folder = tmp_path / "binaries" / (platform if fmi == 2 else platform_tuple)
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in files:
+        (folder / f).write_bytes(b"")
+    md = SimpleNamespace(coSimulation=caps or _caps(ident=cs),
+                         modelExchange=_caps(ident=me) if "me" in interfaces else None)
+    fmu = SimpleNamespace(fmi_version=fmi, model_description=md,
+                          model_description3=md if fmi == 3 else None, _unzipdir=str(tmp_path))
+    events: list[dict] = []
+    return SimpleNamespace(fmu=fmu, interfaces=interfaces, unusable=None, events=events,
+                           event=lambda **row: events.append(row))
+
+
+def test_binary_passes_a_library_with_every_function_and_the_right_versions(
+        tmp_path, monkeypatch):
+    _fake_libraries(monkeypatch, {"m.so": _FMI2_COMMON | _FMI2_CS | _FMI2_ME})
+    ctx = _binary_ctx(tmp_path, 2, ("cs", "me"))
+    # one library for both interfaces: each function once
+    assert binary.check_binary(ctx) == (
+        f"{len(_FMI2_COMMON | _FMI2_CS | _FMI2_ME)} required functions exported; "
+        "fmi2GetVersion, fmi2GetTypesPlatform right")
+    assert ctx.unusable is None
+    assert {"call": "fmi2GetVersion()"} in ctx.events
+    ctx = _binary_ctx(tmp_path / "3", 3)
+    _fake_libraries(monkeypatch, {"m.so": _FMI3_COMMON | _FMI3_CS})
+    assert binary.check_binary(ctx) == (f"{len(_FMI3_COMMON | _FMI3_CS)} required functions "
+                                        "exported; fmi3GetVersion right")
+
+
+@pytest.mark.parametrize("fmi, missing", [(2, "fmi2CancelStep"), (3, "fmi3EnterStepMode"),
+                                          (2, "fmi2GetVersion")])
+def test_a_function_not_exported_fails_binary_and_makes_the_fmu_unusable(
+        tmp_path, monkeypatch, fmi, missing):
+    common, cs = (_FMI2_COMMON, _FMI2_CS) if fmi == 2 else (_FMI3_COMMON, _FMI3_CS)
+    _fake_libraries(monkeypatch, {"m.so": (common | cs) - {missing}})
+    ctx = _binary_ctx(tmp_path, fmi)
+    with pytest.raises(CheckFailed) as e:
+        binary.check_binary(ctx)
+    assert str(e.value) == f"not exported: {missing}"
+    assert ctx.unusable and "lacks functions" in ctx.unusable
+
+
+@pytest.mark.parametrize("fmi, versions, problem", [
+    (2, {"fmi2GetVersion": b"2.1"}, "fmi2GetVersion() returned '2.1', not '2.0'"),
+    (2, {"fmi2GetTypesPlatform": None}, "fmi2GetTypesPlatform() returned None, not 'default'"),
+    (2, {"fmi2GetVersion": b"3.0", "fmi2GetTypesPlatform": b"x"},
+     "fmi2GetVersion() returned '3.0', not '2.0'; fmi2GetTypesPlatform() returned 'x', not "
+     "'default'"),
+    (3, {"fmi3GetVersion": b"2.0"}, "fmi3GetVersion() returned '2.0', not '3.0'"),
+])
+def test_a_wrong_version_string_fails_binary(tmp_path, monkeypatch, fmi, versions, problem):
+    common, cs = (_FMI2_COMMON, _FMI2_CS) if fmi == 2 else (_FMI3_COMMON, _FMI3_CS)
+    _fake_libraries(monkeypatch, {"m.so": common | cs}, versions)
+    ctx = _binary_ctx(tmp_path, fmi)
+    with pytest.raises(CheckFailed) as e:
+        binary.check_binary(ctx)
+    assert str(e.value) == problem
+    assert ctx.unusable is None  # every function is there: a host can use it
+
+
+def test_binary_without_this_platforms_library_is_skipped_and_a_second_one_missing_fails(
+        tmp_path, monkeypatch):
+    with pytest.raises(binary.CheckSkipped, match="^no binary m.so for this platform$"):
+        binary.check_binary(_binary_ctx(tmp_path, 2, files=()))
+    # Co-Simulation and Model Exchange with their own identifiers: each needs its library
+    _fake_libraries(monkeypatch, {"c.so": _FMI2_COMMON | _FMI2_CS,
+                                  "e.so": _FMI2_COMMON | _FMI2_ME - {"fmi2SetTime"}})
+    ctx = _binary_ctx(tmp_path / "a", 2, ("cs", "me"), ("c.so",), cs="c", me="e")
+    with pytest.raises(CheckFailed) as e:
+        binary.check_binary(ctx)
+    assert str(e.value) == "no binary e.so for this platform beside c.so"
+    ctx = _binary_ctx(tmp_path / "b", 2, ("cs", "me"), ("c.so", "e.so"), cs="c", me="e")
+    with pytest.raises(CheckFailed) as e:
+        binary.check_binary(ctx)
+    assert str(e.value) == "not exported: fmi2SetTime"
+
+
+@pytest.fixture(scope="module")
+def reference_dahlquist(tmp_path_factory):
+    """The Reference-FMUs' Dahlquist, FMI 2.0 and 3.0, extracted: {version: (folder, md)}."""
+    import fmpy
+
+    out = {}
+    for fmi in (2, 3):
+        source = REF / f"fmi{fmi}" / "Dahlquist.fmu"
+        if not source.is_file():
+            pytest.skip(f"{source} is not there (../shared)")
+        folder = tmp_path_factory.mktemp(f"dahlquist{fmi}")
+        fmpy.extract(str(source), str(folder))
+        out[fmi] = (folder, read_model_description(str(source)))
+    return out
+
+
+def _reference_ctx(reference_dahlquist, fmi):
+    folder, md = reference_dahlquist[fmi]
+    fmu = SimpleNamespace(fmi_version=fmi, model_description=md,
+                          model_description3=md if fmi == 3 else None, _unzipdir=str(folder))
+    return SimpleNamespace(fmu=fmu, interfaces=("cs", "me"), unusable=None, start=0.0,
+                           stop=1.0, event=lambda **row: None)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_reference_fmus_binary_passes(reference_dahlquist, fmi):
+    ctx = _reference_ctx(reference_dahlquist, fmi)
+    assert binary.check_binary(ctx).endswith(
+        "fmi2GetVersion, fmi2GetTypesPlatform right" if fmi == 2 else "fmi3GetVersion right")
+    assert ctx.unusable is None
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_reference_fmus_logger_gets_what_the_host_passed(reference_dahlquist, fmi):
+    # Dahlquist logs one message with logging on (its fmi2DoStep / fmi3DoStep of size 0)
+    assert binary.logger_passes_back(_reference_ctx(reference_dahlquist, fmi)) == ("", 1)
+
+
+class _Slave2:
+    """An FMI 2.0 slave (FMPy's FMU2Slave as binary.py calls it) whose fmi2DoStep logs
+    ``messages``: (componentEnvironment, instance name) pairs, None for what the FMU takes from
+    the host (FMI 2.0 2.1.5: the logger gets the host's componentEnvironment and the instance's
+    name)."""
+
+    messages: list = []
+    log: list = []
+
+    def __init__(self, guid, unzipDirectory, modelIdentifier, instanceName):
+        self.name, self.component = instanceName, 1
+
+    def instantiate(self, callbacks, loggingOn):
+        assert loggingOn is True  # no logging, no message to check
+        self.cb = callbacks
+
+    def setupExperiment(self, startTime, stopTime):
+        pass
+
+    def enterInitializationMode(self):
+        pass
+
+    def exitInitializationMode(self):
+        pass
+
+    def doStep(self, currentCommunicationPoint, communicationStepSize):
+        assert communicationStepSize == 0.0
+        for env, name in self.messages:
+            self.cb.logger(self.cb.componentEnvironment if env is None else env,
+                           (self.name if name is None else name).encode(), 0, b"c", b"m")
+
+    def fmi2FreeInstance(self, component):
+        self.log.append("free")
+
+    def freeLibrary(self):
+        self.log.append("unload")
+
+
+class _Slave3:
+    """An FMI 3.0 slave whose fmi3DoStep logs with the instanceEnvironments ``messages`` (None:
+    the host's); ``instance``: what fmi3InstantiateCoSimulation returns."""
+
+    messages: list = []
+    instance = 1
+    log: list = []
+
+    def __init__(self, guid, unzipDirectory, modelIdentifier, instanceName):
+        self.component = None
+
+    def fmi3InstantiateCoSimulation(self, name, token, resources, visible, logging_on,
+                                    event_mode_used, early_return_allowed, required, n_required,
+                                    env, log_message, intermediate_update):
+        # the check runs in batch, logging on, with no events or early returns handled
+        assert (visible, logging_on, event_mode_used, early_return_allowed, n_required) == \
+            (False, True, False, False, 0)
+        self.env, self.log_message = env.value, log_message
+        return self.instance
+
+    def enterInitializationMode(self, startTime, stopTime):
+        pass
+
+    def exitInitializationMode(self):
+        pass
+
+    def doStep(self, currentCommunicationPoint, communicationStepSize):
+        assert communicationStepSize == 0.0
+        for env in self.messages:
+            self.log_message(self.env if env is None else env, 0, b"c", b"m")
+
+    def freeInstance(self):
+        self.log.append("free")
+
+    def freeLibrary(self):
+        self.log.append("unload")
+
+
+def _logger_ctx(fmi):
+    md = SimpleNamespace(guid="{0}", instantiationToken="{0}",
+                         coSimulation=SimpleNamespace(modelIdentifier="m"))
+    fmu = SimpleNamespace(fmi_version=fmi, model_description=md,
+                          model_description3=md if fmi == 3 else None, _unzipdir="/nowhere")
+    return SimpleNamespace(fmu=fmu, start=0.0, stop=1.0, event=lambda **row: None)
+
+
+@pytest.mark.parametrize("messages, want", [
+    ([(None, None), (None, None)], ("", 2)),
+    ([], ("", 0)),
+    ([(None, None), (7, None), (8, None)],
+     ("the logger got componentEnvironment 7, not the 0x5eed the host passed", 3)),
+    ([(None, "someone"), (None, "other")],
+     ("the logger got instance name 'someone', not 'dronefly binary check'", 2)),
+    ([(9, "x")], ("the logger got componentEnvironment 9, not the 0x5eed the host passed; the "
+                  "logger got instance name 'x', not 'dronefly binary check'", 1)),
+])
+def test_an_fmi2_logger_given_something_else_is_found(monkeypatch, messages, want):
+    monkeypatch.setattr(_Slave2, "messages", messages)
+    monkeypatch.setattr(_Slave2, "log", [])
+    monkeypatch.setattr(binary, "FMU2Slave", _Slave2)
+    assert binary.logger_passes_back(_logger_ctx(2)) == want
+    assert _Slave2.log == ["free", "unload"]
+
+
+@pytest.mark.parametrize("messages, want", [
+    ([None, None, None], ("", 3)),
+    ([None, 5, 6], ("the logger got instanceEnvironment 5, not the 0x5eed the host passed", 3)),
+])
+def test_an_fmi3_logger_given_something_else_is_found(monkeypatch, messages, want):
+    monkeypatch.setattr(_Slave3, "messages", messages)
+    monkeypatch.setattr(_Slave3, "log", [])
+    monkeypatch.setattr(binary, "FMU3Slave", _Slave3)
+    assert binary.logger_passes_back(_logger_ctx(3)) == want
+    assert _Slave3.log == ["free", "unload"]
+
+
+def test_an_fmi3_instance_that_is_null_fails(monkeypatch):
+    monkeypatch.setattr(_Slave3, "instance", None)
+    monkeypatch.setattr(binary, "FMU3Slave", _Slave3)
+    with pytest.raises(CheckFailed, match="^fmi3InstantiateCoSimulation returned NULL$"):
+        binary.logger_passes_back(_logger_ctx(3))

@@ -370,6 +370,15 @@ def test_required_functions_are_the_interfaces_and_the_declared_capabilities(
     assert set(binary.required_functions(
         md(_caps(dd=True, dd_attr="providesDirectionalDerivatives")), fmi, interface)) == \
         common | own | {dd}
+    # an object without FMI 2.0's attribute (FMI 3.0's name only, not declared): none
+    assert set(binary.required_functions(
+        md(_caps(dd=False, dd_attr="providesDirectionalDerivatives")), fmi, interface)) == \
+        common | own
+    # what the description says where the object does not (FMPy's FMI 3.0 objects)
+    assert set(binary.required_functions(md(_caps()), fmi, interface, True)) == \
+        common | own | {dd}
+    assert set(binary.required_functions(md(_caps(dd=True)), fmi, interface, False)) == \
+        common | own
     if interface == "cs":
         assert set(binary.required_functions(md(_caps()), fmi)) == common | own  # the default
 
@@ -405,6 +414,9 @@ def _binary_ctx(tmp_path, fmi, interfaces=("cs",), files=("m.so",), cs="m", me="
     folder.mkdir(parents=True, exist_ok=True)
     for f in files:
         (folder / f).write_bytes(b"")
+    (tmp_path / "modelDescription.xml").write_text(_xml(fmi, interfaces=(
+        f'<ModelExchange modelIdentifier="{me}"/>' if "me" in interfaces else "")
+        + f'<CoSimulation modelIdentifier="{cs}"/>'))
     md = SimpleNamespace(coSimulation=caps or _caps(ident=cs),
                          modelExchange=_caps(ident=me) if "me" in interfaces else None)
     fmu = SimpleNamespace(fmi_version=fmi, model_description=md,
@@ -635,3 +647,45 @@ def test_an_fmi3_instance_that_is_null_fails(monkeypatch):
     monkeypatch.setattr(binary, "FMU3Slave", _Slave3)
     with pytest.raises(CheckFailed, match="^fmi3InstantiateCoSimulation returned NULL$"):
         binary.logger_passes_back(_logger_ctx(3))
+
+
+@pytest.mark.parametrize("fmi, attribute", [(2, "providesDirectionalDerivative"),
+                                             (3, "providesDirectionalDerivatives")])
+def test_a_declared_directional_derivative_must_be_exported(tmp_path, monkeypatch, fmi,
+                                                            attribute):
+    """FMI 2.0 2.1.1 / FMI 3.0 2.2.1: the capability flag of the interface element (FMI 2.0's
+    providesDirectionalDerivative, FMI 3.0's providesDirectionalDerivatives) asks for
+    fmi2GetDirectionalDerivative / fmi3GetDirectionalDerivative; read from the description as
+    FMPy reads it."""
+    xml = _xml(fmi, interfaces=f'<CoSimulation modelIdentifier="m" {attribute}="true"/>')
+    (tmp_path / "modelDescription.xml").write_text(xml)
+    folder = tmp_path / "binaries" / (platform if fmi == 2 else platform_tuple)
+    folder.mkdir(parents=True)
+    (folder / "m.so").write_bytes(b"")
+    md = read_model_description(str(tmp_path / "modelDescription.xml"))
+    fmu = SimpleNamespace(fmi_version=fmi, model_description=md,
+                          model_description3=md if fmi == 3 else None, _unzipdir=str(tmp_path))
+    ctx = SimpleNamespace(fmu=fmu, interfaces=("cs",), unusable=None, event=lambda **row: None)
+    common, cs = (_FMI2_COMMON, _FMI2_CS) if fmi == 2 else (_FMI3_COMMON, _FMI3_CS)
+    _fake_libraries(monkeypatch, {"m.so": common | cs})
+    with pytest.raises(CheckFailed) as e:
+        binary.check_binary(ctx)
+    assert str(e.value) == f"not exported: fmi{fmi}GetDirectionalDerivative"
+    _fake_libraries(monkeypatch, {"m.so": common | cs | {f"fmi{fmi}GetDirectionalDerivative"}})
+    assert binary.check_binary(ctx).startswith(f"{len(common | cs) + 1} required functions")
+
+
+@pytest.mark.parametrize("interfaces, want", [
+    ('<CoSimulation modelIdentifier="m" providesDirectionalDerivatives="1"/>', (True, False)),
+    ('<CoSimulation modelIdentifier="m" providesDirectionalDerivatives="false"/>'
+     '<ModelExchange modelIdentifier="m" providesDirectionalDerivatives="true"/>', (False, True)),
+    ('<ModelExchange modelIdentifier="m" providesDirectionalDerivatives="0"/>', (False, False)),
+])
+def test_fmi3_directional_derivatives_are_read_per_interface(tmp_path, interfaces, want):
+    (tmp_path / "modelDescription.xml").write_text(_xml(3, interfaces=interfaces))
+    ctx = SimpleNamespace(fmu=SimpleNamespace(fmi_version=3, _unzipdir=str(tmp_path)))
+    assert (binary.declares_directional(ctx, "cs"), binary.declares_directional(ctx, "me")) \
+        == want
+    # FMI 2.0: FMPy's model description holds the flag
+    ctx = SimpleNamespace(fmu=SimpleNamespace(fmi_version=2, _unzipdir=str(tmp_path)))
+    assert binary.declares_directional(ctx, "cs") is None

@@ -69,6 +69,8 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],
     # stub libraries and slaves, and the Reference-FMUs' Dahlquist loaded in-process
     "harness/compliance/binary.py": [_CHECKS],
+    # a fake FMU with seeded defects, the Reference-FMUs' Feedthrough in-process
+    "harness/compliance/refusals.py": [_CHECKS],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

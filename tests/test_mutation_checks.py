@@ -8,6 +8,7 @@ the model description), and defects seeded by hand. No FMU is built: a mutant co
 from __future__ import annotations
 
 import ctypes
+import math
 import dataclasses
 import zipfile
 from pathlib import Path
@@ -16,9 +17,10 @@ from types import SimpleNamespace
 import pytest
 
 from fmpy import platform, platform_tuple, read_model_description
+from fmpy.fmi1 import FMICallException
 
-from dronefly.harness.compliance import binary, names, static
-from dronefly.harness.compliance.rules import CheckFailed
+from dronefly.harness.compliance import binary, names, refusals, static
+from dronefly.harness.compliance.rules import CheckFailed, CheckSkipped
 
 
 # --- helpers: a modelDescription.xml, an archive holding it, a context of it -----------------
@@ -689,3 +691,428 @@ def test_fmi3_directional_derivatives_are_read_per_interface(tmp_path, interface
     # FMI 2.0: FMPy's model description holds the flag
     ctx = SimpleNamespace(fmu=SimpleNamespace(fmi_version=2, _unzipdir=str(tmp_path)))
     assert binary.declares_directional(ctx, "cs") is None
+
+
+# --- refusals.py: the calls an FMU must refuse or survive -------------------------------------
+
+@pytest.fixture
+def reference_context():
+    """A checker's Context of a Reference-FMU (known-good FMUs), loaded in-process."""
+    from dronefly.harness.compliance.driver import Context
+    from dronefly.harness.compliance.rules import CheckOptions
+    from dronefly.harness.cosim.fmu import FMU
+
+    opened = []
+
+    def make(fmi: int, name: str, profile: str | None = None):
+        source = REF / f"fmi{fmi}" / f"{name}.fmu"
+        if not source.is_file():
+            pytest.skip(f"{source} is not there (../shared)")
+        opened.append(FMU(source))
+        return Context(opened[-1], CheckOptions(profile=profile), None)
+
+    yield make
+    for fmu in opened:
+        fmu.close()
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_the_reference_fmus_refuse_bad_input_and_log_as_the_standard_asks(reference_context,
+                                                                         fmi):
+    """Feedthrough answers each illegal step fmiXError, logged, and fmiXReset recovers it
+    (FMI 2.0 2.1.3, FMI 3.0 2.2.4): the standard profile's bad-input and logger-format pass;
+    FMI 3.0's state-machine too."""
+    ctx = reference_context(fmi, "Feedthrough")
+    detail = refusals.check_bad_input(ctx)
+    h = ctx.step
+    assert detail == (f"communicationStepSize = 0.0: Error; communicationStepSize = {-h!r}: "
+                      f"Error; currentCommunicationPoint = {10 * h!r} (the last was 0.0): "
+                      f"Error; fmi{fmi}Reset recovered the instance")
+    assert ctx.warnings == []
+    assert refusals.check_logger_format(ctx).startswith("1 message(s) carry the ")
+    if fmi == 3:
+        assert refusals.check_state_machine(ctx).startswith(
+            "fmi3DoStep before initialization and after fmi3Terminate: fmi3Error")
+    else:
+        for check in (refusals.check_state_machine, refusals.check_discard,
+                      refusals.check_state_refusal):
+            with pytest.raises(CheckSkipped, match="an FMI 3.0 check; this FMU is FMI 2.0"):
+                check(ctx)
+    assert ctx.warnings == []
+
+
+class _FakeSlave:
+    """An FMU's slave as the checks drive it (FMPy's FMU2Slave / the harness's FMI 3.0 adapter),
+    in Python: a compliant FMU of the dronefly profile (FMI 2.0 3.x / 4.2 states; illegal
+    arguments refused fmiXDiscard with a message naming the value, illegal calls fmiXError with
+    a message naming the state) unless ``defects`` changes one answer:
+
+    ``nan`` / ``h`` / ``t``: the status of a step with a NaN input, a step size <= 0, a
+    communication point off the last one; ``state``: of a step outside Step Mode; ``set_output``:
+    of a step after an output or the time was set; ``quiet``: log nothing; ``reset``: the status
+    fmiXReset returns; ``unknown_vr``: what an unknown value reference reads; ``corrupt``: the
+    status of setting a corrupt state (None: accepted silently); ``drift``: an output that
+    changes after a refused state; ``steps_ok``: how many steps it makes before it refuses
+    every one; ``sticky``: no step after an Error until a reset.
+    The host's illegal calls (a step off the grid after an accepted one) land in ``illegal``."""
+
+    def __init__(self, inst, fmi, names, **defects):
+        self.inst, self.fmi, self.names, self.d = inst, fmi, names, defects
+        self.state, self.t, self.start = "instantiated", None, 0.0
+        self.values = {vr: 1.0 for vr in names}
+        self.set_output, self.error = None, False
+        self.steps: list = []
+        self.illegal: list = []
+        self.drift = 0.0
+        self.component = 1
+
+    def _log(self, status, text):
+        if not self.d.get("quiet"):
+            self.inst.messages.append(SimpleNamespace(status=status, category="log",
+                                                      message=text))
+
+    def _answer(self, status, text):
+        if status:
+            self._log(status, text)
+            self.error = status >= 3 and self.state == "step"
+            raise FMICallException(f"fmi{self.fmi}DoStep", status)
+
+    def setupExperiment(self, startTime, stopTime):
+        self.start = startTime
+
+    def enterInitializationMode(self):
+        self.state = "initialization"
+
+    def exitInitializationMode(self):
+        self.state, self.t = "step", self.start
+
+    def terminate(self):
+        self.state = "terminated"
+
+    def reset(self):
+        status = self.d.get("reset", 0)
+        if status:
+            raise FMICallException(f"fmi{self.fmi}Reset", status)
+        self.state, self.set_output, self.error = "instantiated", None, False
+        self.values = {vr: 1.0 for vr in self.names}
+
+    def getReal(self, vrs):
+        return [self.values[vr] + self.drift for vr in vrs]
+
+    def setReal(self, vrs, xs):
+        self.values.update(zip(vrs, xs))
+
+    def getFloat64(self, vrs):
+        if any(vr not in self.values for vr in vrs):
+            self._log(3, f"unknown valueReference {vrs}")
+            return [self.d.get("unknown_vr", math.nan)]
+        return self.getReal(vrs)
+
+    def fmi3SetFloat64(self, component, vrs, n, xs, nx):
+        self.set_output = (self.names[vrs[0]], xs[0])
+
+    def getBooleanStatus(self, kind):
+        return False
+
+    def getRealStatus(self, kind):
+        return self.t
+
+    def doStep(self, currentCommunicationPoint, communicationStepSize):
+        t, h = currentCommunicationPoint, communicationStepSize
+        self.steps.append((t, h))
+        if self.error:  # FMI 2.0 2.1.3, FMI 3.0 2.2.4: after Error, reset or free only
+            self.illegal.append((t, h))
+        if len(self.steps) > self.d.get("steps_ok", 10 ** 9) or \
+                self.error and self.d.get("sticky"):
+            self._answer(3, "cannot go on")
+        if self.state != "step":
+            self._answer(self.d.get("state", 3), f"fmi{self.fmi}DoStep: not allowed in state "
+                                                 f"'{self.state}'")
+            self.t = t  # accepted: a step from wherever it was asked
+        for vr, x in self.values.items():
+            if x != x:
+                self._answer(self.d.get("nan", 2), f"{self.names[vr]} = nan")
+        if self.set_output:
+            (name, x), self.set_output = self.set_output, None
+            self._answer(self.d.get("set_output", 3), f"{name} = {x!r} rejected")
+        if h <= 0:
+            self._answer(self.d.get("h", 2), f"communicationStepSize = {h!r}")
+        if t != self.t:
+            self._answer(self.d.get("t", 2), f"currentCommunicationPoint = {t!r}")
+        if h == 0.0 and not self.d.get("h"):
+            self.illegal.append((t, h))  # only reached by an FMU that accepts it
+        self.t = t + h
+        return (False, False, False, self.t) if self.fmi == 3 else None
+
+    def getFMUstate(self):
+        return "state"
+
+    def serializeFMUstate(self, state):
+        return b"\x01\x02\x03\x04"
+
+    def deSerializeFMUstate(self, blob):
+        return blob
+
+    def setFMUstate(self, state):
+        if state != b"\x01\x02\x03\x04":
+            corrupt = self.d.get("corrupt", 3)
+            if corrupt is None:
+                self.drift = self.d.get("drift", 0.0)
+                return
+            self._log(corrupt, "the serialized state is corrupt: refused")
+            self.drift = self.d.get("drift", 0.0)
+            raise FMICallException("fmi3SetFMUState", corrupt)
+
+
+class _FakeInstance:
+    def __init__(self, fmi, names, defects):
+        self.messages: list = []
+        self.interface = "cs"
+        self.slave = _FakeSlave(self, fmi, names, **defects)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return None
+
+
+def _fake_ctx(fmi=2, profile="dronefly", tool="dronefly-fmu 1.0", inputs=("u", "w"),
+              outputs=("y",), n=10, **defects):
+    """A Context (the attributes the checks read) of an FMU with Real ``inputs`` and
+    ``outputs`` (value references 1, 2, ...), a time variable (value reference 0), a run of
+    ``n`` steps of 0.1 s from 0; its instances are :class:`_FakeInstance` with ``defects``."""
+    from dronefly.harness.compliance.driver import Var
+
+    names = {0: "time", **{k: n_ for k, n_ in enumerate((*inputs, *outputs), 1)}}
+    var = [Var(n_, "Real", vr, None) for vr, n_ in names.items() if vr]
+    mv = [SimpleNamespace(valueReference=0, causality="independent"),
+          *(SimpleNamespace(valueReference=v.vr, causality="input") for v in var)]
+    md = SimpleNamespace(generationTool=tool, modelVariables=mv)
+    ctx = SimpleNamespace(
+        fmu=SimpleNamespace(fmi_version=fmi, model_description=md,
+                            model_description3=md if fmi == 3 else None),
+        profile=profile, ours=profile == "dronefly", fmi=f"fmi{fmi}", on_event=None,
+        inputs=var[:len(inputs)], outputs=var[len(inputs):], start=0.0, step=0.1,
+        stop=0.1 * n, n=n, warnings=[], instances=[], event=lambda **row: None)
+
+    def instantiate(name):
+        ctx.instances.append(_FakeInstance(fmi, names, defects))
+        ctx.instances[-1].name = name
+        return ctx.instances[-1]
+
+    ctx.instantiate = instantiate
+    return ctx
+
+
+def _fails(check, ctx) -> str:
+    with pytest.raises(CheckFailed) as e:
+        check(ctx)
+    return str(e.value)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_bad_input_of_the_dronefly_profile_wants_discard_or_error_naming_the_value(fmi):
+    ctx = _fake_ctx(fmi)
+    # two NaN inputs, two step sizes, a communication point ahead: all refused
+    assert refusals.check_bad_input(ctx) == ("5 cases refused with a logged message naming "
+                                             "the value; the instance recovered")
+    assert [i.slave.illegal for i in ctx.instances] == [[]]
+    ctx = _fake_ctx(fmi, nan=3, h=3, t=3)  # fmiXError is a refusal too
+    assert refusals.check_bad_input(ctx).startswith("5 cases refused")
+    # another tool's FMU: the statuses only
+    ctx = _fake_ctx(fmi, tool="fmpy", quiet=True)
+    assert refusals.check_bad_input(ctx) == ("5 cases refused (messages not checked: not our "
+                                             "code); the instance recovered")
+    ctx = _fake_ctx(fmi, tool=None, quiet=True)
+    assert refusals.check_bad_input(ctx).startswith("5 cases refused (messages not checked")
+
+
+@pytest.mark.parametrize("fmi, defects, problem", [
+    (2, {"nan": 0}, "u = nan: fmi2DoStep returned fmi2OK"),
+    (3, {"nan": 4}, "u = nan: fmi3DoStep returned fmi3Fatal"),
+    (2, {"nan": 1}, "u = nan: fmi2DoStep returned fmi2Warning"),
+    (2, {"quiet": True}, "u = nan: not named in the log (''"),
+    (3, {"h": 0}, "communicationStepSize = 0.0: fmi3DoStep returned fmi3OK"),
+    # two steps made (one after each input's case), then ten ahead: 0.2 + 1.0
+    (2, {"t": 4}, f"currentCommunicationPoint = {0.1 + 0.1 + 10 * 0.1!r}: fmi2DoStep returned "
+                  "fmi2Fatal"),
+])
+def test_bad_input_of_the_dronefly_profile_fails_an_accepted_or_fatal_case(fmi, defects,
+                                                                           problem):
+    assert _fails(refusals.check_bad_input, _fake_ctx(fmi, **defects)).startswith(problem)
+
+
+def test_bad_input_names_the_input_refused(fmi=2):
+    ctx = _fake_ctx(fmi, inputs=("u",))
+    assert refusals.check_bad_input(ctx).startswith("4 cases refused")
+    ctx = _fake_ctx(fmi, inputs=())
+    assert refusals.check_bad_input(ctx).startswith("3 cases refused")
+
+
+def test_bad_input_of_the_standard_profile_wants_no_fatal_and_a_reset_after_error():
+    for fmi in (2, 3):
+        ctx = _fake_ctx(fmi, "standard", h=3, t=3)
+        assert refusals.check_bad_input(ctx) == (
+            "communicationStepSize = 0.0: Error; communicationStepSize = -0.1: Error; "
+            f"currentCommunicationPoint = {10 * 0.1!r} (the last was 0.0): Error; "
+            f"fmi{fmi}Reset recovered the instance")
+        assert ctx.warnings == [] and ctx.instances[0].slave.illegal == []
+    # FMI 2.0: Discard is an answer; OK a warning (the step size 0 taken as a step)
+    ctx = _fake_ctx(2, "standard", h=0, quiet=True)
+    assert refusals.check_bad_input(ctx) == (
+        "communicationStepSize = 0.0: OK; communicationStepSize = -0.1: OK; "
+        f"currentCommunicationPoint = {10 * 0.1!r} (the last was 0.0): Discard; "
+        "fmi2Reset recovered the instance")
+    assert ctx.warnings == ["communicationStepSize = 0.0: fmi2DoStep returned fmi2OK",
+                            "communicationStepSize = -0.1: fmi2DoStep returned fmi2OK"]
+
+
+@pytest.mark.parametrize("fmi, defects, problem", [
+    (2, {"h": 4}, "communicationStepSize = 0.0: fmi2DoStep returned fmi2Fatal"),
+    (3, {"h": 3, "t": 4}, f"currentCommunicationPoint = {10 * 0.1!r} (the last was 0.0): "
+                          "fmi3DoStep returned fmi3Fatal"),
+    # FMI 3.0 2.2.4: an illegal argument is answered fmi3Error, with a message logged first
+    (3, {"h": 2}, "communicationStepSize = 0.0: fmi3DoStep detected an illegal argument and "
+                  "returned fmi3Discard; FMI 3.0 2.2.4 requires fmi3Error"),
+    (3, {"h": 3, "quiet": True}, "communicationStepSize = 0.0: fmi3Error without a logged "
+                                 "message (FMI 3.0 2.2.4: the FMU must call logMessage before "
+                                 "returning fmi3Error, logging on)"),
+    # after Error, fmiXReset is allowed (FMI 2.0 2.1.3, FMI 3.0 2.2.4) and must work
+    (2, {"h": 3, "reset": 3}, "communicationStepSize = 0.0: fmi2DoStep returned fmi2Error, "
+                              "then fmi2Reset, the call FMI 2.0 2.1.3 allows after it, "
+                              "returned fmi2Error"),
+    (3, {"h": 3, "reset": 4}, "communicationStepSize = 0.0: fmi3DoStep returned fmi3Error, "
+                              "then fmi3Reset, the call FMI 3.0 2.2.4 allows after it, "
+                              "returned fmi3Fatal"),
+])
+def test_bad_input_of_the_standard_profile_fails_fatal_discard_silence_or_no_reset(
+        fmi, defects, problem):
+    assert _fails(refusals.check_bad_input, _fake_ctx(fmi, "standard", **defects)) == problem
+
+
+def test_bad_input_of_the_standard_profile_an_fmi2_error_needs_no_message():
+    ctx = _fake_ctx(2, "standard", h=3, t=3, quiet=True)
+    assert refusals.check_bad_input(ctx).endswith("fmi2Reset recovered the instance")
+
+
+@pytest.mark.parametrize("n, steps", [
+    # a few steps on the grid, then one of size 0 at the point reached
+    (10, [(0.0, 0.1), (0.1, 0.1), (0.2, 0.1), (3 * 0.1, 0.0)]),
+    (2, [(0.0, 0.1), (0.1, 0.1), (0.2, 0.0)]),
+])
+def test_logger_format_fmi2_logs_through_a_printf_style_instance_name(monkeypatch, n, steps):
+    monkeypatch.setattr(refusals, "logger_passes_back", lambda ctx: ("", 2))
+    ctx = _fake_ctx(2, n=n)
+    assert refusals.check_logger_format(ctx) == (
+        "2 message(s) carry the componentEnvironment and instance name the host passed; "
+        "instance '%s%s%s%s%n', 1 messages logged through a printf-style logger, no crash")
+    inst = ctx.instances[0]
+    assert inst.name == "%s%s%s%s%n" and inst.slave.steps == steps
+    assert inst.slave.illegal == [] and ctx.warnings == []
+
+
+def test_logger_format_stops_stepping_at_a_refused_step(monkeypatch):
+    monkeypatch.setattr(refusals, "logger_passes_back", lambda ctx: ("", 1))
+    ctx = _fake_ctx(2, steps_ok=1)
+    assert refusals.check_logger_format(ctx).endswith("1 messages logged through a "
+                                                      "printf-style logger, no crash")
+    assert ctx.instances[0].slave.steps == [(0.0, 0.1), (0.1, 0.1)]
+    assert ctx.instances[0].slave.illegal == []
+
+
+@pytest.mark.parametrize("fmi, passed", [(2, "componentEnvironment and instance name"),
+                                         (3, "instanceEnvironment")])
+def test_logger_format_fails_what_the_logger_got_and_notes_a_silent_fmu(monkeypatch, fmi,
+                                                                        passed):
+    monkeypatch.setattr(refusals, "logger_passes_back", lambda ctx: ("the logger got x", 3))
+    assert _fails(refusals.check_logger_format, _fake_ctx(fmi)) == "the logger got x"
+    monkeypatch.setattr(refusals, "logger_passes_back", lambda ctx: ("", 0))
+    ctx = _fake_ctx(fmi)
+    note = (f"the FMU logged nothing when a step of size 0 was refused: the {passed} its "
+            "logger gets not checked")
+    detail = refusals.check_logger_format(ctx)
+    assert ctx.warnings == [note] and detail.startswith(note)
+    if fmi == 3:
+        assert detail == f"{note}; the message is plain text in FMI 3.0 (no printf format)"
+        assert ctx.instances == []  # nothing to print through
+
+
+def test_fmi3_state_machine_of_the_dronefly_profile():
+    ctx = _fake_ctx(3)
+    # before initialization, an unknown value reference, the output and the time set, after
+    # fmi3Terminate, the run after fmi3Reset
+    assert refusals.check_state_machine(ctx) == ("6 illegal calls answered fmi3Error with a "
+                                                 "logged message, none Fatal; recovered by "
+                                                 "fmi3Reset")
+    steps = ctx.instances[0].slave.steps
+    assert steps[-3:] == [(0.0, 0.1), (0.1, 0.1), (0.2, 0.1)]  # the run after the reset
+    assert refusals.check_state_machine(_fake_ctx(3, outputs=())).startswith("5 illegal calls")
+
+
+@pytest.mark.parametrize("defects, problem", [
+    ({"state": 4}, "fmi3DoStep before initialization: fmi3Fatal"),
+    ({"state": 2}, "fmi3DoStep before initialization: fmi3Discard, expected fmi3Error"),
+    ({"quiet": True}, "fmi3DoStep before initialization: \"not allowed in state "
+                      "'instantiated'\" not in the log (''"),
+    ({"unknown_vr": 0.0}, "an unknown value reference is not answered NaN with a logged error"),
+    ({"set_output": 0}, "a step after setting y: fmi3OK, expected fmi3Error"),
+    ({"set_output": 4}, "a step after setting y: fmi3Fatal"),
+])
+def test_fmi3_state_machine_of_the_dronefly_profile_fails(defects, problem):
+    assert _fails(refusals.check_state_machine, _fake_ctx(3, **defects)).startswith(problem)
+
+
+def test_fmi3_state_machine_of_the_dronefly_profile_wants_the_time_refused_and_a_run_after():
+    ctx = _fake_ctx(3, outputs=(), set_output=0)
+    assert _fails(refusals.check_state_machine, ctx) == ("a step after setting time: fmi3OK, "
+                                                         "expected fmi3Error")
+    ctx = _fake_ctx(3, outputs=(), sticky=True)
+    assert _fails(refusals.check_state_machine, ctx) == "no recovery after the refused step"
+    ctx = _fake_ctx(3, steps_ok=6)  # refuses the second step after the reset
+    assert _fails(refusals.check_state_machine, ctx) == "no run after fmi3Reset"
+
+
+def test_fmi3_state_machine_of_the_standard_profile():
+    ctx = _fake_ctx(3, "standard")
+    assert refusals.check_state_machine(ctx).startswith("fmi3DoStep before initialization "
+                                                        "and after fmi3Terminate: fmi3Error")
+    assert ctx.instances[0].slave.steps[-3:] == [(0.0, 0.1), (0.1, 0.1), (0.2, 0.1)]
+    for defects, problem in (
+            ({"state": 0}, "fmi3DoStep before initialization: fmi3OK, expected fmi3Error"),
+            ({"state": 4}, "fmi3DoStep before initialization: fmi3Fatal"),
+            ({"quiet": True}, "fmi3DoStep before initialization: fmi3Error without a logged "
+                              "message"),
+            ({"steps_ok": 2}, "no run after fmi3Reset"),
+            ({"steps_ok": 4}, "no run after fmi3Reset")):
+        assert _fails(refusals.check_state_machine, _fake_ctx(3, "standard", **defects)) == \
+            problem, defects
+
+
+def test_fmi3_discard_of_a_nan_input():
+    assert refusals.check_discard(_fake_ctx(3)) == "u = nan: fmi3Discard, then the step works"
+    for defects, problem in (({"nan": 0}, "a NaN input: fmi3OK, expected fmi3Discard"),
+                             ({"nan": 3}, "a NaN input: fmi3Error, expected fmi3Discard"),
+                             ({"nan": 4}, "a NaN input: fmi3Fatal"),
+                             ({"quiet": True}, "a NaN input: 'u = nan' not in the log"),
+                             ({"steps_ok": 1}, "no step after the discarded one")):
+        assert _fails(refusals.check_discard, _fake_ctx(3, **defects)).startswith(problem)
+    with pytest.raises(CheckSkipped, match="^no Float64 inputs$"):
+        refusals.check_discard(_fake_ctx(3, inputs=()))
+    with pytest.raises(CheckSkipped, match="an FMI 3.0 check"):
+        refusals.check_discard(_fake_ctx(2))
+
+
+def test_fmi3_state_refusal_of_corrupt_bytes():
+    ctx = _fake_ctx(3)
+    assert refusals.check_state_refusal(ctx) == ("corrupt serialized state refused (logged), "
+                                                 "the instance unchanged")
+    assert [i.slave.steps for i in ctx.instances] == [[(0.0, 0.1), (0.1, 0.1)]] * 2
+    for defects, problem in (({"corrupt": 4}, "fmi3SetFMUState of corrupt bytes: fmi3Fatal"),
+                             ({"corrupt": None}, "corrupt state not refused in the log ('')"),
+                             ({"drift": 1.0}, "the instance changed after a refused state"),
+                             ({"steps_ok": 0}, "first step failed"),
+                             ({"steps_ok": 1}, "the step after failed")):
+        assert _fails(refusals.check_state_refusal, _fake_ctx(3, **defects)) == problem, defects
+    with pytest.raises(CheckSkipped, match="an FMI 3.0 check"):
+        refusals.check_state_refusal(_fake_ctx(2))

@@ -763,6 +763,7 @@ class _FakeSlave:
         self.set_output, self.error = None, False
         self.steps: list = []
         self.illegal: list = []
+        self.off_grid: list = []  # steps from another point than the last one reached
         self.drift = 0.0
         self.component = 1
 
@@ -785,6 +786,8 @@ class _FakeSlave:
 
     def exitInitializationMode(self):
         self.state, self.t = "step", self.start
+        if self.d.get("chatty"):
+            self._log(0, "initialized")
 
     def terminate(self):
         self.state = "terminated"
@@ -793,7 +796,7 @@ class _FakeSlave:
         status = self.d.get("reset", 0)
         if status:
             raise FMICallException(f"fmi{self.fmi}Reset", status)
-        self.state, self.set_output, self.error = "instantiated", None, False
+        self.state, self.set_output, self.error, self.t = "instantiated", None, False, None
         self.values = {vr: 1.0 for vr in self.names}
 
     def getReal(self, vrs):
@@ -809,7 +812,11 @@ class _FakeSlave:
         return self.getReal(vrs)
 
     def fmi3SetFloat64(self, component, vrs, n, xs, nx):
-        self.set_output = (self.names[vrs[0]], xs[0])
+        # scalars: as many values as value references (FMI 3.0 2.2.6.2), read up to the counts
+        if n != nx:
+            raise FMICallException("fmi3SetFloat64", 3)
+        for k in range(n):
+            self.set_output = (self.names[vrs[k]], xs[k])
 
     def getBooleanStatus(self, kind):
         return False
@@ -820,6 +827,8 @@ class _FakeSlave:
     def doStep(self, currentCommunicationPoint, communicationStepSize):
         t, h = currentCommunicationPoint, communicationStepSize
         self.steps.append((t, h))
+        if self.t is not None and t != self.t:
+            self.off_grid.append((t, h))
         if self.error:  # FMI 2.0 2.1.3, FMI 3.0 2.2.4: after Error, reset or free only
             self.illegal.append((t, h))
         if len(self.steps) > self.d.get("steps_ok", 10 ** 9) or \
@@ -831,12 +840,14 @@ class _FakeSlave:
             self.t = t  # accepted: a step from wherever it was asked
         for vr, x in self.values.items():
             if x != x:
-                self._answer(self.d.get("nan", 2), f"{self.names[vr]} = nan")
+                self._answer(self.d.get("nan", 2), self.d.get("long") or
+                             f"{self.names[vr]} = nan")
         if self.set_output:
             (name, x), self.set_output = self.set_output, None
             self._answer(self.d.get("set_output", 3), f"{name} = {x!r} rejected")
         if h <= 0:
-            self._answer(self.d.get("h", 2), f"communicationStepSize = {h!r}")
+            self._answer(self.d.get("zero", self.d.get("h", 2)) if h == 0 else
+                         self.d.get("h", 2), f"communicationStepSize = {h!r}")
         if t != self.t:
             self._answer(self.d.get("t", 2), f"currentCommunicationPoint = {t!r}")
         if h == 0.0 and not self.d.get("h"):
@@ -878,7 +889,7 @@ class _FakeInstance:
 
 
 def _fake_ctx(fmi=2, profile="dronefly", tool="dronefly-fmu 1.0", inputs=("u", "w"),
-              outputs=("y",), n=10, **defects):
+              outputs=("y",), n=10, locals_=0, **defects):
     """A Context (the attributes the checks read) of an FMU with Real ``inputs`` and
     ``outputs`` (value references 1, 2, ...), a time variable (value reference 0), a run of
     ``n`` steps of 0.1 s from 0; its instances are :class:`_FakeInstance` with ``defects``."""
@@ -886,6 +897,7 @@ def _fake_ctx(fmi=2, profile="dronefly", tool="dronefly-fmu 1.0", inputs=("u", "
 
     names = {0: "time", **{k: n_ for k, n_ in enumerate((*inputs, *outputs), 1)}}
     var = [Var(n_, "Real", vr, None) for vr, n_ in names.items() if vr]
+    names.update({len(names) + k: f"x{k}" for k in range(locals_)})  # locals (not in ctx)
     mv = [SimpleNamespace(valueReference=0, causality="independent"),
           *(SimpleNamespace(valueReference=v.vr, causality="input") for v in var)]
     md = SimpleNamespace(generationTool=tool, modelVariables=mv)
@@ -1116,3 +1128,30 @@ def test_fmi3_state_refusal_of_corrupt_bytes():
         assert _fails(refusals.check_state_refusal, _fake_ctx(3, **defects)) == problem, defects
     with pytest.raises(CheckSkipped, match="an FMI 3.0 check"):
         refusals.check_state_refusal(_fake_ctx(2))
+
+
+def test_bad_input_of_the_standard_profile_makes_the_calls_its_cases_name():
+    """Each case is the call its text names (the report names what the FMU was asked): a step
+    of size 0 and one of -h at the start, one from ten steps ahead; an FMU that takes a step of
+    size 0 but refuses a negative one is warned of the first only."""
+    ctx = _fake_ctx(2, "standard", zero=0, h=3, t=3)
+    assert refusals.check_bad_input(ctx).startswith(
+        "communicationStepSize = 0.0: OK; communicationStepSize = -0.1: Error; ")
+    assert ctx.warnings == ["communicationStepSize = 0.0: fmi2DoStep returned fmi2OK"]
+    assert ctx.instances[0].slave.steps == [(0.0, 0.0), (0.0, -0.1), (10 * 0.1, 0.1),
+                                            (0.0, 0.1)]
+
+
+def test_a_missing_fragment_quotes_the_first_200_characters_of_the_log():
+    got = _fails(refusals.check_discard, _fake_ctx(3, long="x" * 300))
+    assert got == f"a NaN input: 'u = nan' not in the log ({'x' * 200!r})"
+
+
+def test_fmi3_state_machine_calls_are_illegal_only_as_they_mean_to_be():
+    """The unknown value reference's message is the last one logged, whatever the FMU logged
+    before (here at initialization); each output is set by its own value reference, one value
+    for one reference; the step after fmi3Terminate continues from the point reached (only the
+    state is wrong); a model with many variables has no variable at the probe's reference."""
+    ctx = _fake_ctx(3, outputs=("y", "z"), chatty=True, locals_=100)
+    assert refusals.check_state_machine(ctx).startswith("6 illegal calls")
+    assert ctx.instances[0].slave.off_grid == []

@@ -71,6 +71,7 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/binary.py": [_CHECKS],
     # a fake FMU with seeded defects, the Reference-FMUs' Feedthrough in-process
     "harness/compliance/refusals.py": [_CHECKS],
+    "harness/compliance/runtime.py": [_CHECKS],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -19,7 +19,7 @@ import pytest
 from fmpy import platform, platform_tuple, read_model_description
 from fmpy.fmi1 import FMICallException
 
-from dronefly.harness.compliance import binary, names, refusals, static
+from dronefly.harness.compliance import binary, names, refusals, runtime, static
 from dronefly.harness.compliance.rules import CheckFailed, CheckSkipped
 
 
@@ -704,12 +704,15 @@ def reference_context():
 
     opened = []
 
-    def make(fmi: int, name: str, profile: str | None = None):
+    def make(fmi: int, name: str, profile: str | None = None, interface: str = "cs",
+             path: Path | None = None, **options):
         source = REF / f"fmi{fmi}" / f"{name}.fmu"
         if not source.is_file():
             pytest.skip(f"{source} is not there (../shared)")
-        opened.append(FMU(source))
-        return Context(opened[-1], CheckOptions(profile=profile), None)
+        opened.append(FMU(path or source))
+        ctx = Context(opened[-1], CheckOptions(profile=profile, **options), None)
+        ctx.interface = interface
+        return ctx
 
     yield make
     for fmu in opened:
@@ -1155,3 +1158,124 @@ def test_fmi3_state_machine_calls_are_illegal_only_as_they_mean_to_be():
     ctx = _fake_ctx(3, outputs=("y", "z"), chatty=True, locals_=100)
     assert refusals.check_state_machine(ctx).startswith("6 illegal calls")
     assert ctx.instances[0].slave.off_grid == []
+
+
+
+# --- runtime.py: the runtime semantics, on the Reference-FMUs and on seeded defects ------------
+
+def _seeded(tmp_path: Path, fmi: int, name: str, *edits: tuple[str, str]) -> Path:
+    """A copy of a Reference-FMU whose modelDescription.xml has ``edits`` (old, new) made: a
+    description that no longer tells the truth about the unchanged binary."""
+    source, path = REF / f"fmi{fmi}" / f"{name}.fmu", tmp_path / f"{name}{fmi}.fmu"
+    if not source.is_file():
+        pytest.skip(f"{source} is not there (../shared)")
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                for old, new in edits:
+                    assert old in text, old
+                    text = text.replace(old, new, 1)
+                data = text.encode()
+            zout.writestr(item, data)
+    return path
+
+
+_RUNTIME = ("check_call_sequence", "check_start_values", "check_dependencies", "check_reset",
+            "check_two_instances", "check_state")
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+@pytest.mark.parametrize("interface", ["cs", "me"])
+@pytest.mark.parametrize("name, stop, steps", [("Feedthrough", None, 100),
+                                               ("Dahlquist", None, 100),
+                                               ("Stair", 8.0, 40)])
+def test_the_reference_fmus_pass_the_runtime_checks(reference_context, fmi, interface, name,
+                                                    stop, steps):
+    """The Reference-FMUs (Stair to 8 s, before it asks to terminate) pass every runtime check
+    through either interface (docs/compliance.md, the validation table); their default
+    experiments: Feedthrough 2 s in steps of 0.02 s, Dahlquist 10 s of 0.1 s, Stair 0.2 s."""
+    ctx = reference_context(fmi, name, interface=interface, stop_time=stop)
+    details = {}
+    for check in _RUNTIME:
+        try:
+            details[check] = getattr(runtime, check)(ctx)
+        except CheckSkipped as e:
+            details[check] = f"skipped: {e}"
+    assert details["check_call_sequence"] == (
+        f"{steps} steps of {ctx.step:.6g} s to {ctx.start + steps * ctx.step:.6g} s")
+    assert details["check_reset"] == f"identical after fmi{fmi}Reset"
+    assert details["check_two_instances"] == "independent"
+    half = steps // 2
+    assert details["check_state"].startswith(
+        f"bit-for-bit continuation from t = {half * ctx.step:.6g} s: get/set, serialized (")
+    assert details["check_start_values"].endswith("hold their start values")
+    if name == "Feedthrough":
+        assert details["check_dependencies"].endswith(": no undeclared dependency")
+    else:  # no inputs
+        assert details["check_dependencies"].startswith("skipped: no inputs")
+    assert ctx.warnings == []
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_stairs_reset_keeps_its_terminate_request(reference_context, fmi):
+    """Stair at its default experiment asks to terminate at 9 s, and its fmiXReset keeps the
+    request: the run after the reset ends after one step (a defect of the FMU, FMI 2.0 2.1.6:
+    after fmi2Reset the FMU is as after fmi2Instantiate), docs/compliance.md."""
+    ctx = reference_context(fmi, "Stair")
+    assert runtime.check_call_sequence(ctx) == (
+        "45 steps of 0.2 s; the FMU ended the run at t = 9 s (before the stop time 10 s)")
+    assert _fails(runtime.check_reset, ctx) == (
+        f"the run after fmi{fmi}Reset differs from the first: the FMU ended it at t = 0.2 s, "
+        "the first at t = 9 s")
+    # through Model Exchange the request is recomputed: the runs agree
+    ctx = reference_context(fmi, "Stair", interface="me")
+    assert runtime.check_reset(ctx) == f"identical after fmi{fmi}Reset"
+
+
+def test_a_stop_time_off_the_grid_is_said(reference_context):
+    ctx = reference_context(2, "Dahlquist", stop_time=1.05)
+    assert runtime.check_call_sequence(ctx) == (
+        "10 steps of 0.1 s to 1 s (the stop time 1.05 s is not a whole number of steps)")
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_declared_start_the_fmu_does_not_hold_fails_start_values(tmp_path, reference_context,
+                                                                   fmi):
+    # Dahlquist's k: declared 1 (parameter, fixed: initial exact), the binary holds 1
+    old = '<Real start="1"/>' if fmi == 2 else 'start="1"'
+    path = _seeded(tmp_path, fmi, "Dahlquist", (old, old.replace('"1"', '"1.5"')))
+    ctx = reference_context(fmi, "Dahlquist", path=path)
+    got = _fails(runtime.check_start_values, ctx)
+    assert ": declared start 1.5, holds 1.0" in got, got
+
+
+_OUT5 = '<Unknown index="5" dependencies="4" dependenciesKind="constant"/>'  # Feedthrough 2.0
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+@pytest.mark.parametrize("declared, what", [
+    ('dependencies=""', "no dependency"),
+    ('dependencies="6" dependenciesKind="constant"', "dependencies on Float64_discrete_input"),
+])
+@pytest.mark.parametrize("where", ["Outputs", "InitialUnknowns"])
+def test_an_undeclared_dependency_fails_dependencies(tmp_path, reference_context, interface,
+                                                     declared, what, where):
+    """Feedthrough's continuous output is its continuous input (FMI 2.0 2.2.8: the Outputs
+    and InitialUnknowns list the inputs an output depends on); declared otherwise in one list,
+    the probe of that list finds the input."""
+    new = _OUT5.replace('dependencies="4" dependenciesKind="constant"', declared)
+    # the first Unknown of index 5 is in Outputs, the second in InitialUnknowns
+    edits = [(_OUT5, new)] if where == "Outputs" else \
+        [("<InitialUnknowns>\n      " + _OUT5, "<InitialUnknowns>\n      " + new)]
+    ctx = reference_context(2, "Feedthrough", interface=interface,
+                            path=_seeded(tmp_path, 2, "Feedthrough", *edits))
+    got = _fails(runtime.check_dependencies, ctx)
+    mode = ("in Initialization Mode" if where == "InitialUnknowns" else
+            "in Step Mode (two continuations from one saved FMU state differ by O(1), not "
+            "O(h), over a small step)" if interface == "cs" else
+            "through Model Exchange (set, then get: continuous inputs in Continuous-Time Mode, "
+            "discrete ones in Event Mode)")
+    assert got == (f"Float64_continuous_output (declared in {where} with {what} among the "
+                   f"inputs) changed when only Float64_continuous_input was set, {mode}")

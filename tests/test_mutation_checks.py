@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import sys
 import dataclasses
 import zipfile
 from pathlib import Path
@@ -1163,7 +1164,8 @@ def test_fmi3_state_machine_calls_are_illegal_only_as_they_mean_to_be():
 
 # --- runtime.py: the runtime semantics, on the Reference-FMUs and on seeded defects ------------
 
-def _seeded(tmp_path: Path, fmi: int, name: str, *edits: tuple[str, str]) -> Path:
+def _seeded(tmp_path: Path, fmi: int, name: str, *edits: tuple[str, str],
+            every: bool = False) -> Path:
     """A copy of a Reference-FMU whose modelDescription.xml has ``edits`` (old, new) made: a
     description that no longer tells the truth about the unchanged binary."""
     source, path = REF / f"fmi{fmi}" / f"{name}.fmu", tmp_path / f"{name}{fmi}.fmu"
@@ -1176,7 +1178,7 @@ def _seeded(tmp_path: Path, fmi: int, name: str, *edits: tuple[str, str]) -> Pat
                 text = data.decode()
                 for old, new in edits:
                     assert old in text, old
-                    text = text.replace(old, new, 1)
+                    text = text.replace(old, new, -1 if every else 1)
                 data = text.encode()
             zout.writestr(item, data)
     return path
@@ -1279,3 +1281,627 @@ def test_an_undeclared_dependency_fails_dependencies(tmp_path, reference_context
             "discrete ones in Event Mode)")
     assert got == (f"Float64_continuous_output (declared in {where} with {what} among the "
                    f"inputs) changed when only Float64_continuous_input was set, {mode}")
+
+
+def _var(kind="Real", type_=None, lo=None, hi=None, name="u"):
+    from dronefly.harness.compliance.driver import Var
+
+    return Var(name, kind, 1, SimpleNamespace(type=type_ or kind, min=lo, max=hi))
+
+
+_EPS = sys.float_info.epsilon
+
+
+@pytest.mark.parametrize("a, b, moved", [
+    (1.0, 1.0, False), (math.nan, math.nan, False), (math.inf, math.inf, False),
+    (1.0, math.nan, True), (math.nan, 1.0, True), (math.inf, 1.0, True), (1.0, -math.inf, True),
+    # round-off: 4 ulp-sized epsilons of the larger magnitude
+    (1.0, 1.0 + 4 * _EPS, False), (1.0, 1.0 + 5 * _EPS, True), (1.0, 1.0 + 8 * _EPS, True),
+    (-2.0, -2.0 - 8 * _EPS, False), (-2.0, -2.0 - 16 * _EPS, True),
+    (1.0 + 8 * _EPS, 1.0, True), (0.0, 1e-300, True), (3.0, 4.0, True),
+])
+def test_moved_is_a_change_beyond_round_off(a, b, moved):
+    assert runtime._moved(a, b) is moved
+
+
+@pytest.mark.parametrize("var, x, want", [
+    (_var("Boolean"), 1.0, 0.0), (_var("Boolean"), 0.0, 1.0),
+    (_var("Integer", "Enumeration"), 1.0, None),  # no value known to be legal
+    (_var("Integer"), 3.0, 4.0), (_var(), 3.0, 4.0),
+    (_var(hi=3.0), 3.0, 2.0),  # at its max: down by one
+    (_var(lo=3.0, hi=3.0), 3.0, None),  # no other value allowed
+    (_var(hi=3.5), 3.0, 3.5),  # within the bounds
+    (_var(lo=2.8, hi=3.0), 3.0, 2.8),
+])
+def test_perturbed_moves_an_input_by_a_unit_within_its_bounds(var, x, want):
+    assert runtime._perturbed(var, x) == want
+
+
+@pytest.mark.parametrize("var, x, want", [
+    (_var(), 0.0, 1e-3), (_var(), 2000.0, 2002.0), (_var(), -2000.0, -1998.0),
+    (_var(), 0.5, 0.501),  # at least 1e-3
+    (_var(hi=0.5), 0.5, 0.499), (_var(lo=0.5, hi=0.5), 0.5, None),
+    (_var("Boolean"), 0.0, 1.0), (_var("Integer"), 3.0, 4.0),
+])
+def test_nudged_moves_a_real_input_by_a_thousandth_of_its_size(var, x, want):
+    got = runtime._nudged(var, x)
+    assert got == (None if want is None else pytest.approx(want, rel=1e-12, abs=0))
+
+
+def test_lies_are_the_inputs_seen_beyond_the_declared_ones():
+    declared = {"w": None, "y": set(), "z": {"a"}, "v": {"a", "b"}}
+    seen = {"y": {"b", "a"}, "z": {"a", "c"}, "w": {"a"}, "v": {"b"}}
+    assert runtime._lies(declared, seen, "here", "Outputs") == [
+        "y (declared in Outputs with no dependency among the inputs) changed when only a was "
+        "set, here",
+        "y (declared in Outputs with no dependency among the inputs) changed when only b was "
+        "set, here",
+        "z (declared in Outputs with dependencies on a among the inputs) changed when only c "
+        "was set, here"]
+    assert runtime._lies({"y": {"a"}}, {}, "here", "Outputs") == []
+
+
+def _ref_ctx(path, ref=None, inputs=None):
+    return SimpleNamespace(fmu=SimpleNamespace(path=path),
+                           options=SimpleNamespace(ref=ref, inputs=inputs))
+
+
+def test_reference_files_follow_the_cross_check_layout_or_the_options(tmp_path):
+    fmu = tmp_path / "M.fmu"
+    assert runtime.reference_files(_ref_ctx(fmu)) is None
+    (tmp_path / "M_ref.csv").write_text("")
+    assert runtime.reference_files(_ref_ctx(fmu)) == (tmp_path / "M_ref.csv", None, None)
+    (tmp_path / "M_in.csv").write_text("")
+    (tmp_path / "M_ref.opt").write_text("")
+    assert runtime.reference_files(_ref_ctx(fmu)) == (
+        tmp_path / "M_ref.csv", tmp_path / "M_in.csv", tmp_path / "M_ref.opt")
+    # --ref: its own .opt beside it, no inputs unless --in
+    (tmp_path / "other").mkdir()
+    ref = tmp_path / "other" / "X_ref.csv"
+    assert runtime.reference_files(_ref_ctx(fmu, str(ref))) == (ref, None, None)
+    (tmp_path / "other" / "X_ref.opt").write_text("")
+    assert runtime.reference_files(_ref_ctx(fmu, str(ref), "in.csv")) == (
+        ref, Path("in.csv"), tmp_path / "other" / "X_ref.opt")
+    plain = tmp_path / "other" / "X.csv"
+    assert runtime.reference_files(_ref_ctx(fmu, str(plain))) == (plain, None, None)
+    # --in alone, with the layout's reference
+    assert runtime.reference_files(_ref_ctx(fmu, None, "in.csv")) == (
+        tmp_path / "M_ref.csv", Path("in.csv"), tmp_path / "M_ref.opt")
+
+
+class _Held:
+    """An instance whose variables hold ``values`` (value reference -> value)."""
+
+    def __init__(self, values):
+        self.slave = SimpleNamespace(
+            setupExperiment=lambda **kw: None, enterInitializationMode=lambda: None,
+            exitInitializationMode=lambda: None,
+            getReal=lambda vrs: [values[v] for v in vrs],
+            getInteger=lambda vrs: [int(values[v]) for v in vrs],
+            getBoolean=lambda vrs: [bool(values[v]) for v in vrs])
+        self.messages = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return None
+
+
+def _start_ctx(variables, values, float32=()):
+    """A Context of an FMU declaring ``variables`` (name, type, start, causality, variability,
+    initial), value references 1, 2, ... in order, whose instance holds ``values``."""
+    mv = [SimpleNamespace(name=n, type=t, start=st, causality=c, variability=var, initial=i,
+                          valueReference=k)
+          for k, (n, t, st, c, var, i) in enumerate(variables, 1)]
+    md3 = (SimpleNamespace(modelVariables=[SimpleNamespace(valueReference=v.valueReference,
+                                                           type="Float32") for v in mv
+                                           if v.name in float32]) if float32 else None)
+    held = dict(enumerate(values, 1))
+    return SimpleNamespace(
+        fmu=SimpleNamespace(model_description=SimpleNamespace(modelVariables=mv),
+                            model_description3=md3, elements={}),
+        fmi="fmi2", start=0.0, stop=1.0, event=lambda **row: None,
+        instantiate=lambda name: _Held(held))
+
+
+_PAR = ("parameter", "fixed", "exact")
+
+
+@pytest.mark.parametrize("declared, held, f32, ok", [
+    # the writer's rounding: 4 epsilons of a double relative to the start, 1e-6 of a Float32
+    ("1.0", 1.0, False, True), ("0", 0.0, False, True),
+    (repr(1.0 + 4 * _EPS), 1.0, False, True), (repr(1.0 + 5 * _EPS), 1.0, False, False),
+    ("2.0", 2.0 + 8 * _EPS, False, True),  # at the tolerance itself
+    ("2.0", 2.0 + 10 * _EPS, False, False), ("-2.0", -2.0 - 8 * _EPS, False, True),
+    ("1024.0", 1024.0 * (1 + 4 * _EPS), False, True),
+    ("0.1", 0.1 + 1e-8, False, False), ("0.1", 0.1 + 1e-8, True, True),
+    ("0.1", 0.1 + 2e-7, True, False), ("1.5", 1.0, False, False), ("1.5", 1.0, True, False),
+])
+def test_start_values_are_held_up_to_the_writers_rounding(declared, held, f32, ok):
+    ctx = _start_ctx([("p", "Real", declared, *_PAR)], [held], ["p"] if f32 else [])
+    if ok:
+        assert runtime.check_start_values(ctx) == ('1 variable(s) with initial="exact" hold '
+                                                   'their start values')
+    else:
+        assert _fails(runtime.check_start_values, ctx) == (
+            f"p: declared start {float(declared)!r}, holds {held!r}")
+
+
+def test_start_values_are_those_of_initial_exact():
+    """FMI 2.0 2.2.7: the start of a variable with initial="exact" (a constant's default) is
+    the value it holds; approx and calculated ones, the independent variable, an Enumeration
+    without a start and a variable without a start are not compared."""
+    variables = [
+        ("time", "Real", "5", "independent", "continuous", "exact"),  # illegal start: left out
+        ("n", "Integer", None, "output", "discrete", "exact"),  # no start: left out
+        ("e", "Enumeration", " ", "parameter", "fixed", "exact"),
+        ("a", "Real", "7", "local", "continuous", "approx"),
+        ("b", "Real", "7", "local", "continuous", None),
+        ("c", "Real", "2", "local", "constant", None),  # constant: exact by default
+        ("f", "Boolean", "true", "parameter", "fixed", "exact"),
+        ("g", "Boolean", "1", "parameter", "fixed", "exact"),
+        ("h", "Boolean", "false", "parameter", "fixed", "exact"),
+        ("i", "Enumeration", "2", "parameter", "fixed", "exact"),
+        ("s", "String", "x", "parameter", "fixed", "exact"),
+    ]
+    values = [0.0, 0, 9, 0.0, 0.0, 2.0, True, True, False, 2, 0.0]
+    ctx = _start_ctx(variables, values)
+    assert runtime.check_start_values(ctx) == ('5 variable(s) with initial="exact" hold their '
+                                               'start values')
+    for k, wrong, message in ((5, 3.0, "c: declared start 2.0, holds 3.0"),
+                              (6, False, "f: declared start 1.0, holds 0.0"),
+                              (8, True, "h: declared start 0.0, holds 1.0"),
+                              (9, 3, "i: declared start 2.0, holds 3.0")):
+        bad = list(values)
+        bad[k] = wrong
+        assert _fails(runtime.check_start_values, _start_ctx(variables, bad)) == message
+    with pytest.raises(CheckSkipped, match='^no variable with initial="exact"$'):
+        runtime.check_start_values(_start_ctx(variables[:5], values[:5]))
+
+
+def test_the_derivatives_are_the_real_variables_modelstructure_lists():
+    mv = [SimpleNamespace(name=n, type=t, valueReference=k) for k, (n, t) in enumerate(
+        (("dx", "Real"), ("dv[1]", "Real"), ("dv[2]", "Real"), ("dx2", "Real"),
+         ("dn", "Integer"), ("x", "Real")))]
+    md = SimpleNamespace(derivatives=[SimpleNamespace(variable=SimpleNamespace(name=n))
+                                      for n in ("dx", "dv", "dn")], modelVariables=mv)
+    ctx = SimpleNamespace(fmu=SimpleNamespace(model_description=md, model_description3=None))
+    assert [v.name for v in runtime._derivatives(ctx)] == ["dx", "dv[1]", "dv[2]"]
+    md.derivatives = None
+    assert runtime._derivatives(ctx) == []
+
+
+class _Plant:
+    """A slave of x' = u (Euler, exact for a held u), outputs y = x (through the state) and
+    z = u (direct), inputs u0, u (value references 1, 2; y 3, z 4), its state saved and
+    restored; steps shorter than ``refuse_below`` refused fmi2Error (FMI 2.0 4.2.2)."""
+
+    def __init__(self, refuse_below=0.0):
+        self.u = {1: 1.0, 2: 1.0}
+        self.x, self.t, self.refuse_below, self.steps = 0.0, 0.0, refuse_below, []
+
+    def setupExperiment(self, startTime, stopTime):
+        self.t = startTime
+
+    def enterInitializationMode(self):
+        pass
+
+    def exitInitializationMode(self):
+        pass
+
+    def setReal(self, vrs, xs):
+        self.u.update(zip(vrs, xs))
+
+    def getReal(self, vrs):
+        return [self.u[v] if v in self.u else self.x if v == 3 else self.u[2] for v in vrs]
+
+    def doStep(self, currentCommunicationPoint, communicationStepSize):
+        self.steps.append(communicationStepSize)
+        if communicationStepSize < self.refuse_below:
+            raise FMICallException("fmi2DoStep", 3)
+        self.x += self.u[2] * communicationStepSize
+        self.t = currentCommunicationPoint + communicationStepSize
+
+    def getFMUstate(self):
+        return (self.x, self.t, dict(self.u))
+
+    def setFMUstate(self, state):
+        self.x, self.t, u = state
+        self.u = dict(u)
+
+    def freeFMUstate(self, state):
+        pass
+
+
+def _plant_ctx(outputs_deps, initial_deps=None, refuse_below=0.0, can_probe=True):
+    """A Context of :class:`_Plant` declaring ``outputs_deps`` (output -> inputs) in
+    ModelStructure Outputs and ``initial_deps`` in InitialUnknowns."""
+    from dronefly.harness.compliance.driver import Var, reader
+
+    inputs = [Var(n, "Real", vr, SimpleNamespace(type="Real", min=None, max=None,
+                                                 variability="continuous"))
+              for vr, n in ((1, "u0"), (2, "u"))]
+    outputs = [Var(n, "Real", vr, None) for vr, n in ((3, "y"), (4, "z"))]
+
+    def unknowns(deps):
+        return [SimpleNamespace(variable=SimpleNamespace(name=o),
+                                dependencies=[SimpleNamespace(name=u) for u in d])
+                for o, d in (deps or {}).items()]
+
+    md = SimpleNamespace(outputs=unknowns(outputs_deps), initialUnknowns=unknowns(initial_deps),
+                         coSimulation=SimpleNamespace(canGetAndSetFMUstate=can_probe))
+    plants: list = []
+
+    def instantiate(name):
+        plants.append(_Plant(refuse_below))
+        return SimpleNamespace(slave=plants[-1], messages=[], interface="cs")
+
+    ctx = SimpleNamespace(
+        fmu=SimpleNamespace(model_description=md, model_description3=None, fmi_version=2),
+        interface="cs", inputs=inputs, outputs=outputs, excited=inputs,
+        input_start={1: 1.0, 2: 1.0}, start=0.0, stop=1.0, step=0.1, n=10, fmi="fmi2",
+        on_event=None, warnings=[], plants=plants, event=lambda **row: None,
+        read_outputs=reader(outputs))
+    ctx.instantiate = lambda name: _Entered(instantiate(name))
+    return ctx
+
+
+class _Entered:
+    def __init__(self, inst):
+        self.inst = inst
+
+    def __enter__(self):
+        return self.inst
+
+    def __exit__(self, *exc):
+        return None
+
+
+_STEP_MODE = ("in Step Mode (two continuations from one saved FMU state differ by O(1), not "
+              "O(h), over a small step)")
+
+
+def test_the_step_mode_probe_tells_a_direct_dependency_from_one_through_a_state():
+    """y follows u through the state (O(h) apart over a step h), z follows it directly (O(1)):
+    FMI 2.0 2.2.8's Outputs dependencies are the direct ones, so y declared without u is true,
+    z declared without u a lie. The probe steps are 1e-3 and 1e-4 of the run's step, each
+    taken twice from the saved state; u0, declared by every output, is not probed."""
+    ctx = _plant_ctx({"y": ["u0"], "z": ["u", "u0"]})
+    assert runtime.check_dependencies(ctx) == ("2 output(s) with declared Outputs dependencies "
+                                               "probed in Step Mode from a saved FMU state: no "
+                                               "undeclared dependency")
+    assert ctx.warnings == []
+    h = ctx.step
+    assert ctx.plants[0].steps == [h, 1e-3 * h, 1e-3 * h, 1e-4 * h, 1e-4 * h]
+    ctx = _plant_ctx({"y": ["u0"], "z": ["u0"]})
+    assert _fails(runtime.check_dependencies, ctx) == (
+        "z (declared in Outputs with dependencies on u0 among the inputs) changed when only u "
+        f"was set, {_STEP_MODE}")
+
+
+def test_the_step_mode_probe_notes_the_inputs_whose_steps_were_refused():
+    ctx = _plant_ctx({"y": [], "z": []}, refuse_below=0.05)
+    assert runtime.check_dependencies(ctx).endswith("no undeclared dependency")
+    assert ctx.warnings == ["not probed in Step Mode (a step refused): u0 (fmi2DoStep: "
+                            "fmi2Error), u (fmi2DoStep: fmi2Error)"]
+
+
+def test_dependencies_without_a_state_to_save_probe_the_initial_unknowns_only():
+    ctx = _plant_ctx({"y": [], "z": []}, can_probe=False)
+    with pytest.raises(CheckSkipped) as e:
+        runtime.check_dependencies(ctx)
+    assert str(e.value) == ("no output among the ModelStructure InitialUnknowns, and no "
+                            "Outputs dependencies to probe in Step Mode (canGetAndSetFMUstate "
+                            "is not declared)")
+    ctx = _plant_ctx({})
+    ctx.fmu.model_description.outputs = [SimpleNamespace(
+        variable=SimpleNamespace(name=o), dependencies=None) for o in ("y", "z")]
+    with pytest.raises(CheckSkipped) as e:
+        runtime.check_dependencies(ctx)
+    assert str(e.value) == ("no output among the ModelStructure InitialUnknowns, and no "
+                            "Outputs dependencies to probe in Step Mode")
+    ctx.inputs = []
+    with pytest.raises(CheckSkipped, match="^no inputs or no outputs$"):
+        runtime.check_dependencies(ctx)
+
+
+_OUT7 = '<Unknown index="7" dependencies="6" dependenciesKind="constant"/>'  # discrete output
+_INIT = "<InitialUnknowns>\n      "
+
+
+def _feedthrough(tmp_path, reference_context, interface, *edits, every=False):
+    return reference_context(2, "Feedthrough", interface=interface,
+                             path=_seeded(tmp_path, 2, "Feedthrough", *edits, every=every))
+
+
+@pytest.mark.parametrize("interface, outputs_part", [
+    ("cs", "5 output(s) with declared Outputs dependencies probed in Step Mode from a saved FMU "
+           "state"),
+    ("me", "5 output(s) and 0 derivative(s) with declared dependencies, 4 input(s) set one at a "
+           "time (continuous ones in Continuous-Time Mode, discrete ones in Event Mode)"),
+])
+def test_a_declared_dependency_not_seen_is_noted(tmp_path, reference_context, interface,
+                                                 outputs_part):
+    """Feedthrough's six outputs (five of a kind the checks read: not the String) declare
+    their own input each; four inputs can be moved (not the Enumeration: no other value known
+    to be legal). A dependency declared on an input that does not move the output is noted,
+    not failed (it may be conditional)."""
+    ctx = _feedthrough(tmp_path, reference_context, interface,
+                       (_INIT + _OUT5, _INIT + _OUT5.replace('"4"', '"4 6"')))
+    assert runtime.check_dependencies(ctx) == (
+        "5 output(s) with declared initial dependencies, 4 input(s) set one at a time in "
+        f"Initialization Mode; {outputs_part}: no undeclared dependency")
+    assert ctx.warnings == ["declared dependencies not seen (a dependency may be conditional, "
+                            "e.g. on a gain that is zero): Float64_continuous_output on "
+                            "Float64_discrete_input"]
+
+
+def test_a_discrete_inputs_undeclared_dependency_is_found_in_event_mode(tmp_path,
+                                                                        reference_context):
+    ctx = _feedthrough(tmp_path, reference_context, "me",
+                       (_OUT7, _OUT7.replace('dependencies="6" dependenciesKind="constant"',
+                                             'dependencies=""')))
+    assert _fails(runtime.check_dependencies, ctx) == (
+        "Float64_discrete_output (declared in Outputs with no dependency among the inputs) "
+        "changed when only Float64_discrete_input was set, through Model Exchange (set, then "
+        "get: continuous inputs in Continuous-Time Mode, discrete ones in Event Mode)")
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_a_lie_in_initialunknowns_is_reported_before_the_outputs_are_probed(
+        tmp_path, reference_context, interface):
+    new = _OUT5.replace('dependencies="4" dependenciesKind="constant"', 'dependencies=""')
+    ctx = _feedthrough(tmp_path, reference_context, interface, (_OUT5, new), every=True)
+    assert _fails(runtime.check_dependencies, ctx) == (
+        "Float64_continuous_output (declared in InitialUnknowns with no dependency among the "
+        "inputs) changed when only Float64_continuous_input was set, in Initialization Mode")
+
+
+@pytest.mark.parametrize("interface, why", [
+    ("cs", "no output among the ModelStructure InitialUnknowns, and no Outputs dependencies to "
+           "probe in Step Mode"),
+    ("me", "no output among the ModelStructure InitialUnknowns, and no Outputs or Derivatives "
+           "dependencies declared"),
+])
+def test_dependencies_with_nothing_declared_are_skipped(tmp_path, reference_context, interface,
+                                                        why):
+    import re
+
+    text = zipfile.ZipFile(REF / "fmi2" / "Feedthrough.fmu").read(
+        "modelDescription.xml").decode()
+    bare = re.sub(r" dependencies=\"\d+\" dependenciesKind=\"constant\"", "",
+                  re.sub(r"<InitialUnknowns>.*</InitialUnknowns>", "", text, flags=re.S))
+    ctx = reference_context(2, "Feedthrough", interface=interface,
+                            path=_seeded(tmp_path, 2, "Feedthrough", (text, bare)))
+    with pytest.raises(CheckSkipped) as e:
+        runtime.check_dependencies(ctx)
+    assert str(e.value) == why
+
+
+def test_outputs_dependencies_without_fmu_states_are_not_probed(tmp_path, reference_context):
+    old = 'canHandleVariableCommunicationStepSize="true"\n    canNotUseMemoryManagementFunctions' \
+          '="true"\n    canGetAndSetFMUstate="true"'
+    ctx = _feedthrough(tmp_path, reference_context, "cs",
+                       (old, old.replace('canGetAndSetFMUstate="true"',
+                                         'canGetAndSetFMUstate="false"')))
+    assert runtime.check_dependencies(ctx) == (
+        "5 output(s) with declared initial dependencies, 4 input(s) set one at a time in "
+        "Initialization Mode; Outputs dependencies not probed in Step Mode "
+        "(canGetAndSetFMUstate is not declared): no undeclared dependency")
+
+
+class _Proxy:
+    """A slave with some of its functions replaced (a defect seeded into a known-good FMU)."""
+
+    def __init__(self, slave, **replaced):
+        self._slave = slave
+        self.__dict__.update(replaced)
+
+    def __getattr__(self, name):
+        return getattr(self._slave, name)
+
+
+def _seed(ctx, make):
+    """``ctx`` whose instances' slaves are ``make(name, slave)``."""
+    instantiate = ctx.instantiate
+
+    def seeded(name):
+        inst = instantiate(name)
+        inst.slave = make(name, inst.slave)
+        return inst
+
+    ctx.instantiate = seeded
+    return ctx
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_two_instances_that_share_a_value_are_found(reference_context, fmi):
+    """Dahlquist with a seeded defect: the instance named "right" (the second one alive) reads
+    its output off by one, as an FMU whose instances share a global would."""
+    def make(name, slave):
+        if name != "right":
+            return slave
+        return _Proxy(slave, getReal=lambda vrs: [x + 1.0 for x in slave.getReal(vrs)])
+
+    ctx = _seed(reference_context(fmi, "Dahlquist"), make)
+    assert _fails(runtime.check_two_instances, ctx) == ("interleaved instances differ from a "
+                                                        "single run")
+
+
+def test_two_instances_of_an_fmu_instantiated_once_per_process_are_not_tried(
+        tmp_path, reference_context):
+    ctx = reference_context(2, "Dahlquist", path=_seeded(
+        tmp_path, 2, "Dahlquist", ("<CoSimulation", '<CoSimulation '
+                                   'canBeInstantiatedOnlyOncePerProcess="true"')))
+    with pytest.raises(CheckSkipped, match="^canBeInstantiatedOnlyOncePerProcess is declared$"):
+        runtime.check_two_instances(ctx)
+
+
+def _restores_wrong(after: int):
+    """A slave whose outputs read 1 off once fmiXSetFMUstate was called ``after`` times."""
+    def make(name, slave):
+        calls: list = []
+
+        def set_state(state):
+            calls.append(state)
+            slave.setFMUstate(state)
+
+        return _Proxy(slave, setFMUstate=set_state, getReal=lambda vrs: [
+            x + (len(calls) >= after) for x in slave.getReal(vrs)])
+
+    return make
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_state_that_does_not_restore_fails_state(reference_context, fmi):
+    v = f"fmi{fmi}"
+    ctx = _seed(reference_context(fmi, "Dahlquist"), _restores_wrong(1))
+    assert _fails(runtime.check_state, ctx) == f"continuation after {v}SetFMUstate differs"
+    ctx = _seed(reference_context(fmi, "Dahlquist"), _restores_wrong(2))
+    assert _fails(runtime.check_state, ctx) == \
+        f"continuation after {v}DeSerializeFMUstate differs"
+
+
+def test_state_checks_what_the_fmu_declares(tmp_path, reference_context):
+    old = 'canGetAndSetFMUstate="true"\n    canSerializeFMUstate="true">\n    <SourceFiles>\n' \
+          '      <File name="all.c"/>\n    </SourceFiles>\n  </CoSimulation>'
+    ctx = reference_context(2, "Dahlquist", path=_seeded(
+        tmp_path, 2, "Dahlquist", (old, old.replace('canSerializeFMUstate="true"',
+                                                    'canSerializeFMUstate="false"'))))
+    assert runtime.check_state(ctx) == "bit-for-bit continuation from t = 5 s: get/set"
+    (tmp_path / "b").mkdir()
+    ctx = reference_context(2, "Dahlquist", path=_seeded(
+        tmp_path / "b", 2, "Dahlquist", (old, old.replace('="true"', '="false"'))))
+    with pytest.raises(CheckSkipped, match="^canGetAndSetFMUstate is not declared$"):
+        runtime.check_state(ctx)
+    # Stair asks to terminate at 9 s: before the middle of a 20 s run
+    ctx = reference_context(2, "Stair", stop_time=20.0)
+    with pytest.raises(CheckSkipped, match="^the FMU ended the run before t = 10 s$"):
+        runtime.check_state(ctx)
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_call_sequence_non_finite_or_constant_outputs(reference_context, fmi):
+    """Dahlquist's x decays from 1 (e^-t: 0.99995 of a unit over its 10 s), finite. Seeded: x
+    read NaN, or constant; the dronefly profile fails both (its FMUs promise finite outputs
+    that respond), the standard one notes the NaN only."""
+    steps = "100 steps of 0.1 s to 10 s"
+    assert runtime.check_call_sequence(reference_context(fmi, "Dahlquist", "dronefly")) == steps
+
+    def nan(name, s):
+        return _Proxy(s, getReal=lambda vrs: [math.nan] * len(vrs))
+
+    def constant(name, s):
+        return _Proxy(s, getReal=lambda vrs: [0.5] * len(vrs))
+
+    ctx = _seed(reference_context(fmi, "Dahlquist", "dronefly"), nan)
+    assert _fails(runtime.check_call_sequence, ctx) == "non-finite values returned with OK: x"
+    ctx = _seed(reference_context(fmi, "Dahlquist", "standard"), nan)
+    assert runtime.check_call_sequence(ctx) == steps
+    assert ctx.warnings == ["non-finite values returned with OK: x"]
+    ctx = _seed(reference_context(fmi, "Dahlquist", "dronefly"), constant)
+    assert _fails(runtime.check_call_sequence, ctx) == "outputs do not respond to the inputs"
+    ctx = _seed(reference_context(fmi, "Dahlquist", "standard"), constant)
+    assert runtime.check_call_sequence(ctx) == steps and ctx.warnings == []
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_a_reset_that_keeps_a_parameter_fails_reset(reference_context, fmi):
+    """Dahlquist with a seeded defect: after fmiXReset its k is 2 (a value the reset kept),
+    not the declared 1: the second run differs (FMI 2.0 2.1.6: after fmi2Reset the FMU is as
+    after fmi2Instantiate)."""
+    ctx = reference_context(fmi, "Dahlquist")
+    k = ctx.fmu.variables["k"].valueReference
+
+    def make(name, s):
+        def reset():
+            s.reset()
+            s.setReal([k], [2.0])
+
+        return _Proxy(s, reset=reset)
+
+    assert _fails(runtime.check_reset, _seed(ctx, make)) == \
+        f"the run after fmi{fmi}Reset differs from the first"
+
+
+def _reference_csv(path: Path, times, scale=1.0, column="x") -> Path:
+    path.write_text(f"time,{column}\n" + "".join(f"{t!r},{scale * math.exp(-t)!r}\n"
+                                                  for t in times))
+    return path
+
+
+def test_the_reference_run_passes_fmpys_band_and_a_wrong_one_fails(tmp_path, reference_context):
+    """Dahlquist's x is e^-t (its k = 1): a reference of e^-t passes FMPy's validation band,
+    one of 2 e^-t fails it, one that names no variable of the FMU fails before the run."""
+    times = [k / 10 for k in range(101)]
+    ref = _reference_csv(tmp_path / "good.csv", times)
+    ctx = reference_context(2, "Dahlquist", ref=str(ref))
+    assert runtime.check_reference(ctx) == "1 output(s) within FMPy's validation band of good.csv"
+    ref = _reference_csv(tmp_path / "bad.csv", times, 2.0)
+    got = _fails(runtime.check_reference, reference_context(2, "Dahlquist", ref=str(ref)))
+    assert "% of the samples outside FMPy's validation band of bad.csv (first outside: x at " \
+           "t = " in got and not got.startswith("0.0%"), got
+    ref = _reference_csv(tmp_path / "none.csv", times, column="y")
+    assert _fails(runtime.check_reference, reference_context(2, "Dahlquist", ref=str(ref))) == \
+        "none.csv: y name no variable of the FMU"
+
+
+@pytest.mark.parametrize("times, opt, run", [
+    # the run the reference was sampled on: its first and last time, its spacing
+    ([0.5 + k / 10 for k in range(16)], None, (0.5, 2.0, 0.1)),
+    ([0.25, 1.0], None, (0.25, 1.0, 0.75)),
+    ([0.0, 1.0, 2.0], "StartTime, 0.5\nStopTime, 1.5\nStepSize, 0.25\nRelTol, 1e-4\n", (0.5, 1.5, 0.25)),
+])
+def test_the_reference_run_is_the_references_own(tmp_path, reference_context, monkeypatch,
+                                                 times, opt, run):
+    import shutil
+
+    calls = []
+
+    def simulate(path, **kw):
+        calls.append(kw)
+        import fmpy as real
+
+        return real.read_csv(str(ref))
+
+    fmu = tmp_path / "Dahlquist.fmu"
+    shutil.copy(REF / "fmi2" / "Dahlquist.fmu", fmu)
+    ref = _reference_csv(tmp_path / "Dahlquist_ref.csv", times)
+    (tmp_path / "Dahlquist_in.csv").write_text("time,k\n0,1\n")
+    if opt:
+        (tmp_path / "Dahlquist_ref.opt").write_text(opt)
+    monkeypatch.setattr(runtime.fmpy, "simulate_fmu", simulate)
+    ctx = reference_context(2, "Dahlquist", path=fmu)
+    assert runtime.check_reference(ctx) == ("1 output(s) within FMPy's validation band of "
+                                            "Dahlquist_ref.csv with Dahlquist_in.csv")
+    (kw,) = calls
+    assert (kw["start_time"], kw["stop_time"]) == run[:2]
+    assert kw["output_interval"] == pytest.approx(run[2], rel=1e-12)
+    assert kw["output"] == ["x"] and kw["fmi_type"] == "CoSimulation"
+    assert kw["input"] is not None and list(kw["input"].dtype.names) == ["time", "k"]
+
+
+def test_check_reference_without_a_reference_result(tmp_path, reference_context, monkeypatch):
+    from dronefly.harness.compliance.reference import REFERENCES
+
+    with pytest.raises(CheckSkipped, match=r"^no reference result \(--ref FILE.csv, or "
+                                           r"<Model>_ref.csv beside the FMU\)$"):
+        runtime.check_reference(reference_context(2, "Dahlquist"))
+    with pytest.raises(CheckSkipped, match="^no reference result for this model$"):
+        runtime.check_reference(reference_context(2, "Dahlquist", "dronefly"))
+    # the project's models: the cross-check of reference.py
+    name = next(iter(REFERENCES))
+    ctx = SimpleNamespace(fmu=SimpleNamespace(name=name, path=tmp_path / f"{name}.fmu"),
+                          options=SimpleNamespace(ref=None, inputs=None), ours=True)
+    got = []
+
+    def cross_check(model, path, passed=True):
+        got.append((model, path))
+        return SimpleNamespace(passed=passed, cross_check_outliers=0.02, max_rel_error=0.3)
+
+    monkeypatch.setattr(runtime, "cross_check", cross_check)
+    assert runtime.check_reference(ctx) == "cross-check: no outliers, max relative error 3.0e-01"
+    assert got == [(name, ctx.fmu.path)]
+    monkeypatch.setattr(runtime, "cross_check", lambda m, p: cross_check(m, p, False))
+    assert _fails(runtime.check_reference, ctx) == "2.0% outliers, max relative error 3.00e-01"

@@ -72,6 +72,8 @@ TARGETS: dict[str, list[str]] = {
     # a fake FMU with seeded defects, the Reference-FMUs' Feedthrough in-process
     "harness/compliance/refusals.py": [_CHECKS],
     "harness/compliance/runtime.py": [_CHECKS],
+    # the committed reference files, fmpy.simulate_fmu stubbed
+    "harness/compliance/reference.py": [_CHECKS],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

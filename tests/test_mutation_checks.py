@@ -20,7 +20,7 @@ import pytest
 from fmpy import platform, platform_tuple, read_model_description
 from fmpy.fmi1 import FMICallException
 
-from dronefly.harness.compliance import binary, names, refusals, runtime, static
+from dronefly.harness.compliance import binary, names, reference, refusals, runtime, static
 from dronefly.harness.compliance.rules import CheckFailed, CheckSkipped
 
 
@@ -1297,6 +1297,7 @@ _EPS = sys.float_info.epsilon
     (1.0, math.nan, True), (math.nan, 1.0, True), (math.inf, 1.0, True), (1.0, -math.inf, True),
     # round-off: 4 ulp-sized epsilons of the larger magnitude
     (1.0, 1.0 + 4 * _EPS, False), (1.0, 1.0 + 5 * _EPS, True), (1.0, 1.0 + 8 * _EPS, True),
+    (1.0 - 4 * _EPS, 1.0, False),  # exactly 4 epsilons of the larger: round-off still
     (-2.0, -2.0 - 8 * _EPS, False), (-2.0, -2.0 - 16 * _EPS, True),
     (1.0 + 8 * _EPS, 1.0, True), (0.0, 1e-300, True), (3.0, 4.0, True),
 ])
@@ -1496,6 +1497,12 @@ class _Plant:
     def getReal(self, vrs):
         return [self.u[v] if v in self.u else self.x if v == 3 else self.u[2] for v in vrs]
 
+    def getInteger(self, vrs):
+        return [int(x) for x in self.getReal(vrs)]
+
+    def terminate(self):
+        pass
+
     def doStep(self, currentCommunicationPoint, communicationStepSize):
         self.steps.append(communicationStepSize)
         if communicationStepSize < self.refuse_below:
@@ -1514,7 +1521,8 @@ class _Plant:
         pass
 
 
-def _plant_ctx(outputs_deps, initial_deps=None, refuse_below=0.0, can_probe=True):
+def _plant_ctx(outputs_deps, initial_deps=None, refuse_below=0.0, can_probe=True,
+               enumeration=False):
     """A Context of :class:`_Plant` declaring ``outputs_deps`` (output -> inputs) in
     ModelStructure Outputs and ``initial_deps`` in InitialUnknowns."""
     from dronefly.harness.compliance.driver import Var, reader
@@ -1522,6 +1530,9 @@ def _plant_ctx(outputs_deps, initial_deps=None, refuse_below=0.0, can_probe=True
     inputs = [Var(n, "Real", vr, SimpleNamespace(type="Real", min=None, max=None,
                                                  variability="continuous"))
               for vr, n in ((1, "u0"), (2, "u"))]
+    if enumeration:  # u0 an Enumeration: no other value known to be legal, never moved
+        inputs[0] = Var("u0", "Integer", 1, SimpleNamespace(type="Enumeration", min=None,
+                                                            max=None, variability="discrete"))
     outputs = [Var(n, "Real", vr, None) for vr, n in ((3, "y"), (4, "z"))]
 
     def unknowns(deps):
@@ -1905,3 +1916,275 @@ def test_check_reference_without_a_reference_result(tmp_path, reference_context,
     assert got == [(name, ctx.fmu.path)]
     monkeypatch.setattr(runtime, "cross_check", lambda m, p: cross_check(m, p, False))
     assert _fails(runtime.check_reference, ctx) == "2.0% outliers, max relative error 3.00e-01"
+
+
+def test_an_input_that_cannot_be_moved_does_not_end_the_initialization_probe():
+    ctx = _plant_ctx({}, {"y": [], "z": []}, enumeration=True)
+    assert _fails(runtime.check_dependencies, ctx) == (
+        "z (declared in InitialUnknowns with no dependency among the inputs) changed when only "
+        "u was set, in Initialization Mode")
+
+
+def _outputs_without_dependencies(text: str) -> str:
+    import re
+
+    head, rest = text.split("<Outputs>", 1)
+    block, tail = rest.split("</Outputs>", 1)
+    return head + "<Outputs>" + re.sub(r' dependencies="[\d ]*" dependenciesKind="constant"',
+                                       "", block) + "</Outputs>" + tail
+
+
+_FEED2 = REF / "fmi2" / "Feedthrough.fmu"
+
+
+def _feed2_text() -> str:
+    if not _FEED2.is_file():
+        pytest.skip("the Reference-FMUs are not there (../shared)")
+    return zipfile.ZipFile(_FEED2).read("modelDescription.xml").decode()
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+def test_dependencies_with_initialunknowns_only_probe_them(tmp_path, reference_context,
+                                                           interface):
+    """Outputs without dependencies attributes (they depend on every known: nothing to
+    probe there), InitialUnknowns with them: Initialization Mode is probed alone; where
+    FMU states are not declared either, nothing is said of the Step Mode probe."""
+    text = _feed2_text()
+    new = _outputs_without_dependencies(text)
+    if interface == "cs":
+        new = new.replace('canGetAndSetFMUstate="true"\n    canSerializeFMUstate="true">\n'
+                          '    <SourceFiles>\n      <File name="all.c"/>\n    </SourceFiles>\n'
+                          '  </CoSimulation>',
+                          'canGetAndSetFMUstate="false"\n    canSerializeFMUstate="false">\n'
+                          '    <SourceFiles>\n      <File name="all.c"/>\n    </SourceFiles>\n'
+                          '  </CoSimulation>')
+        assert 'canGetAndSetFMUstate="false"' in new
+    ctx = reference_context(2, "Feedthrough", interface=interface,
+                            path=_seeded(tmp_path, 2, "Feedthrough", (text, new)))
+    assert runtime.check_dependencies(ctx) == (
+        "5 output(s) with declared initial dependencies, 4 input(s) set one at a time in "
+        "Initialization Mode: no undeclared dependency")
+
+
+@pytest.mark.parametrize("interface", ["cs", "me"])
+@pytest.mark.parametrize("fmi, listed, more", [(2, 4, False), (3, 4, True)])
+def test_a_dependencies_failure_lists_four_lies_then_says_there_are_more(
+        tmp_path, reference_context, interface, fmi, listed, more):
+    """Every InitialUnknown declared without dependencies: FMI 2.0's Feedthrough has four
+    outputs that follow an input that can be moved (exactly four lies), FMI 3.0's twelve."""
+    import re
+
+    source = REF / f"fmi{fmi}" / "Feedthrough.fmu"
+    if not source.is_file():
+        pytest.skip("the Reference-FMUs are not there (../shared)")
+    text = zipfile.ZipFile(source).read("modelDescription.xml").decode()
+    head, rest = text.split("<InitialUnknown", 1)
+    new = head + "<InitialUnknown" + re.sub(r'dependencies="[\d ]*"', 'dependencies=""', rest)
+    ctx = reference_context(fmi, "Feedthrough", interface=interface,
+                            path=_seeded(tmp_path, fmi, "Feedthrough", (text, new)))
+    got = _fails(runtime.check_dependencies, ctx)
+    assert got.count("changed when only") == listed and got.endswith(" ...") is more, got
+
+
+@pytest.mark.parametrize("pairs, more", [(6, False), (7, True)])
+def test_the_note_of_unseen_dependencies_lists_six_then_says_there_are_more(
+        tmp_path, reference_context, pairs, more):
+    # FMI 2.0 Feedthrough's indices: 4, 6, 8, 10 the inputs that can be moved; 5, 7, 9 their
+    # outputs. Each extra input declared in InitialUnknowns is one dependency not seen
+    text = _feed2_text()
+    head, tail = text.split("<InitialUnknowns>", 1)
+    for out, own, deps in ((5, "4", "4 6 8 10"), (7, "6", "4 6 8" if pairs == 6 else "4 6 8 10"),
+                           (9, "8", "4 8")):
+        kinds = " ".join(["constant"] * len(deps.split()))
+        tail = tail.replace(f'<Unknown index="{out}" dependencies="{own}" '
+                            'dependenciesKind="constant"/>',
+                            f'<Unknown index="{out}" dependencies="{deps}" '
+                            f'dependenciesKind="{kinds}"/>')
+    ctx = _feedthrough(tmp_path, reference_context, "cs",
+                       (text, head + "<InitialUnknowns>" + tail))
+    runtime.check_dependencies(ctx)
+    (note,) = ctx.warnings
+    listed = note.split("zero): ", 1)[1].removesuffix(" ...").split(", ")
+    assert len(listed) == 6 and note.endswith(" ...") is more, note
+
+
+def test_a_run_that_ends_at_time_zero_ends_at_its_stop_time(tmp_path, reference_context):
+    ctx = reference_context(2, "Dahlquist", path=_seeded(
+        tmp_path, 2, "Dahlquist", ('startTime="0" stopTime="10"', 'startTime="-1" stopTime="0"')))
+    assert runtime.check_call_sequence(ctx) == "10 steps of 0.1 s to 0 s"
+
+
+def test_a_start_values_failure_lists_five_then_says_there_are_more():
+    for n, more in ((5, False), (6, True), (7, True)):
+        ctx = _start_ctx([(f"p{k}", "Real", "1.0", *_PAR) for k in range(n)], [2.0] * n)
+        got = _fails(runtime.check_start_values, ctx)
+        assert got.count("declared start") == 5 and got.endswith(" ...") is more, got
+
+
+def test_reference_columns_that_name_no_variable_are_listed_four_at_most(tmp_path,
+                                                                         reference_context):
+    ref = tmp_path / "cols.csv"
+    ref.write_text("time,a,b,c,d,e\n0,1,1,1,1,1\n1,1,1,1,1,1\n")
+    assert _fails(runtime.check_reference, reference_context(2, "Dahlquist", ref=str(ref))) == \
+        "cols.csv: a, b, c, d name no variable of the FMU"
+
+
+def test_a_reference_of_one_sample_is_a_run_of_no_length(tmp_path, reference_context,
+                                                          monkeypatch):
+    ref = _reference_csv(tmp_path / "one.csv", [0.5])
+    calls = []
+
+    def simulate(path, **kw):
+        calls.append(kw)
+        import fmpy as real
+
+        return real.read_csv(str(ref))
+
+    monkeypatch.setattr(runtime.fmpy, "simulate_fmu", simulate)
+    got = _fails(runtime.check_reference, reference_context(2, "Dahlquist", ref=str(ref)))
+    assert got.startswith("100.0% of the samples outside"), got
+    assert (calls[0]["start_time"], calls[0]["stop_time"], calls[0]["output_interval"]) == \
+        (0.5, 0.5, 0.0)
+
+
+# --- reference.py: the reference results of the project's FMUs (FMI cross-check layout) -------
+
+def _committed(model):
+    import fmpy
+
+    inp, opt, ref = reference.reference_paths(model)
+    return (fmpy.read_csv(str(inp)) if inp.exists() else None,
+            fmpy.util.read_ref_opt_file(str(opt)), ref)
+
+
+@pytest.mark.parametrize("model", sorted(reference.REFERENCES))
+def test_the_inputs_and_settings_are_those_of_the_committed_references(model):
+    """The committed <Model>_in.csv and _ref.opt (the cross-check files the references were
+    recorded with) are what the module's inputs and settings give: the doublets and pulses of
+    its docstrings, N_HZ wing beats a second, 30 wing beats of 0.1 unless set otherwise."""
+    import numpy as np
+
+    inputs, opt, ref = _committed(model)
+    setup = reference.REFERENCES[model]
+    assert reference._opt(setup) == pytest.approx(opt, rel=1e-12, abs=1e-15)
+    assert set(opt) == {"StartTime", "StopTime", "StepSize", "RelTol"}
+    table = reference._input_table(model)
+    if inputs is None:
+        assert table.dtype.names == ("time",) and model == "DroneFlyClosedLoop"
+    else:
+        assert table.dtype.names == inputs.dtype.names
+        for name in inputs.dtype.names:
+            assert np.array_equal(np.asarray(table[name], float),
+                                  np.asarray(inputs[name], float)), (model, name)
+    assert reference.reference_paths(model)[2] == ref == \
+        reference._PACKAGE_ROOT / setup.folder / f"{model}_ref.csv"
+
+
+def test_the_lateral_plants_doublet_is_as_documented():
+    """+0.01 rad of delta_Phi_a for 5 wing beats, -0.01 for 5, then 0; a pulse of 0.005 on
+    delta_alpha_2a from the 15th wing beat to the 17th (the module's docstring)."""
+    import numpy as np
+
+    from dronefly.models.lateral_interface import N_HZ
+
+    wb = np.array([0.0, 4.9, 5.0, 9.9, 10.0, 14.9, 15.0, 16.9, 17.0, 30.0])
+    got = reference._plant_inputs(wb / N_HZ)
+    assert list(got["delta_Phi_a"]) == [0.01, 0.01, -0.01, -0.01, 0, 0, 0, 0, 0, 0]
+    assert list(got["delta_alpha_2a"]) == [0, 0, 0, 0, 0, 0, 0.005, 0.005, 0, 0]
+    assert not got["delta_alpha_1a"].any()
+
+
+def test_reference_outputs_of_a_model_without_a_list_are_the_fmus(monkeypatch):
+    """DroneFlyFlapping records every output of its FMU, in the description's order; the
+    others their listed ones."""
+    fmu = REF / "fmi2" / "Feedthrough.fmu"
+    if not fmu.is_file():
+        pytest.skip("the Reference-FMUs are not there (../shared)")
+    assert reference.reference_outputs("DroneFlyFlapping", fmu) == [
+        "Float64_continuous_output", "Float64_discrete_output", "Int32_output",
+        "Boolean_output", "String_output", "Enumeration_output"]
+    assert reference.reference_outputs("DroneFlyLateral", fmu) == \
+        list(reference.REFERENCES["DroneFlyLateral"].outputs)
+
+
+def _stub_simulation(monkeypatch, result_of):
+    calls = []
+
+    def simulate(path, **kw):
+        calls.append((path, kw))
+        return result_of(kw)
+
+    monkeypatch.setattr(reference.fmpy, "simulate_fmu", simulate)
+    return calls
+
+
+@pytest.mark.parametrize("model", ["DroneFlyLateral", "DroneFlyClosedLoop"])
+def test_check_reference_passes_the_recorded_run_and_fails_another(tmp_path, monkeypatch,
+                                                                   model):
+    import fmpy
+    import numpy as np
+
+    inputs, opt, ref = _committed(model)
+    recorded = fmpy.read_csv(str(ref))
+    calls = _stub_simulation(monkeypatch, lambda kw: recorded)
+    got = reference.check_reference(model, tmp_path / "m.fmu")
+    assert got.passed and got.cross_check_outliers == 0.0 and got.max_rel_error == 0.0
+    (path, kw), = calls
+    assert path == str(tmp_path / "m.fmu")
+    assert (kw["start_time"], kw["stop_time"], kw["output_interval"]) == pytest.approx(
+        (opt["StartTime"], opt["StopTime"], opt["StepSize"]), rel=1e-12)
+    assert kw["output"] == reference.reference_outputs(model, tmp_path / "m.fmu")
+    if inputs is None:
+        assert kw["input"] is None
+    else:
+        assert list(kw["input"].dtype.names) == list(inputs.dtype.names)
+    # a result 1e-6 of its largest value off in one output: beyond the tight tolerance (1e-9)
+    off = recorded.copy()
+    name = off.dtype.names[1]
+    scale = float(np.max(np.abs(off[name])))
+    off[name] = off[name] + 1e-6 * scale
+    monkeypatch.setattr(reference.fmpy, "simulate_fmu", lambda path, **kw: off)
+    got = reference.check_reference(model, tmp_path / "m.fmu")
+    assert not got.passed and got.max_rel_error == pytest.approx(1e-6, rel=1e-6)
+    assert got.model == model
+
+
+def test_check_reference_refuses_settings_other_than_the_models(tmp_path, monkeypatch):
+    import shutil
+
+    model = "DroneFlyLateral"
+    for p in reference.reference_paths(model):
+        shutil.copy(p, tmp_path / p.name)
+    opt = tmp_path / f"{model}_ref.opt"
+    text = opt.read_text()
+    stop = reference._opt(reference.REFERENCES[model])["StopTime"]
+    opt.write_text(text.replace(f"StopTime,{stop!r}", f"StopTime,{2 * stop!r}"))
+    with pytest.raises(ValueError, match=f"^{model}_ref.opt: StopTime = "):
+        reference.check_reference(model, tmp_path / "m.fmu", tmp_path)
+
+
+def test_passed_is_no_outliers_and_a_tight_error():
+    check = reference.ReferenceCheck
+    assert check("m", 0.0, 1e-9).passed and check("m", 0.0, 0.0).passed
+    assert not check("m", 0.0, 1.1e-9).passed and not check("m", 0.01, 0.0).passed
+
+
+def test_write_reference_writes_the_cross_check_files(tmp_path, monkeypatch):
+    import fmpy
+
+    models = ("DroneFlyLateral", "DroneFlyClosedLoop", "StateFeedback")
+    committed = {m: fmpy.read_csv(str(_committed(m)[2])) for m in models}
+    for model in models:
+        paths = tuple(tmp_path / f"{model}{s}" for s in ("_in.csv", "_ref.opt", "_ref.csv"))
+        monkeypatch.setattr(reference, "reference_paths", lambda m, p=paths: p)
+        recorded = committed[model]
+        _stub_simulation(monkeypatch, lambda kw: recorded)
+        assert reference.write_reference(model, tmp_path / "m.fmu") == paths
+        inputs, opt, ref = paths
+        assert inputs.exists() is (model != "DroneFlyClosedLoop")
+        assert fmpy.util.read_ref_opt_file(str(opt)) == reference._opt(
+            reference.REFERENCES[model])
+        again = fmpy.read_csv(str(ref))
+        assert again.dtype.names == recorded.dtype.names
+        for name in recorded.dtype.names:
+            assert list(again[name]) == list(recorded[name]), (model, name)

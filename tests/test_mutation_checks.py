@@ -1967,11 +1967,12 @@ def test_dependencies_with_initialunknowns_only_probe_them(tmp_path, reference_c
 
 
 @pytest.mark.parametrize("interface", ["cs", "me"])
-@pytest.mark.parametrize("fmi, listed, more", [(2, 4, False), (3, 4, True)])
+@pytest.mark.parametrize("fmi, count, more", [(2, 0, False), (3, 5, True), (3, 0, True)])
 def test_a_dependencies_failure_lists_four_lies_then_says_there_are_more(
-        tmp_path, reference_context, interface, fmi, listed, more):
-    """Every InitialUnknown declared without dependencies: FMI 2.0's Feedthrough has four
-    outputs that follow an input that can be moved (exactly four lies), FMI 3.0's twelve."""
+        tmp_path, reference_context, interface, fmi, count, more):
+    """InitialUnknowns declared without dependencies (all of them, or the first ``count``):
+    FMI 2.0's Feedthrough has four outputs that follow an input that can be moved (four lies),
+    FMI 3.0's first five are its Float32, Float64 and Int8 ones (five lies), all twelve."""
     import re
 
     source = REF / f"fmi{fmi}" / "Feedthrough.fmu"
@@ -1979,11 +1980,12 @@ def test_a_dependencies_failure_lists_four_lies_then_says_there_are_more(
         pytest.skip("the Reference-FMUs are not there (../shared)")
     text = zipfile.ZipFile(source).read("modelDescription.xml").decode()
     head, rest = text.split("<InitialUnknown", 1)
-    new = head + "<InitialUnknown" + re.sub(r'dependencies="[\d ]*"', 'dependencies=""', rest)
+    new = head + "<InitialUnknown" + re.sub(r'dependencies="[\d ]*"', 'dependencies=""', rest,
+                                            count=count)
     ctx = reference_context(fmi, "Feedthrough", interface=interface,
                             path=_seeded(tmp_path, fmi, "Feedthrough", (text, new)))
     got = _fails(runtime.check_dependencies, ctx)
-    assert got.count("changed when only") == listed and got.endswith(" ...") is more, got
+    assert got.count("changed when only") == 4 and got.endswith(" ...") is more, got
 
 
 @pytest.mark.parametrize("pairs, more", [(6, False), (7, True)])
@@ -2188,3 +2190,44 @@ def test_write_reference_writes_the_cross_check_files(tmp_path, monkeypatch):
         assert again.dtype.names == recorded.dtype.names
         for name in recorded.dtype.names:
             assert list(again[name]) == list(recorded[name]), (model, name)
+
+
+def test_the_reference_setups_and_results_are_values():
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        reference.REFERENCES["DroneFlyLateral"].rel_tol = 1.0  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        reference.ReferenceCheck("m", 0.0, 0.0).max_rel_error = 1.0  # type: ignore[misc]
+
+
+def test_a_model_with_one_input_has_an_input_file(tmp_path, monkeypatch):
+    """A model of one input (a table of time and one column) is simulated with it and gets an
+    _in.csv; the cross-check files quote the column names (FMI cross-check rules)."""
+    setup = reference._Setup("x", lambda t: {"u": 0.5 * t}, ("y",), stop_wingbeats=1.0)
+    monkeypatch.setitem(reference.REFERENCES, "OneInput", setup)
+    paths = tuple(tmp_path / f"OneInput{s}" for s in ("_in.csv", "_ref.opt", "_ref.csv"))
+    monkeypatch.setattr(reference, "reference_paths", lambda m: paths)
+
+    def simulate(path, **kw):
+        calls.append(kw)
+        result = kw["input"][["time"]].copy()
+        return result
+
+    calls: list = []
+    monkeypatch.setattr(reference.fmpy, "simulate_fmu", simulate)
+    reference.write_reference("OneInput", tmp_path / "m.fmu")
+    assert list(calls[0]["input"].dtype.names) == ["time", "u"]
+    assert paths[0].read_text().splitlines()[0] == '"time","u"'
+    assert paths[2].read_text().splitlines()[0] == '"time"'
+
+
+def test_the_reference_error_is_that_of_the_outputs_not_of_the_time(tmp_path, monkeypatch):
+    """max_rel_error: max |y - y_ref| / max |y_ref| over the outputs (ReferenceCheck); a
+    result whose time column is read a little off, its outputs the recorded ones, has none."""
+    import fmpy
+
+    model = "DroneFlyLateral"
+    recorded = fmpy.read_csv(str(_committed(model)[2]))
+    shifted = recorded.copy()
+    shifted["time"] = shifted["time"] * (1 + 1e-7)
+    _stub_simulation(monkeypatch, lambda kw: shifted)
+    assert reference.check_reference(model, tmp_path / "m.fmu").max_rel_error == 0.0

@@ -804,6 +804,9 @@ class _FakeSlave:
         self.values = {vr: 1.0 for vr in self.names}
 
     def getReal(self, vrs):
+        if self.d.get("nan_out"):  # the outputs read NaN
+            return [math.nan if self.names[vr] not in self.d["inputs"] else self.values[vr]
+                    for vr in vrs]
         return [self.values[vr] + self.drift for vr in vrs]
 
     def setReal(self, vrs, xs):
@@ -831,7 +834,7 @@ class _FakeSlave:
     def doStep(self, currentCommunicationPoint, communicationStepSize):
         t, h = currentCommunicationPoint, communicationStepSize
         self.steps.append((t, h))
-        if self.t is not None and t != self.t:
+        if self.t is not None and not math.isclose(t, self.t, rel_tol=1e-9):
             self.off_grid.append((t, h))
         if self.error:  # FMI 2.0 2.1.3, FMI 3.0 2.2.4: after Error, reset or free only
             self.illegal.append((t, h))
@@ -852,7 +855,7 @@ class _FakeSlave:
         if h <= 0:
             self._answer(self.d.get("zero", self.d.get("h", 2)) if h == 0 else
                          self.d.get("h", 2), f"communicationStepSize = {h!r}")
-        if t != self.t:
+        if not math.isclose(t, self.t, rel_tol=1e-9):  # FMI 2.0 4.2.2: where the last ended
             self._answer(self.d.get("t", 2), f"currentCommunicationPoint = {t!r}")
         if h == 0.0 and not self.d.get("h"):
             self.illegal.append((t, h))  # only reached by an FMU that accepts it
@@ -897,11 +900,12 @@ def _fake_ctx(fmi=2, profile="dronefly", tool="dronefly-fmu 1.0", inputs=("u", "
     """A Context (the attributes the checks read) of an FMU with Real ``inputs`` and
     ``outputs`` (value references 1, 2, ...), a time variable (value reference 0), a run of
     ``n`` steps of 0.1 s from 0; its instances are :class:`_FakeInstance` with ``defects``."""
-    from dronefly.harness.compliance.driver import Var
+    from dronefly.harness.compliance.driver import Var, reader
 
     names = {0: "time", **{k: n_ for k, n_ in enumerate((*inputs, *outputs), 1)}}
     var = [Var(n_, "Real", vr, None) for vr, n_ in names.items() if vr]
     names.update({len(names) + k: f"x{k}" for k in range(locals_)})  # locals (not in ctx)
+    defects["inputs"] = inputs
     mv = [SimpleNamespace(valueReference=0, causality="independent"),
           *(SimpleNamespace(valueReference=v.vr, causality="input") for v in var)]
     md = SimpleNamespace(generationTool=tool, modelVariables=mv)
@@ -910,7 +914,9 @@ def _fake_ctx(fmi=2, profile="dronefly", tool="dronefly-fmu 1.0", inputs=("u", "
                             model_description3=md if fmi == 3 else None),
         profile=profile, ours=profile == "dronefly", fmi=f"fmi{fmi}", on_event=None,
         inputs=var[:len(inputs)], outputs=var[len(inputs):], start=0.0, step=0.1,
-        stop=0.1 * n, n=n, warnings=[], instances=[], event=lambda **row: None)
+        stop=0.1 * n, n=n, warnings=[], instances=[], event=lambda **row: None,
+        excited=var[:len(inputs)], input_start={v.vr: 1.0 for v in var[:len(inputs)]})
+    ctx.read_outputs = reader(ctx.outputs)
 
     def instantiate(name):
         ctx.instances.append(_FakeInstance(fmi, names, defects))
@@ -2231,3 +2237,30 @@ def test_the_reference_error_is_that_of_the_outputs_not_of_the_time(tmp_path, mo
     shifted["time"] = shifted["time"] * (1 + 1e-7)
     _stub_simulation(monkeypatch, lambda kw: shifted)
     assert reference.check_reference(model, tmp_path / "m.fmu").max_rel_error == 0.0
+
+
+
+def test_call_sequence_names_five_non_finite_outputs_then_says_there_are_more():
+    outputs = tuple(f"y{k}" for k in range(7))
+    got = _fails(runtime.check_call_sequence, _fake_ctx(2, outputs=outputs, nan_out=True))
+    assert got == "non-finite values returned with OK: y0, y1, y2, y3, y4"
+    got = _fails(runtime.check_call_sequence, _fake_ctx(2, outputs=outputs[:5], nan_out=True))
+    assert got == "non-finite values returned with OK: y0, y1, y2, y3, y4"
+
+
+def test_a_reference_failure_names_the_first_three_signals_outside(tmp_path, reference_context,
+                                                                   monkeypatch):
+    import fmpy as real
+
+    names = ("Float64_continuous_input", "Float64_continuous_output", "Float64_discrete_input",
+             "Float64_discrete_output")
+    ref = tmp_path / "four.csv"
+    ref.write_text("time," + ",".join(names) + "\n" + "".join(
+        f"{k / 10!r}," + ",".join([repr(k / 10)] * 4) + "\n" for k in range(21)))
+    off = tmp_path / "off.csv"
+    off.write_text("time," + ",".join(names) + "\n" + "".join(
+        f"{k / 10!r}," + ",".join([repr(k / 10 + 10.0)] * 4) + "\n" for k in range(21)))
+    monkeypatch.setattr(runtime.fmpy, "simulate_fmu", lambda path, **kw: real.read_csv(str(off)))
+    got = _fails(runtime.check_reference, reference_context(2, "Feedthrough", ref=str(ref)))
+    first = got.split("(first outside: ", 1)[1].rstrip(")").split("; ")
+    assert [f.split(" at t = ")[0] for f in first] == list(names[:3]), got

@@ -40,6 +40,7 @@ BIN = Path(sys.executable).parent
 _MODELS = "tests/test_mutation_models.py"
 _CONTROLLER = "tests/test_mutation_controller.py"
 _COMPLIANCE = "tests/test_mutation_compliance.py"
+_CHECKS = "tests/test_mutation_checks.py"
 _EXPM = ["tests/test_expm.py", "--deselect",  # a second process under another BLAS kernel
          "tests/test_expm.py::test_zero_order_hold_is_the_same_under_another_blas_kernel"]
 TARGETS: dict[str, list[str]] = {
@@ -63,6 +64,16 @@ TARGETS: dict[str, list[str]] = {
     # FMU cost seconds to a minute a mutant through tests/test_check_misreports.py)
     "harness/compliance/rules.py": [_COMPLIANCE],
     "harness/compliance/structure.py": [_COMPLIANCE],
+    # the checks that read an archive or call a binary, on tiny archives and stub contexts
+    "harness/compliance/static.py": [_CHECKS],
+    "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],
+    # stub libraries and slaves, and the Reference-FMUs' Dahlquist loaded in-process
+    "harness/compliance/binary.py": [_CHECKS],
+    # a fake FMU with seeded defects, the Reference-FMUs' Feedthrough in-process
+    "harness/compliance/refusals.py": [_CHECKS],
+    "harness/compliance/runtime.py": [_CHECKS],
+    # the committed reference files, fmpy.simulate_fmu stubbed
+    "harness/compliance/reference.py": [_CHECKS],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

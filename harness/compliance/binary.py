@@ -22,6 +22,7 @@ from __future__ import annotations
 import ctypes
 import os
 from pathlib import Path
+from xml.etree import ElementTree
 from typing import Any
 
 from fmpy import platform, platform_tuple, sharedLibraryExtension
@@ -36,7 +37,7 @@ from .driver import Context
 from .fuzzkit import status_of
 from .rules import CheckSkipped, require
 
-__all__ = ["check_binary", "logger_passes_back", "required_functions"]
+__all__ = ["check_binary", "declares_directional", "logger_passes_back", "required_functions"]
 
 _FMI2_COMMON = ("GetTypesPlatform", "GetVersion", "SetDebugLogging", "Instantiate",
                 "FreeInstance", "SetupExperiment", "EnterInitializationMode",
@@ -63,9 +64,14 @@ _FMI3_ME = ("InstantiateModelExchange", "EnterEventMode", "UpdateDiscreteStates"
 _SENTINEL = 0x5EED
 
 
-def required_functions(md: Any, fmi_version: int, interface: str = "cs") -> list[str]:
+def required_functions(md: Any, fmi_version: int, interface: str = "cs",
+                       directional: bool | None = None) -> list[str]:
     """The functions the Co-Simulation (``"cs"``) or Model Exchange (``"me"``) interface of
-    ``md`` (FMPy's model description of the FMU's own version) requires its binary to export."""
+    ``md`` (FMPy's model description of the FMU's own version) requires its binary to export.
+
+    ``directional``: whether the interface declares the directional derivative, where ``md``
+    does not say (FMPy's FMI 3.0 interface objects have no ``providesDirectionalDerivatives``:
+    :func:`declares_directional` reads it); None: ``md``'s attribute."""
     me = interface == "me"
     cs = md.modelExchange if me else md.coSimulation
     if fmi_version == 2:
@@ -80,10 +86,24 @@ def required_functions(md: Any, fmi_version: int, interface: str = "cs") -> list
         names += state
     if cs.canSerializeFMUstate:
         names += serial
-    if getattr(cs, "providesDirectionalDerivative", False) or \
-            getattr(cs, "providesDirectionalDerivatives", False):
+    if directional is None:
+        directional = bool(getattr(cs, "providesDirectionalDerivative", False)
+                           or getattr(cs, "providesDirectionalDerivatives", False))
+    if directional:
         names.append("GetDirectionalDerivative")
     return [f"fmi{fmi_version}{n}" for n in names]
+
+
+def declares_directional(ctx: Context, interface: str = "cs") -> bool | None:
+    """FMI 3.0: whether the interface's element of modelDescription.xml declares
+    ``providesDirectionalDerivatives`` (xs:boolean: "true" or "1"), which FMPy's model
+    description leaves out (it copies FMI 2.0's ``providesDirectionalDerivative``); FMI 2.0:
+    None (FMPy's attribute says it)."""
+    if ctx.fmu.fmi_version != 3:
+        return None
+    root = ElementTree.parse(Path(ctx.fmu._unzipdir, "modelDescription.xml")).getroot()
+    element = root.find("ModelExchange" if interface == "me" else "CoSimulation")
+    return element is not None and element.get("providesDirectionalDerivatives") in ("true", "1")
 
 
 def _library(ctx: Context, interface: str = "cs") -> Path:
@@ -100,7 +120,7 @@ def check_binary(ctx: Context) -> str:
     libraries: dict[Path, list[str]] = {}
     for interface in ctx.interfaces:
         libraries.setdefault(_library(ctx, interface), []).extend(
-            n for n in required_functions(md, v, interface)
+            n for n in required_functions(md, v, interface, declares_directional(ctx, interface))
             if n not in libraries.get(_library(ctx, interface), []))
     path = next(iter(libraries))
     if not path.is_file():

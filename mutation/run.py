@@ -63,6 +63,9 @@ TARGETS: dict[str, list[str]] = {
     # FMU cost seconds to a minute a mutant through tests/test_check_misreports.py)
     "harness/compliance/rules.py": [_COMPLIANCE],
     "harness/compliance/structure.py": [_COMPLIANCE],
+    # the nonlinear plant: its equations and steps on small inputs (the FMU tests of
+    # test_hover6dof.py, marked integration, build and run the FMU: seconds a mutant)
+    "models/rigid_body.py": ["tests/test_hover6dof.py", "-m", '"not integration"'],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

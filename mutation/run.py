@@ -65,7 +65,8 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/structure.py": [_COMPLIANCE],
     # the nonlinear plant: its equations and steps on small inputs (the FMU tests of
     # test_hover6dof.py, marked integration, build and run the FMU: seconds a mutant)
-    "models/rigid_body.py": ["tests/test_hover6dof.py", "-m", '"not integration"'],
+    "models/rigid_body.py": ["tests/test_mutation_rigid_body.py", "tests/test_hover6dof.py",
+                             "-m", '"not integration"'],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -67,6 +67,13 @@ TARGETS: dict[str, list[str]] = {
     # test_hover6dof.py, marked integration, build and run the FMU: seconds a mutant)
     "models/rigid_body.py": ["tests/test_mutation_rigid_body.py", "tests/test_hover6dof.py",
                              "-m", '"not integration"'],
+    "models/shooting.py": ["tests/test_mutation_shooting.py"],
+    # the quasi-steady wings: unit oracles, then the model's tests (python-control's gains
+    # left out: two seconds a mutant for a comparison that reads the derivatives only)
+    **{f"models/quasisteady/{m}.py": [
+        "tests/test_mutation_quasisteady.py", "tests/test_aero.py", "--deselect",
+        "tests/test_aero.py::test_matched_gains_against_python_control"]
+       for m in ("kinematics", "elements", "wing", "trim")},
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

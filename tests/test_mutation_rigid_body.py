@@ -12,6 +12,7 @@ sub-step count; exact float facts (2 * sqrt(0.5)**2 rounds above 1) for the clam
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -231,6 +232,7 @@ def _at_rate(rate):
     (False, 0.0, 1.0, 5),      # 0.2 wing beat: exactly 5 sub-steps
     (False, 0.0, 1.01, 6),
     (False, 0.0, 0.05, 1),
+    (False, 0.0, 1e-12, 1),    # a step far below the 1e-9 slack still takes one sub-step
     (False, 1.3, 1.0, 26),     # 0.05 rad per sub-step: 0.05 / 1.3 wing beat
     (True, 0.0, 1.0, 2),       # 0.5 wing beat
     (True, 0.0, 1.01, 3),
@@ -273,6 +275,13 @@ def test_the_number_of_substeps_is_bounded_at_ten_million():
 
 
 # -- refusals and limits ------------------------------------------------------------------
+def _six_values_named(message, x):
+    """The message names u, v, w, p, q, r of the start state: the six values, read back as
+    floats (Python's repr reads back exactly, nan included)."""
+    listed = re.search(r"u, v, w, p, q, r = \[([^]]*)\]", message)[1].split(",")
+    np.testing.assert_array_equal([float(v) for v in listed], x[:6])
+
+
 @pytest.mark.parametrize("h", [0.0, -1.0, math.nan, math.inf])
 def test_step_refuses_a_step_that_is_not_finite_and_positive(h):
     with pytest.raises(Hover6DOFError, match="must be finite and > 0"):
@@ -285,8 +294,9 @@ def test_step_refuses_a_state_that_is_not_finite_or_has_no_attitude():
     model = Hover6DOF(LP, NP)
     x = _at_rate(0.0)
     x[0] = math.nan
-    with pytest.raises(Hover6DOFError, match="not finite"):
+    with pytest.raises(Hover6DOFError, match="not finite") as info:
         model.step(x, [0.0] * 3, [0.0] * 4, 0.1)
+    _six_values_named(str(info.value), x)
     x = _at_rate(0.0)
     x[6] = 0.0
     with pytest.raises(Hover6DOFError, match="not finite"):
@@ -316,8 +326,9 @@ def test_aerodynamics_that_fail_in_a_step_are_named(error):
 
     model = Hover6DOF(LP, NP, aerodynamics=Failing())
     x = _at_rate(0.13)
-    with pytest.raises(Hover6DOFError, match="aerodynamics failed.*boom"):
+    with pytest.raises(Hover6DOFError, match="aerodynamics failed.*: boom") as info:
         model.step(x, [0.0] * 3, [0.0] * 4, 0.5)
+    _six_values_named(str(info.value), x)
 
 
 @pytest.mark.parametrize("forces", [[0.0] * 5, [0.0] * 7, [0.0] * 5 + [math.nan],
@@ -335,6 +346,15 @@ def test_aerodynamics_with_a_bad_trim_are_refused(forces):
 def test_parameters_that_disagree_are_refused(name):
     with pytest.raises(Hover6DOFError, match=f"{name} = .* must agree"):
         Hover6DOF(LP, replace(NP, **{name: 1.5 * getattr(NP, name)}))
+
+
+def test_the_model_is_frozen():
+    """A model's parameters and compiled equations are fixed at construction (a frozen
+    dataclass: assigning a field raises)."""
+    import dataclasses
+    model = Hover6DOF(LP, NP)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        model.terms = frozenset()
 
 
 def test_unknown_terms_are_refused():
@@ -361,21 +381,25 @@ STARTS = dict(delta_u_start=0.1, delta_v_start=-0.2, delta_w_start=0.3, delta_p_
 
 
 @pytest.mark.parametrize("gamma, theta", [(0.3, -0.5), (-0.2, 1.1), (0.0, 0.4),
-                                          (math.pi / 2, 0.0), (1.035611379977463,
-                                                               0.5351849468174336)])
+                                          (math.pi / 2, 0.0), (-math.pi / 2, 0.0),
+                                          (1.035611379977463, 0.5351849468174336),
+                                          (-1.035611379977463, 0.5351849468174336)])
 def test_initial_state_has_the_start_attitude_and_scales(gamma, theta):
     """The start state: V / U, omega / n, P n / U (Sect. 2.1's scales) and an attitude whose
     scipy Euler angles are (phi, theta, psi_start) with sin gamma = R[2, 1] = the start's
     gamma. The last case: sin gamma / cos theta = 1.0000000000000002 by rounding (roll 90
-    deg), within the 1e-15 the check allows."""
+    deg), within the 1e-15 the check allows; the case after it mirrored (-1.0000000000000002);
+    gamma = +-pi/2 at theta = 0: sin gamma = +-1 exactly, roll +-90 deg. The state has
+    STATE_SIZE values."""
     starts = dict(STARTS, delta_gamma_start=gamma, delta_theta_start=theta)
     x = initial_state(starts, U, N)
+    assert len(x) == rigid_body.STATE_SIZE == 13
     assert x[:6] == pytest.approx([0.1 / U, -0.2 / U, 0.3 / U, 5.0 / N, -6.0 / N, 7.0 / N],
                                   rel=1e-15)
     assert x[10:] == pytest.approx([0.01 * N / U, -0.02 * N / U, 0.03 * N / U], rel=1e-15)
     R = _R(x[6:10])
     # asin near 1 turns an ulp of its argument into sqrt(2 ulp) = 2e-8 rad
-    assert math.asin(min(1.0, R[2, 1])) == pytest.approx(gamma, abs=1e-7)
+    assert math.asin(max(-1.0, min(1.0, R[2, 1]))) == pytest.approx(gamma, abs=1e-7)
     psi, th, phi = Rotation.from_matrix(R).as_euler("ZYX")
     assert (th, psi) == pytest.approx((theta, 0.7), abs=1e-14)
     assert math.sin(phi) * math.cos(theta) == pytest.approx(math.sin(gamma), abs=1e-15)

@@ -31,9 +31,10 @@ def test_affine_map_one_chord_step_reaches_the_fixed_point():
 
 
 def test_residuals_are_over_the_scales():
-    """With scales the residual is max |r / scales|: from x0 = 0, r = B, over (4, 0.5): 4."""
-    x, res = shooting(affine, np.zeros(2), M, 1e-12, 5, scales=np.array([4.0, 0.5]))
-    assert res[0] == 4.0
+    """With scales the residual is max |r / scales|: from x0 = 0, r = B = (1, -2), over
+    (4, 0.25): 8 (exact in floats)."""
+    x, res = shooting(affine, np.zeros(2), M, 1e-12, 5, scales=np.array([4.0, 0.25]))
+    assert res[0] == 8.0
     np.testing.assert_allclose(x, X_STAR, rtol=0, atol=1e-14)
 
 

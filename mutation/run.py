@@ -73,7 +73,7 @@ TARGETS: dict[str, list[str]] = {
     **{f"models/quasisteady/{m}.py": [
         "tests/test_mutation_quasisteady.py", "tests/test_aero.py", "--deselect",
         "tests/test_aero.py::test_matched_gains_against_python_control"]
-       for m in ("kinematics", "elements", "wing", "trim")},
+       for m in ("kinematics", "elements", "wing", "trim", "model")},
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -445,3 +445,95 @@ def test_model_kinematics_use_the_trim_given(qs_model):
     k = qs_model.wing_kinematics({"delta_alpha_1": 0.01}, trim=tr)
     np.testing.assert_allclose(k["alpha_d"], [0.71, 0.71], rtol=0, atol=1e-15)
     np.testing.assert_allclose(k["phibar"], [0.02, 0.02], rtol=0, atol=1e-15)
+
+
+# -- the Sect. 2.4 data, the dataclasses, the trim's start, floor and messages -----------------
+def test_body_data_are_the_papers_section_2_4():
+    """Sect. 2.4: l_b = 14.11 mm, roots 0.33 l_b apart, l1 = 0.13 l_b, chi0 = 52 deg,
+    chi = 42 deg, Delta t_r 30 % of the cycle, Re = 781.6 (printed values)."""
+    assert BODY_DATA == {"l_b": 14.11e-3, "root_spacing_over_lb": 0.33, "l1_over_lb": 0.13,
+                         "chi0_deg": 52.0, "chi_deg": 42.0, "rotation_fraction": 0.30,
+                         "Re": 781.6}
+
+
+def test_geometry_defaults_are_the_papers_rotation_and_no_weight():
+    """A geometry given without them has the pitch axis at c/4, the rotation of 30 % of the
+    cycle (Sect. 2.4) and no weight (W+ = 0: what it does not know)."""
+    g = WingGeometry(R=3.8, r2_hat=0.55, r1_hat=0.49, p=1.2, q=1.3, S_wing=3.75, Phi_rad=1.87,
+                     k=0.2, hinge=(0.1, 0.8, -0.6))
+    assert (g.x0_hat, g.rotation_fraction, g.weight) == (0.25, 0.3, 0.0)
+
+
+@pytest.mark.parametrize("make, field", [
+    (lambda: COEFFICIENT_SETS["wang2004"], "name"), (Terms, "rotational"),
+    (lambda: GEOM, "R"), (lambda: Trim(0.6, 0.5, 0.0, 0.0), "alpha_d")])
+def test_options_and_results_are_frozen(make, field):
+    """The coefficient sets, terms, geometry and trim are values (the models key their caches
+    and reuse on them): a field cannot be reassigned."""
+    import dataclasses
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        setattr(make(), field, None)
+
+
+def test_solve_trim_starts_from_30_30_0():
+    """The documented start of Newton's method: alpha_d = alpha_u = 30 deg, phibar = 0."""
+    from dronefly.models.quasisteady.trim import solve_trim
+    seen = []
+
+    def f(ad, au, pb):
+        seen.append((ad, au, pb))
+        return Forces(c=0.0)(ad, au, pb)
+
+    solve_trim(f, W, "test")
+    assert seen[0] == (math.radians(30.0), math.radians(30.0), 0.0)
+
+
+def test_solve_trim_accepts_a_rounding_floor_after_its_newton_steps():
+    """X with a jump of 2 a W where alpha_d crosses its root (+a W above, -a W below): the
+    forces have no root (A^-1[0, 0] = 0.90 > 0 puts the root of either side on the other),
+    so the residual stays of the order of a (as rounding would keep it): with a = 2e-11
+    Newton takes all its 30 steps (default max_iter; 7 evaluations each, one first and one
+    for the forces at trim) and the result is accepted, its residual between tol = 1e-12 and
+    the floor of 1e-9 of W; with a = 1e-8 it is not."""
+    from dronefly.models.quasisteady.trim import solve_trim
+
+    def noisy(amplitude):
+        f = Forces(c=0.0)
+
+        def mean(ad, au, pb):
+            out = f(ad, au, pb)
+            out[0] += math.copysign(amplitude * W, ad - 0.6)
+            return out
+        return f, mean
+
+    f, mean = noisy(2e-11)
+    tr = solve_trim(mean, W, "noisy")
+    assert f.calls == 1 + 30 * 7 + 1
+    assert 1e-12 <= tr.residual < 1e-9
+    assert tr.alpha_d == pytest.approx(0.6, abs=1e-9)
+    _, mean = noisy(1e-8)
+    with pytest.raises(DroneflyError, match="trim did not converge"):
+        solve_trim(mean, W, "noisy")
+
+
+@pytest.mark.parametrize("root", [[0.6, 1.7, 0.1], [0.6, -0.2, 0.1], [1.2, 0.5, -0.3]])
+def test_solve_trim_names_where_newton_ended_outside_the_angles(root):
+    """A root with an angle of attack outside (0, 90) deg is refused, the message giving
+    the angles Newton ended at (the root: 4 significant digits, read back as numbers); a root
+    at 69 deg (within) is accepted."""
+    from dronefly.models.quasisteady.trim import solve_trim
+    Z = np.array(root)
+
+    def shifted(ad, au, pb):
+        d = np.array([ad, au, pb]) - Z
+        return np.array([d[0], 0.0, d[1] - W, 0.0, d[2], 0.0])
+
+    if 0.0 < root[1] < math.pi / 2:
+        tr = solve_trim(shifted, W, "in")
+        assert (tr.alpha_d, tr.alpha_u, tr.phibar) == pytest.approx(root, abs=1e-11)
+        return
+    with pytest.raises(DroneflyError, match="no trim with angles") as info:
+        solve_trim(shifted, W, "out")
+    import re
+    got = [float(v) for v in re.findall(r"= (-?[0-9.]+) deg", str(info.value))]
+    assert got == pytest.approx(np.degrees(root), rel=6e-4)  # 4 significant digits

@@ -351,6 +351,16 @@ def test_solve_trim_refusals():
     with pytest.raises(DroneflyError, match="no trim|did not converge"):
         solve_trim(lambda a, b, c: np.full(6, np.nan), W, "nan")
 
+    # forces that are nan beyond alpha_d = 1 rad: the first step (towards the root at 1.2
+    # rad) lands there; Newton stops at that finite angle and says its residual is nan
+    def beyond(ad, au, pb):
+        d = np.array([ad, au, pb]) - np.array([1.2, 0.5, 0.1])
+        out = np.array([d[0], 0.0, d[1] - W, 0.0, d[2], 0.0])
+        return out * np.nan if ad > 1.0 else out
+
+    with pytest.raises(DroneflyError, match=r"did not converge: residual nan of the weight"):
+        solve_trim(beyond, W, "nan beyond")
+
 
 # -- model.py ------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
@@ -510,17 +520,24 @@ def test_solve_trim_accepts_a_rounding_floor_after_its_newton_steps():
     tr = solve_trim(mean, W, "noisy")
     assert f.calls == 1 + 30 * 7 + 1
     assert 1e-12 <= tr.residual < 1e-9
+    # the residual reported is that of the forces at trim, max |X, Z + W, M| over W: the
+    # same forces at the same angles (an ulp for the division)
+    F = tr.forces
+    assert tr.residual == pytest.approx(max(abs(F["X"]), abs(F["Z"] + W), abs(F["M"])) / W,
+                                        rel=1e-15)
     assert tr.alpha_d == pytest.approx(0.6, abs=1e-9)
     _, mean = noisy(1e-8)
     with pytest.raises(DroneflyError, match="trim did not converge"):
         solve_trim(mean, W, "noisy")
 
 
-@pytest.mark.parametrize("root", [[0.6, 1.7, 0.1], [0.6, -0.2, 0.1], [1.2, 0.5, -0.3]])
+@pytest.mark.parametrize("root", [[0.6, 1.7, 0.1], [0.6, -0.2, 0.1], [1.7, 0.5, 0.1],
+                                  [1.2, 0.5, -0.3], [0.6, 1.2, 0.1], [0.6, 0.5, 1.2],
+                                  [0.6, 0.5, -1.2]])
 def test_solve_trim_names_where_newton_ended_outside_the_angles(root):
     """A root with an angle of attack outside (0, 90) deg is refused, the message giving
-    the angles Newton ended at (the root: 4 significant digits, read back as numbers); a root
-    at 69 deg (within) is accepted."""
+    the angles Newton ended at (the root: 4 significant digits, read back as numbers); roots
+    with an angle of 69 deg (alpha_d, alpha_u, +-phibar: within) are accepted."""
     from dronefly.models.quasisteady.trim import solve_trim
     Z = np.array(root)
 
@@ -528,7 +545,7 @@ def test_solve_trim_names_where_newton_ended_outside_the_angles(root):
         d = np.array([ad, au, pb]) - Z
         return np.array([d[0], 0.0, d[1] - W, 0.0, d[2], 0.0])
 
-    if 0.0 < root[1] < math.pi / 2:
+    if all(0.0 < a < math.pi / 2 for a in root[:2]):
         tr = solve_trim(shifted, W, "in")
         assert (tr.alpha_d, tr.alpha_u, tr.phibar) == pytest.approx(root, abs=1e-11)
         return

@@ -554,3 +554,33 @@ def test_solve_trim_names_where_newton_ended_outside_the_angles(root):
     import re
     got = [float(v) for v in re.findall(r"= (-?[0-9.]+) deg", str(info.value))]
     assert got == pytest.approx(np.degrees(root), rel=6e-4)  # 4 significant digits
+
+
+def test_forces_at_a_sample_are_the_element_by_element_forces(qs_model):
+    """forces_at, at the angles of this model's kinematics at a sample t = (j + 1/2) / n_time
+    (phi, its rate and its acceleration 2 pi^2 Phi cos 2 pi t in closed form, psi from
+    ``pitch``), is the element-by-element sample of forces_over_cycle (without the added
+    mass, whose sampled derivatives are central differences): two evaluations of the same
+    terms, to rounding (1e-12 of the weight). Its default state is hover (zeros), and the
+    state function's default controls are none (those of forces_vector without controls)."""
+    plain = qs_model.with_options(terms=Terms(added_mass=False))
+    tr = qs_model.trim()
+    x = np.array([0.01, -0.02, 0.015, 0.03, -0.01, 0.02])
+    u = dict(delta_Phi_a=0.05, delta_alpha_2=0.02)
+    k = plain.wing_kinematics(u, trim=tr)
+    samples = plain.forces_over_cycle(x, u, trim=tr)
+    zero = plain.forces_over_cycle(np.zeros(6), u, trim=tr)
+    for j in (3, 14):
+        t = np.array([(j + 0.5) / 20])
+        phi, dphi = kin.stroke(t, k["Phi"], k["phibar"])
+        ddphi = 2 * np.pi ** 2 * k["Phi"][:, None] * np.cos(2 * np.pi * t)
+        psi, dpsi, ddpsi = kin.pitch(t, GEOM.rotation_fraction, k["alpha_d"], k["alpha_u"])
+        angles = np.concatenate([phi, dphi, ddphi, psi, dpsi, ddpsi], axis=1).T  # (6, 2)
+        np.testing.assert_allclose(plain.forces_at(angles, x), samples[:, j], rtol=0,
+                                   atol=1e-12 * GEOM.weight)
+        np.testing.assert_allclose(plain.forces_at(angles), zero[:, j], rtol=0,
+                                   atol=1e-12 * GEOM.weight)
+    np.testing.assert_array_equal(qs_model.state_function()(x), qs_model.state_function(
+        (0.0,) * 7)(x))
+    np.testing.assert_allclose(qs_model.state_function()(x), qs_model.forces_vector(x),
+                               rtol=1e-13, atol=1e-15)

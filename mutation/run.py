@@ -77,7 +77,7 @@ TARGETS: dict[str, list[str]] = {
     # the wing-beat-resolved model in time for a host (the comparison of the sampled forces
     # on grids of 1000 and 3000, 1.6 s, is about the forces, not the flight)
     "models/flapping/flight.py": [
-        "tests/test_flapping.py", "--deselect", "tests/test_flapping.py::"
+        "tests/test_mutation_flapping.py", "tests/test_flapping.py", "--deselect", "tests/test_flapping.py::"
         "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model"],
 }
 

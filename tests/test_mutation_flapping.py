@@ -1,0 +1,113 @@
+"""Independent oracles for models/flapping/flight.py (the model in time for a host), written
+for mutation testing (docs/mutation.md): the flight's documented bookkeeping (the grid of
+``steps_per_beat`` steps, the tolerance of 1e-9 of a step for a time on the grid, the controls
+latched at the beats' starts, a snapshot of plain values) checked against the model's own
+steps from the same state, which are not the flight's bookkeeping."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from dronefly.models.flapping import FlappingError, FlappingModel, Flight
+
+C7 = (0.05, 0.03, -0.02, 0.04, 0.02, -0.03, 0.01)
+ZERO = (0.0,) * 7
+N = 20
+
+
+@pytest.fixture(scope="module")
+def fm() -> FlappingModel:
+    return FlappingModel(steps_per_beat=N)
+
+
+def _hover(fm):
+    return fm.state_from_z(np.zeros(8))
+
+
+@pytest.mark.parametrize("x0", [[0.0] * 12, [0.0] * 14, [math.nan] + [0.0] * 12])
+def test_flight_refuses_an_initial_state_that_is_not_13_finite_values(fm, x0):
+    with pytest.raises(FlappingError, match="expected 13 finite values"):
+        Flight(fm, x0)
+
+
+def test_flight_steps_are_the_models_steps(fm):
+    """On the grid the flight's state is the model's steps of 1/N wing beat from the start
+    (the controls of the previous and current beat: the initial ones, then from the next
+    beat the ones set), bit for bit; an off-grid time is a partial step from the last grid
+    point, kept aside."""
+    x0 = _hover(fm)
+    flight = Flight(fm, x0, C7)
+    y = np.array(x0)
+    for j in range(N):
+        y = fm._advance(y, j / N, (j + 1) / N, C7, C7)
+    assert np.array_equal(flight.advance_to(1.0), y)
+    flight.set_controls(ZERO)
+    partial = fm.advance(y, 0.0, 0.03125, C7, ZERO)  # 1/32 wing beat: exact in floats
+    assert np.array_equal(flight.advance_to(1.03125), partial)
+    assert flight.grid == N and np.array_equal(flight.y, y)
+
+
+def test_times_within_the_tolerance_of_a_grid_point_are_on_it(fm):
+    """A time within 1e-9 of a step (5e-11 wing beat at N = 20) of a grid point is that
+    point: just before 1.0 reaches the grid point 1.0 and returns it; just before the kept
+    state is still allowed; 4e-11 after it is the state itself. Farther before it is
+    refused, and farther than a step after it is no partial step."""
+    tol = 1e-9 / N
+    flight = Flight(fm, _hover(fm), C7)
+    at_one = flight.advance_to(1.0 - 0.5 * tol)
+    assert flight.grid == N
+    ref = Flight(fm, _hover(fm), C7)
+    assert np.array_equal(ref.advance_to(1.0), at_one)
+    assert np.array_equal(flight.advance_to(1.0 - 0.8 * tol), at_one)
+    assert np.array_equal(flight.state_at(1.0 + 0.8 * tol), at_one)
+    with pytest.raises(FlappingError, match="before the flight's state"):
+        flight.advance_to(1.0 - 2.0 * tol)
+    with pytest.raises(FlappingError, match="not within one grid step"):
+        flight.state_at(1.0 + 1.0 / N + 2.0 * tol)
+    with pytest.raises(FlappingError, match="not within one grid step"):
+        flight.state_at(1.0 - 2.0 * tol)
+    # a partial step of a whole grid step and half the tolerance is allowed: the next grid
+    # point's state 2.5e-11 wing beat later (rates of order 1: within 1e-10)
+    nxt = flight.state_at(1.0 + 1.0 / N + 0.5 * tol)
+    np.testing.assert_allclose(nxt, Flight(fm, _hover(fm), C7).advance_to(1.0 + 1.0 / N),
+                               rtol=0, atol=1e-10)
+
+
+def test_phase_and_the_controls_latched_at_the_beats_starts(fm):
+    """The phase in the beat and the controls of the previous and current beat: before the
+    first beat is entered the phase is 0 with the initial controls; in beat 0 the time in it;
+    at the start of beat 1, not yet entered, the end of beat 0 (1.0); once entered, its phase
+    with (the previous beat's, the new) controls."""
+    flight = Flight(fm, _hover(fm), ZERO)
+    assert flight.phase(0.0) == (0.0, ZERO, ZERO)
+    flight.advance_to(0.5)
+    assert flight.phase(0.5) == (0.5, ZERO, ZERO)
+    flight.set_controls(C7)
+    flight.advance_to(1.0)
+    assert flight.phase(1.0) == (1.0, ZERO, ZERO)
+    flight.advance_to(1.25)
+    ph, prev, now = flight.phase(1.25)
+    assert ph == pytest.approx(0.25, abs=1e-15) and (prev, now) == (ZERO, C7)
+    # a time within the tolerance below the beat's start counts as the beat
+    assert flight.phase(1.0 - 0.5e-9 / N)[0] == 0.0
+    flight.advance_to(2.5)
+    assert flight.phase(2.5)[1:] == (C7, C7)
+
+
+def test_a_snapshot_is_plain_values_that_restore_the_future(fm):
+    """The snapshot survives JSON (plain values, the FMU's state); restored, in a fresh
+    flight too, the future is the same, bit for bit, the controls pending included."""
+    flight = Flight(fm, _hover(fm), ZERO)
+    flight.advance_to(0.4)
+    flight.set_controls(C7)
+    snap = json.loads(json.dumps(flight.snapshot()))
+    a = flight.advance_to(1.3)
+    other = Flight(fm, _hover(fm), (0.01,) * 7)
+    other.restore(snap)
+    assert np.array_equal(other.advance_to(1.3), a)
+    assert json.loads(json.dumps(other.snapshot())) == json.loads(json.dumps(flight.snapshot()))
+    assert other.N == N

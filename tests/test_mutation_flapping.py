@@ -111,3 +111,41 @@ def test_a_snapshot_is_plain_values_that_restore_the_future(fm):
     assert np.array_equal(other.advance_to(1.3), a)
     assert json.loads(json.dumps(other.snapshot())) == json.loads(json.dumps(flight.snapshot()))
     assert other.N == N
+
+
+def test_the_previous_beats_controls_are_those_it_flew(fm):
+    """Controls set before the first beat starts act in beat 0 (the initial ones are those
+    the insect flapped with before it: beat 0's previous); entering beat 1, the previous
+    controls are beat 0's, not the initial ones."""
+    C7b = (-0.01, 0.02, 0.03, -0.02, 0.01, 0.04, -0.03)
+    flight = Flight(fm, _hover(fm), C7)
+    flight.set_controls(ZERO)
+    flight.advance_to(0.5)
+    assert flight.phase(0.5)[1:] == (C7, ZERO)
+    flight.set_controls(C7b)
+    flight.advance_to(1.5)
+    assert flight.phase(1.5)[1:] == (ZERO, C7b)
+
+
+def test_a_refused_time_names_the_state_time(fm):
+    """The message of a time before the kept state gives the state's time, 0.5 wing beat
+    (read back as a number)."""
+    import re
+    flight = Flight(fm, _hover(fm))
+    flight.advance_to(0.5)
+    with pytest.raises(FlappingError, match="before the flight's state") as info:
+        flight.advance_to(0.2)
+    assert float(re.search(r"state \(([^)]*)\)", str(info.value))[1]) == 0.5
+
+
+def test_partial_steps_within_a_beat_and_to_its_end(fm):
+    """A partial step from grid point j of a beat runs from j / N: from 1.25 wing beats
+    (j = 5) to 1.28125 it is the model's step from phase 0.25 to 0.28125 (exact in floats);
+    from the beat's last grid point to its end (within the tolerance beyond it) it is the
+    step to phase 1.0, the next grid point's state."""
+    flight = Flight(fm, _hover(fm), C7)
+    y = flight.advance_to(1.25)
+    assert np.array_equal(flight.state_at(1.28125), fm.advance(y, 0.25, 0.28125, C7, C7))
+    y = flight.advance_to(1.95)
+    end = flight.state_at(2.0 + 0.5e-9 / N)
+    assert np.array_equal(end, fm.advance(y, 0.95, 1.0, C7, C7))

@@ -76,9 +76,10 @@ TARGETS: dict[str, list[str]] = {
        for m in ("kinematics", "elements", "wing", "trim", "model")},
     # the wing-beat-resolved model in time for a host (the comparison of the sampled forces
     # on grids of 1000 and 3000, 1.6 s, is about the forces, not the flight)
-    "models/flapping/flight.py": [
+    **{f"models/flapping/{m}.py": [
         "tests/test_mutation_flapping.py", "tests/test_flapping.py", "--deselect", "tests/test_flapping.py::"
-        "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model"],
+        "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model"]
+       for m in ("flight", "orbit")},
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

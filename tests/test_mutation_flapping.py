@@ -149,3 +149,104 @@ def test_partial_steps_within_a_beat_and_to_its_end(fm):
     y = flight.advance_to(1.95)
     end = flight.state_at(2.0 + 0.5e-9 / N)
     assert np.array_equal(end, fm.advance(y, 0.95, 1.0, C7, C7))
+
+
+# -- orbit.py ----------------------------------------------------------------------------------
+class AffineBeat:
+    """A stand-in for the wing-beat map, z -> A z + b (8 reduced coordinates), with the
+    period of 1.25 wing beats of the insect; records the controls it is given."""
+
+    period = 1.25
+
+    def __init__(self):
+        rng = np.random.default_rng(4)
+        Q = rng.normal(size=(8, 8))
+        # eigenvalues 0.9, 0.5, -0.3, 1.2, 0.7, 0.2 and 0.6 +- 0.4i: distinct, real and a pair
+        D = np.diag([0.9, 0.5, -0.3, 1.2, 0.7, 0.2, 0.6, 0.6])
+        D[6, 7], D[7, 6] = 0.4, -0.4
+        self.A = Q @ D @ np.linalg.inv(Q)
+        self.b = rng.normal(scale=0.1, size=8)
+        self.controls = []
+
+    def z_map(self, z, control=None):
+        self.controls.append(control)
+        return self.A @ z + self.b
+
+
+def test_monodromy_of_an_affine_map_is_its_matrix():
+    """Central differences of an affine map are its matrix, to rounding (1e-16 / step =
+    1e-10 of the O(1) entries, 1e-8 for step = 1e-8); the controls reach the map."""
+    from dronefly.models.flapping import monodromy
+    m = AffineBeat()
+    np.testing.assert_allclose(monodromy(m, np.zeros(8), C7), m.A, rtol=0, atol=1e-9)
+    assert m.controls == [C7] * 16
+    np.testing.assert_allclose(monodromy(m, np.ones(8), step=1e-4), m.A, rtol=0, atol=1e-9)
+
+
+def test_periodic_orbit_of_an_affine_map_and_its_floquet_analysis():
+    """The orbit's start is the fixed point (I - A)^-1 b (numpy), reached in one chord step
+    with the exact Jacobian given, or a few with the central-difference one; a Jacobian that
+    does not converge in max_iter steps is a FlappingError. The Floquet multipliers are A's
+    eigenvalues (numpy), the exponents log(mu) / period, largest real part first; the blocks'
+    exponents of a block-diagonal matrix are those of each block."""
+    from dronefly.models.flapping import Floquet, block_exponents, periodic_orbit, AXES
+    m = AffineBeat()
+    want = np.linalg.solve(np.eye(8) - m.A, m.b)
+    orbit = periodic_orbit(m, jacobian=m.A)
+    np.testing.assert_allclose(orbit.z0, want, rtol=0, atol=1e-13)
+    assert len(orbit.residuals) == 2 and orbit.samples == 200
+    orbit = periodic_orbit(m, C7, tol=1e-13, samples=7)
+    np.testing.assert_allclose(orbit.z0, want, rtol=0, atol=1e-12)
+    assert orbit.samples == 7 and orbit.control == C7 and orbit.residuals[-1] < 1e-13
+    with pytest.raises(FlappingError, match="no periodic orbit"):
+        periodic_orbit(m, jacobian=0.5 * m.A, max_iter=2)
+    fl = Floquet.of(m, orbit)
+    np.testing.assert_allclose(fl.monodromy, m.A, rtol=0, atol=1e-9)
+    mu = np.linalg.eigvals(m.A)
+    lam = np.log(mu.astype(complex)) / 1.25
+    order = np.lexsort((-lam.imag, -lam.real))
+    np.testing.assert_allclose(fl.exponents, lam[order], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fl.multipliers, mu[order], rtol=0, atol=1e-8)
+    assert np.all(np.diff(fl.exponents.real) <= 1e-12)
+    # a block-diagonal monodromy in the axes' coordinates
+    rng = np.random.default_rng(8)
+    M = np.zeros((8, 8))
+    blocks = {}
+    for axis, idx in AXES.items():
+        B = np.diag([0.9, 0.5, 0.3, 0.2]) + 0.05 * rng.normal(size=(4, 4))
+        M[np.ix_(idx, idx)] = B
+        blocks[axis] = np.log(np.linalg.eigvals(B).astype(complex)) / 0.8
+    got = block_exponents(M, 0.8)
+    for axis, lam in blocks.items():
+        key = lambda c: (round(c.real, 9), round(c.imag, 9))  # noqa: E731
+        np.testing.assert_allclose(sorted(got[axis], key=key), sorted(lam, key=key), atol=1e-12)
+
+
+def test_orbit_trajectory_and_oscillation_by_their_definitions(fm):
+    """The trajectory is the flight from the orbit's start at samples + 1 equally spaced
+    phases; the oscillation's excursions are its peak-to-peak position (drift over the beat
+    removed, in micrometres of U t_w) and Euler angles (scipy's ZYX), the drift velocity and
+    the mean pitch, by their definitions (a few roundings: 1e-9 relative)."""
+    from scipy.spatial.transform import Rotation
+    from dronefly.models.flapping import periodic_orbit
+    orbit = periodic_orbit(fm, samples=20)
+    X = orbit.trajectory()
+    assert X.shape == (21, 13)
+    np.testing.assert_array_equal(X[0], fm.state_from_z(orbit.z0))
+    ref = Flight(fm, fm.state_from_z(orbit.z0))
+    np.testing.assert_array_equal(X[7], ref.advance_to(7 / 20))
+    osc = orbit.oscillation()
+    L_um, tau = fm.U / fm.n * 1e6, np.linspace(0.0, 1.0, 21)
+    want = {}
+    for i, name in zip((10, 11, 12), "xyz"):
+        drift = X[-1, i] - X[0, i]
+        pos = X[:, i] - X[0, i] - drift * tau
+        want[f"{name}_pp_um"] = np.ptp(pos) * L_um
+        want[f"{name}_drift_mm_per_s"] = drift / fm.period * fm.U * 1e3
+    eul = Rotation.from_quat(X[:, [7, 8, 9, 6]]).as_euler("ZYX")  # psi, theta, phi
+    for j, name in ((2, "phi"), (1, "theta"), (0, "psi")):
+        want[f"{name}_pp_deg"] = np.degrees(np.ptp(eul[:, j]))
+    want["theta_mean_deg"] = np.degrees(eul[:-1, 1].mean())
+    assert set(osc) == set(want)
+    for k, v in want.items():
+        assert osc[k] == pytest.approx(v, rel=1e-9, abs=1e-12), k

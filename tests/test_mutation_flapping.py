@@ -250,3 +250,22 @@ def test_orbit_trajectory_and_oscillation_by_their_definitions(fm):
     assert set(osc) == set(want)
     for k, v in want.items():
         assert osc[k] == pytest.approx(v, rel=1e-9, abs=1e-12), k
+
+
+def test_orbit_start_and_the_floquet_monodromy_of_the_model(fm):
+    """orbit_start (the averaged twin's monodromy as the Jacobian) finds the same fixed point
+    of the beat map as periodic_orbit with the model's own (a unique fixed point: the two
+    agree to the shooting tolerance, 1e-12, times the map's conditioning: 1e-10); Floquet.of's
+    monodromy is the derivative of the beat map: central differences at 1e-6 and 1e-5 agree
+    to their O(h^2) error and rounding (1e-6 of the largest entry); the averaged monodromy
+    is that of the averaged twin's beat map, an (8, 8) matrix."""
+    from dronefly.models.flapping import Floquet, averaged_monodromy, monodromy, orbit_start
+    from dronefly.models.flapping import periodic_orbit
+    orbit = periodic_orbit(fm)
+    np.testing.assert_allclose(orbit_start(fm), orbit.z0, rtol=0, atol=1e-10)
+    fl = Floquet.of(fm, orbit)
+    coarse = monodromy(fm, orbit.z0, None, 1e-5)
+    np.testing.assert_allclose(fl.monodromy, coarse, rtol=0, atol=1e-6 * np.abs(coarse).max())
+    twin = FlappingModel(fm.qs, fm.steps_per_beat, averaged=True)
+    np.testing.assert_allclose(averaged_monodromy(fm), monodromy(twin, np.zeros(8)), rtol=0,
+                               atol=1e-12)

@@ -226,8 +226,8 @@ def test_orbit_trajectory_and_oscillation_by_their_definitions(fm):
     """The trajectory is the flight from the orbit's start at samples + 1 equally spaced
     phases; the oscillation's excursions are its peak-to-peak position (drift over the beat
     removed, in micrometres of U t_w) and Euler angles (scipy's ZYX), the drift velocity and
-    the mean pitch, by their definitions (a few roundings: 1e-9 relative)."""
-    from scipy.spatial.transform import Rotation
+    the mean pitch, by their definitions (a few roundings: 1e-9 relative); the drift velocity
+    in time, for a model of another period too."""
     from dronefly.models.flapping import periodic_orbit
     orbit = periodic_orbit(fm, samples=20)
     X = orbit.trajectory()
@@ -235,8 +235,20 @@ def test_orbit_trajectory_and_oscillation_by_their_definitions(fm):
     np.testing.assert_array_equal(X[0], fm.state_from_z(orbit.z0))
     ref = Flight(fm, fm.state_from_z(orbit.z0))
     np.testing.assert_array_equal(X[7], ref.advance_to(7 / 20))
+    _oscillation_by_definition(orbit, X)
+    # a model forced 1.25 times faster (period 0.8 wing beat), from the hover state: the
+    # definitions hold for any start
+    from dronefly.models.flapping import PeriodicOrbit
+    fast = FlappingModel(fm.qs, N, frequency_factor=1.25)
+    other = PeriodicOrbit(fast, np.zeros(8), None, [], 4)
+    _oscillation_by_definition(other, other.trajectory())
+
+
+def _oscillation_by_definition(orbit, X):
+    from scipy.spatial.transform import Rotation
+    fm = orbit.model
     osc = orbit.oscillation()
-    L_um, tau = fm.U / fm.n * 1e6, np.linspace(0.0, 1.0, 21)
+    L_um, tau = fm.U / fm.n * 1e6, np.linspace(0.0, 1.0, len(X))
     want = {}
     for i, name in zip((10, 11, 12), "xyz"):
         drift = X[-1, i] - X[0, i]

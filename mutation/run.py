@@ -64,6 +64,23 @@ TARGETS: dict[str, list[str]] = {
     # FMU cost seconds to a minute a mutant through tests/test_check_misreports.py)
     "harness/compliance/rules.py": [_COMPLIANCE],
     "harness/compliance/structure.py": [_COMPLIANCE],
+    # the nonlinear plant: its equations and steps on small inputs (the FMU tests of
+    # test_hover6dof.py, marked integration, build and run the FMU: seconds a mutant)
+    "models/rigid_body.py": ["tests/test_mutation_rigid_body.py", "tests/test_hover6dof.py",
+                             "-m", '"not integration"'],
+    "models/shooting.py": ["tests/test_mutation_shooting.py"],
+    # the quasi-steady wings: unit oracles, then the model's tests (python-control's gains
+    # left out: two seconds a mutant for a comparison that reads the derivatives only)
+    **{f"models/quasisteady/{m}.py": [
+        "tests/test_mutation_quasisteady.py", "tests/test_aero.py", "--deselect",
+        "tests/test_aero.py::test_matched_gains_against_python_control"]
+       for m in ("kinematics", "elements", "wing", "trim", "model")},
+    # the wing-beat-resolved model in time for a host (the comparison of the sampled forces
+    # on grids of 1000 and 3000, 1.6 s, is about the forces, not the flight)
+    **{f"models/flapping/{m}.py": [
+        "tests/test_mutation_flapping.py", "tests/test_flapping.py", "--deselect", "tests/test_flapping.py::"
+        "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model"]
+       for m in ("flight", "orbit")},
     # the checks that read an archive or call a binary, on tiny archives and stub contexts
     "harness/compliance/static.py": [_CHECKS],
     "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],

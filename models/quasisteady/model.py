@@ -287,7 +287,7 @@ class QuasiSteadyModel:
         ------
         DroneflyError
             No trim with 0 < alpha < 90 deg and |phibar| < 90 deg, or the residual is not below
-            ``tol`` W+ (a model without the lift terms).
+            max(``tol``, 1e-9) W+ (a model without the lift terms).
         """
         if self._trim is None:
             Phi = self.geometry.Phi_rad

@@ -49,15 +49,16 @@ def solve_trim(mean: Callable[[float, float, float], Array], weight: float, what
     what : str
         The model, as the messages name it.
     tol : float
-        The largest residual accepted, over the weight.
+        The residual, over the weight, below which Newton stops; after ``max_iter`` steps a
+        residual below max(tol, 1e-9) is accepted.
     max_iter : int
         Newton steps at most.
 
     Raises
     ------
     DroneflyError
-        The residual does not fall below ``tol`` W+ or the angles leave 0 < alpha < 90 deg,
-        |phibar| < 90 deg (a model without the lift terms).
+        The residual does not fall below max(``tol``, 1e-9) W+ or the angles leave
+        0 < alpha < 90 deg, |phibar| < 90 deg (a model without the lift terms).
     """
     W = weight
     z = np.array([math.radians(30.0), math.radians(30.0), 0.0])

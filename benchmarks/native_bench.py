@@ -166,6 +166,14 @@ def bench_chost(fmus: dict[str, Path], out: Path, steps: int, repeats: int) -> d
     return rate
 
 
+def _extract(fmu: Path, name: str) -> str:
+    """The FMU extracted into ``name`` beside it (in the benchmark's temporary folder, removed
+    with it)."""
+    import fmpy
+
+    return fmpy.extract(str(fmu), str(Path(fmu).parent / name))
+
+
 def bench_calls(fmus: dict[str, Path], calls: int, repeats: int) -> dict[str, list[float]]:
     """Microseconds of one fmi2GetReal (the 4 outputs) and one fmi2DoStep of the lateral plant
     through FMPy's FMU2Slave: what a step of ``simulate_fmu`` costs beside FMPy's own loop."""
@@ -176,7 +184,7 @@ def bench_calls(fmus: dict[str, Path], calls: int, repeats: int) -> dict[str, li
     slaves = {}
     for key, name in (("native", "native:DroneFlyLateral"), ("pythonfmu", "DroneFlyLateral")):
         md = fmpy.read_model_description(str(fmus[name]))
-        s = FMU2Slave(guid=md.guid, unzipDirectory=fmpy.extract(str(fmus[name])),
+        s = FMU2Slave(guid=md.guid, unzipDirectory=_extract(fmus[name], f"calls_{key}"),
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName=key)
         s.instantiate()
         s.setupExperiment(startTime=0.0)
@@ -228,7 +236,7 @@ def bench_simulate(fmus: dict[str, Path], repeats: int) -> dict[str, list[float]
 
     times: dict[str, list[float]] = {"native": [], "pythonfmu": [], "floor": []}
     paths = {"native": fmus["native:DroneFlyLateral"], "pythonfmu": fmus["DroneFlyLateral"]}
-    dirs = {k: fmpy.extract(str(p)) for k, p in paths.items()}
+    dirs = {k: _extract(p, f"simulate_{k}") for k, p in paths.items()}
     mds = {k: fmpy.read_model_description(str(p)) for k, p in paths.items()}
 
     def run(key: str) -> float:
@@ -260,7 +268,7 @@ def rss_kb():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * 4096 // 1024
 md = read_model_description(path)
-folder = extract(path)
+folder = extract(path, path + ".extracted")  # beside the FMU, in the benchmark's folder
 fmu = FMU2Slave(guid=md.guid, unzipDirectory=folder,
                 modelIdentifier=md.coSimulation.modelIdentifier, instanceName="m")
 # the library stays loaded; each cycle is fmi2Instantiate ... fmi2FreeInstance

@@ -251,18 +251,27 @@ def test_fix_connection_types_only_renames_connection_types():
     assert cfg["variables"] == [{"variableType": "Real"}]
 
 
-def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path):
+def test_fmpy_container_workaround_is_needed_and_works(fmus, container, tmp_path,
+                                                       monkeypatch):
     """fmpy 0.3.32 writes FMI 2 connection types ("Real") that its container binary rejects;
     with the types renamed the same container runs. If fmpy fixes its writer, the raw
-    container must run too and the fix is a no-op (then the workaround can go)."""
+    container must run too and the fix is a no-op (then the workaround can go). The run that
+    fails leaves no extracted FMU in the temporary folder."""
+    import tempfile
+
     raw = write_container(*fmus, tmp_path, fix=False, name="Raw")
     types = {c["variableType"] for c in json.loads(
         zipfile.ZipFile(raw).read("resources/container.json"))["connections"]}
     ours = json.loads(zipfile.ZipFile(container).read("resources/container.json"))
     assert {c["variableType"] for c in ours["connections"]} == {"Float64"}
     if types == {"Real"}:
+        scratch = tmp_path / "scratch"
+        scratch.mkdir()
+        monkeypatch.setattr(tempfile, "tempdir", str(scratch))
         with pytest.raises(Exception, match="instantiate"):
             run_container(raw, stop_s=5 * H)
+        assert list(scratch.iterdir()) == []
+        monkeypatch.undo()
     else:
         assert types == {"Float64"}
         run_container(raw, stop_s=5 * H)

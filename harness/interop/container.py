@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 from typing import Mapping
 
@@ -19,15 +20,21 @@ __all__ = ["container_verdict", "run_container"]
 
 def run_container(fmu: str | Path, *, start_values: Mapping[str, float] | None = None,
                   stop_s: float | None = None) -> np.ndarray:
-    """``fmpy.simulate_fmu`` with the container's default experiment (output every step)."""
+    """``fmpy.simulate_fmu`` with the container's default experiment (output every step).
+
+    The FMU is extracted into a temporary folder of ours, removed whatever happens (FMPy removes
+    its own extraction only when the run ends normally: a container that fails to instantiate
+    left it behind)."""
 
     md = read_model_description(fmu)
     step = float(md.defaultExperiment.stepSize)
     stop = float(md.defaultExperiment.stopTime) if stop_s is None else stop_s
-    return fmpy.simulate_fmu(str(fmu), stop_time=stop, output_interval=step,
-                             start_values=dict(start_values or {}),
-                             output=[v.name for v in md.modelVariables
-                                     if v.causality == "output"])
+    with tempfile.TemporaryDirectory(prefix="dronefly_container_") as tmp:
+        return fmpy.simulate_fmu(fmpy.extract(str(fmu), tmp), stop_time=stop,
+                                 output_interval=step, model_description=md,
+                                 start_values=dict(start_values or {}),
+                                 output=[v.name for v in md.modelVariables
+                                         if v.causality == "output"])
 
 
 def container_verdict(fmu: str | Path, n_steps: int = 20) -> Verdict:

@@ -22,6 +22,7 @@ from fmpy.fmi1 import FMICallException
 
 from dronefly.harness.compliance import binary, names, reference, refusals, runtime, static
 from dronefly.harness.compliance.rules import CheckFailed, CheckSkipped
+from shared_files import need_shared
 
 
 # --- helpers: a modelDescription.xml, an archive holding it, a context of it -----------------
@@ -501,8 +502,7 @@ def reference_dahlquist(tmp_path_factory):
     out = {}
     for fmi in (2, 3):
         source = REF / f"fmi{fmi}" / "Dahlquist.fmu"
-        if not source.is_file():
-            pytest.skip(f"{source} is not there (../shared)")
+        need_shared(source, "the Reference-FMUs")
         folder = tmp_path_factory.mktemp(f"dahlquist{fmi}")
         fmpy.extract(str(source), str(folder))
         out[fmi] = (folder, read_model_description(str(source)))
@@ -708,8 +708,7 @@ def reference_context():
     def make(fmi: int, name: str, profile: str | None = None, interface: str = "cs",
              path: Path | None = None, **options):
         source = REF / f"fmi{fmi}" / f"{name}.fmu"
-        if not source.is_file():
-            pytest.skip(f"{source} is not there (../shared)")
+        need_shared(source, "the Reference-FMUs")
         opened.append(FMU(path or source))
         ctx = Context(opened[-1], CheckOptions(profile=profile, **options), None)
         ctx.interface = interface
@@ -1175,8 +1174,7 @@ def _seeded(tmp_path: Path, fmi: int, name: str, *edits: tuple[str, str],
     """A copy of a Reference-FMU whose modelDescription.xml has ``edits`` (old, new) made: a
     description that no longer tells the truth about the unchanged binary."""
     source, path = REF / f"fmi{fmi}" / f"{name}.fmu", tmp_path / f"{name}{fmi}.fmu"
-    if not source.is_file():
-        pytest.skip(f"{source} is not there (../shared)")
+    need_shared(source, "the Reference-FMUs")
     with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
         for item in zin.infolist():
             data = zin.read(item)
@@ -1685,6 +1683,7 @@ def test_dependencies_with_nothing_declared_are_skipped(tmp_path, reference_cont
                                                         why):
     import re
 
+    need_shared(REF / "fmi2" / "Feedthrough.fmu", "the Reference-FMUs")
     text = zipfile.ZipFile(REF / "fmi2" / "Feedthrough.fmu").read(
         "modelDescription.xml").decode()
     bare = re.sub(r" dependencies=\"\d+\" dependenciesKind=\"constant\"", "",
@@ -1883,6 +1882,7 @@ def test_the_reference_run_is_the_references_own(tmp_path, reference_context, mo
         return real.read_csv(str(ref))
 
     fmu = tmp_path / "Dahlquist.fmu"
+    need_shared(REF / "fmi2" / "Dahlquist.fmu", "the Reference-FMUs")
     shutil.copy(REF / "fmi2" / "Dahlquist.fmu", fmu)
     ref = _reference_csv(tmp_path / "Dahlquist_ref.csv", times)
     (tmp_path / "Dahlquist_in.csv").write_text("time,k\n0,1\n")
@@ -1944,8 +1944,7 @@ _FEED2 = REF / "fmi2" / "Feedthrough.fmu"
 
 
 def _feed2_text() -> str:
-    if not _FEED2.is_file():
-        pytest.skip("the Reference-FMUs are not there (../shared)")
+    need_shared(_FEED2, "the Reference-FMUs")
     return zipfile.ZipFile(_FEED2).read("modelDescription.xml").decode()
 
 
@@ -1982,8 +1981,7 @@ def test_a_dependencies_failure_lists_four_lies_then_says_there_are_more(
     import re
 
     source = REF / f"fmi{fmi}" / "Feedthrough.fmu"
-    if not source.is_file():
-        pytest.skip("the Reference-FMUs are not there (../shared)")
+    need_shared(source, "the Reference-FMUs")
     text = zipfile.ZipFile(source).read("modelDescription.xml").decode()
     head, rest = text.split("<InitialUnknown", 1)
     new = head + "<InitialUnknown" + re.sub(r'dependencies="[\d ]*"', 'dependencies=""', rest,
@@ -2106,8 +2104,7 @@ def test_reference_outputs_of_a_model_without_a_list_are_the_fmus(monkeypatch):
     """DroneFlyFlapping records every output of its FMU, in the description's order; the
     others their listed ones."""
     fmu = REF / "fmi2" / "Feedthrough.fmu"
-    if not fmu.is_file():
-        pytest.skip("the Reference-FMUs are not there (../shared)")
+    need_shared(fmu, "the Reference-FMUs")
     assert reference.reference_outputs("DroneFlyFlapping", fmu) == [
         "Float64_continuous_output", "Float64_discrete_output", "Int32_output",
         "Boolean_output", "String_output", "Enumeration_output"]

@@ -47,6 +47,7 @@ from dronefly.harness.builder.closedloop import write_ssp
 from dronefly.harness.builder.toolchain import find_toolchain, host_platform, missing_reason
 from dronefly.harness.cosim.fmu import FMU
 from dronefly.harness.cosim.master import Loop
+from shared_files import ON_CI
 
 pytestmark = pytest.mark.integration
 
@@ -65,6 +66,9 @@ _ARRAY_FETCH = re.compile(r"^error:\s+\[updateSignals\] failed to fetch variable
 if not (sys.platform.startswith("linux") and host_platform("2.0") == "linux64"):
     pytest.skip("the OMSimulator build is for Linux x86_64", allow_module_level=True)
 if not OMS_EXE.is_file():
+    if ON_CI:  # the CI layout provides ../shared: a missing build there is a failure
+        pytest.fail(f"no OMSimulator build at {OMS}: the CI layout provides ../shared",
+                    pytrace=False)
     pytest.skip(f"no OMSimulator build at {OMS} (the shared tools folder beside the checkout)",
                 allow_module_level=True)
 

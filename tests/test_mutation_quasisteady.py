@@ -584,3 +584,23 @@ def test_forces_at_a_sample_are_the_element_by_element_forces(qs_model):
         (0.0,) * 7)(x))
     np.testing.assert_allclose(qs_model.state_function()(x), qs_model.forces_vector(x),
                                rtol=1e-13, atol=1e-15)
+
+
+def test_instants_refuse_angles_of_another_shape_and_the_other_added_mass_form(qs_model):
+    """The blade-element instants (models/quasisteady/instantaneous.py) take angles of shape
+    (6, 2) or (T, 6, 2) only, and the impulse form of the added mass only where the added mass
+    is on (the cycle-averaged path has Sane's form too): a (T, 6, 3) stack and Sane's form are
+    refused by name, and without added mass Sane's form is no matter."""
+    import dataclasses
+
+    from dronefly.models.quasisteady.instantaneous import instants
+
+    m = qs_model
+    args = (m.geometry, m.terms, m.coefficients, m.elements)
+    with pytest.raises(DroneflyError, match=r"angles of shape \(1, 6, 3\)"):
+        instants(np.zeros((1, 6, 3)), *args)
+    sane = dataclasses.replace(m.terms, added_mass=True, added_mass_form="sane2001")
+    with pytest.raises(DroneflyError, match="impulse form of the added mass only"):
+        instants(np.zeros((6, 2)), m.geometry, sane, m.coefficients, m.elements)
+    off = dataclasses.replace(m.terms, added_mass=False, added_mass_form="sane2001")
+    assert len(instants(np.zeros((2, 6, 2)), m.geometry, off, m.coefficients, m.elements)) == 2

@@ -75,6 +75,13 @@ TARGETS: dict[str, list[str]] = {
         "tests/test_mutation_quasisteady.py", "tests/test_aero.py", "--deselect",
         "tests/test_aero.py::test_matched_gains_against_python_control"]
        for m in ("kinematics", "elements", "wing", "trim", "model")},
+    # the blade-element loads: the paper's derivatives and the model's three evaluations of
+    # the loads (test_aero.py), the instantaneous forces against the sampled ones
+    # (test_flapping.py's comparison on the fine grid included)
+    **{f"models/quasisteady/{m}.py": [
+        "tests/test_mutation_quasisteady.py", "tests/test_aero.py", "--deselect",
+        "tests/test_aero.py::test_matched_gains_against_python_control", "tests/test_flapping.py"]
+       for m in ("instantaneous", "cycle")},
     # the wing-beat-resolved model in time for a host (the comparison of the sampled forces
     # on grids of 1000 and 3000, 1.6 s, is about the forces, not the flight)
     **{f"models/flapping/{m}.py": [

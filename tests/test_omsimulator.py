@@ -245,7 +245,8 @@ def test_the_native_ssp_runs_through_the_python_api(natives, cosim_loop, tmp_pat
         with zipfile.ZipFile(ssp) as z:
             assert "K[" not in z.read("resources/controller.ssv").decode()
     result = tmp_path / "ssp.csv"
-    env = {**os.environ, "PYTHONPATH": str(OMS_PY)}
+    # TMPDIR: OMSimulator's Python API leaves two temporary folders of its own per run
+    env = {**os.environ, "PYTHONPATH": str(OMS_PY), "TMPDIR": str(tmp_path)}
     # FMI 3.0: OMSimulator reads dependencies from "InitialUnknowns" (FMI 3.0 says
     # "InitialUnknown") and invents an algebraic loop (its README's workaround), and it cannot
     # fetch the arrays A and B for its result file (the module text): they are left out of it

@@ -126,7 +126,8 @@ def test_omsimulator_runs_the_closed_loop_ssp_as_our_master(built_fmus, built_fm
     step_s = float(ours.run.time[1] - ours.run.time[0])
     stop_s = float(ours.run.time[-1])
     csv = tmp_path / "oms.csv"
-    env = {**os.environ, "PYTHONPATH": str(OMS_PY)}
+    # TMPDIR: OMSimulator's Python API leaves two temporary folders of its own per run
+    env = {**os.environ, "PYTHONPATH": str(OMS_PY), "TMPDIR": str(tmp_path)}
     r = subprocess.run([sys.executable, "-c", _OMS_RUN, str(ssp), str(csv), repr(stop_s),
                         repr(step_s)], cwd=tmp_path, env=env, capture_output=True, text=True,
                        timeout=120)

@@ -42,18 +42,15 @@ import sys
 import tempfile
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
-from ..builder.closedloop import plant_md_scales
 from ...models.lateral_interface import STATE_NAMES
-from ..cosim.fmu3 import read_view
 from ..cosim.master import CoSimError
-from ..cosim.system import System, SystemSpecError
 from ..cosim.identification import Verdict, unit_start_values, verdict_of
 from .libcosim import InteropRun
-from .ssp import ssp_parameter_set
+from .ssp import PLANT_INSTANCE, ClosedLoopSSP
 
 __all__ = ["ecos_available", "ecos_env", "ecos_verdict", "run_ecos", "tbb_library_dir"]
 
@@ -146,29 +143,12 @@ def ecos_available() -> str | None:
     return None
 
 
-def _plant_md(ssp: Path, plant: str) -> Any:
-    """The model description of the SSP component ``plant``'s FMU (the one SSP reader,
-    :meth:`System.from_ssp`)."""
-    try:
-        system = System.from_ssp(ssp)
-    except SystemSpecError as e:
-        raise CoSimError(str(e)) from e
-    if plant not in system.fmus:
-        raise CoSimError(f"the SSP {str(ssp)!r} has no component {plant!r}")
-    return read_view(system.fmus[plant])
-
-
-def _plant_connectors(ssp: Path, plant: str) -> tuple[list[str], list[str]]:
+def _plant_connectors(read: ClosedLoopSSP, plant: str) -> tuple[list[str], list[str]]:
     """The plant's output and input names, in the order of its FMU's model description (the
     order of the connectors that the project's SSP writer declares)."""
-    variables = _plant_md(ssp, plant).modelVariables
+    variables = read.md(plant).modelVariables
     return ([v.name for v in variables if v.causality == "output"],
             [v.name for v in variables if v.causality == "input"])
-
-
-def _plant_scales(ssp: Path, plant: str) -> tuple[float, np.ndarray]:
-    """n [Hz] and the state scales of the plant component's FMU."""
-    return plant_md_scales(_plant_md(ssp, plant))
 
 
 def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],
@@ -198,7 +178,7 @@ def _run_jobs(ssp: Path, step_s: float, n_steps: int, record: list[str],
 
 
 def run_ecos(ssp: str | Path, *, n_steps: int, step_s: float | None = None,
-             overrides: Mapping[str, float] | None = None, plant: str = "plant",
+             overrides: Mapping[str, float] | None = None, plant: str = PLANT_INSTANCE,
              env: Mapping[str, str] | None = None) -> InteropRun:
     """Co-simulate the SSP with Ecos' fixed-step master and record the plant's signals.
 
@@ -236,23 +216,25 @@ def run_ecos(ssp: str | Path, *, n_steps: int, step_s: float | None = None,
         raise CoSimError(f"SSP {str(ssp)!r} does not exist")
     if n_steps < 1:
         raise CoSimError(f"n_steps = {n_steps!r} must be >= 1")
+    read = ClosedLoopSSP(ssp)
     if step_s is None:
-        step_s = 0.1 / _plant_scales(ssp, plant)[0]
+        step_s = read.plant(plant)[2]
     if not (np.isfinite(step_s) and step_s > 0):
         raise CoSimError(f"step = {step_s!r} s must be finite and > 0")
-    return _runs(ssp, float(step_s), n_steps, [overrides or {}], plant, env)[0]
+    return _runs(read, float(step_s), n_steps, [overrides or {}], plant, env)[0]
 
 
-def _runs(ssp: Path, step_s: float, n_steps: int, overrides: list[Mapping[str, float]],
-          plant: str, env: Mapping[str, str] | None) -> list[InteropRun]:
-    outputs, inputs = _plant_connectors(ssp, plant)
+def _runs(read: ClosedLoopSSP, step_s: float, n_steps: int,
+          overrides: list[Mapping[str, float]], plant: str,
+          env: Mapping[str, str] | None) -> list[InteropRun]:
+    outputs, inputs = _plant_connectors(read, plant)
     names = [*outputs, *inputs]
-    bound = {p.name: float(p.value) for p in ssp_parameter_set(ssp).parameters}
+    bound = {p.name: float(p.value) for p in read.parameter_set().parameters}
     runs = []
     for o in overrides:
         values = {**bound, **{k: float(v) for k, v in o.items()}}
         runs.append({k.replace(".", "::", 1): v for k, v in values.items()})
-    out = _run_jobs(ssp, step_s, n_steps, [f"{plant}::{n}" for n in names], runs, env)
+    out = _run_jobs(read.path, step_s, n_steps, [f"{plant}::{n}" for n in names], runs, env)
     result = []
     for res in out["runs"]:
         n = len(res["values"])
@@ -292,12 +274,12 @@ def ecos_verdict(ssp: str | Path, n_steps: int = 20, *,
         The fit's residual exceeds :data:`~dronefly.harness.cosim.identification.FIT_RESIDUAL_TOL`.
     """
     ssp = Path(ssp).resolve()
-    n_hz, scale = _plant_scales(ssp, "plant")
-    step = 0.1 / n_hz
+    read = ClosedLoopSSP(ssp)
+    n_hz, scale, step = read.plant()
     starts = [{**(overrides or {}), **start}
-              for start in unit_start_values(scale, prefix="plant.")]
+              for start in unit_start_values(scale, prefix=f"{PLANT_INSTANCE}.")]
     runs = []
-    for r in _runs(ssp, step, n_steps, starts, "plant", env):
+    for r in _runs(read, step, n_steps, starts, PLANT_INSTANCE, env):
         if not r.complete:
             raise CoSimError(f"Ecos identification run failed: {r.error}")
         u0, u1 = r.signals[:2, len(STATE_NAMES):]

@@ -98,6 +98,10 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/runtime.py": [_CHECKS],
     # the committed reference files, fmpy.simulate_fmu stubbed
     "harness/compliance/reference.py": [_CHECKS],
+    # the fuzz: its groups in-process against a fake slave with seeded defects and the
+    # Reference-FMUs, the parent's side against a stub child (no process started)
+    **{f"harness/compliance/{m}.py": ["tests/test_mutation_fuzz.py"]
+       for m in ("fuzzkit", "fuzzrandom", "fuzzcases", "fuzz")},
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -80,12 +80,16 @@ class _State:
     def __init__(self, values, t, state):
         self.values, self.t, self.state, self.freed = dict(values), t, state, False
 
+    def __repr__(self):
+        return f"_State({self.values}, {self.t}, {self.state})"
+
 
 class _Slave:
     """A compliant FMI 2.0 CS slave of the dronefly profile; ``defects`` (a set) change it:
 
     ``quiet``: no log message ever; ``anon``: messages name neither the call nor the variable;
-    ``printed``: the messages go to standard output (PRINTED), not the logger; ``fatal``:
+    ``printed``: the messages go to standard output (PRINTED), not the logger; ``stdout``:
+    they are written to fd 1, as a binary prints them; ``fatal``:
     every refusal is fmi2Fatal; ``drift``: a refused step still moves the output; ``obeys``:
     a forbidden call is refused but makes its transition; ``terminated_steps``: doStep is
     accepted after terminate; ``corrupt_ok``: any blob deserializes, to a state with another
@@ -108,8 +112,10 @@ class _Slave:
         if "quiet" in self.defects:
             return
         if "anon" in self.defects:
-            text = "refused"
-        if "printed" in self.defects:
+            text = "bad call"
+        if "stdout" in self.defects:  # as a binary prints: fd 1
+            os.write(1, text.encode() + b"\n")
+        elif "printed" in self.defects:
             f = fuzzkit.PRINTED.file
             f.seek(0, 2)
             f.write(text.encode() + b"\n")
@@ -125,6 +131,7 @@ class _Slave:
 
     def _enter(self, fname, *args):
         self.calls.append((fname, args, self.state, _OK))
+        self.inst.fmu.callers.append(self.inst.name)
         if self.state not in _ALLOWED.get(fname, {self.state}):
             if "obeys" in self.defects:
                 self._transition(fname)
@@ -167,8 +174,17 @@ class _Slave:
         t, h = currentCommunicationPoint, communicationStepSize
         if "terminated_steps" in self.defects and self.state == "terminated":
             self.calls.append(("doStep", (t, h), self.state, _OK))
+            self.inst.fmu.callers.append(self.inst.name)
             return None
         self._enter("doStep", t, h)
+        try:
+            return self._step(t, h)
+        except FMICallException:
+            if "drift" in self.defects:
+                self.values[4] += 1.0
+            raise
+
+    def _step(self, t, h):
         for name, vr in (("u", 1), ("k", 2), ("g", 3)):
             if not math.isfinite(self.values[vr]):
                 if "overflow_anon" in self.defects:
@@ -184,8 +200,6 @@ class _Slave:
             _Slave.shared[0] += 1
             y += _Slave.shared[0]
         if not math.isfinite(y):
-            if "drift" in self.defects:
-                self.values[4] += 1.0
             self._refuse("doStep", _DISCARD, "the step overflows y")
         self.values[4], self.t = y, t + h
         return None  # FMPy's FMU2Slave.doStep returns nothing
@@ -228,6 +242,8 @@ class _Slave:
 
     def getFMUstate(self):
         self._enter("getFMUstate")
+        if "no_states" in self.defects:
+            self._refuse("getFMUstate", _ERROR, "getFMUstate: this FMU has no states")
         return _State(self.values, self.t, self.state)
 
     def setFMUstate(self, state):
@@ -286,6 +302,7 @@ class _FMU:
                  experiment=(2.0, 0.5)):
         self.defects, self.path = set(defects), Path("fake.fmu")
         self.calls: list[tuple] = []
+        self.callers: list[str] = []  # the instance of each call
         self.live: list[_Instance] = []
         self.names: list[tuple[str, bool]] = []
         stop, step = experiment
@@ -309,14 +326,16 @@ def _run(cases):
     """{label: result} of a group's cases, run in order."""
     out = {}
     for label, run in cases:
-        r = run()
-        assert r["case"] == label
-        out[label] = r
+        out[label] = run()
     return out
 
 
 def _problems(cases):
     return {label: r["problems"] for label, r in _run(cases).items() if r["problems"]}
+
+
+#: the logging setting as the module defines it, before any test sets it
+_LOGGING_AS_IMPORTED = list(fuzzkit.LOGGING)
 
 
 @pytest.fixture(autouse=True)
@@ -401,7 +420,13 @@ def test_to_state_reaches_each_state_with_legal_calls(state, calls):
         assert fmu.calls[0][1] == (None, 0.0)
 
 
-def test_instantiate_uses_the_logging_setting(monkeypatch):
+def test_instances_are_made_with_logging_on_unless_run_groups_turns_it_off():
+    """An in-process user of the groups (not run_groups) gets the FMU's logging on: the
+    refusals' messages are then asked for."""
+    assert _LOGGING_AS_IMPORTED == [True]
+
+
+def test_instantiate_uses_the_logging_setting():
     """Instances are made with logging as LOGGING says (on unless run_groups turns it off)."""
     fmu = _FMU()
     fuzzkit.instantiate(fmu, "on")
@@ -464,6 +489,7 @@ def test_printed_gives_the_new_bytes_once():
     """PRINTED.new(): what was written to the file since the last call, never twice."""
     p = fuzzkit.Printed()
     assert p.new() == b""
+    p.file.seek(0, 2)  # written at the end, as fd 1 writes
     p.file.write(b"abc")
     p.file.flush()
     assert p.new() == b"abc"
@@ -511,3 +537,540 @@ def test_logged_quotes_the_last_two_refusal_messages():
             inst.messages.append(LogMessage("x", _ERROR, "", f"m{k}"))
         c.logged(0, "zzz")
     assert c.problems == ["no error message naming zzz (got ['m2', 'm3'])"]
+
+
+# --- fuzzrandom.py: the random call sequence and the interleaved instances ------------------
+
+def _names(calls):
+    return [f for f, *_ in calls]
+
+
+def _random(fmu, seed=1, n=300, ours=True):
+    cases = fuzzrandom.group_random(fmu, ours, seed, n)
+    assert [label for label, _ in cases] == [f"{n} random calls (seed {seed})"]
+    return cases[0][1]()
+
+
+def test_random_calls_are_reproducible_by_seed():
+    """The same seed makes the same calls with the same arguments; another seed others."""
+    a, b, c = _FMU(), _FMU(), _FMU()
+    _random(a, seed=3, n=80)
+    _random(b, seed=3, n=80)
+    _random(c, seed=4, n=80)
+    assert repr(a.calls) == repr(b.calls)
+    assert repr(a.calls) != repr(c.calls)
+
+
+@pytest.mark.parametrize("n", [0, 1, 57])
+def test_random_calls_draw_n_calls(monkeypatch, n):
+    """N draws of a call from the 14 kinds, nothing more; one instance, freed at the end."""
+    draws = []
+
+    class Counting(random.Random):
+        def randrange(self, *args):
+            draws.append(args)
+            return super().randrange(*args)
+
+    monkeypatch.setattr(fuzzrandom, "random", SimpleNamespace(Random=Counting))
+    fmu = _FMU()
+    r = _random(fmu, n=n)
+    assert draws == [(14,)] * n
+    assert fmu.names == [("fuzz", True)] and fmu.live == []
+    assert (fmu.calls == []) == (n == 0)
+    assert r["case"] == f"{n} random calls (seed 1)"
+
+
+def test_random_calls_reach_every_call_and_the_bad_arguments():
+    """300 calls reach each kind of call, the illegal step sizes, times and values of the fuzz
+    (zero, negative, infinite, huge, NaN), an undeclared value reference, and refusals of
+    both kinds, with no problem for a compliant slave."""
+    fmu = _FMU()
+    r = _random(fmu)
+    assert r["problems"] == []
+    assert r["statuses"] == [_OK, _DISCARD, _ERROR]
+    assert set(_names(fmu.calls)) == {
+        "setupExperiment", "enterInitializationMode", "exitInitializationMode", "doStep",
+        "terminate", "reset", "getReal", "setReal", "getBoolean", "setBoolean", "getFMUstate",
+        "setFMUstate", "serializeFMUstate", "deSerializeFMUstate", "freeFMUstate"}
+    args = {f: [a for g, a, *_ in fmu.calls if g == f] for f in _names(fmu.calls)}
+    h = 0.5  # the fake's stepSize
+    sizes = {a[1] for a in args["doStep"]}
+    assert {h, 0.5 * h, 0.0, -h, math.inf, 1e300} <= sizes
+    assert math.inf in {a[0] for a in args["doStep"]}
+    assert {0.0, -1.0} <= {a[1] for a in args["setupExperiment"]}
+    assert all(a[0] is None for a in args["setupExperiment"])
+    read = [vr for a in args["getReal"] for vr in a[0]]
+    assert 2**31 - 1 in read and set(read) >= {1, 2, 3, 4, 5}
+    assert all(len(a[0]) == 4 for a in args["getReal"])  # three declared, one more
+    assert all(len(a[0]) == 2 and len(set(a[0])) == 2 for a in args["setReal"])
+    values = [v for a in args["setReal"] for v in a[1]]
+    assert any(math.isnan(v) for v in values)
+    assert {0.0, 1.0, -1.0, math.inf, 1e300} <= set(values)
+    assert any(0.0 < abs(v) < 1.0 for v in values) and any(-1.0 < v < 0.0 for v in values)
+    assert {a[0] == [6] for a in args["getBoolean"]} == {True}
+    assert {True, False} <= {a[1][0] for a in args["setBoolean"]}
+
+
+def _scripted(kinds):
+    """A Random whose call kinds are ``kinds`` (then 6, terminate) and whose every choice is
+    the first of the list (the nominal time, step size and value)."""
+    class Scripted(random.Random):
+        script = list(kinds)
+
+        def randrange(self, *args):
+            return self.script.pop(0) if self.script else 6
+
+        def choice(self, seq):
+            return seq[0]
+
+    return SimpleNamespace(Random=Scripted)
+
+
+def test_random_calls_step_on_from_where_the_fmu_is(monkeypatch):
+    """The fuzz keeps the time of its instance: a step drawn at its own time after accepted
+    ones lands on the FMU's time (FMPy's doStep returns nothing for FMI 2.0: the status, not
+    the result, tells a step was accepted); after fmi2Reset the time is 0 again."""
+    monkeypatch.setattr(fuzzrandom, "random", _scripted([0, 1, 2, 3, 4, 5, 7, 0, 1, 2, 3, 4]))
+    fmu = _FMU()
+    r = _random(fmu, n=12)
+    steps = [(a, s) for f, a, state, s in fmu.calls if f == "doStep"]
+    assert steps == [((0.0, 0.5), _OK), ((0.5, 0.5), _OK), ((1.0, 0.5), _OK),
+                     ((0.0, 0.5), _OK), ((0.5, 0.5), _OK)]
+    assert r["statuses"] == [_OK] and r["problems"] == []
+
+
+def test_random_calls_set_deserialized_states_and_free_every_state():
+    """Each FMU state the fuzz gets is freed at the end; a deserialized one right after it
+    is set; a state that could not be had is never used."""
+    fmu = _FMU()
+    _random(fmu)
+    got = []
+    for k, (f, a, state, s) in enumerate(fmu.calls):
+        if f == "setFMUstate":
+            assert isinstance(a[0], _State) and s == _OK
+        if f == "deSerializeFMUstate" and s == _OK:
+            assert _names(fmu.calls[k + 1:k + 3]) == ["setFMUstate", "freeFMUstate"]
+            assert fmu.calls[k + 1][1][0] is fmu.calls[k + 2][1][0]
+        if f == "serializeFMUstate":
+            got.append(a[0])
+    frees = [a[0] for f, a, *_ in fmu.calls if f == "freeFMUstate"]
+    assert got and all(any(st is g for g in frees) for st in got)
+    assert all(st.freed for st in frees)
+
+
+def test_random_calls_without_booleans_or_states_skip_those_calls():
+    fmu = _FMU(variables=[v for v in _VARIABLES if v.type == "Real"])
+    _random(fmu)
+    assert not {"getBoolean", "setBoolean"} & set(_names(fmu.calls))
+    fmu = _FMU(("no_states",))
+    r = _random(fmu)
+    assert not {"setFMUstate", "serializeFMUstate"} & set(_names(fmu.calls))
+    assert r["problems"] == []
+
+
+def test_random_calls_report_a_silent_refusal_and_fatal():
+    r = _random(_FMU(("quiet",)), n=60)
+    assert r["problems"] and all("without a log message" in p for p in r["problems"])
+    r = _random(_FMU(("fatal",)), n=60)
+    assert r["problems"] and all(p.endswith("returned fmi2Fatal") for p in r["problems"])
+    assert r["statuses"][-1] == _FATAL
+
+
+def _churn(fmu, n=5, seed=2):
+    cases = fuzzrandom.group_churn(fmu, True, seed, n)
+    assert [label for label, _ in cases] == [f"{n} interleaved instances"]
+    return cases[0][1]()
+
+
+def test_churn_of_independent_instances_passes_and_frees_them(monkeypatch):
+    """n instances live together, each run gives the single run's outputs; all freed, and a
+    second load of the library (a new FMU of the same file) gives them too."""
+    fmu, loads = _FMU(), []
+
+    def load(path):
+        loads.append(_FMU())
+        assert path == fmu.path
+        return loads[-1]
+
+    monkeypatch.setattr(fuzzrandom, "FMU", load)
+    r = _churn(fmu)
+    assert r == {"case": "5 interleaved instances", "statuses": [], "problems": []}
+    assert [name for name, _ in fmu.names] == ["ref", "i0", "i1", "i2", "i3", "i4"]
+    assert fmu.live == [] and loads[0].live == [] and len(loads) == 1
+    assert [name for name, _ in loads[0].names] == ["second load"]
+    # every instance stepped three times from 0 (after the reference run, before any free)
+    steps = [(a, s) for f, a, st, s in fmu.calls if f == "doStep"]
+    assert len(steps) == 18 and all(s == _OK for _, s in steps)
+    assert [a for a, _ in steps[:3]] == [(0.0, 0.5), (0.5, 0.5), (1.0, 0.5)]
+    runs = [fmu.calls[k][1] for k, c in enumerate(fmu.calls) if c[0] == "getReal"]
+    assert runs == [([4],)] * 6  # the outputs read after each run
+
+
+def test_churn_finds_instances_that_share_state_and_a_second_load_that_differs(monkeypatch):
+    """A static variable shared by the instances (each run moves the next one's outputs):
+    every instance differs from the single run, named; a second load with another result."""
+    monkeypatch.setattr(fuzzrandom, "FMU", lambda path: _FMU())
+    r = _churn(_FMU(("global",)), n=4)
+    names = sorted(p.split()[1] for p in r["problems"][:-1])
+    assert names == ["i0", "i1", "i2", "i3"], r["problems"]
+    assert all(p.endswith(", the single run [9.75]") for p in r["problems"][:-1])
+    assert r["problems"][-1] == "a second load of the library gave [3.75]"
+    _Slave.shared[0] = 0
+    monkeypatch.setattr(fuzzrandom, "FMU", lambda path: _FMU(("global",)))
+    r = _churn(_FMU(), n=3)
+    assert r["problems"] == ["a second load of the library gave [9.75]"]
+
+
+def test_churn_finds_an_instance_whose_outputs_cannot_be_read(monkeypatch):
+    """A run whose outputs are refused gives None: a problem, unlike the single run."""
+    monkeypatch.setattr(fuzzrandom, "FMU", lambda path: _FMU())
+    fmu = _FMU()
+    made = []
+    real = fmu.instantiate
+
+    def instantiate(name, logging=True):
+        inst = real(name, logging)
+        made.append(inst)
+        if name == "i1":
+            inst.slave.getReal = lambda vr: (_ for _ in ()).throw(FMICallException("g", 3))
+        return inst
+
+    fmu.instantiate = instantiate
+    r = _churn(fmu, n=3)
+    assert r["problems"] == ["instance i1 gave None, the single run [3.75]"]
+
+
+def test_churn_runs_the_instances_interleaved(monkeypatch):
+    """The n instances are made first, then run in a shuffled order and freed in another,
+    as the seed draws them (not in the order made)."""
+    monkeypatch.setattr(fuzzrandom, "FMU", lambda path: _FMU())
+    orders = set()
+    for seed in range(4):
+        fmu = _FMU()
+        _churn(fmu, n=6, seed=seed)
+        steps = [who for who, (f, *_) in zip(fmu.callers, fmu.calls) if f == "doStep"]
+        steppers = steps[3::3]  # each instance steps three times in a row; the reference first
+        assert steps == [who for who in ["ref", *steppers] for _ in range(3)]
+        orders.add(tuple(steppers))
+        assert sorted(steppers) == [f"i{k}" for k in range(6)]
+    assert len(orders) > 1 and tuple(f"i{k}" for k in range(6)) not in orders
+
+
+# --- fuzzcases.py: the groups of cases ------------------------------------------------------
+
+_BAD = ["nan", "inf", "-inf", "1e+308", "-1e+308"]
+
+
+def test_values_sets_each_bad_value_on_each_settable_real():
+    """The targets: Real inputs and parameters that can be set (not a constant, an output, a
+    local, a Boolean); each gets every bad value, its case named ``name = value``."""
+    cases = fuzzcases.group_values(_FMU(), True, 0, 0)
+    assert [label for label, _ in cases] == [f"{v} = {b}" for v in "ukg" for b in _BAD]
+
+
+def test_values_of_a_compliant_slave_pass_and_reach_the_refusals():
+    """Each bad value reaches the step: NaN and the infinities are refused (fmi2Discard), the
+    huge values of the input overflow the output and are refused too; no problem."""
+    fmu = _FMU()
+    results = _run(fuzzcases.group_values(fmu, True, 0, 0))
+    assert all(r["problems"] == [] for r in results.values()), results
+    for v in "ukg":
+        for b in _BAD[:3]:
+            assert _DISCARD in results[f"{v} = {b}"]["statuses"]
+    assert _DISCARD in results["u = 1e+308"]["statuses"]  # 2e308: the step overflows
+    assert results["g = 1e+308"]["statuses"] == [_OK]  # accepted: legal, not overflowing
+    assert fmu.live == []
+
+
+def test_values_set_a_fixed_parameter_in_initialization_and_the_others_while_stepping():
+    """FMI 2.0 4.2.4: a fixed parameter is set before exitInitializationMode; the others after
+    a step, then the next step is made (and, for a fixed one, refused while stepping)."""
+    fmu = _FMU()
+    _run(fuzzcases.group_values(fmu, True, 0, 0)[5:6])  # k = nan
+    sets = [(a, state, s) for f, a, state, s in fmu.calls if f == "setReal"]
+    assert sets[0][1:] == ("initialization", _OK) and sets[0][0][0] == [2]
+    assert sets[1][1:] == ("stepping", _ERROR)
+    fmu = _FMU()
+    _run(fuzzcases.group_values(fmu, True, 0, 0)[0:1])  # u = nan
+    assert [(f, state) for f, a, state, s in fmu.calls][3:] == [
+        ("doStep", "stepping"), ("getReal", "stepping"), ("setReal", "stepping"),
+        ("doStep", "stepping"), ("getReal", "stepping")]
+    assert [a for f, a, *_ in fmu.calls if f == "doStep"] == [(0.0, 0.5), (0.5, 0.5)]
+    assert [a for f, a, *_ in fmu.calls if f == "getReal"] == [([4],), ([4],)]
+
+
+@pytest.mark.parametrize("defects, ours, want", [
+    (("anon",), True, {**{f"{v} = {b}": f"no error message naming {v}" for v in "ukg"
+                          for b in _BAD[:3]},
+                       "u = 1e+308": "no error message naming u or overflow",
+                       "u = -1e+308": "no error message naming u or overflow"}),
+    # (k's refusal while stepping names it)
+    (("overflow_anon",), True, {f"{v} = {b}": f"no error message naming {v} (got ['overflow'"
+                                for v in "ug" for b in _BAD[:3]}),
+    (("drift",), True, {f"{v} = {b}": "outputs changed by a refused step"
+                        for v in "ukg" for b in _BAD[:3] + (_BAD[3:] if v == "u" else [])}),
+    (("anon", "drift"), False, {}),
+    (("overflow_anon", "drift"), False, {})])
+def test_values_find_a_refusal_that_does_not_name_the_value_or_moves_the_outputs(defects, ours,
+                                                                                want):
+    """For the project's FMUs: a refused value must be named (or, for a huge finite value,
+    the overflow it causes) and must change no output; other tools' FMUs: statuses only."""
+    got = _problems(fuzzcases.group_values(_FMU(defects), ours, 0, 0))
+    if "drift" in defects and ours:
+        got = {k: [p for p in v if p.startswith("outputs")] for k, v in got.items()}
+        got = {k: v for k, v in got.items() if v}
+    assert sorted(got) == sorted(want)
+    for label, start in want.items():
+        assert any(p.startswith(start) for p in got[label]), (label, got[label])
+
+
+def test_values_of_a_silent_or_fatal_slave():
+    got = _problems(fuzzcases.group_values(_FMU(("quiet",)), False, 0, 0))
+    assert got["u = nan"] == ["doStep returned status 2 without a log message"]
+    got = _problems(fuzzcases.group_values(_FMU(("fatal",)), False, 0, 0))
+    assert got["u = nan"] == ["doStep returned fmi2Fatal"]
+    assert "g = 1e+308" not in got
+
+
+_CALLS = ["SetupExperiment", "EnterInitializationMode", "ExitInitializationMode", "DoStep",
+          "Terminate", "Reset", "GetReal", "SetReal", "GetFMUstate"]
+
+
+def _forbidden():
+    """FMI 2.0 4.2.4: the (call, state) pairs of the fuzz's calls that the table forbids."""
+    return {(f"fmi2{c}", s) for c in _CALLS for s in fuzzkit.STATES
+            if s not in _ALLOWED.get(c[0].lower() + c[1:], set(fuzzkit.STATES))}
+
+
+def test_sequence_makes_every_call_in_every_state():
+    cases = fuzzcases.group_sequence(_FMU(), True, 0, 0)
+    assert [label for label, _ in cases] == [f"fmi2{c} in {s}" for s in fuzzkit.STATES
+                                             for c in _CALLS]
+    assert fuzzcases.ILLEGAL == _forbidden()
+
+
+def test_sequence_of_a_compliant_slave_passes_with_the_forbidden_calls_refused():
+    """Each forbidden call refused fmi2Error, the allowed ones accepted; no problem."""
+    fmu = _FMU()
+    results = _run(fuzzcases.group_sequence(fmu, True, 0, 0))
+    assert all(r["problems"] == [] for r in results.values()), results
+    for label, r in results.items():
+        call, _, state = label.partition(" in ")
+        forbidden = (call, state) in _forbidden()
+        assert (_ERROR in r["statuses"]) == forbidden, label
+    assert fmu.live == []
+
+
+@pytest.mark.parametrize("defects, ours, want", [
+    (("anon",), True, {f"{c} in {s}": f"no error message naming {c} or {c[4:]} (got ['bad call'"
+                       for c, s in _forbidden()}),
+    (("obeys",), True, {
+        "fmi2ExitInitializationMode in instantiated": "a forbidden call changed the state: "
+                                                      "enterInitializationMode is no longer",
+        "fmi2Terminate in instantiated": "a forbidden call changed the state: "
+                                         "enterInitializationMode is no longer allowed",
+        "fmi2Terminate in initialization": "a forbidden call changed the state: "
+                                           "exitInitializationMode is no longer allowed",
+        "fmi2EnterInitializationMode in stepping": "a forbidden call changed the state: "
+                                                   "terminate is no longer allowed",
+        "fmi2ExitInitializationMode in terminated": "a forbidden call left the terminated "
+                                                    "state"}),
+    (("terminated_steps",), True, {f"{c} in terminated": "a forbidden call left the "
+                                   "terminated state" for c, s in _forbidden()
+                                   if s == "terminated"}),
+    (("anon", "obeys", "terminated_steps"), False, {})])
+def test_sequence_finds_an_unnamed_refusal_and_a_forbidden_call_that_changed_the_state(
+        defects, ours, want):
+    """For the project's FMUs: a forbidden call's message names it, and the instance stays in
+    its state (its next legal call works; a terminated one still refuses doStep)."""
+    got = _problems(fuzzcases.group_sequence(_FMU(defects), ours, 0, 0))
+    assert sorted(got) == sorted(want)
+    for label, start in want.items():
+        assert [p for p in got[label] if p.startswith(start)], (label, got[label])
+        # a doStep accepted after terminate is also a forbidden call not logged
+        assert len(got[label]) == 1 + (label == "fmi2DoStep in terminated" and
+                                       "terminated_steps" in defects), got[label]
+
+
+def test_sequence_asks_no_message_of_a_set_of_no_inputs():
+    """fmi2SetReal of no variable (an FMU without inputs) in terminated sets nothing: no
+    message is asked; with inputs it is."""
+    no_inputs = [v for v in _VARIABLES if v.causality != "input"]
+    got = _problems(fuzzcases.group_sequence(_FMU(("anon",), variables=no_inputs), True, 0, 0))
+    assert "fmi2SetReal in terminated" not in got and "fmi2GetReal in instantiated" in got
+    got = _problems(fuzzcases.group_sequence(_FMU(("anon",)), True, 0, 0))
+    assert "fmi2SetReal in terminated" in got
+
+
+def test_sequence_of_a_silent_slave_names_the_call():
+    got = _problems(fuzzcases.group_sequence(_FMU(("quiet",)), False, 0, 0))
+    assert got["fmi2DoStep in instantiated"] == ["doStep returned status 3 without a log message"]
+    assert got["fmi2SetupExperiment in stepping"] == [
+        "setupExperiment returned status 3 without a log message"]
+
+
+def _good_blob():
+    fmu = _FMU()
+    with fuzzkit.instantiate(fmu, "x") as inst:
+        fuzzkit.to_state(fuzzkit.Case("x", inst, True), "stepping")
+        return bytes(inst.slave.serializeFMUstate(inst.slave.getFMUstate()))
+
+
+def test_states_try_corrupt_foreign_and_freed_states_and_a_compliant_slave_passes():
+    """The blobs are what their names say, against a good serialized state of another
+    instance; each is refused, the instance goes on; a freed state is refused too."""
+    fmu = _FMU()
+    results = _run(fuzzcases.group_states(fmu, True, 5, 0))
+    good = _good_blob()
+    n = len(good)
+    assert list(results) == [
+        "deserialize empty", "deserialize truncated", "deserialize one byte",
+        "deserialize random", "deserialize not UTF-8", "deserialize flipped byte",
+        "deserialize extended", "setFMUstate of a freed state"]
+    assert all(r["problems"] == [] and _ERROR in r["statuses"] for r in results.values())
+    blobs = [a[0] for f, a, st, s in fmu.calls if f == "deSerializeFMUstate"]
+    assert len(blobs) == 7 and all(isinstance(b, bytes) for b in blobs)
+    empty, truncated, one, rand, utf, flipped, extended = blobs
+    assert empty == b"" and one == good[:1] and extended == good + b"xx"
+    assert 1 < len(truncated) < n and good.startswith(truncated)
+    assert len(rand) == 200 and rand != good[:200]
+    with pytest.raises(UnicodeDecodeError):
+        utf.decode()
+    assert len(flipped) == n and sum(a != b for a, b in zip(flipped, good)) == 1
+    assert fmu.live == []
+    other = _FMU()
+    _run(fuzzcases.group_states(other, True, 6, 0))
+    assert [a[0] for f, a, *_ in other.calls if f == "deSerializeFMUstate"][3] != rand
+
+
+def test_states_record_the_blobs_sizes_in_the_case():
+    """A case's name in the results gives the blob's size in bytes."""
+    fmu = _FMU()
+    names = [fuzzcases.group_states(fmu, True, 5, 0)[k][1]()["case"] for k in (0, 2, 6)]
+    assert names == ["deserialize empty (0 bytes)", "deserialize one byte (1 bytes)",
+                     f"deserialize extended ({len(_good_blob()) + 2} bytes)"]
+
+
+@pytest.mark.parametrize("defects, ours, problem", [
+    (("corrupt_ok",), True, "a refused state changed the outputs"),
+    (("stuck",), True, "the instance did not continue after a refused state"),
+    (("corrupt_ok",), False, None), (("stuck",), False, None)])
+def test_states_find_a_corrupt_state_accepted_or_an_instance_stuck_after_one(defects, ours,
+                                                                             problem):
+    got = _problems(fuzzcases.group_states(_FMU(defects), ours, 5, 0))
+    if problem is None:
+        assert got == {}
+    else:
+        assert {k: v for k, v in got.items() if k != "setFMUstate of a freed state"} == {
+            f"deserialize {k}": [problem] for k in (
+                "empty", "truncated", "one byte", "random", "not UTF-8", "flipped byte",
+                "extended")}
+
+
+def test_states_of_an_fmu_without_them_is_no_case():
+    assert fuzzcases.group_states(_FMU(states=False), True, 0, 0) == []
+
+
+def test_states_a_freed_state_set_again_is_refused():
+    """The freed state's case: get, free, step, set the freed one (refused), step again."""
+    fmu = _FMU()
+    r = fuzzcases.group_states(fmu, True, 5, 0)[-1][1]()
+    assert r["problems"] == [] and r["statuses"] == [_OK, _ERROR]
+    calls = [(f, s) for f, a, st, s in fmu.calls][-5:]
+    assert calls == [("getFMUstate", _OK), ("freeFMUstate", _OK), ("doStep", _OK),
+                     ("setFMUstate", _ERROR), ("doStep", _OK)]
+    r = fuzzcases.group_states(_FMU(("fatal",)), True, 5, 0)[-1][1]()
+    assert r["problems"] == ["setFMUstate returned fmi2Fatal"]
+
+
+def test_format_puts_printf_directives_where_the_logger_sees_them():
+    """An instance named with printf directives, undeclared references and a string of
+    directives: each refusal logged, the instance still steps; no problem."""
+    fmu = _FMU()
+    cases = fuzzcases.group_format(fmu, True, 0, 0)
+    assert [label for label, _ in cases] == ["printf directives"]
+    r = cases[0][1]()
+    assert r == {"case": "instance name '%s%s%s%s%n', bad reads", "statuses": [_OK, _ERROR],
+                 "problems": []}
+    assert fmu.names == [("%s%s%s%s%n", True)]
+    made = [(f, a) for f, a, *_ in fmu.calls][3:]
+    assert made == [("getReal", ([2**31 - 1],)), ("getString", ([0],)),
+                    ("setString", ([0], ["%s%s%s%s%n%x%p"])), ("setInteger", ([2**31 - 1], [7])),
+                    ("doStep", (0.0, 0.5))]
+    r = fuzzcases.group_format(_FMU(("quiet",)), True, 0, 0)[0][1]()
+    assert r["problems"] == [f"{f} returned status 3 without a log message"
+                             for f in ("getReal", "getString", "setString", "setInteger")]
+
+
+def _rows(tmp_path, monkeypatch, fmu, *args, **kw):
+    """The rows run_groups writes to its standard output (fd 1), parsed."""
+    monkeypatch.setattr(fuzzcases, "FMU", lambda path: fmu)
+    monkeypatch.setattr(fuzzrandom, "FMU", lambda path: _FMU())
+    out = tmp_path / "rows"
+    fd = os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+    saved = os.dup(1)
+    os.dup2(fd, 1)
+    try:
+        fuzzcases.run_groups("fake.fmu", *args, **kw)
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(fd)
+    return [json.loads(line) for line in out.read_text().splitlines()]
+
+
+def test_run_groups_writes_a_begin_and_a_result_row_per_case(tmp_path, monkeypatch):
+    """The child's protocol: ``{"begin": label, "group": g}`` then the result with its group,
+    for each case of the groups in order; the random group takes random_calls, the others
+    instances; LOGGING as asked; an FMU of dronefly-fmu is held to naming its refusals."""
+    fmu = _FMU(("anon",))
+    rows = _rows(tmp_path, monkeypatch, fmu, ["format", "random", "churn"], 3, 7, 2,
+                 logging=False)
+    assert rows[0::2] == [{"begin": "printf directives", "group": "format"},
+                          {"begin": "7 random calls (seed 3)", "group": "random"},
+                          {"begin": "2 interleaved instances", "group": "churn"}]
+    assert [(r["case"], r["group"]) for r in rows[1::2]] == [
+        ("instance name '%s%s%s%s%n', bad reads", "format"), ("7 random calls (seed 3)",
+                                                               "random"),
+        ("2 interleaved instances", "churn")]
+    assert {logging for _, logging in fmu.names} == {False}
+    assert fuzzkit.LOGGING == [False]
+    rows = _rows(tmp_path, monkeypatch, _FMU(("anon",)), ["sequence"], 0, 1, 1, 30)
+    assert [r["begin"] for r in rows[0::2]] == ["fmi2DoStep in terminated",
+                                                "fmi2Terminate in terminated",
+                                                "fmi2Reset in terminated",
+                                                "fmi2GetReal in terminated",
+                                                "fmi2SetReal in terminated",
+                                                "fmi2GetFMUstate in terminated"]
+    assert fuzzkit.LOGGING == [True]
+    assert rows[1]["problems"] == ["no error message naming fmi2DoStep or DoStep "
+                                   "(got ['bad call'])"]
+    fmu = _FMU(("anon",), tool="FMPy 0.3")
+    rows = _rows(tmp_path, monkeypatch, fmu, ["sequence"], 0, 1, 1, 30)
+    assert all(r["problems"] == [] for r in rows[1::2])
+
+
+def test_run_groups_counts_what_the_fmu_prints_as_its_message(tmp_path, monkeypatch):
+    """A binary that reports on its standard output, not the logger: fd 1 is caught, its
+    text is the refusal's message and not a row."""
+    rows = _rows(tmp_path, monkeypatch, _FMU(("stdout",)), ["format"], 0, 1, 1)
+    assert len(rows) == 2 and rows[1]["problems"] == [] and rows[1]["statuses"] == [_OK, _ERROR]
+    rows = _rows(tmp_path, monkeypatch, _FMU(("quiet",)), ["format"], 0, 1, 1)
+    assert len(rows[1]["problems"]) == 4
+
+
+@pytest.mark.parametrize("name", ["Feedthrough", "Dahlquist"])
+def test_the_reference_fmus_pass_every_group_in_process(name):
+    """Known-good FMUs (the Modelica Reference-FMUs, not ours: held to the statuses): no
+    problem in any group, refusals reached."""
+    from dronefly.harness.cosim.fmu import FMU
+
+    path = REF / "fmi2" / f"{name}.fmu"
+    need_shared(path, "the Reference-FMUs")
+    statuses = set()
+    with FMU(path) as fmu:
+        for group, make in fuzzcases.GROUPS.items():
+            for label, r in _run(make(fmu, False, 1, 40 if group == "random" else 3)).items():
+                assert r["problems"] == [], (group, label, r)
+                statuses.update(r["statuses"])
+    assert {_OK, _ERROR} <= statuses and _FATAL not in statuses

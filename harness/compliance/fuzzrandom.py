@@ -10,7 +10,7 @@ import math
 import random
 from typing import Any, Callable
 
-from .fuzzkit import Case, experiment, instantiate, reals, to_state
+from .fuzzkit import OK, Case, experiment, instantiate, reals, to_state
 from ..cosim.fmu import FMU, Instance
 
 __all__ = ["group_churn", "group_random"]
@@ -44,7 +44,8 @@ def _random_calls(fmu: FMU, ours: bool, seed: int, n: int) -> dict[str, Any]:
                 c.call("exitInitializationMode")
             elif k in (3, 4, 5):
                 h = rng.choice([step, step, 0.5 * step, 0.0, -step, math.inf, 1e300])
-                if c.call("doStep", rng.choice([t, t, t + step, math.inf]), h) is not None:
+                c.call("doStep", rng.choice([t, t, t + step, math.inf]), h)
+                if c.statuses[-1] == OK:  # FMPy's FMI 2.0 doStep returns nothing
                     t += h
             elif k == 6:
                 c.call("terminate")

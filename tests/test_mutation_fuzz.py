@@ -1074,3 +1074,186 @@ def test_the_reference_fmus_pass_every_group_in_process(name):
                 assert r["problems"] == [], (group, label, r)
                 statuses.update(r["statuses"])
     assert {_OK, _ERROR} <= statuses and _FATAL not in statuses
+
+
+# --- fuzz.py: the parent's side: the child's rows, crashes, hangs, the report ----------------
+
+@pytest.mark.parametrize("code, text", [
+    (0, "exit code 0"), (3, "exit code 3"), (1, "exit code 1"),
+    (-signal.SIGSEGV, "killed by SIGSEGV"), (-signal.SIGABRT, "killed by SIGABRT"),
+    (-signal.SIGKILL, "killed by SIGKILL"), (-signal.SIGHUP, "killed by SIGHUP"),
+    (-200, "killed by signal 200")])
+def test_describe_exit_names_the_signal_or_the_exit_code(code, text):
+    """subprocess: a negative return code is the signal that killed the process (POSIX)."""
+    assert fuzz.describe_exit(code) == text
+
+
+def _case(problems=(), crash=None, statuses=(0,), group="g", name="c"):
+    return fuzz.FuzzCase(group, name, list(statuses), list(problems), crash)
+
+
+def test_a_case_passes_without_problems_and_crash():
+    assert _case().passed
+    assert not _case(problems=["x"]).passed
+    assert not _case(crash="killed by SIGSEGV").passed
+    assert fuzz.FuzzCase("g", "c").statuses == [] and fuzz.FuzzCase("g", "c").crash is None
+
+
+def test_the_report_counts_crashes_fatal_cases_and_statuses():
+    """Each case counts once per status it saw; the counts in the order of the statuses."""
+    cases = [_case(statuses=[3, 0]), _case(statuses=[4]), _case(statuses=[0, 2, 4]),
+             _case(crash="killed by SIGABRT", statuses=[]), _case(statuses=[1])]
+    report = fuzz.FuzzReport(Path("f.fmu"), cases)
+    assert report.crashes == [cases[3]]
+    assert report.fatal == 2
+    assert not report.passed
+    counts = report.status_counts()
+    assert list(counts.items()) == [("OK", 2), ("Warning", 1), ("Discard", 1), ("Error", 1),
+                                    ("Fatal", 2)]
+    assert fuzz.FuzzReport(Path("f.fmu"), [_case(), _case(statuses=[3])]).passed
+    assert fuzz.FuzzReport(Path("f.fmu"), []).passed
+
+
+def test_the_summary_lists_five_failed_cases_then_says_how_many_more():
+    cases = [_case()] + [_case(problems=[f"p{k}", "q"], name=f"c{k}") for k in range(6)] + [
+        _case(crash="hung for more than 1 s", name="h", group="random")]
+    text = fuzz.FuzzReport(Path("f.fmu"), cases).summary()
+    assert text == ("8 cases, 1 crashes, 0 with fmi2Fatal; statuses seen: {'OK': 8}\n"
+                    "  g: c0: p0; q\n  g: c1: p1; q\n  g: c2: p2; q\n  g: c3: p3; q\n"
+                    "  g: c4: p4; q\n  ... and 2 more")
+    cases = [_case(crash="killed by SIGSEGV", name="h", group="random"), _case(statuses=[4])]
+    assert fuzz.FuzzReport(Path("f.fmu"), cases).summary() == (
+        "2 cases, 1 crashes, 1 with fmi2Fatal; statuses seen: {'OK': 1, 'Fatal': 1}\n"
+        "  random: h: killed by SIGSEGV")
+    cases = [_case(problems=["p"], name=f"c{k}") for k in range(5)]
+    assert fuzz.FuzzReport(Path("f.fmu"), cases).summary().endswith("  g: c4: p")
+
+
+class _Child:
+    """A stub of run_child answering as fuzzcases does (its documented command line: FMU
+    GROUPS SEED RANDOM_CALLS INSTANCES START LOGGING; a begin row before and a result row
+    after each case), for the cases ``script`` lists as (group, label, ending): ``None`` a
+    result, ``"crash"`` death by SIGSEGV in the case, ``"hang"`` no end before the timeout.
+    ``at_exit``: the return code after the last case (an abort at exit); ``load``: the
+    return code of a process that dies before any case."""
+
+    def __init__(self, script, at_exit=0, load=None):
+        self.script, self.at_exit, self.load = script, at_exit, load
+        self.runs: list[dict] = []
+
+    def __call__(self, cmd, timeout_s):
+        exe, flag, module, path, groups, seed, calls, inst, start, logging = cmd
+        assert (exe, flag, module) == (fuzz.sys.executable, "-m",
+                                       "dronefly.harness.compliance.fuzzcases")
+        self.runs.append(dict(path=path, groups=groups, seed=int(seed), calls=int(calls),
+                              instances=int(inst), start=int(start), logging=logging,
+                              timeout=timeout_s))
+        if self.load is not None:
+            return ChildRun(self.load, "", "")
+        out = ["not a row: what an FMU printed"]
+        for group, label, ending in self.script[int(start):]:
+            out.append(json.dumps({"begin": label, "group": group}))
+            if ending == "crash":
+                return ChildRun(-signal.SIGSEGV, "\n".join(out), "")
+            if ending == "hang":
+                return ChildRun(None, "\n".join(out), "")
+            out.append(json.dumps({"case": label + " (run)", "statuses": [0, int(logging) + 2],
+                                   "problems": [], "group": group}))
+        return ChildRun(self.at_exit, "\n".join(out) + "\n", "")
+
+
+_SCRIPT = [("values", "a", None), ("values", "b", None), ("sequence", "c", None),
+           ("sequence", "d", None), ("random", "e", None)]
+
+
+def _fuzz(monkeypatch, child, **kw):
+    monkeypatch.setattr(fuzz, "run_child", child)
+    return fuzz.fuzz_fmu("some.fmu", **kw)
+
+
+def test_fuzz_runs_each_logging_setting_with_the_arguments_given(monkeypatch):
+    """One child per logging setting, from the first case; the arguments as given, the FMU's
+    path absolute; the cases of logging off so labelled; all passed."""
+    child = _Child(_SCRIPT)
+    report = _fuzz(monkeypatch, child, groups=("values", "sequence"), seed=4, random_calls=9,
+                   instances=3, timeout_s=2.5)
+    assert report.path == Path("some.fmu").resolve() and report.passed
+    assert child.runs == [dict(path=str(Path("some.fmu").resolve()), groups="values,sequence",
+                               seed=4, calls=9, instances=3, start=0, logging=logging,
+                               timeout=2.5) for logging in ("1", "0")]
+    assert [(c.group, c.case, c.statuses) for c in report.cases] == [
+        (g, f"{label} (run)", [0, 3]) for g, label, _ in _SCRIPT] + [
+        (g, f"{label} (run) (logging off)", [0, 2]) for g, label, _ in _SCRIPT]
+    child = _Child(_SCRIPT)
+    report = _fuzz(monkeypatch, child)
+    assert [r["groups"] for r in child.runs] == [",".join(fuzz.GROUP_NAMES)] * 2
+    assert [(r["seed"], r["calls"], r["instances"], r["timeout"]) for r in child.runs] == [
+        (0, 300, 50, 120.0)] * 2
+
+
+def test_fuzz_goes_on_after_each_crash_with_the_next_case(monkeypatch):
+    """A case that kills the process is a crash of that case; a new process starts at the case
+    after it; the crash is said as the signal."""
+    script = [*_SCRIPT[:1], ("values", "b", "crash"), *_SCRIPT[2:3], ("sequence", "d", "crash"),
+              *_SCRIPT[4:]]
+    child = _Child(script)
+    report = _fuzz(monkeypatch, child, logging=(False,))
+    assert [r["start"] for r in child.runs] == [0, 2, 4]
+    assert [(c.group, c.case, c.crash) for c in report.cases] == [
+        ("values", "a (run) (logging off)", None),
+        ("values", "b (logging off)", "killed by SIGSEGV"),
+        ("sequence", "c (run) (logging off)", None),
+        ("sequence", "d (logging off)", "killed by SIGSEGV"),
+        ("random", "e (run) (logging off)", None)]
+    assert [c.case for c in report.crashes] == ["b (logging off)", "d (logging off)"]
+    assert not report.passed
+
+
+def test_fuzz_counts_a_hang_and_goes_on(monkeypatch):
+    script = [*_SCRIPT[:2], ("sequence", "c", "hang"), *_SCRIPT[3:]]
+    child = _Child(script)
+    report = _fuzz(monkeypatch, child, logging=(True,), timeout_s=7.0)
+    assert [r["start"] for r in child.runs] == [0, 3]
+    assert [(c.case, c.crash) for c in report.cases][2] == ("c", "hung for more than 7 s")
+    assert len(report.cases) == 5
+
+
+def test_fuzz_counts_an_abort_at_exit_once_after_the_last_case(monkeypatch):
+    """A process that dies after its last case (at exit): a crash of "process exit" in the last
+    case's group; no new process for it."""
+    child = _Child(_SCRIPT, at_exit=-signal.SIGABRT)
+    report = _fuzz(monkeypatch, child, logging=(True, False))
+    assert [r["start"] for r in child.runs] == [0, 0]
+    assert [(c.group, c.case, c.crash) for c in report.crashes] == [
+        ("random", "process exit", "killed by SIGABRT"),
+        ("random", "process exit (logging off)", "killed by SIGABRT")]
+    assert len(report.cases) == 12
+    child = _Child(_SCRIPT[:2] + [("sequence", "c", "crash")], at_exit=-signal.SIGABRT)
+    report = _fuzz(monkeypatch, child, logging=(True,))
+    assert [r["start"] for r in child.runs] == [0, 3]
+    assert [c.case for c in report.crashes] == ["c", "process exit"]
+
+
+def test_fuzz_counts_an_fmu_that_kills_the_process_before_any_case(monkeypatch):
+    """Nothing but a death: the FMU did not load; one crash per logging setting, in the first
+    group, and no retry."""
+    child = _Child(_SCRIPT, load=1)
+    report = _fuzz(monkeypatch, child, groups=("sequence", "random"))
+    assert len(child.runs) == 2
+    assert [(c.group, c.case, c.crash) for c in report.cases] == [
+        ("sequence", "loading the FMU", "exit code 1"),
+        ("sequence", "loading the FMU (logging off)", "exit code 1")]
+    child = _Child(_SCRIPT, load=-signal.SIGSEGV)
+    report = _fuzz(monkeypatch, child, groups=(), logging=(True,))
+    assert [(c.group, c.case, c.crash) for c in report.cases] == [
+        ("", "loading the FMU", "killed by SIGSEGV")]
+
+
+def test_fuzz_a_process_that_dies_in_its_first_case_after_a_restart(monkeypatch):
+    """A crash in the first case a restarted process runs is that case's, not a load's."""
+    script = [("values", "a", "crash"), ("values", "b", "crash"), *_SCRIPT[2:]]
+    child = _Child(script)
+    report = _fuzz(monkeypatch, child, logging=(True,))
+    assert [r["start"] for r in child.runs] == [0, 1, 2]
+    assert [(c.case, c.crash) for c in report.cases[:2]] == [
+        ("a", "killed by SIGSEGV"), ("b", "killed by SIGSEGV")]

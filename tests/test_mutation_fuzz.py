@@ -858,6 +858,8 @@ def test_sequence_of_a_compliant_slave_passes_with_the_forbidden_calls_refused()
         call, _, state = label.partition(" in ")
         forbidden = (call, state) in _forbidden()
         assert (_ERROR in r["statuses"]) == forbidden, label
+        if not forbidden:  # an allowed call, with the arguments of a legal run, is accepted
+            assert r["statuses"] == [_OK], label
     assert fmu.live == []
 
 
@@ -1048,6 +1050,64 @@ def test_run_groups_writes_a_begin_and_a_result_row_per_case(tmp_path, monkeypat
     fmu = _FMU(("anon",), tool="FMPy 0.3")
     rows = _rows(tmp_path, monkeypatch, fmu, ["sequence"], 0, 1, 1, 30)
     assert all(r["problems"] == [] for r in rows[1::2])
+
+
+def test_run_groups_writes_each_row_before_the_next_case_runs(tmp_path, monkeypatch):
+    """A crash kills the child in a case: its begin row, and every row before it, must already
+    be out of the process then (the parent names the case from them)."""
+    fmu = _FMU()
+    seen = []
+    real = fmu.instantiate
+
+    def instantiate(name, logging=True):
+        seen.append((tmp_path / "rows").read_text().splitlines())
+        return real(name, logging)
+
+    fmu.instantiate = instantiate
+    rows = _rows(tmp_path, monkeypatch, fmu, ["values"], 0, 1, 1, 13)
+    assert len(rows) == 4
+    assert [json.loads(line) for line in seen[0]] == [{"begin": "g = 1e+308", "group": "values"}]
+    assert [json.loads(line) for line in seen[1]] == rows[:3]
+
+
+def test_the_module_run_as_a_program_reads_its_documented_command_line(tmp_path, monkeypatch):
+    """``python -m ...fuzzcases FMU GROUP[,GROUP...] SEED RANDOM_CALLS INSTANCES START
+    LOGGING`` (the module's docstring), its source run in-process as ``__main__`` on the fake
+    FMU."""
+    import sys
+
+    from dronefly.harness.compliance import child
+    from dronefly.harness.cosim import fmu as fmu_module
+
+    made = []
+
+    def load(path):
+        made.append((path, _FMU()))
+        return made[-1][1]
+
+    monkeypatch.setattr(fmu_module, "FMU", load)
+    monkeypatch.setattr(fuzzrandom, "FMU", lambda path: _FMU())
+    monkeypatch.setattr(child, "die_with_parent", lambda: made.append("die_with_parent"))
+    out = tmp_path / "rows"
+    code = compile(Path(fuzzcases.__file__).read_text(), fuzzcases.__file__, "exec")
+    for logging in ("0", "1"):
+        monkeypatch.setattr(sys, "argv", ["fuzzcases", "x.fmu", "format,random,churn", "3", "7",
+                                          "2", "1", logging])
+        fd = os.open(out, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+        saved = os.dup(1)
+        os.dup2(fd, 1)
+        try:
+            exec(code, {"__name__": "__main__", "__package__": "dronefly.harness.compliance",
+                        "__file__": fuzzcases.__file__})
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+            os.close(fd)
+        rows = [json.loads(line) for line in out.read_text().splitlines()]
+        assert [r["begin"] for r in rows[0::2]] == ["7 random calls (seed 3)",
+                                                    "2 interleaved instances"]
+        assert made[-2] == "die_with_parent" and made[-1][0] == "x.fmu"
+        assert {lg for _, lg in made[-1][1].names} == {logging == "1"}
 
 
 def test_run_groups_counts_what_the_fmu_prints_as_its_message(tmp_path, monkeypatch):

@@ -611,17 +611,17 @@ def test_random_calls_reach_every_call_and_the_bad_arguments():
     assert {True, False} <= {a[1][0] for a in args["setBoolean"]}
 
 
-def _scripted(kinds):
-    """A Random whose call kinds are ``kinds`` (then 6, terminate) and whose every choice is
-    the first of the list (the nominal time, step size and value)."""
+def _scripted(kinds, choices=()):
+    """A Random whose call kinds are ``kinds`` (then 6, terminate) and whose choices are the
+    indices ``choices``, then the first of each list (the nominal time, step size, value)."""
     class Scripted(random.Random):
-        script = list(kinds)
+        script, picks = list(kinds), list(choices)
 
         def randrange(self, *args):
             return self.script.pop(0) if self.script else 6
 
         def choice(self, seq):
-            return seq[0]
+            return seq[self.picks.pop(0) if self.picks else 0]
 
     return SimpleNamespace(Random=Scripted)
 
@@ -637,6 +637,31 @@ def test_random_calls_step_on_from_where_the_fmu_is(monkeypatch):
     assert steps == [((0.0, 0.5), _OK), ((0.5, 0.5), _OK), ((1.0, 0.5), _OK),
                      ((0.0, 0.5), _OK), ((0.5, 0.5), _OK)]
     assert r["statuses"] == [_OK] and r["problems"] == []
+
+
+def test_random_calls_keep_their_time_after_a_refused_step(monkeypatch):
+    """A refused step (a negative size) does not move the fuzz's time: the next step at its
+    own time is accepted."""
+    monkeypatch.setattr(fuzzrandom, "random", _scripted([0, 1, 2, 3, 3], [0, 4, 0]))
+    fmu = _FMU()
+    _random(fmu, n=5)
+    steps = [(a, s) for f, a, state, s in fmu.calls if f == "doStep"]
+    assert steps == [((0.0, -0.5), _DISCARD), ((0.0, 0.5), _OK)]
+
+
+def test_each_kind_of_random_call_makes_its_calls(monkeypatch):
+    """The 14 kinds of draw, once each in order: setupExperiment, enter and exit
+    initialization, three of doStep, terminate, reset, getReal, setReal, get and set
+    Boolean, getFMUstate, setFMUstate of a state got, and a state serialized, deserialized,
+    set and freed; at the end the states got are freed."""
+    monkeypatch.setattr(fuzzrandom, "random", _scripted(range(14)))
+    fmu = _FMU()
+    _random(fmu, n=14)
+    assert _names(fmu.calls) == [
+        "setupExperiment", "enterInitializationMode", "exitInitializationMode", "doStep",
+        "doStep", "doStep", "terminate", "reset", "getReal", "setReal", "getBoolean",
+        "setBoolean", "getFMUstate", "setFMUstate", "serializeFMUstate", "deSerializeFMUstate",
+        "setFMUstate", "freeFMUstate", "freeFMUstate"]
 
 
 def test_random_calls_set_deserialized_states_and_free_every_state():

@@ -102,6 +102,8 @@ TARGETS: dict[str, list[str]] = {
     # Reference-FMUs, the parent's side against a stub child (no process started)
     **{f"harness/compliance/{m}.py": ["tests/test_mutation_fuzz.py"]
        for m in ("fuzzkit", "fuzzrandom", "fuzzcases", "fuzz")},
+    # the runner: the check list with stub checks on the Reference-FMUs' Dahlquist
+    "harness/compliance/checker.py": ["tests/test_mutation_checker.py"],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

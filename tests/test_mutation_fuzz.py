@@ -259,6 +259,8 @@ class _Slave:
 
     def serializeFMUstate(self, state):
         self._enter("serializeFMUstate", state)
+        if "odd_blob" in self.defects:  # bytes 5, -5, -4: 0, 0x55, 0 (see the states test)
+            return b"\x01\x02\x03\x04\x05\x00" + b"\x07" * 10 + b"\x55\x00\x01\x02\x03"
         text = json.dumps([{str(k): v for k, v in state.values.items()}, state.t, state.state])
         return text.encode() + zlib.crc32(text.encode()).to_bytes(4, "big")
 
@@ -319,7 +321,10 @@ class _FMU:
         return self
 
     def __exit__(self, *exc):
-        pass
+        self.on_close()
+
+    def on_close(self):
+        """Called when the harness closes the FMU (a test may replace it)."""
 
 
 def _run(cases):
@@ -979,6 +984,17 @@ def test_states_try_corrupt_foreign_and_freed_states_and_a_compliant_slave_passe
     assert [a[0] for f, a, *_ in other.calls if f == "deSerializeFMUstate"][3] != rand
 
 
+def test_states_flip_one_byte_of_any_good_blob():
+    """Whatever the good blob holds, the flipped one differs from it in exactly one byte
+    (a blob whose bytes 5, -5 and -4 are 0, 0x55 and 0: a byte flipped with 0x55 and put
+    in the place of another could give the good blob back)."""
+    fmu = _FMU(("odd_blob",))
+    _run(fuzzcases.group_states(fmu, True, 5, 0))
+    good = _FMU(("odd_blob",)).instantiate("x", True).slave.serializeFMUstate(None)
+    flipped = [a[0] for f, a, *_ in fmu.calls if f == "deSerializeFMUstate"][5]
+    assert len(flipped) == len(good) and sum(a != b for a, b in zip(flipped, good)) == 1
+
+
 def test_states_record_the_blobs_sizes_in_the_case():
     """A case's name in the results gives the blob's size in bytes."""
     fmu = _FMU()
@@ -1098,10 +1114,14 @@ def test_run_groups_writes_each_row_before_the_next_case_runs(tmp_path, monkeypa
         return real(name, logging)
 
     fmu.instantiate = instantiate
+    fmu.on_close = lambda: seen.append((tmp_path / "rows").read_text().splitlines())
     rows = _rows(tmp_path, monkeypatch, fmu, ["values"], 0, 1, 1, 13)
     assert len(rows) == 4
     assert [json.loads(line) for line in seen[0]] == [{"begin": "g = 1e+308", "group": "values"}]
     assert [json.loads(line) for line in seen[1]] == rows[:3]
+    # the last result is out before the FMU is closed (a library that aborts when it is
+    # unloaded, at exit, must not take the last case's result with it)
+    assert [json.loads(line) for line in seen[2]] == rows
 
 
 def test_the_module_run_as_a_program_reads_its_documented_command_line(tmp_path, monkeypatch):

@@ -95,8 +95,8 @@ class _Slave:
     accepted after terminate; ``corrupt_ok``: any blob deserializes, to a state with another
     output; ``stuck``: no step after a refused state; ``global``: the output depends on a
     count shared by all instances (a static variable); ``overflow_anon``: a NaN or infinity is
-    refused with a message on overflow, not naming the variable; ``bool_refused``: get/set
-    Boolean are refused without a message.
+    refused with a message on overflow, not naming the variable; ``no_states``:
+    fmi2GetFMUstate is refused; ``odd_blob``: a serialized state of chosen bytes.
     ``calls`` collects (function, arguments, state, status) of each call."""
 
     shared = [0]  # the "static variable" of the ``global`` defect
@@ -219,9 +219,6 @@ class _Slave:
 
     def getBoolean(self, vr):
         self._enter("getBoolean", list(vr))
-        if "bool_refused" in self.defects:
-            self.defects = self.defects | {"quiet"}
-            self._refuse("getBoolean", _ERROR, "")
         return [self.values[6] for _ in vr]
 
     def setBoolean(self, vr, value):

@@ -104,7 +104,7 @@ class _Slave:
     def __init__(self, inst, defects):
         self.inst, self.defects = inst, defects
         self.calls = inst.fmu.calls
-        self.state, self.t = "instantiated", 0.0
+        self.state, self.t, self.stuck = "instantiated", 0.0, False
         self.values = {**_START, 6: False}
 
     # the machinery
@@ -185,6 +185,8 @@ class _Slave:
             raise
 
     def _step(self, t, h):
+        if self.stuck:
+            self._refuse("doStep", _ERROR, "doStep: stuck since a refused state")
         for name, vr in (("u", 1), ("k", 2), ("g", 3)):
             if not math.isfinite(self.values[vr]):
                 if "overflow_anon" in self.defects:
@@ -256,8 +258,8 @@ class _Slave:
 
     def serializeFMUstate(self, state):
         self._enter("serializeFMUstate", state)
-        if "odd_blob" in self.defects:  # bytes 5, -5, -4: 0, 0x55, 0 (see the states test)
-            return b"\x01\x02\x03\x04\x05\x00" + b"\x07" * 10 + b"\x55\x00\x01\x02\x03"
+        if "odd_blob" in self.defects:  # bytes 5, -6, -5, -4: 0, 0, 0x55, 0 (the states test)
+            return b"\x01\x02\x03\x04\x05\x00" + b"\x07" * 10 + b"\x00\x55\x00\x01\x02\x03"
         text = json.dumps([{str(k): v for k, v in state.values.items()}, state.t, state.state])
         return text.encode() + zlib.crc32(text.encode()).to_bytes(4, "big")
 
@@ -268,7 +270,7 @@ class _Slave:
             return _State({**self.values, 4: 123.0}, self.t, self.state)
         if len(blob) < 5 or zlib.crc32(body).to_bytes(4, "big") != crc:
             if "stuck" in self.defects:
-                self.state = "error"
+                self.stuck = True
             self._refuse("deSerializeFMUstate", _ERROR, "deSerializeFMUstate: corrupt state")
         values, t, state = json.loads(body)
         return _State({int(k): v for k, v in values.items()}, t, state)
@@ -983,8 +985,8 @@ def test_states_try_corrupt_foreign_and_freed_states_and_a_compliant_slave_passe
 
 def test_states_flip_one_byte_of_any_good_blob():
     """Whatever the good blob holds, the flipped one differs from it in exactly one byte
-    (a blob whose bytes 5, -5 and -4 are 0, 0x55 and 0: a byte flipped with 0x55 and put
-    in the place of another could give the good blob back)."""
+    (a blob whose bytes 5, -6, -5 and -4 are 0, 0, 0x55 and 0: a byte flipped with 0x55 and
+    put in the place of another could give the good blob back)."""
     fmu = _FMU(("odd_blob",))
     _run(fuzzcases.group_states(fmu, True, 5, 0))
     good = _FMU(("odd_blob",)).instantiate("x", True).slave.serializeFMUstate(None)

@@ -1261,6 +1261,8 @@ class _Child:
         self.runs.append(dict(path=path, groups=groups, seed=int(seed), calls=int(calls),
                               instances=int(inst), start=int(start), logging=logging,
                               timeout=timeout_s))
+        # at most one process per case and logging setting, and one more per setting
+        assert len(self.runs) <= 2 * (len(self.script) + 1), "a process too many"
         if self.load is not None:
             return ChildRun(self.load, "", "")
         out = ["not a row: what an FMU printed"]

@@ -1240,6 +1240,8 @@ def test_the_summary_lists_five_failed_cases_then_says_how_many_more():
         "  random: h: killed by SIGSEGV")
     cases = [_case(problems=["p"], name=f"c{k}") for k in range(5)]
     assert fuzz.FuzzReport(Path("f.fmu"), cases).summary().endswith("  g: c4: p")
+    cases = [_case(problems=["p"], name=f"c{k}") for k in range(6)]
+    assert fuzz.FuzzReport(Path("f.fmu"), cases).summary().endswith("  g: c4: p\n  ... and 1 more")
 
 
 class _Child:
@@ -1304,6 +1306,16 @@ def test_fuzz_runs_each_logging_setting_with_the_arguments_given(monkeypatch):
     assert [r["groups"] for r in child.runs] == [",".join(fuzz.GROUP_NAMES)] * 2
     assert [(r["seed"], r["calls"], r["instances"], r["timeout"]) for r in child.runs] == [
         (0, 300, 50, 120.0)] * 2
+
+
+def test_fuzz_takes_its_settings_by_keyword_only(monkeypatch):
+    """``fuzz_fmu(path, *, groups=..., ...)``: a setting passed by position is refused (a
+    caller cannot mix up seed, random_calls and instances)."""
+    child = _Child(_SCRIPT)
+    monkeypatch.setattr(fuzz, "run_child", child)
+    with pytest.raises(TypeError):
+        fuzz.fuzz_fmu("some.fmu", ("values",))
+    assert child.runs == []
 
 
 def test_fuzz_goes_on_after_each_crash_with_the_next_case(monkeypatch):

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
 from dronefly.harness.compliance import checker
@@ -294,9 +295,10 @@ def test_the_binary_check_finding_an_unusable_binary_leaves_the_running_checks_n
                for n in list(by)[3:])
 
 
-def _without(tmp_path: Path, fmi: int, drop: str = "", xml_drop: str = "") -> Path:
+def _without(tmp_path: Path, fmi: int, drop: str = "", xml_drop: str = "",
+             xml_put: str = "") -> Path:
     """Dahlquist with the archive members starting with ``drop`` left out and ``xml_drop``
-    cut from its model description."""
+    replaced by ``xml_put`` in its model description."""
     out = tmp_path / f"Dahlquist{fmi}.fmu"
     with zipfile.ZipFile(_dahlquist(fmi)) as src, zipfile.ZipFile(out, "w") as dst:
         for item in src.infolist():
@@ -306,9 +308,29 @@ def _without(tmp_path: Path, fmi: int, drop: str = "", xml_drop: str = "") -> Pa
             if item.filename == "modelDescription.xml" and xml_drop:
                 text = data.decode()
                 assert xml_drop in text
-                data = text.replace(xml_drop, "").encode()
+                data = text.replace(xml_drop, xml_put).encode()
             dst.writestr(item, data)
     return out
+
+
+def test_an_fmu_that_fails_validation_is_checked_not_refused(monkeypatch, tmp_path):
+    """A model description FMPy's validation refuses (an attribute the schema does not
+    allow, FMI 2.0 2.2) is the validate check's finding: every check runs, the FMU is not
+    refused at load."""
+    text = ' description="the only state"'
+    path = _without(tmp_path, 2, xml_drop=text, xml_put=text + ' bogus="1"')
+    with pytest.raises(Exception, match="bogus"):  # the finding FMPy's validation makes
+        read_model_description(str(path), validate=True)
+    report, called, _ = _run(monkeypatch, path)
+    assert [c.name for c in report.checks] == [n for n in _ALL if n not in (
+        "state-machine", "discard", "state-refusal")]
+    assert report.passed
+
+
+def test_the_checks_are_values():
+    """The table cannot be changed by a run (a check's fields are frozen)."""
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        checker.CHECKS[0].needs = ("binary",)  # type: ignore[misc]
 
 
 def test_an_fmu_without_a_binary_here_gets_the_static_checks_only(monkeypatch, tmp_path):

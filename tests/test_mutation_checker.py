@@ -152,6 +152,8 @@ def test_the_table_lists_each_rule_with_what_it_needs():
     ("reset", [])])
 def test_a_failure_is_reported_once_and_what_depends_on_it_is_not_run(monkeypatch, failed,
                                                                       not_run):
+    """One stub fails: it alone fails, under its rule; the checks that need it (the table's
+    ``needs``, as the docstring says) are not run, naming it; the others run."""
     report, called, _ = _run(monkeypatch, _dahlquist(3), {failed: "fail"}, profile="dronefly")
     by = _by_name(report)
     assert [n for n, c in by.items() if not c.passed] == [failed]
@@ -213,6 +215,8 @@ def test_after_fatal_nothing_runs_and_no_instance_is_freed(monkeypatch, fmi):
 
 
 def test_an_exception_fails_the_check_and_a_status_below_fatal_stops_nothing(monkeypatch):
+    """An exception other than a check's verdict is a failure named by its type (its trailing
+    dot dropped); fmi2Error (3) is no Fatal: later checks run."""
     def error(ctx):
         raise FMICallException("fmi2DoStep", 3)
 
@@ -225,6 +229,7 @@ def test_an_exception_fails_the_check_and_a_status_below_fatal_stops_nothing(mon
 
 
 def test_a_check_that_does_not_apply_is_skipped_not_failed(monkeypatch):
+    """CheckSkipped: passed and skipped, its reason given; nothing depends on a skip."""
     report, _, _ = _run(monkeypatch, _dahlquist(2), {"call-sequence": "skip"})
     c = _by_name(report)["call-sequence"]
     assert (c.passed, c.skipped, c.detail) == (True, True, "not applicable: call-sequence does "
@@ -284,6 +289,8 @@ def test_a_log_that_cannot_be_read_is_said_so(monkeypatch):
 
 def test_the_binary_check_finding_an_unusable_binary_leaves_the_running_checks_not_run(
         monkeypatch):
+    """The binary check marks the binary unusable: every later check that runs the FMU is not
+    run, with that reason."""
     def unusable(ctx):
         ctx.unusable = "the binary lacks fmi2DoStep"
         raise CheckFailed("not exported: fmi2DoStep")
@@ -334,6 +341,8 @@ def test_the_checks_are_values():
 
 
 def test_an_fmu_without_a_binary_here_gets_the_static_checks_only(monkeypatch, tmp_path):
+    """Dahlquist without binaries/ (sources only): validate and archive run, the others are not
+    run saying why (static.cannot_run's message)."""
     report, called, _ = _run(monkeypatch, _without(tmp_path, 2, "binaries/"))
     by = _by_name(report)
     assert [n for n, _ in called] == ["validate", "archive"]
@@ -373,6 +382,8 @@ def test_an_interface_the_fmu_lacks_is_said_by_its_announcing_check_only(monkeyp
     (3, "discard", "discard is the dronefly profile's check (--profile dronefly runs it); this "
                    "FMU is checked under the standard profile")])
 def test_a_check_selected_by_name_that_is_not_listed_says_why(monkeypatch, fmi, name, why):
+    """Selected by name on an FMU it is not for (FMI version, profile): said not applicable,
+    with the reason, after the checks that run."""
     report, called, _ = _run(monkeypatch, _dahlquist(fmi), only=(name, "reset"))
     assert [(c.name, c.detail, c.skipped) for c in report.checks] == [
         ("reset", "reset ok", False), (name, f"not applicable: {why}", True)]
@@ -380,6 +391,7 @@ def test_a_check_selected_by_name_that_is_not_listed_says_why(monkeypatch, fmi, 
 
 
 def test_only_and_skip_select_the_checks(monkeypatch):
+    """CheckOptions.only and skip (rules.py): exactly the checks selected run."""
     report, called, _ = _run(monkeypatch, _dahlquist(2), skip=tuple(_ALL[1:]))
     assert [c.name for c in report.checks] == ["validate"]
     report, called, _ = _run(monkeypatch, _dahlquist(2), only=("reset", "me:state"))
@@ -387,6 +399,8 @@ def test_only_and_skip_select_the_checks(monkeypatch):
 
 
 def test_listed_is_the_version_the_profile_and_an_interface():
+    """listed(): the FMI version and profile the table gives, and an interface the FMU has
+    (or an announcing check)."""
     by = {c.name: c for c in checker.CHECKS}
     assert checker.listed(by["me:state"], 2, "standard", ("cs", "me"))
     assert not checker.listed(by["me:state"], 2, "standard", ("cs",))
@@ -398,6 +412,8 @@ def test_listed_is_the_version_the_profile_and_an_interface():
 
 
 def test_a_file_that_is_no_fmu_and_an_experiment_without_a_step(monkeypatch, tmp_path):
+    """A file that is not an FMU: one failed ``load``; a stop time before the start: one failed
+    ``experiment``; no check runs."""
     bad = tmp_path / "x.fmu"
     bad.write_bytes(b"not a zip")
     report, called, _ = _run(monkeypatch, bad)
@@ -411,6 +427,7 @@ def test_a_file_that_is_no_fmu_and_an_experiment_without_a_step(monkeypatch, tmp
 
 
 def test_ctrl_c_between_two_checks_stops_the_run(monkeypatch):
+    """Ctrl-C pending after two checks: KeyboardInterrupt before the third."""
     seen = []
     monkeypatch.setattr(checker, "pending", lambda: len(seen) >= 2)
 

@@ -398,6 +398,7 @@ def test_experiment_reads_the_default_experiment_or_takes_a_hundredth_of_the_sto
 
 
 def test_reals_are_the_real_variables_of_the_causalities_asked():
+    """The fake's table: u input, k g c parameters, y output (b is Boolean, x local)."""
     fmu = _FMU()
     assert [v.name for v in fuzzkit.reals(fmu, "input")] == ["u"]  # not the Boolean b
     assert [v.name for v in fuzzkit.reals(fmu, "parameter", "output")] == ["k", "g", "y", "c"]
@@ -440,6 +441,8 @@ def test_instantiate_uses_the_logging_setting():
 
 
 def test_a_call_records_its_status_and_returns_its_result():
+    """The fake's answers: getReal's values, an unknown reference refused fmi2Error, a negative
+    step fmi2Discard; the case records each status, the result lists them once, sorted."""
     fmu = _FMU()
     with fuzzkit.instantiate(fmu, "x") as inst:
         c = fuzzkit.Case("a case", inst, True)
@@ -518,6 +521,8 @@ def test_printed_gives_the_new_bytes_once():
     (True, False, [], False)])  # logging off: nothing to name
 def test_logged_wants_an_error_or_discard_message_naming_a_fragment(monkeypatch, ours, logging,
                                                                     messages, problem):
+    """Seeded logs: a message of status Discard or above since ``since`` naming a fragment
+    satisfies it; a Warning, an OK, another name or no message is the documented problem."""
     fuzzkit.LOGGING[0] = logging
     fmu = _FMU()
     with fuzzkit.instantiate(fmu, "x") as inst:
@@ -534,6 +539,7 @@ def test_logged_wants_an_error_or_discard_message_naming_a_fragment(monkeypatch,
 
 
 def test_logged_quotes_the_last_two_refusal_messages():
+    """Four Error messages logged: the problem quotes the last two."""
     fmu = _FMU()
     with fuzzkit.instantiate(fmu, "x") as inst:
         c = fuzzkit.Case("c", inst, True)
@@ -697,6 +703,8 @@ def test_random_calls_set_deserialized_states_and_free_every_state():
 
 
 def test_random_calls_without_booleans_or_states_skip_those_calls():
+    """A table without Booleans: no Boolean call; a slave refusing fmi2GetFMUstate: no state
+    is set or serialized (nothing to use), and its refusals are logged: no problem."""
     fmu = _FMU(variables=[v for v in _VARIABLES if v.type == "Real"])
     _random(fmu)
     assert not {"getBoolean", "setBoolean"} & set(_names(fmu.calls))
@@ -707,6 +715,8 @@ def test_random_calls_without_booleans_or_states_skip_those_calls():
 
 
 def test_random_calls_report_a_silent_refusal_and_fatal():
+    """Seeded defects: every refusal silent, or every refusal fmi2Fatal: the documented
+    problems, one per refused call."""
     r = _random(_FMU(("quiet",)), n=60)
     assert r["problems"] and all("without a log message" in p for p in r["problems"])
     r = _random(_FMU(("fatal",)), n=60)
@@ -863,6 +873,8 @@ def test_values_find_a_refusal_that_does_not_name_the_value_or_moves_the_outputs
 
 
 def test_values_of_a_silent_or_fatal_slave():
+    """Seeded defects on another tool's FMU (statuses only): a silent refusal of the step and
+    fmi2Fatal are problems; an accepted huge value is none."""
     got = _problems(fuzzcases.group_values(_FMU(("quiet",)), False, 0, 0))
     assert got["u = nan"] == ["doStep returned status 2 without a log message"]
     got = _problems(fuzzcases.group_values(_FMU(("fatal",)), False, 0, 0))
@@ -881,6 +893,8 @@ def _forbidden():
 
 
 def test_sequence_makes_every_call_in_every_state():
+    """Nine calls in four states, in order; the forbidden pairs are FMI 2.0 4.2.4's (the
+    table ``_ALLOWED`` written from the standard)."""
     cases = fuzzcases.group_sequence(_FMU(), True, 0, 0)
     assert [label for label, _ in cases] == [f"fmi2{c} in {s}" for s in fuzzkit.STATES
                                              for c in _CALLS]
@@ -943,6 +957,7 @@ def test_sequence_asks_no_message_of_a_set_of_no_inputs():
 
 
 def test_sequence_of_a_silent_slave_names_the_call():
+    """Seeded defect: silent refusals; the problem names the refused call and its status."""
     got = _problems(fuzzcases.group_sequence(_FMU(("quiet",)), False, 0, 0))
     assert got["fmi2DoStep in instantiated"] == ["doStep returned status 3 without a log message"]
     assert got["fmi2SetupExperiment in stepping"] == [
@@ -1008,6 +1023,9 @@ def test_states_record_the_blobs_sizes_in_the_case():
     (("corrupt_ok",), False, None), (("stuck",), False, None)])
 def test_states_find_a_corrupt_state_accepted_or_an_instance_stuck_after_one(defects, ours,
                                                                              problem):
+    """Seeded defects: any blob deserializes (to another output), or the instance refuses to
+    step after a refused state: the documented problem in every blob's case, for the
+    project's FMUs only."""
     got = _problems(fuzzcases.group_states(_FMU(defects), ours, 5, 0))
     if problem is None:
         assert got == {}
@@ -1019,6 +1037,7 @@ def test_states_find_a_corrupt_state_accepted_or_an_instance_stuck_after_one(def
 
 
 def test_states_of_an_fmu_without_them_is_no_case():
+    """canSerializeFMUstate false (FMI 2.0 4.3.1): no state to corrupt, no case."""
     assert fuzzcases.group_states(_FMU(states=False), True, 0, 0) == []
 
 
@@ -1206,6 +1225,7 @@ def _case(problems=(), crash=None, statuses=(0,), group="g", name="c"):
 
 
 def test_a_case_passes_without_problems_and_crash():
+    """A case passes when it has neither a problem nor a crash; by default it has neither."""
     assert _case().passed
     assert not _case(problems=["x"]).passed
     assert not _case(crash="killed by SIGSEGV").passed
@@ -1228,6 +1248,8 @@ def test_the_report_counts_crashes_fatal_cases_and_statuses():
 
 
 def test_the_summary_lists_five_failed_cases_then_says_how_many_more():
+    """Counted by hand from the cases given: totals, statuses, the first five failures, the
+    rest counted."""
     cases = [_case()] + [_case(problems=[f"p{k}", "q"], name=f"c{k}") for k in range(6)] + [
         _case(crash="hung for more than 1 s", name="h", group="random")]
     text = fuzz.FuzzReport(Path("f.fmu"), cases).summary()
@@ -1337,6 +1359,8 @@ def test_fuzz_goes_on_after_each_crash_with_the_next_case(monkeypatch):
 
 
 def test_fuzz_counts_a_hang_and_goes_on(monkeypatch):
+    """The stub child hangs in the third case: that case is a hang of the timeout given, a
+    new process starts at the fourth."""
     script = [*_SCRIPT[:2], ("sequence", "c", "hang"), *_SCRIPT[3:]]
     child = _Child(script)
     report = _fuzz(monkeypatch, child, logging=(True,), timeout_s=7.0)

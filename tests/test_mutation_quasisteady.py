@@ -17,6 +17,7 @@ from dronefly.core.errors import DroneflyError
 from dronefly.models.lateral_interface import FLIGHT_DATA
 from dronefly.models.quasisteady import COEFFICIENT_SETS, Terms, Trim, WingGeometry, gauss_jacobi
 from dronefly.models.quasisteady import kinematics as kin
+from dronefly.models.quasisteady.cycle import sampled_forces as sampled_cycle_forces
 from dronefly.models.quasisteady.elements import blade_elements
 from dronefly.models.quasisteady.wing import BODY_DATA
 
@@ -276,6 +277,40 @@ def test_sampled_motion_is_the_flapping_of_each_element():
     np.testing.assert_allclose(m["spsi"][..., 0], np.sin(psi), atol=1e-15)
     np.testing.assert_array_equal(m["dpsi"][..., 0], dpsi)
     np.testing.assert_array_equal(m["side"][:, 0, 0], [-1.0, 1.0])
+
+
+def test_a_wing_standing_still_at_the_reversal_feels_no_translational_or_rotational_load():
+    """At the stroke reversal t+ = 0 (dphi = pi Phi sin 0 = 0 exactly) of a body at rest no
+    element moves through the air: V = 0, so the translational lift and drag (proportional to
+    |V|^2) and the rotational force (proportional to a_p x V) vanish there, exactly (a sum of
+    products with a zero factor), whatever the pitch rate. Elsewhere in the cycle the loads
+    are finite, and at the same reversal with the body moving they are finite and continuous
+    in time: the forces at t+ = +-1e-7 bracket them to first order (their rate is O(1) per
+    wing beat in the scaled units, so 1e-7 of it, times a margin of 10 for the second-order
+    term and the moment arms of up to ~3 chords)."""
+    g = GEOM
+    terms = Terms(added_mass=False)
+    e = blade_elements(g, terms, 8)
+    coeffs = COEFFICIENT_SETS["dickinson1999"]
+    Phi, phibar = np.array([1.8, 1.9]), np.array([0.1, -0.05])
+    ad, au = np.array([0.6, 0.5]), np.array([0.7, 0.4])
+
+    def loads(t, state):
+        m = kin.sampled_motion(g, e.r, np.asarray(t, dtype=float), Phi, phibar, ad, au)
+        return sampled_cycle_forces(m, np.asarray(state, dtype=float), g, terms, coeffs, e, len(t))
+
+    t = [0.0, 0.25, 0.5, 0.75]
+    m = kin.sampled_motion(g, e.r, np.asarray(t), Phi, phibar, ad, au)
+    assert np.all(m["vflap"][:, 0, :] == 0.0) and np.all(m["dpsi"][:, 0, 0] != 0.0)
+    at_rest = loads(t, np.zeros(6))
+    assert np.all(np.isfinite(at_rest))
+    np.testing.assert_array_equal(at_rest[:, 0], np.zeros(6))
+    assert np.all(np.abs(at_rest[:, 1]) > 0.0)  # mid-stroke: lift, drag and their moments
+    moving = np.array([0.3, -0.2, 0.1, 0.05, -0.04, 0.03])
+    mid = loads([0.0], moving)[:, 0]
+    before, after = loads([-1e-7], moving)[:, 0], loads([1e-7], moving)[:, 0]
+    assert np.all(np.isfinite(mid)) and np.abs(mid).max() > 0.0
+    np.testing.assert_allclose(mid, 0.5 * (before + after), rtol=0, atol=1e-6)
 
 
 # -- trim.py -------------------------------------------------------------------------------------

@@ -46,6 +46,11 @@ _EXPM = ["tests/test_expm.py", "--deselect",  # a second process under another B
 TARGETS: dict[str, list[str]] = {
     "models/axes.py": [_MODELS, "tests/test_model.py"],
     "models/hover6dof.py": [_MODELS, "tests/test_hover6dof.py"],
+    # the axes' interfaces: the paper's flight data and scales, the eigenvalue order, the
+    # parameters' descriptions (the FMUs' model descriptions are built from them)
+    **{f"models/{m}_interface.py": [_MODELS, "tests/test_model.py", "tests/test_lateral.py",
+                                    "tests/test_longitudinal.py"]
+       for m in ("lateral", "longitudinal")},
     "models/lateral_dynamics.py": [_MODELS, "tests/test_model.py"],
     "models/longitudinal_dynamics.py": [_MODELS],
     "models/feedback.py": [_MODELS, "tests/test_controller_law.py"],

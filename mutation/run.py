@@ -103,6 +103,10 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/runtime.py": [_CHECKS],
     # the committed reference files, fmpy.simulate_fmu stubbed
     "harness/compliance/reference.py": [_CHECKS],
+    # the Model Exchange family (the Reference-FMUs in-process, FMPy's simulation stubbed for
+    # the record's bookkeeping) and the driver every runtime check drives the FMU through
+    "harness/compliance/exchange.py": [_CHECKS],
+    "harness/compliance/driver.py": [_CHECKS],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

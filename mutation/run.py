@@ -48,7 +48,8 @@ TARGETS: dict[str, list[str]] = {
     "models/hover6dof.py": [_MODELS, "tests/test_hover6dof.py"],
     # the axes' interfaces: the paper's flight data and scales, the eigenvalue order, the
     # parameters' descriptions (the FMUs' model descriptions are built from them)
-    **{f"models/{m}_interface.py": [_MODELS, "tests/test_model.py", "tests/test_lateral.py",
+    **{f"models/{m}_interface.py": ["tests/test_mutation_interface.py", _MODELS,
+                                    "tests/test_model.py", "tests/test_lateral.py",
                                     "tests/test_longitudinal.py"]
        for m in ("lateral", "longitudinal")},
     "models/lateral_dynamics.py": [_MODELS, "tests/test_model.py"],

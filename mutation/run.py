@@ -108,6 +108,9 @@ TARGETS: dict[str, list[str]] = {
     # the record's bookkeeping) and the driver every runtime check drives the FMU through
     "harness/compliance/exchange.py": [_CHECKS],
     "harness/compliance/driver.py": [_CHECKS],
+    # the suite: its reports, its scope, a checking process that crashed (stood in for
+    # in-process), the fuzz it adds
+    "harness/compliance/suite.py": ["tests/test_mutation_suite.py"],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

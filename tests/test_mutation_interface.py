@@ -106,3 +106,14 @@ def test_longitudinal_parameters_are_described_by_force_and_variable():
         assert lo.parameter_description(name) == (
             f"{kind} derivative of {force} w.r.t. {variable} {source}"), name
     assert lo.parameter_description("Iy_plus").startswith("non-dimensional pitch inertia")
+
+
+def test_the_pitch_inertia_is_made_non_dimensional_as_the_roll_inertia():
+    """Iy+ and Ix+ share the divisor 0.5 rho U^2 S_t c t_w^2 (end of Sect. 2.1), so
+    Iy+ / Ix+ = Iy / Ix of Sect. 2.4 (1308.5 / 657.7), and the pitch inertia stands to the
+    longitudinal plant's IY_PLUS (scaled through the printed Ix+ = 10.00) as Ix+ to 10.00
+    (a few roundings: 1e-14)."""
+    r = lateral_interface.reference_scales()
+    assert r["Iy_plus"] / r["Ix_plus"] == pytest.approx(1308.5 / 657.7, rel=1e-14)
+    assert r["Iy_plus"] / longitudinal_interface.IY_PLUS == pytest.approx(r["Ix_plus"] / 10.00,
+                                                                           rel=1e-14)

@@ -111,6 +111,9 @@ TARGETS: dict[str, list[str]] = {
     # the suite: its reports, its scope, a checking process that crashed (stood in for
     # in-process), the fuzz it adds
     "harness/compliance/suite.py": ["tests/test_mutation_suite.py"],
+    # the runner: which checks are listed, a finding reported once and what depends on it
+    # not run (the checks' functions stood in for, the Reference-FMUs loaded in-process)
+    "harness/compliance/checker.py": ["tests/test_mutation_checker.py"],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

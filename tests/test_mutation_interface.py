@@ -10,12 +10,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
+from pathlib import Path
 
 import pytest
 
 from dronefly.core.errors import DroneflyError
 from dronefly.models import lateral_dynamics, longitudinal_dynamics
 from dronefly.models import lateral_interface, longitudinal_interface
+from shared_files import need_shared
+
+PAPER = Path(__file__).resolve().parents[1].parent / "shared" / "paper" / \
+    "zhang-sun-lateral-stabilization-control.md"
 
 
 # -- plant_scales ----------------------------------------------------------------------------
@@ -117,3 +123,16 @@ def test_the_pitch_inertia_is_made_non_dimensional_as_the_roll_inertia():
     assert r["Iy_plus"] / r["Ix_plus"] == pytest.approx(1308.5 / 657.7, rel=1e-14)
     assert r["Iy_plus"] / longitudinal_interface.IY_PLUS == pytest.approx(r["Ix_plus"] / 10.00,
                                                                            rel=1e-14)
+
+
+def test_the_linear_validity_bounds_are_the_papers_sentence():
+    """Sect. 3.6 (the paper's text, read here): "-0.15 <= dv+, dp+ and dr+ <= 0.15 and
+    -0.22 <= dgamma <= 0.22": the bounds of (dv+, dp+, dr+, dgamma), as printed."""
+    need_shared(PAPER, "the paper's text")
+    text = PAPER.read_text(encoding="utf-8")
+    start = text.index("when the state variables are in the range of")
+    sentence = text[start:text.index("the control variables", start)]
+    printed = [float(x) for x in re.findall(r"-?\d+\.\d+", sentence)]
+    assert printed == [-0.15, 0.15, -0.22, 0.22]
+    vpr, gamma = printed[1], printed[3]
+    assert lateral_interface.STATE_BOUNDS_SECT36 == (vpr, vpr, vpr, gamma)

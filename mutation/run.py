@@ -114,6 +114,9 @@ TARGETS: dict[str, list[str]] = {
     # the runner: which checks are listed, a finding reported once and what depends on it
     # not run (the checks' functions stood in for, the Reference-FMUs loaded in-process)
     "harness/compliance/checker.py": ["tests/test_mutation_checker.py"],
+    # the pytest plugin: its planned tests against an in-process run, its verdicts in pytest
+    # runs of their own (a conftest hands it reports written by hand)
+    "harness/compliance/pytest_plugin.py": ["tests/test_mutation_plugin.py"],
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -117,6 +117,10 @@ TARGETS: dict[str, list[str]] = {
     # the pytest plugin: its planned tests against an in-process run, its verdicts in pytest
     # runs of their own (a conftest hands it reports written by hand)
     "harness/compliance/pytest_plugin.py": ["tests/test_mutation_plugin.py"],
+    # the checking process: the fork server and the fresh interpreter it falls back to (how
+    # a child ended is the verdict of a crash or a hang)
+    **{f"harness/compliance/{m}.py": ["tests/test_forkserver.py"]
+       for m in ("child", "forkserver")},
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

@@ -9,6 +9,7 @@ checks an uninterrupted in-process run reports, and reports written out by hand.
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 import xml.etree.ElementTree as ET
@@ -270,6 +271,8 @@ def test_an_internal_error_is_the_checkers_not_the_fmus(monkeypatch, dahlquist_c
 def test_the_checking_process_writes_a_row_per_event_and_says_its_own_errors(tmp_path,
                                                                             monkeypatch):
     rows = tmp_path / "rows.jsonl"
+    umask = os.umask(0o022)
+    os.umask(umask)
     seen = {}
 
     def fake_run_checks(path, progress, options):
@@ -285,7 +288,10 @@ def test_the_checking_process_writes_a_row_per_event_and_says_its_own_errors(tmp
     assert seen == {"path": Path("m.fmu"),
                     "options": CheckOptions(only=("validate", "fuzz"), step=0.5)}
     assert lines[:2] == [{"begin": "validate"}, asdict(CheckResult("validate", True, "ok"))]
-    assert len(lines) == 3 and lines[2]["internal"].startswith("KeyError: 'boom' | ")
+    # the exception and the line that raised it (the traceback's last line of code)
+    assert len(lines) == 3 and lines[2]["internal"] == (
+        "KeyError: 'boom' | raise KeyError(\"boom\")")
+    assert os.stat(rows).st_mode & 0o777 == 0o600 & ~umask  # the rows are the user's own
 
 
 # --- check_fmu: the fuzz added to the dronefly profile's FMI 2.0 FMUs ------------------------
@@ -382,3 +388,154 @@ def test_check_fmus_keeps_the_order_of_the_paths_and_stops_at_ctrl_c(monkeypatch
     with pytest.raises(suite.CheckInterrupted) as e:
         suite.check_fmus(["a", "stop", "b"], jobs=1)
     assert [r.path for r in e.value.reports] == [Path("a")] and started == ["a", "stop"]
+
+
+# --- what the survivors of the first mutation run showed untested ----------------------------
+def test_a_skipped_fmu_between_others_does_not_end_the_report():
+    good, bad, out = _reports()
+    lines = suite.format_reports([out, good]).splitlines()
+    assert lines[0] == "se.fmu: SKIP (not checked: Scheduled Execution only)"
+    assert lines[1] == "good.fmu: PASS (profile standard)"
+    assert lines[-1] == "1 of 1 FMUs passed, 1 not checked"
+
+
+def test_durations_are_seconds_to_the_microsecond(monkeypatch, tmp_path, stubbed):
+    """check_fmu's and the fuzz's durations: the time between the clock's two readings, in
+    seconds rounded to 6 decimals (the clock stood in for: 10.0, then 10.1234567891...)."""
+    calls, checked = stubbed
+    fmu2 = _archive(tmp_path, "m2.fmu", 'fmiModelDescription fmiVersion="2.0"', _CS)
+    checked("dronefly")
+    ticks = iter([10.0, 20.0, 20.0 + 0.2345678912, 10.0 + 1.1234567891])
+    monkeypatch.setattr(suite.time, "perf_counter", lambda: next(ticks))
+    report = suite.check_fmu(fmu2)
+    assert report.checks[-1].duration_s == 0.234568
+    assert report.duration_s == 1.123457
+
+
+def test_check_fmus_runs_jobs_at_once(monkeypatch):
+    """With ``jobs`` = 2 two FMUs are checked at the same time: the first waits until the
+    second has started (in one thread at a time it would wait for ever: 5 s, then fail)."""
+    second_started = threading.Event()
+
+    def check_fmu(path, **kw):
+        if path == "first":
+            assert second_started.wait(5.0), "the FMUs were checked one after the other"
+        else:
+            second_started.set()
+        return FMUReport(Path(path))
+
+    monkeypatch.setattr(suite, "check_fmu", check_fmu)
+    for paths in (["first", "second"], ["first", "second", "third"]):
+        second_started.clear()
+        assert [r.path.name for r in suite.check_fmus(paths, jobs=2)] == paths
+    # one FMU, or one job: no pool (the same reports)
+    assert [r.path for r in suite.check_fmus(["x"], jobs=2)] == [Path("x")]
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, RuntimeError])
+def test_a_parallel_run_that_stops_waits_for_the_running_and_starts_no_other(monkeypatch, stop):
+    """Ctrl-C (or an error, which check_fmu never raises for an FMU) in one of two jobs: the
+    running checks finish before check_fmus returns, the FMUs not started never are."""
+    started, finished = [], []
+    lock = threading.Lock()
+
+    def check_fmu(path, **kw):
+        with lock:
+            started.append(path)
+        if path == "stop":
+            time.sleep(0.05)
+            raise stop("stopped")
+        time.sleep(0.4)
+        finished.append(path)
+        return FMUReport(Path(path))
+
+    monkeypatch.setattr(suite, "check_fmu", check_fmu)
+    expected = suite.CheckInterrupted if stop is KeyboardInterrupt else RuntimeError
+    with pytest.raises(expected) as e:
+        suite.check_fmus(["slow", "stop", "x", "y"], jobs=2)
+    # the job "stop" freed takes "x" at once; "y" is still queued when the stop is seen
+    assert sorted(started) == ["slow", "stop", "x"] and sorted(finished) == ["slow", "x"]
+    if stop is KeyboardInterrupt:
+        assert e.value.reports == []  # "slow" and "x" ended after the interruption was seen
+
+
+def test_a_load_that_failed_gets_no_fuzz_even_if_the_process_then_crashed(tmp_path, stubbed,
+                                                                        monkeypatch):
+    calls, checked = stubbed
+    fmu2 = _archive(tmp_path, "m2.fmu", 'fmiModelDescription fmiVersion="2.0"', _CS)
+
+    def isolated(path, options, timeout_s):
+        return FMUReport(path, [CheckResult("load", False, "not a zip"),
+                                CheckResult("process exit", False, "died")], profile="dronefly")
+
+    monkeypatch.setattr(suite, "_check_isolated", isolated)
+    assert [c.name for c in suite.check_fmu(fmu2).checks] == ["load", "process exit"]
+    assert calls == []
+
+
+def test_the_fuzz_not_applicable_row_passes(tmp_path, stubbed):
+    calls, checked = stubbed
+    fmu2 = _archive(tmp_path, "m2.fmu", 'fmiModelDescription fmiVersion="2.0"', _CS)
+    checked("standard")
+    report = suite.check_fmu(fmu2, options=CheckOptions(only=("fuzz",)))
+    assert report.checks[-1].passed and report.passed
+
+
+def test_the_default_timeout_is_the_documented_600_s():
+    """check_fmu's docstring and ``dronefly check --timeout``'s help: 600 s."""
+    import inspect
+
+    assert inspect.signature(suite.check_fmu).parameters["timeout_s"].default == 600.0
+
+
+@pytest.fixture(scope="module")
+def dahlquist3_checks():
+    source = REF / "fmi3" / "Dahlquist.fmu"
+    need_shared(source, "the Reference-FMUs")
+    report = run_checks(source, options=CheckOptions(skip=("reference",)))
+    assert report.passed and report.profile == "standard"
+    return source, report
+
+
+def test_a_crash_of_an_fmi3_fmu_cites_fmi3_and_its_checks(monkeypatch, dahlquist3_checks):
+    """FMI 3.0: the crashed check's rule is FMI 3.0's, and the checks left out include those
+    of FMI 3.0 only (state-machine), as an uninterrupted run lists them."""
+    source, report = dahlquist3_checks
+    names = [c.name for c in report.checks]
+    assert "state-machine" in names
+    rows = [{"profile": "standard"}, {"begin": "validate"}]
+    _child(monkeypatch, rows, -11)
+    checked = suite._check_isolated(source, CheckOptions(skip=("reference",)), 7.0)
+    crash, not_run = checked.checks
+    assert crash.rule == rule_of("validate", 3, "standard") != rule_of("validate", 2, "standard")
+    assert not_run.detail == f"{', '.join(names[1:])} (the checking process died in validate)"
+
+
+def test_a_crash_before_the_profile_is_known_lists_the_standard_profiles_checks(
+        monkeypatch, dahlquist_checks):
+    source, report = dahlquist_checks
+    names = [c.name for c in report.checks]
+    _child(monkeypatch, [], -9)
+    checked = suite._check_isolated(source, CheckOptions(skip=("reference",)), 7.0)
+    assert checked.checks[0].name == "process exit"
+    assert checked.checks[1].detail == (f"{', '.join(names)} (the checking process died "
+                                        "between checks)")
+
+
+def test_the_checking_process_as_a_program(tmp_path):
+    """``python -m dronefly.harness.compliance.suite FMU ROWS [OPTIONS]`` (the fresh
+    interpreter the checks fall back to): the rows of its checks; the options are optional."""
+    import subprocess
+    import sys
+
+    bad = tmp_path / "bad.fmu"
+    bad.write_text("not a zip")
+    for extra in ([json.dumps(asdict(CheckOptions(profile="standard")))], []):
+        rows = tmp_path / "rows.jsonl"
+        proc = subprocess.run([sys.executable, "-m", "dronefly.harness.compliance.suite",
+                               str(bad), str(rows), *extra], capture_output=True, text=True,
+                              timeout=60)
+        assert proc.returncode == 0, proc.stderr
+        (row,) = [json.loads(x) for x in rows.read_text().splitlines()]
+        assert row["name"] == "load" and not row["passed"]
+        rows.unlink()

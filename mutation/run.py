@@ -106,7 +106,7 @@ TARGETS: dict[str, list[str]] = {
     "harness/compliance/reference.py": [_CHECKS],
     # the Model Exchange family (the Reference-FMUs in-process, FMPy's simulation stubbed for
     # the record's bookkeeping) and the driver every runtime check drives the FMU through
-    "harness/compliance/exchange.py": [_CHECKS],
+    "harness/compliance/exchange.py": [_CHECKS, "tests/test_mutation_checker.py"],
     "harness/compliance/driver.py": [_CHECKS],
     # the suite: its reports, its scope, a checking process that crashed (stood in for
     # in-process), the fuzz it adds

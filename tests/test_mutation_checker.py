@@ -9,8 +9,10 @@ by hand, the table of the docs (docs/compliance.md: the checks per FMI version a
 
 from __future__ import annotations
 
+import dataclasses
 import zipfile
 from dataclasses import asdict, replace
+from types import SimpleNamespace
 from pathlib import Path
 
 import pytest
@@ -31,21 +33,36 @@ def _ref(fmi: int, name: str = "Dahlquist") -> Path:
     return source
 
 
-def _cs_only(tmp_path: Path, fmi: int) -> Path:
-    """Dahlquist declaring its Co-Simulation interface only."""
-    source, path = _ref(fmi), tmp_path / f"cs{fmi}.fmu"
+def _copy(tmp_path: Path, fmi: int, name: str, drop_element: str | None = None,
+          drop_files: str | None = None, edit: tuple[str, str] | None = None) -> Path:
+    """A copy of Dahlquist without the interface element ``drop_element`` of its
+    modelDescription.xml, without the files under ``drop_files``, or with ``edit`` (old, new)
+    made to the XML."""
+    source, path = _ref(fmi), tmp_path / name
     with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
         for item in zin.infolist():
+            if drop_files and item.filename.startswith(drop_files):
+                continue
             data = zin.read(item)
             if item.filename == "modelDescription.xml":
                 text = data.decode()
-                start = text.index("<ModelExchange")
-                tag_end = text.index(">", start) + 1
-                end = tag_end if text[tag_end - 2] == "/" else \
-                    text.index("</ModelExchange>") + len("</ModelExchange>")
-                data = (text[:start] + text[end:]).encode()
+                if drop_element:
+                    start = text.index(f"<{drop_element}")
+                    tag_end = text.index(">", start) + 1
+                    end = tag_end if text[tag_end - 2] == "/" else \
+                        text.index(f"</{drop_element}>") + len(f"</{drop_element}>")
+                    text = text[:start] + text[end:]
+                if edit:
+                    assert edit[0] in text
+                    text = text.replace(edit[0], edit[1], 1)
+                data = text.encode()
             zout.writestr(item, data)
     return path
+
+
+def _cs_only(tmp_path: Path, fmi: int) -> Path:
+    """Dahlquist declaring its Co-Simulation interface only."""
+    return _copy(tmp_path, fmi, f"cs{fmi}.fmu", drop_element="ModelExchange")
 
 
 class FMIError(Exception):
@@ -240,7 +257,7 @@ def test_the_checks_listed_per_version_profile_and_interface(monkeypatch, tmp_pa
     assert names(cs) == base + ["model-exchange", "bad-input", "reference", "logger-format"]
     assert _by_name(cs)["model-exchange"].detail == (
         "not applicable: no Model Exchange interface")
-    assert _by_name(cs)["model-exchange"].skipped
+    assert _by_name(cs)["model-exchange"].skipped and _by_name(cs)["model-exchange"].passed
     # selected by name where it does not apply: said why, nothing run
     picked = CheckOptions(profile="standard", only=("state-machine", "discard", "me:state"))
     got = _by_name(run_checks(_cs_only(tmp_path, 2), options=picked))
@@ -290,3 +307,74 @@ def test_ctrl_c_between_checks_stops_the_run(monkeypatch):
     monkeypatch.setattr(checker, "pending", lambda: next(asked))
     with pytest.raises(KeyboardInterrupt):
         run_checks(_ref(2), options=CheckOptions(profile="standard"))
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+def test_an_fmu_with_model_exchange_only_is_checked_and_told_it_has_no_co_simulation(
+        monkeypatch, tmp_path, fmi):
+    """The checker loads an FMU that has no Co-Simulation interface: its Model Exchange
+    checks run, and call-sequence says the Co-Simulation checks do not apply."""
+    _table(monkeypatch, {})
+    me = _copy(tmp_path, fmi, f"me{fmi}.fmu", drop_element="CoSimulation")
+    got = _by_name(run_checks(me, options=CheckOptions(profile="standard")))
+    assert got["call-sequence"].detail == "not applicable: no Co-Simulation interface"
+    assert got["call-sequence"].skipped and got["call-sequence"].passed
+    assert "reset" not in got and got["me:reset"].detail == "ok"
+
+
+def test_an_invalid_description_or_no_binary_is_a_finding_not_a_failed_load(tmp_path):
+    """The FMU is loaded unvalidated and without a binary for this platform: the validate
+    check reports the description's problem (the other checks run), and with no binary the
+    checks that call the FMU are not run, saying why (the real checks, Dahlquist FMI 2.0)."""
+    # Outputs listing the derivative, not the output (FMI 2.0 2.2.8: FMPy's validation finds it)
+    edit = ('<Outputs>\n      <Unknown index="2"', '<Outputs>\n      <Unknown index="3"')
+    invalid = _copy(tmp_path, 2, "invalid.fmu", edit=edit)
+    got = _by_name(run_checks(invalid, options=CheckOptions(profile="standard",
+                                                            skip=("reference",))))
+    assert not got["validate"].passed and "ModelStructure/Outputs" in got["validate"].detail
+    assert got["call-sequence"].passed and got["model-exchange"].passed
+    source = _copy(tmp_path, 2, "sources.fmu", drop_files="binaries/")
+    got = _by_name(run_checks(source, options=CheckOptions(profile="standard",
+                                                           skip=("reference",))))
+    assert "load" not in got and got["validate"].passed and got["archive"].passed
+    assert got["call-sequence"].detail.startswith("not run: ")
+    assert got["call-sequence"].skipped
+
+
+def test_an_instance_that_cannot_be_freed_does_not_stop_the_run(monkeypatch):
+    calls = _table(monkeypatch, {})
+
+    class Stubborn(_Inst):
+        def free(self):
+            raise RuntimeError("cannot free")
+
+    monkeypatch.setattr(Context, "instantiate", lambda self, name: Stubborn(self, name))
+    report = run_checks(_ref(2), options=CheckOptions(profile="standard",
+                                                      only=("call-sequence", "reset")))
+    assert [(c.name, c.detail) for c in report.checks] == [("call-sequence", "ok"),
+                                                           ("reset", "ok")]
+    assert report.passed and calls
+
+
+def test_durations_are_the_clocks_seconds_to_the_microsecond(monkeypatch):
+    """Each check's duration: the clock's reading after it less the one before, rounded to 6
+    decimals; the report's: the whole run's (the clock stood in for: it advances
+    0.1234567891 s a reading)."""
+    _table(monkeypatch, {})
+    readings = []
+
+    def perf_counter():
+        readings.append(100.0 + 0.1234567891 * len(readings))
+        return readings[-1]
+
+    monkeypatch.setattr(checker, "time", SimpleNamespace(perf_counter=perf_counter))
+    report = run_checks(_ref(2), options=CheckOptions(profile="standard",
+                                                      only=("validate", "reset")))
+    assert [c.duration_s for c in report.checks] == [0.123457, 0.123457]
+    assert report.duration_s == pytest.approx(readings[-1] - readings[0], abs=1e-12)
+    assert len(readings) == 6  # the run's two readings and each check's two
+
+
+def test_the_table_of_checks_cannot_be_changed_by_accident():
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        CHECKS[0].needs = ("binary",)

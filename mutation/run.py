@@ -107,7 +107,7 @@ TARGETS: dict[str, list[str]] = {
     # the Model Exchange family (the Reference-FMUs in-process, FMPy's simulation stubbed for
     # the record's bookkeeping) and the driver every runtime check drives the FMU through
     "harness/compliance/exchange.py": [_CHECKS, "tests/test_mutation_checker.py"],
-    "harness/compliance/driver.py": [_CHECKS],
+    "harness/compliance/driver.py": ["tests/test_mutation_check_driver.py", _CHECKS],
     # the suite: its reports, its scope, a checking process that crashed (stood in for
     # in-process), the fuzz it adds
     "harness/compliance/suite.py": ["tests/test_mutation_suite.py"],

@@ -56,6 +56,23 @@ def test_the_planned_test_of_an_fmu_out_of_scope_or_unreadable(tmp_path):
         _ref(2), CheckOptions(profile="standard"), True)
 
 
+def test_an_fmu_whose_description_fmpy_refuses_is_planned_as_checked(tmp_path):
+    """A model description FMPy's validation refuses (an attribute the schema does not allow)
+    is the validate check's finding, not a failed load: the same tests are planned as for
+    the FMU as it was (the checks run on it in-process say the same)."""
+    source, path = _ref(2), tmp_path / "bogus.fmu"
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'modelName="Dahlquist"', b'modelName="Dahlquist" bogus="1"')
+            zout.writestr(item, data)
+    options = CheckOptions(profile="standard")
+    planned = pytest_plugin._planned(path, options, fuzz=True)
+    assert planned == pytest_plugin._planned(source, options, fuzz=True)
+    assert planned == [c.name for c in run_checks(path, options=options).checks]
+
+
 _CONFTEST = '''
 import json
 from pathlib import Path
@@ -116,7 +133,9 @@ def test_each_test_says_its_checks_verdict(tmp_path):
     assert "no sources and no binaries\nrule: FMI 2.0 2.3: the archive" in out
     assert "binary was not run: archive: the process died; not run: binary, reset" in out
     assert "archive was not run: no result" in out
-    assert "not checked: out of scope" in out and "not applicable: no binary here" in out
+    # a skip is reported at the FMU (the item's location, line 0 shown as 1), not the plugin
+    assert "SKIPPED [1] a.fmu:1: not applicable: no binary here" in out, out[-3000:]
+    assert "SKIPPED [3] skipped.fmu:1: not checked: out of scope" in out, out[-3000:]
     calls = [json.loads(x) for x in (tmp_path / "calls.jsonl").read_text().splitlines()]
     assert calls == [["a.fmu", True, None], ["skipped.fmu", True, None],
                      ["died.fmu", True, None], ["empty.fmu", True, None]]

@@ -2417,3 +2417,20 @@ def test_model_exchange_without_the_interface_is_skipped_and_a_runaway_iteration
     assert _fails(exchange.check_model_exchange, ctx) == (
         f"the event iteration of initialization did not terminate in {MAX_EVENT_ITERATIONS} "
         "iterations")
+
+
+def test_model_exchange_of_an_fmu_whose_description_fmpy_refuses(tmp_path):
+    """A description FMPy's validation refuses (an attribute the schema does not allow) is
+    the validate check's finding, reported there once: model-exchange runs the FMU as it is."""
+    path = _seeded(tmp_path, 2, "Dahlquist",
+                   ('modelName="Dahlquist"', 'modelName="Dahlquist" bogus="1"'))
+    with pytest.raises(Exception, match="bogus"):  # the finding FMPy's validation makes
+        read_model_description(str(path), validate=True)
+    from dronefly.harness.compliance.driver import Context
+    from dronefly.harness.compliance.rules import CheckOptions
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(path, validate=False, require_binary=False, require_cosim=False) as fmu:
+        ctx = Context(fmu, CheckOptions(), None)  # as the checker loads an FMU
+        ctx.interface = "me"
+        assert " to t = 10 s, 101 rows, 1 output(s)" in exchange.check_model_exchange(ctx)

@@ -540,3 +540,15 @@ def test_the_checking_process_as_a_program(tmp_path):
         (row,) = [json.loads(x) for x in rows.read_text().splitlines()]
         assert row["name"] == "load" and not row["passed"]
         rows.unlink()
+    # the options given are the options used: validate alone on a Reference-FMU
+    source = REF / "fmi2" / "Dahlquist.fmu"
+    need_shared(source, "the Reference-FMUs")
+    rows = tmp_path / "rows.jsonl"
+    only = json.dumps(asdict(CheckOptions(only=("validate",))))
+    proc = subprocess.run([sys.executable, "-m", "dronefly.harness.compliance.suite",
+                           str(source), str(rows), only], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    got = [json.loads(x) for x in rows.read_text().splitlines()]
+    assert [r.get("name") for r in got if "name" in r] == ["validate"]
+    assert got[-1]["passed"] and {"profile": "standard"} in got

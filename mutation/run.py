@@ -46,6 +46,12 @@ _EXPM = ["tests/test_expm.py", "--deselect",  # a second process under another B
 TARGETS: dict[str, list[str]] = {
     "models/axes.py": [_MODELS, "tests/test_model.py"],
     "models/hover6dof.py": [_MODELS, "tests/test_hover6dof.py"],
+    # the axes' interfaces: the paper's flight data and scales, the eigenvalue order, the
+    # parameters' descriptions (the FMUs' model descriptions are built from them)
+    **{f"models/{m}_interface.py": ["tests/test_mutation_interface.py", _MODELS,
+                                    "tests/test_model.py", "tests/test_lateral.py",
+                                    "tests/test_longitudinal.py"]
+       for m in ("lateral", "longitudinal")},
     "models/lateral_dynamics.py": [_MODELS, "tests/test_model.py"],
     "models/longitudinal_dynamics.py": [_MODELS],
     "models/feedback.py": [_MODELS, "tests/test_controller_law.py"],
@@ -104,6 +110,20 @@ TARGETS: dict[str, list[str]] = {
        for m in ("fuzzkit", "fuzzrandom", "fuzzcases", "fuzz")},
     # the runner: the check list with stub checks on the Reference-FMUs' Dahlquist
     "harness/compliance/checker.py": ["tests/test_mutation_checker.py"],
+    # the Model Exchange family (the Reference-FMUs in-process, FMPy's simulation stubbed for
+    # the record's bookkeeping) and the driver every runtime check drives the FMU through
+    "harness/compliance/exchange.py": [_CHECKS],
+    "harness/compliance/driver.py": ["tests/test_mutation_check_driver.py", _CHECKS],
+    # the suite: its reports, its scope, a checking process that crashed (stood in for
+    # in-process), the fuzz it adds
+    "harness/compliance/suite.py": ["tests/test_mutation_suite.py"],
+    # the pytest plugin: its planned tests against an in-process run, its verdicts in pytest
+    # runs of their own (a conftest hands it reports written by hand)
+    "harness/compliance/pytest_plugin.py": ["tests/test_mutation_plugin.py"],
+    # the checking process: the fork server and the fresh interpreter it falls back to (how
+    # a child ended is the verdict of a crash or a hang)
+    **{f"harness/compliance/{m}.py": ["tests/test_forkserver.py"]
+       for m in ("child", "forkserver")},
 }
 
 # Operators: the classic mutation set (arithmetic swaps, comparison flips and boundary shifts,

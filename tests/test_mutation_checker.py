@@ -438,3 +438,23 @@ def test_ctrl_c_between_two_checks_stops_the_run(monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         _run(monkeypatch, _dahlquist(2), {n: count for n in _ALL})
     assert len(seen) == 2
+
+
+def test_durations_are_the_clocks_seconds_to_the_microsecond(monkeypatch):
+    """Each check's duration: the clock's reading after it less the one before, rounded to 6
+    decimals; the report's: the whole run's, unrounded (the module's clock stood in for: it
+    advances 0.1234567891 s a reading)."""
+    from types import SimpleNamespace
+
+    readings = []
+
+    def perf_counter():
+        readings.append(100.0 + 0.1234567891 * len(readings))
+        return readings[-1]
+
+    monkeypatch.setattr(checker, "time", SimpleNamespace(perf_counter=perf_counter))
+    report, _, _ = _run(monkeypatch, _dahlquist(2), profile="standard",
+                        only=("validate", "reset"))
+    assert [c.duration_s for c in report.checks] == [0.123457, 0.123457]
+    assert len(readings) == 6  # the run's two readings and each check's two
+    assert report.duration_s == pytest.approx(readings[-1] - readings[0], abs=1e-12)

@@ -15,12 +15,13 @@ import zipfile
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from fmpy import platform, platform_tuple, read_model_description
 from fmpy.fmi1 import FMICallException
 
-from dronefly.harness.compliance import binary, names, reference, refusals, runtime, static
+from dronefly.harness.compliance import binary, exchange, names, reference, refusals, runtime, static
 from dronefly.harness.compliance.rules import CheckFailed, CheckSkipped
 from shared_files import need_shared
 
@@ -2261,3 +2262,175 @@ def test_a_reference_failure_names_the_first_three_signals_outside(tmp_path, ref
     got = _fails(runtime.check_reference, reference_context(2, "Feedthrough", ref=str(ref)))
     first = got.split("(first outside: ", 1)[1].rstrip(")").split("; ")
     assert [f.split(" at t = ")[0] for f in first] == list(names[:3]), got
+
+
+# --- exchange.py: the Model Exchange interface -------------------------------------------------
+
+def _real_outputs(source: Path, fmi: int) -> list[str]:
+    """The names of the Real (FMI 3.0: Float32/Float64) outputs, read from the archive's XML
+    by hand."""
+    import xml.etree.ElementTree as ET
+
+    with zipfile.ZipFile(source) as z:
+        root = ET.fromstring(z.read("modelDescription.xml"))
+    if fmi == 2:
+        return [v.get("name") for v in root.iter("ScalarVariable")
+                if v.get("causality") == "output" and v.find("Real") is not None]
+    # an FMI 3.0 <Alias> is the same variable under another name; FMPy records it as one more
+    return [n.get("name") for v in root.find("ModelVariables")
+            if v.get("causality") == "output" and v.tag in ("Float32", "Float64")
+            for n in (v, *v.findall("Alias"))]
+
+
+def _initial_event_iterations(source: Path, fmi: int, tmp_path: Path) -> int:
+    """fmi2NewDiscreteStates / fmi3UpdateDiscreteStates after initialization, called through
+    FMPy's low-level API until the FMU needs no other iteration: the count the check reports."""
+    import fmpy
+    from fmpy.fmi2 import FMU2Model
+    from fmpy.fmi3 import FMU3Model
+
+    md = read_model_description(str(source))
+    folder = fmpy.extract(str(source), str(tmp_path / f"iter{fmi}"))
+    if fmi == 2:
+        m = FMU2Model(guid=md.guid, unzipDirectory=folder, instanceName="count",
+                      modelIdentifier=md.modelExchange.modelIdentifier)
+        m.instantiate()
+        m.setupExperiment(startTime=0.0)
+        m.enterInitializationMode()
+        m.exitInitializationMode()
+    else:
+        m = FMU3Model(guid=md.guid, unzipDirectory=folder, instanceName="count",
+                      modelIdentifier=md.modelExchange.modelIdentifier)
+        m.instantiate()
+        m.enterInitializationMode(startTime=0.0)
+        m.exitInitializationMode()
+    for k in range(1, 100):
+        result = m.newDiscreteStates() if fmi == 2 else m.updateDiscreteStates()
+        needed, terminate = result[0], result[1]
+        if not needed or terminate:
+            break
+    m.terminate()
+    m.freeInstance()
+    return k
+
+
+@pytest.mark.parametrize("fmi", [2, 3])
+@pytest.mark.parametrize("name, stop, end, rows", [
+    # Dahlquist to 20 s in steps of 0.1 s: a row each (20 - 0) / 100 = 0.2 s, t = 0 included
+    ("Dahlquist", 20.0, "20", 101),
+    # Stair counts the seconds and asks to terminate at 9 s, before its stop time 10 s
+    ("Stair", None, "9", None),
+    ("BouncingBall", None, "3", None),  # its default experiment, rows at its bounces too
+])
+def test_model_exchange_of_the_reference_fmus(reference_context, tmp_path, fmi, name, stop, end,
+                                              rows):
+    """The Reference-FMUs pass ``model-exchange``: the event iteration of initialization ends
+    after the count FMPy's low-level calls give, FMPy's CVODE run reaches the stop time (or
+    the time the FMU ends the run) and records every Real output of the XML."""
+    source = REF / f"fmi{fmi}" / f"{name}.fmu"
+    ctx = reference_context(fmi, name, interface="me", stop_time=stop)
+    detail = exchange.check_model_exchange(ctx)
+    n = _initial_event_iterations(source, fmi, tmp_path)
+    head = (f"event iteration at initialization: {n} iteration(s); FMPy's Model Exchange "
+            f"simulation (CVODE) to t = {end} s, ")
+    assert detail.startswith(head), detail
+    assert detail.endswith(f" rows, {len(_real_outputs(source, fmi))} output(s)"), detail
+    if rows is not None:
+        assert f" {rows} rows, " in detail, detail
+    assert ctx.warnings == []
+
+
+def _me_stub_ctx(names, start=0.0, stop=2.0, step=0.5, me=True):
+    md = SimpleNamespace(modelExchange=object() if me else None)
+    outputs = [SimpleNamespace(name=n, kind="Real") for n in names]
+    outputs.append(SimpleNamespace(name="count", kind="Integer"))
+    return SimpleNamespace(fmu=SimpleNamespace(model_description=md, model_description3=None,
+                                               _unzipdir="unzipped"),
+                           outputs=outputs, start=start, stop=stop, step=step, warnings=[],
+                           event=lambda **row: None)
+
+
+@pytest.mark.parametrize("start, stop, step, interval", [
+    (0.0, 2.0, 0.5, 0.5),  # the step is the longer: a row per step
+    (1.0, 301.0, 0.5, 3.0),  # the run over 100 is the longer: (301 - 1) / 100
+])
+def test_model_exchange_asks_fmpy_for_the_real_outputs_at_most_every_hundredth(
+        monkeypatch, start, stop, step, interval):
+    """The check hands FMPy's Model Exchange simulation the Real outputs only, the FMU's
+    experiment, and a row interval of max(step, run / 100); outputs that are not finite are a
+    warning listing the first five, the rest of the record (other columns) is not counted."""
+    names = [f"y{i}" for i in range(7)]
+    got = {}
+
+    def simulate(path, **kw):
+        got.update(kw, path=path)
+        dtype = [("time", float), *((n, float) for n in names), ("extra", float)]
+        rec = np.zeros(4, dtype=dtype)
+        rec["time"] = [start, start + 1.0, start + 2.0, stop]
+        for n in names[:6]:
+            rec[n][2] = math.nan if n != "y3" else -math.inf
+        rec["extra"][1] = math.nan
+        return rec
+
+    monkeypatch.setattr(exchange, "_event_iterations", lambda ctx: 3)
+    monkeypatch.setattr(exchange.fmpy, "simulate_fmu", simulate)
+    ctx = _me_stub_ctx(names, start, stop, step)
+    detail = exchange.check_model_exchange(ctx)
+    assert got["path"] == "unzipped" and got["fmi_type"] == "ModelExchange"
+    assert got["solver"] == "CVode" and got["output"] == names
+    assert (got["start_time"], got["stop_time"]) == (start, stop)
+    assert got["output_interval"] == interval
+    assert ctx.warnings == ["non-finite outputs through Model Exchange: y0, y1, y2, y3, y4"]
+    assert detail == (f"event iteration at initialization: 3 iteration(s); FMPy's Model "
+                      f"Exchange simulation (CVODE) to t = {stop:.6g} s, 4 rows, 7 output(s)")
+
+
+def test_model_exchange_with_finite_outputs_warns_of_nothing_and_asks_for_none_without_reals(
+        monkeypatch):
+    got = {}
+
+    def simulate(path, **kw):
+        got.update(kw)
+        return np.zeros(3, dtype=[("time", float), ("count", float)])
+
+    monkeypatch.setattr(exchange, "_event_iterations", lambda ctx: 1)
+    monkeypatch.setattr(exchange.fmpy, "simulate_fmu", simulate)
+    ctx = _me_stub_ctx([])
+    assert exchange.check_model_exchange(ctx).endswith(" 3 rows, 0 output(s)")
+    assert got["output"] is None and ctx.warnings == []
+
+
+def test_model_exchange_without_the_interface_is_skipped_and_a_runaway_iteration_fails(
+        monkeypatch, reference_context):
+    """An FMU with no Model Exchange interface: the check does not apply (skipped); an event
+    iteration that never ends fails the check, naming the limit (FMI 2.0 3.2.3)."""
+    from dronefly.harness.cosim.exchange import MAX_EVENT_ITERATIONS, EventIterationError
+
+    with pytest.raises(CheckSkipped, match="no Model Exchange interface"):
+        exchange.check_model_exchange(_me_stub_ctx(["y"], me=False))
+
+    def runaway(ctx, inst):
+        raise EventIterationError("asked for another each time")
+
+    monkeypatch.setattr(exchange, "initialize", runaway)
+    ctx = reference_context(2, "Dahlquist", interface="me")
+    assert _fails(exchange.check_model_exchange, ctx) == (
+        f"the event iteration of initialization did not terminate in {MAX_EVENT_ITERATIONS} "
+        "iterations")
+
+
+def test_model_exchange_of_an_fmu_whose_description_fmpy_refuses(tmp_path):
+    """A description FMPy's validation refuses (an attribute the schema does not allow) is
+    the validate check's finding, reported there once: model-exchange runs the FMU as it is."""
+    path = _seeded(tmp_path, 2, "Dahlquist",
+                   ('modelName="Dahlquist"', 'modelName="Dahlquist" bogus="1"'))
+    with pytest.raises(Exception, match="bogus"):  # the finding FMPy's validation makes
+        read_model_description(str(path), validate=True)
+    from dronefly.harness.compliance.driver import Context
+    from dronefly.harness.compliance.rules import CheckOptions
+    from dronefly.harness.cosim.fmu import FMU
+
+    with FMU(path, validate=False, require_binary=False, require_cosim=False) as fmu:
+        ctx = Context(fmu, CheckOptions(), None)  # as the checker loads an FMU
+        ctx.interface = "me"
+        assert " to t = 10 s, 101 rows, 1 output(s)" in exchange.check_model_exchange(ctx)

@@ -78,8 +78,8 @@ class FMUCheckItem(pytest.Item):
         c = by_name.get(self.check)
         if c is None:  # the FMU could not be loaded, or its checking process died before
             reasons = [r for r in report.checks if not r.passed]
-            raise FMUCheckFailed(f"{self.check} was not run: " + "; ".join(
-                f"{r.name}: {r.detail}" for r in reasons) if reasons else "no result")
+            raise FMUCheckFailed(f"{self.check} was not run: " + ("; ".join(
+                f"{r.name}: {r.detail}" for r in reasons) if reasons else "no result"))
         if c.skipped:
             raise pytest.skip.Exception(c.detail, _use_item_location=True)
         if not c.passed:

@@ -487,6 +487,7 @@ def test_the_default_timeout_is_the_documented_600_s():
     import inspect
 
     assert inspect.signature(suite.check_fmu).parameters["timeout_s"].default == 600.0
+    assert "(default 600 s, as" in inspect.getdoc(suite.check_fmu)
 
 
 @pytest.fixture(scope="module")

@@ -55,7 +55,8 @@ def check_fmu(path: str | Path, *, fuzz: bool = True, isolate: bool = True,
     options : CheckOptions, optional
         Profile, stop time, step, selected checks.
     timeout_s : float
-        How long the checks of one FMU may take in the child process.
+        How long the checks of one FMU may take in the child process (default 600 s, as
+        ``dronefly check --timeout``).
     """
     path = Path(path)
     options = options or CheckOptions()

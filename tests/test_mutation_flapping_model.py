@@ -493,7 +493,7 @@ def test_advance_refuses_bad_phases_states_and_a_state_that_is_not_finite(fm):
     bad = X13.copy()
     bad[1] = math.nan
     with pytest.raises(FlappingError, match=r"not finite after phases 0.2 -> 0.7 \(from u, v, "
-                                            r"w, p, q, r = \[0.02, nan, 0.01, 0.25"):
+                                            r"w, p, q, r = \[0.02, nan, 0.01, 0.25, -0.2, 0.3\]\)"):
         fm.advance(bad, 0.2, 0.7)
     with pytest.raises(FlappingError, match="not finite after phases 0.3 -> 0.3"):
         fm.advance(bad, 0.3, 0.3)

@@ -418,6 +418,23 @@ def test_derivative_is_the_documented_rigid_body_under_the_loads(fm):
                                rtol=0, atol=1e-13)
 
 
+
+def test_a_body_at_rest_under_no_loads_falls_at_g(monkeypatch):
+    """Without loads, at rest (no velocity, no rates), the body falls: dV/dtau is g+ along
+    the earth's z axis in body axes (scipy's rotation of e_z), times the period, and nothing
+    else moves: every torque and rate is exactly 0.0, and so is every change of a rate, of the
+    attitude and of the position. Exact zeros, and the gravity's roundings (1e-17 of g+ =
+    0.016)."""
+    for ff in (1.0, 1.6):
+        m = FlappingModel(steps_per_beat=N, frequency_factor=ff)
+        monkeypatch.setattr(m, "_loads", lambda *args, **kw: (np.zeros(6), np.zeros(6)))
+        x = np.array([0.0] * 6 + list(X13[6:10]) + [0.1, -0.2, 0.3])
+        R = Rotation.from_quat(x[[7, 8, 9, 6]]).as_matrix()  # body -> earth
+        got = m.derivative(0.3, x)
+        np.testing.assert_allclose(got[:3], m.period * m.g * R.T @ [0.0, 0.0, 1.0], rtol=0,
+                                   atol=1e-17)
+        np.testing.assert_array_equal(got[3:], np.zeros(10))
+
 # -- the integration ---------------------------------------------------------------------------
 def test_a_beat_is_classical_runge_kutta_on_the_grid(fm):
     """A beat (and the one-beat map in reduced coordinates) is the classical Runge-Kutta

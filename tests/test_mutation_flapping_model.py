@@ -456,8 +456,8 @@ def test_a_beat_is_classical_runge_kutta_on_the_grid(fm):
                                rtol=0, atol=1e-13)
     # the one-beat map in reduced coordinates, heading 0 and position 0 (scipy's Euler angles)
     z = np.array([0.02, -0.015, 0.01, 0.25, -0.2, 0.3, 0.3, -0.2])
-    start = np.array([*z[:6], *Rotation.from_euler("ZYX", [0.0, z[7], z[6]]).as_quat()[[3, 0, 1, 2]],
-                      0.0, 0.0, 0.0])
+    quat = Rotation.from_euler("ZYX", [0.0, z[7], z[6]]).as_quat()[[3, 0, 1, 2]]
+    start = np.array([*z[:6], *quat, 0.0, 0.0, 0.0])
     end = _reference_advance(fm, start, 0.0, 1.0, C7, C7)
     _, theta, phi = Rotation.from_quat(end[[7, 8, 9, 6]]).as_euler("ZYX")
     np.testing.assert_allclose(fm.z_map(z, C7), [*end[:6], phi, theta], rtol=0, atol=1e-13)

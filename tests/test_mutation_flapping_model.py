@@ -300,7 +300,7 @@ def test_the_front_reversal_and_the_beats_ends_on_the_grid(fm):
     point's, the same floats on the phase's side: at the front reversal the downstroke's up to
     0.5 and the upstroke's after it (the stroke's acceleration jumps, -2 pi^2 times the
     distance between the reversals of either half); at the beat's start those of phase 0,
-    also just below it, at its end those of phase 1. 2e-9 of a step off, a phase is its own
+    also just below it, at its end those of phase 1, also just above it. 2e-9 of a step off, a phase is its own
     (the stroke's or the pitch's rate, 4 to 16 rad a beat, moves phi or psi by 1e-10 or more:
     not the grid point's float)."""
     old, new = _kin(fm, C7), _kin(fm, C7B)
@@ -320,6 +320,7 @@ def test_the_front_reversal_and_the_beats_ends_on_the_grid(fm):
     np.testing.assert_array_equal(fm.angles(0.5 * tol, C7, C7B), start)
     end = fm.angles(1.0, C7, C7B)
     np.testing.assert_array_equal(fm.angles(1.0 - 0.5 * tol, C7, C7B), end)
+    np.testing.assert_array_equal(fm.angles(1.0 + 0.5 * tol, C7, C7B), end)
     np.testing.assert_allclose(start[[0, 3]], _reference_angles(fm, 0.0, C7, C7B, True),
                                rtol=0, atol=1e-14)
     np.testing.assert_allclose(end[[0, 3]], _reference_angles(fm, 1.0, C7, C7B, False),

@@ -94,6 +94,14 @@ TARGETS: dict[str, list[str]] = {
         "tests/test_mutation_flapping.py", "tests/test_flapping.py", "--deselect", "tests/test_flapping.py::"
         "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model"]
        for m in ("flight", "orbit")},
+    # the equations: unit oracles on one beat of 20 steps, then the model's tests (their
+    # one-beat integrations against solve_ivp, a second each at most) and the flight's and
+    # orbit's (the model through its callers)
+    "models/flapping/model.py": [
+        "tests/test_mutation_flapping_model.py", "tests/test_flapping.py", "--deselect",
+        "tests/test_flapping.py::"
+        "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model",
+        "tests/test_mutation_flapping.py"],
     # the checks that read an archive or call a binary, on tiny archives and stub contexts
     "harness/compliance/static.py": [_CHECKS],
     "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],

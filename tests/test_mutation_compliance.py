@@ -492,3 +492,17 @@ def test_each_model_structure_list_is_checked_after_one_naming_no_variable(tmp_p
     assert ("2.2.8", "ModelStructure/Outputs: an index names no variable") in got
     assert ("2.2.8", "ModelStructure/Derivatives: 'x' is not the derivative of a state (no "
                      "derivative attribute)") in got
+
+
+def test_a_long_list_of_indices_or_outputs_is_shown_by_its_head(tmp_path):
+    """A message quotes the first 8 indices of an unordered ModelStructure list and the first 6
+    outputs left out of it (the problem is one finding however long its list)."""
+    out = 'causality="output" variability="continuous"'
+    ten = "".join(_sv(f"y{k}", k, out) for k in range(1, 11))
+    backwards = "".join(f'<Unknown index="{k}"/>' for k in range(10, 0, -1))
+    got = _problems(tmp_path, ten, f"<Outputs>{backwards}</Outputs>")
+    assert got == [("2.2.8", "ModelStructure/Outputs: indices not in ascending order or repeated "
+                             "(10, 9, 8, 7, 6, 5, 4, 3)")]
+    got = _problems(tmp_path, ten, '<Outputs><Unknown index="1"/></Outputs>')
+    assert got == [("2.2.8", "ModelStructure/Outputs: the outputs y2, y3, y4, y5, y6, y7 are "
+                             "not listed")]

@@ -20,6 +20,10 @@ def crash() -> None:
 
 
 def hang() -> None:
+    """Sleep 10 minutes, its process id written first to ``hang.pid`` in its temporary
+    folder (the caller's ``tmp``)."""
+    with open(os.path.join(tempfile.gettempdir(), "hang.pid"), "w") as f:
+        f.write(str(os.getpid()))
     time.sleep(600)
 
 

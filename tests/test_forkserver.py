@@ -73,25 +73,30 @@ def test_a_hanging_child_is_killed_at_the_timeout_and_its_folder_removed(mode, t
     t0 = time.monotonic()
     r = _run("hang", timeout_s=1.0)
     assert r.returncode is None
-    # killed at the timeout, within polls of 0.05 s and the kill (a second late would fail)
-    assert time.monotonic() - t0 < 1.0 + 0.7
+    # killed at the timeout, not before it, within polls of 0.05 s and the kill (a second
+    # late would fail)
+    assert 1.0 <= time.monotonic() - t0 < 1.0 + 0.7
     assert list(tmp_path.iterdir()) == []
 
 
-def test_ctrl_c_kills_the_child_within_a_poll(mode, monkeypatch):
+def test_ctrl_c_kills_the_child_within_a_poll(mode, monkeypatch, tmp_path):
     """A deferred SIGINT (core/interrupt.py) stops the wait: the child is killed, then
     KeyboardInterrupt."""
     calls = []
+    pid_file = tmp_path / "hang.pid"
 
-    def pending() -> bool:
+    def pending() -> bool:  # Ctrl-C once the child runs (it wrote its id), or after 10 s
         calls.append(time.monotonic())
-        return len(calls) > 3
+        return len(calls) > 3 and (pid_file.exists() or len(calls) > 200)
 
     monkeypatch.setattr(child, "pending", pending)
     t0 = time.monotonic()
     with pytest.raises(KeyboardInterrupt):
-        _run("hang")
+        _run("hang", tmp=str(tmp_path))
     assert time.monotonic() - t0 < 30
+    # the child is gone: killed and reaped
+    with pytest.raises(ProcessLookupError):
+        os.kill(int(pid_file.read_text()), 0)
 
 
 def test_the_fork_server_ends_with_its_parent(tmp_path):
@@ -181,3 +186,94 @@ def test_a_child_that_ends_as_it_is_killed_is_waited_for_once(monkeypatch, tmp_p
     worker.join(10.0)
     assert not worker.is_alive(), "the wait for the killed child did not end"
     assert got == [child.ChildRun(None, "", "")]
+
+
+class _Pipe:
+    """A server's stdin that fails as told."""
+
+    def __init__(self, error=None):
+        self.error, self.closed = error, False
+
+    def write(self, data):
+        if self.error:
+            raise self.error
+
+    def flush(self):
+        pass
+
+    def close(self):
+        self.closed = True
+
+
+def _bare_server(**attrs):
+    import threading
+
+    server = object.__new__(child._ForkServer)
+    server.lock, server.replies = threading.Lock(), threading.Condition()
+    server.code, server.alive = {}, True
+    for k, v in attrs.items():
+        setattr(server, k, v)
+    return server
+
+
+@pytest.mark.parametrize("error", [BrokenPipeError(32, "gone"), OSError(5, "I/O error"),
+                                   ValueError("write to closed file")])
+def test_a_request_to_a_server_that_is_gone_is_refused(error):
+    """A server whose pipe is broken or closed: send says False (the caller then runs the
+    function in a fresh interpreter)."""
+    from types import SimpleNamespace
+
+    assert _bare_server(proc=SimpleNamespace(stdin=_Pipe())).send({"run": 1}) is True
+    assert _bare_server(proc=SimpleNamespace(stdin=_Pipe(error))).send({"run": 1}) is False
+
+
+def test_the_servers_replies_and_its_end():
+    """Each reply is kept for its request; at the end of the server's output the server is
+    gone: a wait for a request it did not answer ends at once with no code."""
+    import io
+    from types import SimpleNamespace
+
+    server = _bare_server(proc=SimpleNamespace(stdout=io.BytesIO(
+        b'{"id": 3, "code": 0}\n{"id": 4, "code": -9}\n')))
+    server._read()
+    assert server.code == {3: 0, 4: -9} and server.alive is False
+    assert server.wait(4, 5.0) == (True, -9) and server.wait(3, 5.0) == (True, 0)
+    t0 = time.monotonic()
+    assert server.wait(5, 5.0) == (True, None)
+    assert time.monotonic() - t0 < 1.0
+
+
+def test_no_fork_server_where_it_cannot_start(monkeypatch):
+    def fails():
+        raise OSError(24, "Too many open files")
+
+    monkeypatch.setenv("DRONEFLY_CHECK_FORK", "1")
+    monkeypatch.setattr(child, "_SERVER", None)
+    monkeypatch.setattr(child, "_ForkServer", fails)
+    assert child._server() is None
+
+
+def test_closing_the_server_ends_its_input_and_reaps_it_or_kills_it():
+    import subprocess
+    from types import SimpleNamespace
+
+    calls = []
+
+    def proc(wait_error=None):
+        def wait(timeout):
+            calls.append(("wait", timeout))
+            if wait_error:
+                raise wait_error
+        return SimpleNamespace(stdin=_Pipe(), wait=wait, kill=lambda: calls.append(("kill",)))
+
+    server = _bare_server(proc=proc())
+    server.close()
+    assert server.proc.stdin.closed and calls == [("wait", 10)]
+    calls.clear()
+    server = _bare_server(proc=proc(subprocess.TimeoutExpired("server", 10)))
+    server.close()
+    assert calls == [("wait", 10), ("kill",)]
+    calls.clear()
+    server = _bare_server(proc=proc(OSError(10, "no child")))
+    server.close()
+    assert calls == [("wait", 10), ("kill",)]

@@ -365,3 +365,10 @@ def test_a_step_status_is_the_status_of_the_call():
     assert driver.step_status(ctx, inst, 0.1, 0.1) == 3
     assert rows[-1] == {"call": "fmi2DoStep(currentCommunicationPoint=0.1, "
                                 "communicationStepSize=0.1)"}
+
+
+def test_a_variable_is_a_value():
+    import dataclasses
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        _v("u", 1).vr = 2

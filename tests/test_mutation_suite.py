@@ -553,3 +553,26 @@ def test_the_checking_process_as_a_program(tmp_path):
     got = [json.loads(x) for x in rows.read_text().splitlines()]
     assert [r.get("name") for r in got if "name" in r] == ["validate"]
     assert got[-1]["passed"] and {"profile": "standard"} in got
+
+
+def test_the_options_are_keywords_and_one_fmu_at_a_time_by_default(monkeypatch):
+    """check_fmu's and check_fmus' options are keyword-only (FMPy's flat keyword API), and
+    check_fmus checks one FMU at a time unless given ``jobs``: the first FMU is done before
+    the second starts."""
+    import inspect
+
+    for fn, first in ((suite.check_fmu, "fuzz"), (suite.check_fmus, "jobs")):
+        assert inspect.signature(fn).parameters[first].kind is inspect.Parameter.KEYWORD_ONLY
+    with pytest.raises(TypeError):
+        suite.check_fmus(["a"], 2)
+    order = []
+
+    def check_fmu(path, **kw):
+        order.append(("start", path))
+        time.sleep(0.05)
+        order.append(("end", path))
+        return FMUReport(Path(path))
+
+    monkeypatch.setattr(suite, "check_fmu", check_fmu)
+    suite.check_fmus(["a", "b"])
+    assert order == [("start", "a"), ("end", "a"), ("start", "b"), ("end", "b")]

@@ -266,6 +266,12 @@ def test_aliases_have_one_start_and_a_note_where_variabilities_differ(tmp_path):
     assert alias_notes(md) == ["aliases 'a', 'b' (value reference 1) differ in variability "
                                "(FMI 2.0 allows it; the highest governs)"]
     assert alias_notes(_md(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 2, loc, ''))) == []
+    # aliases of one variability: no note; a Real and an Integer of the same value reference
+    # are no aliases in FMI 2.0 (value references are per type, 2.2.7): no note either
+    assert alias_notes(_md(tmp_path, _sv("a", 1, loc) + _sv("b", 1, loc))) == []
+    disc = 'causality="local" variability="discrete"'
+    assert alias_notes(_md(tmp_path, _sv("a", 1, par, 'start="1"')
+                           + _sv("n", 1, disc, "", "Integer"))) == []
     got = _problems(tmp_path, _sv("a", 1, par, 'start="1"') + _sv("b", 1, par, 'start="1"'))
     assert got == [("2.2.7", "aliases 'a', 'b' (value reference 1): more than one has a start "
                              "value")]

@@ -277,3 +277,48 @@ def test_closing_the_server_ends_its_input_and_reaps_it_or_kills_it():
     server = _bare_server(proc=proc(OSError(10, "no child")))
     server.close()
     assert calls == [("wait", 10), ("kill",)]
+
+
+def test_what_the_function_prints_is_kept_where_python_buffers_it(monkeypatch):
+    """A server started without PYTHONUNBUFFERED (Python buffers what a child prints to its
+    file): the child flushes its streams before its C exit, nothing printed is lost."""
+    monkeypatch.delenv("PYTHONUNBUFFERED", raising=False)
+    monkeypatch.setenv("DRONEFLY_CHECK_FORK", "1")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(Path(__file__).parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    server = child._ForkServer()
+    try:
+        monkeypatch.setattr(child, "_server", lambda: server)
+        r = _run("report", "DRONEFLY_CHECK_FORK")
+        assert r.returncode == 0 and r.stdout.startswith("1 ") and r.stdout.endswith(" True\n")
+    finally:
+        server.close()
+
+
+def test_the_server_keeps_its_replies_clean_and_reads_every_request_of_a_chunk(tmp_path):
+    """The protocol of the fork server itself: a module it preloads prints at import (kept
+    out of the replies, which are one JSON object a line), and a preload request and a run
+    request written in one chunk are both served."""
+    import json
+    import select
+    import subprocess
+
+    (tmp_path / "noisy_import.py").write_text("print('noise at import')\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(tmp_path), str(Path(__file__).parent), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    server = subprocess.Popen([sys.executable, "-m", "dronefly.harness.compliance.forkserver",
+                               "noisy_import"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, env=env)
+    try:
+        run = {"run": 7, "module": "forked_targets", "function": "exit_with", "args": ["3"],
+               "env": env, "cwd": str(tmp_path), "path": [str(Path(__file__).parent), *sys.path],
+               "stdout": str(tmp_path / "out"), "stderr": str(tmp_path / "err")}
+        server.stdin.write((json.dumps({"preload": ["noisy_import"]}) + "\n"
+                            + json.dumps(run) + "\n").encode())
+        server.stdin.flush()
+        ready, _, _ = select.select([server.stdout], [], [], 20.0)
+        assert ready, "no reply to a request written with a preload in one chunk"
+        assert json.loads(server.stdout.readline()) == {"id": 7, "code": 3}
+    finally:
+        server.stdin.close()
+        server.wait(timeout=10)

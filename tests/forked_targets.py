@@ -27,6 +27,13 @@ def hang() -> None:
     time.sleep(600)
 
 
+def remove_own_folder() -> None:
+    """Remove the process's own temporary folder (a child that cleans up after itself)."""
+    import shutil
+
+    shutil.rmtree(tempfile.gettempdir())
+
+
 def fail() -> None:
     raise RuntimeError("a bug of the function")
 

@@ -94,6 +94,8 @@ def test_ctrl_c_kills_the_child_within_a_poll(mode, monkeypatch, tmp_path):
     with pytest.raises(KeyboardInterrupt):
         _run("hang", tmp=str(tmp_path))
     assert time.monotonic() - t0 < 30
+    # asked every poll of 0.05 s (a loaded machine: well under half a second between two)
+    assert max(b - a for a, b in zip(calls, calls[1:])) < 0.5
     # the child is gone: killed and reaped
     with pytest.raises(ProcessLookupError):
         os.kill(int(pid_file.read_text()), 0)
@@ -322,3 +324,16 @@ def test_the_server_keeps_its_replies_clean_and_reads_every_request_of_a_chunk(t
     finally:
         server.stdin.close()
         server.wait(timeout=10)
+
+
+def test_a_child_that_removes_its_own_folder_is_no_error(mode):
+    """The private temporary folder is removed after the child, which may have removed it
+    itself already."""
+    assert _run("remove_own_folder").returncode == 0
+
+
+def test_how_a_child_ended_is_a_value():
+    import dataclasses
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        child.ChildRun(0, "", "").returncode = 1

@@ -29,7 +29,8 @@ def mode(request, monkeypatch):
     return request.param
 
 
-def _run(function: str, *args: str, timeout_s: float = 60.0, tmp: str | None = None):
+def _run(function: str, *args: str, timeout_s: float = 20.0, tmp: str | None = None):
+    # the functions end within a second; 20 s covers a fresh interpreter on a loaded machine
     return run_function("forked_targets", function, list(args), timeout_s, tmp)
 
 

@@ -15,6 +15,23 @@ def exit_with(code: str) -> None:
     sys.exit(int(code))
 
 
+def exit_without_code() -> None:
+    sys.exit()
+
+
+def exit_with_text(text: str) -> None:
+    sys.exit(text)
+
+
+def close_stdout_and_return() -> None:
+    sys.stdout.close()
+
+
+def read_stdin() -> None:
+    """Print how much standard input holds (a child's is empty: /dev/null)."""
+    print(len(sys.stdin.read()))
+
+
 def crash() -> None:
     os.kill(os.getpid(), signal.SIGSEGV)
 

@@ -35,6 +35,13 @@ def _run(function: str, *args: str, timeout_s: float = 20.0, tmp: str | None = N
 
 
 def test_exit_codes_crashes_and_exceptions_are_reported(mode):
+    # sys.exit's convention: no code is 0, a text is printed and is 1
+    assert _run("exit_without_code").returncode == 0
+    text = _run("exit_with_text", "bye")
+    assert text.returncode == 1 and text.stderr.strip() == "bye"
+    assert _run("close_stdout_and_return").returncode == 0
+    empty = _run("read_stdin", timeout_s=20.0)  # a child reads /dev/null, not the server's input
+    assert (empty.returncode, empty.stdout) == (0, "0\n")
     assert _run("exit_with", "0").returncode == 0
     assert _run("exit_with", "3").returncode == 3
     assert _run("crash").returncode == -signal.SIGSEGV
@@ -300,8 +307,8 @@ def test_what_the_function_prints_is_kept_where_python_buffers_it(monkeypatch):
 
 def test_the_server_keeps_its_replies_clean_and_reads_every_request_of_a_chunk(tmp_path):
     """The protocol of the fork server itself: a module it preloads prints at import (kept
-    out of the replies, which are one JSON object a line), and a preload request and a run
-    request written in one chunk are both served."""
+    out of the replies, which are one JSON object a line), and a preload, a kill and a run
+    request written in one chunk are all served."""
     import json
     import select
     import subprocess
@@ -317,6 +324,7 @@ def test_the_server_keeps_its_replies_clean_and_reads_every_request_of_a_chunk(t
                "env": env, "cwd": str(tmp_path), "path": [str(Path(__file__).parent), *sys.path],
                "stdout": str(tmp_path / "out"), "stderr": str(tmp_path / "err")}
         server.stdin.write((json.dumps({"preload": ["noisy_import"]}) + "\n"
+                            + json.dumps({"kill": 99}) + "\n"  # no such child: nothing to do
                             + json.dumps(run) + "\n").encode())
         server.stdin.flush()
         ready, _, _ = select.select([server.stdout], [], [], 20.0)

@@ -71,6 +71,8 @@ def _child(req: dict[str, Any], reply_fd: int) -> NoReturn:
         getattr(importlib.import_module(req["module"]), req["function"])(*req["args"])
     except SystemExit as e:
         code = e.code if isinstance(e.code, int) else 0 if e.code is None else 1
+        if code == 1 and not isinstance(e.code, int):  # sys.exit("text"): the interpreter's way
+            print(e.code, file=sys.stderr)
     except BaseException:
         traceback.print_exc()
         code = 1

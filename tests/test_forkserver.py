@@ -36,7 +36,8 @@ def _run(function: str, *args: str, timeout_s: float = 20.0, tmp: str | None = N
 
 def test_exit_codes_crashes_and_exceptions_are_reported(mode):
     # sys.exit's convention: no code is 0, a text is printed and is 1
-    assert _run("exit_without_code").returncode == 0
+    quiet = [_run("exit_without_code"), _run("exit_with", "1")]
+    assert [(r.returncode, r.stderr) for r in quiet] == [(0, ""), (1, "")]
     text = _run("exit_with_text", "bye")
     assert text.returncode == 1 and text.stderr.strip() == "bye"
     assert _run("close_stdout_and_return").returncode == 0

@@ -347,3 +347,16 @@ def test_how_a_child_ended_is_a_value():
 
     with pytest.raises(dataclasses.FrozenInstanceError):
         child.ChildRun(0, "", "").returncode = 1
+
+
+def test_a_forked_childs_output_files_are_the_users_own(tmp_path, monkeypatch):
+    """What a forked child prints goes to files only its user may read (0600, less the
+    umask), in the child's folder."""
+    monkeypatch.setenv("DRONEFLY_CHECK_FORK", "1")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(Path(__file__).parent), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert _run("exit_with", "0", tmp=str(tmp_path)).returncode == 0
+    for name in (".stdout", ".stderr"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o600 & ~umask, name

@@ -43,3 +43,22 @@ def test_config_names_the_module_and_its_tests():
     assert "module-path = 'models/axes.py'\n" in text
     assert "tests/test_mutation_models.py tests/test_model.py'\n" in text
     assert "-p no:randomly" in text and f"timeout = {run.TIMEOUT_S}\n" in text
+
+
+def test_every_target_has_a_row_of_scores_that_adds_up():
+    """docs/mutation.md's score table: a row per target module (the last run of each), whose
+    share killed is (mutants - survived) / mutants to the printed 0.1 %, over the mutants run
+    (pending ones are not counted)."""
+    text = (ROOT / "docs" / "mutation.md").read_text(encoding="utf-8")
+    rows = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if len(cells) == 8 and cells[2].startswith("`") and cells[6].endswith("%"):
+            module = cells[2].strip("`")
+            assert module not in rows, f"two rows for {module}"
+            rows[module] = (int(cells[3]), int(cells[4]), int(cells[5]),
+                            float(cells[6].rstrip(" %")))
+    assert sorted(rows) == sorted(run.TARGETS)
+    for module, (mutants, survived, pending, killed) in rows.items():
+        assert killed == round(100.0 * (mutants - survived) / mutants, 1), module
+        assert 0 <= survived <= mutants and pending >= 0, module

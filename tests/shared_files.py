@@ -10,11 +10,12 @@ skipped there would hide a failure.
 from __future__ import annotations
 
 import os
+import zipfile
 from pathlib import Path
 
 import pytest
 
-__all__ = ["ON_CI", "need_shared", "provided_on_ci"]
+__all__ = ["ON_CI", "edited_copy", "need_shared", "provided_on_ci"]
 
 #: GitHub Actions, GitLab CI and the others set CI=true
 ON_CI = os.environ.get("CI", "").lower() in ("true", "1", "yes")
@@ -35,3 +36,23 @@ def provided_on_ci(why: str) -> None:
     if ON_CI:
         pytest.fail(f"{why}: CI provides it (.ci/setup-c-host.sh)", pytrace=False)
     pytest.skip(why)
+
+
+def edited_copy(source: Path, path: Path, edits=(), drop: str = "", every: bool = False) -> Path:
+    """A copy at ``path`` of the FMU archive ``source`` (a Reference-FMU, say) whose
+    modelDescription.xml has ``edits`` (old, new) made, each ``old`` required to be there (every
+    occurrence replaced if ``every``, else the first), and without the members whose names start
+    with ``drop``: a description that no longer tells the truth about the unchanged binary."""
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
+        for item in zin.infolist():
+            if drop and item.filename.startswith(drop):
+                continue
+            data = zin.read(item)
+            if item.filename == "modelDescription.xml" and edits:
+                text = data.decode()
+                for old, new in edits:
+                    assert old in text, old
+                    text = text.replace(old, new, -1 if every else 1)
+                data = text.encode()
+            zout.writestr(item, data)
+    return path

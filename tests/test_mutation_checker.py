@@ -23,7 +23,7 @@ from fmpy.fmi1 import FMICallException
 from dronefly.harness.compliance import checker
 from dronefly.harness.compliance.rules import CheckFailed, CheckOptions, CheckSkipped, rule_of
 from dronefly.harness.cosim.fmu import LogMessage
-from shared_files import need_shared
+from shared_files import edited_copy, need_shared
 
 REF = Path(__file__).resolve().parents[1].parent / "shared" / "reference-fmus"
 
@@ -306,18 +306,8 @@ def _without(tmp_path: Path, fmi: int, drop: str = "", xml_drop: str = "",
              xml_put: str = "") -> Path:
     """Dahlquist with the archive members starting with ``drop`` left out and ``xml_drop``
     replaced by ``xml_put`` in its model description."""
-    out = tmp_path / f"Dahlquist{fmi}.fmu"
-    with zipfile.ZipFile(_dahlquist(fmi)) as src, zipfile.ZipFile(out, "w") as dst:
-        for item in src.infolist():
-            if drop and item.filename.startswith(drop):
-                continue
-            data = src.read(item)
-            if item.filename == "modelDescription.xml" and xml_drop:
-                text = data.decode()
-                assert xml_drop in text
-                data = text.replace(xml_drop, xml_put).encode()
-            dst.writestr(item, data)
-    return out
+    return edited_copy(_dahlquist(fmi), tmp_path / f"Dahlquist{fmi}.fmu",
+                       [(xml_drop, xml_put)] if xml_drop else [], drop, every=True)
 
 
 def test_an_fmu_that_fails_validation_is_checked_not_refused(monkeypatch, tmp_path):

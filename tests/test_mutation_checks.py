@@ -23,7 +23,7 @@ from fmpy.fmi1 import FMICallException
 
 from dronefly.harness.compliance import binary, exchange, names, reference, refusals, runtime, static
 from dronefly.harness.compliance.rules import CheckFailed, CheckSkipped
-from shared_files import need_shared
+from shared_files import edited_copy, need_shared
 
 
 # --- helpers: a modelDescription.xml, an archive holding it, a context of it -----------------
@@ -1174,19 +1174,9 @@ def _seeded(tmp_path: Path, fmi: int, name: str, *edits: tuple[str, str],
             every: bool = False) -> Path:
     """A copy of a Reference-FMU whose modelDescription.xml has ``edits`` (old, new) made: a
     description that no longer tells the truth about the unchanged binary."""
-    source, path = REF / f"fmi{fmi}" / f"{name}.fmu", tmp_path / f"{name}{fmi}.fmu"
+    source = REF / f"fmi{fmi}" / f"{name}.fmu"
     need_shared(source, "the Reference-FMUs")
-    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
-        for item in zin.infolist():
-            data = zin.read(item)
-            if item.filename == "modelDescription.xml":
-                text = data.decode()
-                for old, new in edits:
-                    assert old in text, old
-                    text = text.replace(old, new, -1 if every else 1)
-                data = text.encode()
-            zout.writestr(item, data)
-    return path
+    return edited_copy(source, tmp_path / f"{name}{fmi}.fmu", edits, every=every)
 
 
 _RUNTIME = ("check_call_sequence", "check_start_values", "check_dependencies", "check_reset",

@@ -17,7 +17,7 @@ import pytest
 from dronefly.harness.compliance import pytest_plugin
 from dronefly.harness.compliance.checker import run_checks
 from dronefly.harness.compliance.rules import CheckOptions
-from shared_files import need_shared
+from shared_files import edited_copy, need_shared
 
 REF = Path(__file__).resolve().parents[1].parent / "shared" / "reference-fmus"
 
@@ -60,13 +60,9 @@ def test_an_fmu_whose_description_fmpy_refuses_is_planned_as_checked(tmp_path):
     """A model description FMPy's validation refuses (an attribute the schema does not allow)
     is the validate check's finding, not a failed load: the same tests are planned as for
     the FMU as it was (the checks run on it in-process say the same)."""
-    source, path = _ref(2), tmp_path / "bogus.fmu"
-    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(path, "w") as zout:
-        for item in zin.infolist():
-            data = zin.read(item)
-            if item.filename == "modelDescription.xml":
-                data = data.replace(b'modelName="Dahlquist"', b'modelName="Dahlquist" bogus="1"')
-            zout.writestr(item, data)
+    source = _ref(2)
+    path = edited_copy(source, tmp_path / "bogus.fmu",
+                       [('modelName="Dahlquist"', 'modelName="Dahlquist" bogus="1"')])
     options = CheckOptions(profile="standard")
     planned = pytest_plugin._planned(path, options, fuzz=True)
     assert planned == pytest_plugin._planned(source, options, fuzz=True)

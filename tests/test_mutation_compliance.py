@@ -292,6 +292,25 @@ def test_outputs_are_listed_in_ascending_order(tmp_path):
     assert got == [("2.2.8", "ModelStructure/Outputs: the outputs y2 are not listed")]
 
 
+def test_a_clock_shares_no_value_reference_in_fmi3(tmp_path):
+    """FMI 3.0 2.4.7.4 (Variable Attributes): "The valueReference must be unique for all
+    variables of an FMU", and a Clock is a variable (2.4.7.1's Clock element; the
+    Reference-FMU Clocks gives its four Clocks their own)."""
+    clock = 'causality="input" intervalVariability="constant" intervalDecimal="1.0"'
+    par = 'causality="parameter" variability="fixed"'
+    assert _problems(tmp_path, f'<Clock name="c" valueReference="1" {clock}/>'
+                               f'<Float64 name="a" valueReference="2" {par} start="1"/>',
+                     fmi=3) == []
+    got = _problems(tmp_path, f'<Clock name="c" valueReference="1" {clock}/>'
+                              f'<Float64 name="a" valueReference="1" {par} start="1"/>', fmi=3)
+    assert got == [("2.4.7", "variables 'c', 'a' share value reference 1 (FMI 3.0: each "
+                             "variable has its own)")]
+    got = _problems(tmp_path, f'<Clock name="c" valueReference="5" {clock}/>'
+                              f'<Clock name="d" valueReference="5" {clock}/>', fmi=3)
+    assert got == [("2.4.7", "variables 'c', 'd' share value reference 5 (FMI 3.0: each "
+                             "variable has its own)")]
+
+
 def test_fmi3_sections_and_unique_value_references(tmp_path):
     par = 'causality="parameter" variability="fixed"'
     got = _problems(tmp_path, f'<Float64 name="e" valueReference="1" {par} start="0.7" min="0.5" '

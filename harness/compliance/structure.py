@@ -210,11 +210,12 @@ def alias_notes(md: Any) -> list[str]:
 
 def _alias_groups(variables: Any, v3: bool) -> list[tuple[Any, list[Any]]]:
     """(value reference, variables) of every value reference that two or more variables share:
-    per type family in FMI 2.0 (an Enumeration is an Integer); FMI 3.0's ``<Alias>`` elements
-    and Clocks left out."""
+    per type family in FMI 2.0 (an Enumeration is an Integer); in FMI 3.0 across all variables,
+    Clocks included (2.4.7: "The valueReference must be unique for all variables of an FMU"),
+    its ``<Alias>`` elements left out."""
     by_vr: dict[Any, list[Any]] = defaultdict(list)
     for v in variables:
-        if v.type == "Clock" or v3 and getattr(v, "alias", None) is not None:  # FMI 3.0 <Alias>
+        if v3 and getattr(v, "alias", None) is not None:  # FMI 3.0 <Alias>
             continue
         family = v.type if v3 else ("Integer" if v.type == "Enumeration" else v.type)
         by_vr[(v.valueReference, None if v3 else family)].append(v)

@@ -311,6 +311,17 @@ def test_a_clock_shares_no_value_reference_in_fmi3(tmp_path):
                              "variable has its own)")]
 
 
+def test_an_fmi3_alias_shares_its_variables_value_reference(tmp_path):
+    """FMI 3.0 2.4.7.5 (Alias variables): an ``<Alias>`` element names its variable again, with
+    the variable's value reference; it is not a second variable sharing it (FMPy lists each
+    alias after all variables, as a copy with ``alias`` set)."""
+    par = 'causality="parameter" variability="fixed"'
+    got = _problems(tmp_path, f'<Float64 name="a" valueReference="1" {par} start="1">'
+                              '<Alias name="a_too" description="a again"/></Float64>'
+                              f'<Float64 name="b" valueReference="2" {par} start="1"/>', fmi=3)
+    assert got == []
+
+
 def test_fmi3_sections_and_unique_value_references(tmp_path):
     par = 'causality="parameter" variability="fixed"'
     got = _problems(tmp_path, f'<Float64 name="e" valueReference="1" {par} start="0.7" min="0.5" '

@@ -40,10 +40,58 @@ def test_every_printed_number_has_a_row() -> None:
 
 
 def test_half_unit_of_printed_digits() -> None:
-    # Half a unit in the last printed digit: 4 decimals, scientific, one digit, degrees, bare zero.
-    texts = [pv.EQ19_A_LNN[0][0], pv.EQ26["c"][1], pv.EQ26["b"][1], pv.TABLE3_PHASE_DEG[0][1], "0"]
-    got = [pv.half_unit(t, 4 if t == "0" else None) for t in texts]
-    assert_allclose(got, [5e-5, 5e-7, 5e-5, 0.05, 5e-5], rtol=1e-12)
+    # Half a unit in the last printed digit: 4 decimals, scientific, one digit, degrees, and a
+    # bare 0 or 1 in a matrix printed to 4 decimals (a structural entry printed without them)
+    texts = [pv.EQ19_A_LNN[0][0], pv.EQ26["c"][1], pv.EQ26["b"][1], pv.TABLE3_PHASE_DEG[0][1], "0",
+             "1"]
+    got = [pv.half_unit(t, 4 if t in ("0", "1") else None) for t in texts]
+    assert_allclose(got, [5e-5, 5e-7, 5e-5, 0.05, 5e-5, 5e-5], rtol=1e-12)
+
+
+#: The paper's matrices, printed to four decimals (every entry that has a decimal point has
+#: four; the structural 0 and 1 are printed bare): rows of these sources but the eigenvalues
+MATRIX_SOURCES = ("Eq. (12)", "Eq. (19)", "Eq. (20)", "Eq. (24)", "Eq. (31)", "Eq. (32)",
+                  "Sect. 3.5")
+
+
+def _digits_half_unit(text: str, bare_decimals: int) -> float:
+    """Half a unit of the last digit of ``text``, counted from its characters: the digits after
+    the point, shifted by an exponent; ``bare_decimals`` for a number printed without a point."""
+    mantissa, _, exponent = text.lower().partition("e")
+    decimals = len(mantissa.partition(".")[2]) if "." in mantissa else bare_decimals
+    return 0.5 * 10.0 ** (int(exponent or 0) - decimals)
+
+
+def test_every_rows_tolerance_is_half_a_unit_of_its_printed_digits() -> None:
+    """A row matches within half a unit of the last digit the paper prints; in a matrix printed
+    to four decimals, its bare structural 0 and 1 are read to four decimals too (a 1 read as
+    +-0.5 would let a wrong structural entry of the model pass)."""
+    for (src, qty), r in ROWS.items():
+        in_matrix = src in MATRIX_SOURCES and not qty.startswith("eigenvalue")
+        if in_matrix and "." in r.printed:
+            assert len(r.printed.partition(".")[2]) == 4, (src, qty, r.printed)
+        want = _digits_half_unit(r.printed, 4 if in_matrix else 0)
+        assert r.tolerance == pytest.approx(want, rel=1e-12), (src, qty, r.printed)
+
+
+def test_an_input_entrys_own_row_moves_by_its_rounding() -> None:
+    """Eq. (12)'s A1 and Sect. 3.5's A and B are inputs of the analysis, and the model gives
+    them back unchanged (derivatives recovered, matrices rebuilt: a round trip), so the
+    input-rounding interval of each such entry's own row is its value +- its half unit (to the
+    round trip's round-off, 1e-12 relative); a structural entry is no input and moves by 0."""
+    structural = {"Eq. (12)": pv.EQ12_STRUCTURAL, "A": pv.LONGITUDINAL_STRUCTURAL["A"],
+                  "B": pv.LONGITUDINAL_STRUCTURAL["B"]}
+    seen = 0
+    for (src, qty), r in ROWS.items():
+        if src not in ("Eq. (12)", "Sect. 3.5"):
+            continue
+        i, j = int(qty[qty.index("(") + 1]) - 1, int(qty[qty.index(",") + 1]) - 1
+        fixed = (i, j) in structural[src if src == "Eq. (12)" else qty[0]]
+        lo, hi = r.interval
+        assert (lo + hi) / 2 == pytest.approx(r.computed, abs=1e-15), (src, qty)
+        assert (hi - lo) / 2 == pytest.approx(0.0 if fixed else 5e-5, rel=1e-9, abs=1e-15), (src, qty)
+        seen += 1
+    assert seen == 16 + 32
 
 
 def test_tables_2_and_3_within_rounding() -> None:
@@ -76,6 +124,20 @@ def test_json_output_has_rows_matrices_and_exact_gains(capsys: pytest.CaptureFix
     assert len(data["gains"]["eq27_exact (exact eigenvalues, model b)"]) == 4
     assert np.array(data["lateral"]["modal_eq20_convention"]["B_ln"]).shape == (4, 3)
     assert data["lateral"]["controllability"]["all"]["kalman_rank"] == 4
+
+
+def test_json_puts_the_design_asked_for_first(capsys: pytest.CaptureFixture[str]) -> None:
+    """`analyze --targets ... --json`: the design for the user's targets is the document's first
+    key, and its gains place the targets (eig(A + b k) against them, 1e-9: a well-separated
+    spectrum of size 1)."""
+    targets = [-0.1, -0.2, -0.3, -0.4]
+    assert main(["analyze", "--targets=" + ",".join(map(str, targets)), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert list(data)[0] == "custom_design"
+    A, B = an.lateral_system()
+    k = np.array(data["custom_design"]["gains"])
+    got = np.sort(np.linalg.eigvals(A + np.outer(B[:, 0], k)).real)
+    assert_allclose(got, sorted(targets), atol=1e-9)
 
 
 def test_eq24_b_interval_by_vertices() -> None:

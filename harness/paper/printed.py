@@ -161,15 +161,16 @@ def half_unit(text: str, decimals: int | None = None) -> float:
     text : str
         Printed number: ``"0.1234"`` -> 5e-5, ``"1.23e-4"`` -> 5e-7.
     decimals : int, optional
-        For a bare ``"0"`` inside a matrix printed to ``decimals`` places, the
-        zero is read as ``0.000...`` (structural zeros are exact).
+        For a bare integer (``"0"``, ``"1"``) inside a matrix printed to ``decimals``
+        places, the entry is read as ``0.0000``, ``1.0000`` (the paper prints its
+        structural entries, which are exact, without the decimals of the others).
 
     Returns
     -------
     float
         The rounding half-width, in the unit of the printed value.
     """
-    if decimals is not None and Decimal(text) == 0 and "." not in text:
+    if decimals is not None and "." not in text and "e" not in text.lower():
         return 0.5 * 10.0 ** (-decimals)
     exponent = Decimal(text).as_tuple().exponent
     assert isinstance(exponent, int)

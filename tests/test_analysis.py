@@ -21,6 +21,7 @@ from dronefly.harness.paper import printed as pv
 from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabilising_designs
 from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze, reproduction_table
+from dronefly.harness.paper.rows import NOISE, format_bound, format_number, format_vector
 from dronefly.models import lateral_dynamics
 from dronefly.models import lateral_interface
 
@@ -138,6 +139,20 @@ def test_json_puts_the_design_asked_for_first(capsys: pytest.CaptureFixture[str]
     k = np.array(data["custom_design"]["gains"])
     got = np.sort(np.linalg.eigvals(A + np.outer(B[:, 0], k)).real)
     assert_allclose(got, sorted(targets), atol=1e-9)
+
+
+def test_how_the_reports_print_numbers() -> None:
+    """format_number: noise under NOISE (1e-12) is a signless 0; format_bound: a value known
+    only as a bound is "< 1e-12" strictly under it, else two digits; format_vector: four
+    decimals unless told."""
+    assert NOISE == 1e-12
+    assert [format_number(x) for x in (-3e-13, 2e-12, 0.1234567)] == ["0", "2e-12", "0.123457"]
+    assert format_number(-0.25, ".3f") == "-0.250"
+    assert [format_bound(x) for x in (9.9e-13, 1e-12, -3.456e-9)] == ["< 1e-12", "1.0e-12",
+                                                                      "-3.5e-09"]
+    assert format_bound(2e-10, bound=1e-9) == "< 1e-09"
+    assert format_vector(np.array([0.123456, -2.0, 5e-13])) == "(0.1235, -2.0000, 0.0000)"
+    assert format_vector(np.array([[1.0], [0.5]]), d=2) == "(1.00, 0.50)"
 
 
 def test_eq24_b_interval_by_vertices() -> None:

@@ -21,7 +21,8 @@ from dronefly.harness.paper import printed as pv
 from dronefly.harness.paper.design import lqr_gains, move_lambda1_gains, stabilising_designs
 from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze, reproduction_table
-from dronefly.harness.paper.rows import NOISE, format_bound, format_number, format_vector
+from dronefly.harness.paper.rows import (NOISE, format_bound, format_number, format_vector,
+                                         rounds_to)
 from dronefly.models import lateral_dynamics
 from dronefly.models import lateral_interface
 
@@ -139,6 +140,16 @@ def test_json_puts_the_design_asked_for_first(capsys: pytest.CaptureFixture[str]
     k = np.array(data["custom_design"]["gains"])
     got = np.sort(np.linalg.eigvals(A + np.outer(B[:, 0], k)).real)
     assert_allclose(got, sorted(targets), atol=1e-9)
+
+
+def test_a_value_on_the_decimal_edge_rounds_to_the_printed_number() -> None:
+    """"match" is |computed - printed| <= half a unit, the edge included: 0.07855 against
+    "0.0786" matches though its float difference is 5.000000000000004e-05; a value 1e-11
+    beyond the edge (ten times the slack) does not."""
+    assert abs(0.07855 - float("0.0786")) > 5e-5  # the edge in floats: why the slack exists
+    assert rounds_to(0.07855, "0.0786", 5e-5) and rounds_to(-0.07865, "-0.0786", 5e-5)
+    assert not rounds_to(0.07855 - 1e-11, "0.0786", 5e-5)
+    assert not rounds_to(0.0787, "0.0786", 5e-5)
 
 
 def test_how_the_reports_print_numbers() -> None:

@@ -27,7 +27,7 @@ from .analysis import (LONGITUDINAL_CONVENTION, ModalConvention, characteristic_
                        modal_decomposition, ordered_eigen)
 from .design import analysis_report
 from .notes import Notes
-from .rows import Row, summary
+from .rows import Row, rounds_to, summary
 
 __all__ = ["Analysis", "Row", "analyze", "lateral_inputs", "longitudinal_inputs",
            "reproduction_table"]
@@ -162,7 +162,7 @@ def _longitudinal_specs() -> list[tuple[str, str, str, int | None, Callable[[Ctx
 def _make(spec, computed: float, interval, note_fn) -> Row:
     src, qty, text, dec, _ = spec
     tol = pv.half_unit(text, dec)
-    match = abs(computed - float(text)) <= tol + 1e-12
+    match = rounds_to(computed, text, tol)
     reason, note = note_fn(src, qty, text, computed, match, interval)
     return Row(src, qty, text, float(computed), tol, bool(match), reason, note, interval)
 

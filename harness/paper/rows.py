@@ -12,7 +12,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 __all__ = ["NOISE", "Row", "format_bound", "format_number", "format_vector", "markdown_table",
-           "summary"]
+           "rounds_to", "summary"]
 
 #: Computed values below this magnitude are floating-point noise of structurally zero entries
 #: (their last bits differ between BLAS builds): shown as 0.
@@ -69,6 +69,14 @@ class Row:
                 "printed_text": self.printed, "computed": self.computed, "match": self.match,
                 "tolerance": self.tolerance, "reason": self.reason, "note": self.note,
                 "input_rounding_interval": list(self.interval) if self.interval else None}
+
+
+def rounds_to(computed: float, printed: str, half_unit: float) -> bool:
+    """Whether ``computed`` is ``printed`` to its digits: |computed - printed| <= ``half_unit``
+    (half a unit of the last printed digit), with 1e-12 of slack for a value on the decimal
+    edge, whose float difference exceeds the half unit by round-off (0.07855 against "0.0786":
+    5.000000000000004e-05 > 5e-05)."""
+    return abs(computed - float(printed)) <= half_unit + 1e-12
 
 
 def summary(rows: Sequence[Row]) -> dict:

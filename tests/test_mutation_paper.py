@@ -10,7 +10,6 @@ import math
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
 
 from dronefly.harness.paper.analysis import (AnalysisInputError, UncontrollableError,
                                              coefficient_matching_gains, controllability,

@@ -1,7 +1,9 @@
-"""Oracles for the analysis of the paper's matrices (``harness.paper.analysis``) written against
-the survivors of its mutation run (docs/mutation.md): controllability by Kalman's rank and by
-the PBH test on systems whose reachable modes are known by construction, and the checks on a
-user's target eigenvalues at their bounds.
+"""Oracles for the analysis of the paper's matrices (``harness.paper.analysis`` and
+``.design``) written against the survivors of their mutation runs (docs/mutation.md):
+controllability by Kalman's rank and by the PBH test on systems whose reachable modes are
+known by construction, the checks on a user's target eigenvalues at their bounds, and the
+designs beyond the paper against the exact response exp((A + b k) t) x0, python-control's LQR
+and the eigenvectors of A.
 """
 
 from __future__ import annotations
@@ -10,11 +12,15 @@ import math
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
+from scipy.linalg import expm
 
 from dronefly.harness.paper.analysis import (AnalysisInputError, UncontrollableError,
                                              coefficient_matching_gains, controllability,
                                              kalman_rank, lateral_system, modal_decomposition,
                                              validate_targets)
+from dronefly.harness.paper.design import (analysis_report, lqr_gains, move_lambda1_gains,
+                                           peak_control, stabilising_designs)
 from dronefly.models.lateral_interface import CONTROL_NAMES
 
 #: A block-diagonal system whose reachable modes are read off its B: the modes -1 and -2
@@ -143,3 +149,134 @@ def test_a_pair_is_matched_to_its_conjugate_within_a_relative_tolerance(targets,
     else:
         with pytest.raises(AnalysisInputError, match="has no conjugate"):
             validate_targets(t)
+
+
+# --- the designs beyond the paper (harness.paper.design) -------------------------------------
+def _response_by_expm(A, b, k, x0, t_end_wb, dt_wb):
+    """Peak |k x(t)|, its time and |x(t_end)| on the grid t_i = i dt, each x(t_i) =
+    exp((A + b k) t_i) x0 computed on its own (no stepping, so no accumulated round-off)."""
+    Acl = np.asarray(A) + np.outer(b, k)
+    n = int(round(t_end_wb / dt_wb))
+    xs = [expm(Acl * (i * dt_wb)) @ x0 for i in range(n + 1)]
+    u = [abs(np.dot(k, x)) for x in xs]
+    i = int(np.argmax(u))
+    return u[i], i * dt_wb, float(np.linalg.norm(xs[-1]))
+
+
+@pytest.mark.parametrize("t_end, dt", [(None, None), (3.0, 0.25)])
+def test_peak_control_is_the_peak_of_the_exact_response(t_end, dt):
+    """The closed loop of delta_Phi_a with gains that move lambda_1 to -0.1 (peak at t = 0 for
+    a pure roll) and with gains that peak later (the LQR design from the mode-1 shape): the
+    peak, its time and the final state against exp((A + b k) t) x0 at every grid point (the
+    stepped product drifts from it by round-off, 1e-13 relative over 2000 steps)."""
+    A, B = lateral_system()
+    b = B[:, 0]
+    kw = {} if t_end is None else {"t_end": t_end, "dt": dt}
+    grid = (100.0, 0.05) if t_end is None else (t_end, dt)
+    eta1 = _mode1_shape(A)
+    for k, x0 in ((move_lambda1_gains(A, B, "delta_Phi_a", -0.1), np.array([0, 0, 0, 0.5])),
+                  (lqr_gains(A, B, "delta_Phi_a"), 0.5 * eta1),
+                  (np.array([0.0, 0.0, 0.0, 0.2]), np.array([0.1, 0.0, 0.0, 0.0]))):
+        got = peak_control(A, b, k, x0, **kw)
+        peak, when, final = _response_by_expm(A, b, k, x0, *grid)
+        assert got.peak_control_rad == pytest.approx(peak, rel=1e-10)
+        assert got.peak_time == pytest.approx(when, abs=1e-12)
+        assert got.final_state_norm == pytest.approx(final, rel=1e-9, abs=1e-15)
+        assert got.peak_control_deg == pytest.approx(math.degrees(peak), rel=1e-10)
+
+
+def _mode1_shape(A):
+    """The eigenvector of the real unstable root lambda_1, scaled to dgamma = 1 (Table 3)."""
+    w, v = np.linalg.eig(A)
+    i = int(np.argmax(w.real))
+    assert abs(w[i].imag) < 1e-15 and w[i].real > 0
+    return np.real(v[:, i] / v[3, i])
+
+
+@pytest.mark.parametrize("name, value", [("t_end", 0.0), ("t_end", -0.5), ("t_end", math.nan),
+                                         ("dt", 0.0), ("dt", -0.5), ("dt", math.inf)])
+def test_peak_control_refuses_a_horizon_or_step_that_is_not_positive(name, value):
+    A, B = lateral_system()
+    with pytest.raises(AnalysisInputError, match=rf"{name} = {value!r} must be finite and > 0"):
+        peak_control(A, B[:, 0], np.zeros(4), np.ones(4), **{name: value})
+
+
+def test_move_lambda1_moves_only_lambda1_and_only_to_the_left():
+    A, B = lateral_system()
+    w = np.linalg.eigvals(A)
+    k = move_lambda1_gains(A, B, "delta_alpha_1a", -0.3)
+    got = np.sort_complex(np.linalg.eigvals(A + np.outer(B[:, 1], k)))
+    want = np.sort_complex(np.array([-0.3, *sorted(w, key=lambda z: -z.real)[1:]]))
+    assert_allclose(got, want, atol=1e-9)
+    for bad in (0.0, 0.5, math.nan):
+        with pytest.raises(AnalysisInputError, match=rf"lambda1 = {bad!r} must be finite and < 0"):
+            move_lambda1_gains(A, B, "delta_Phi_a", bad)
+
+
+def test_lqr_gains_are_python_controls():
+    """python-control's lqr (SLICOT or scipy's Riccati solver) gives K for u = -K x; ours are
+    u = k x. Weights away from identity and r away from 1 (where k / r and k * r differ); the
+    Riccati solution of a well-conditioned 4x4 problem agrees to 1e-9."""
+    control = pytest.importorskip("control", reason="the test extra installs python-control")
+    A, B = lateral_system()
+    for u, q, r in (("delta_Phi_a", (1.0, 1.0, 1.0, 1.0), 1.0),
+                    ("delta_alpha_2a", (0.5, 2.0, 0.0, 3.0), 2.5)):
+        b = B[:, [list(CONTROL_NAMES).index(u)]]
+        K, _, _ = control.lqr(A, b, np.diag(q), np.array([[r]]))
+        assert_allclose(lqr_gains(A, B, u, q=q, r=r), -np.asarray(K)[0], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("q, r", [((1, 1, 1, 1), 0.0), ((1, 1, 1, 1), -0.5), ((1, 1, 1, 1), math.nan),
+                                  ((1, -0.5, 1, 1), 1.0), ((1, math.nan, 1, 1), 1.0)])
+def test_lqr_refuses_weights_that_are_not_a_cost(q, r):
+    A, B = lateral_system()
+    with pytest.raises(AnalysisInputError, match=r"LQR weights .* must be finite, q >= 0, r > 0"):
+        lqr_gains(A, B, "delta_Phi_a", q=q, r=r)
+
+
+def test_the_designs_start_from_the_documented_disturbances():
+    """Defaults: lambda_1 -> -0.1, and disturbances of a 0.5 rad roll and 0.5 eta_1 (docs/
+    reproduction.md: "after a pure 0.5 rad roll and after 0.5 x the mode-1 eigenvector")."""
+    A, B = lateral_system()
+    eta1 = _mode1_shape(A)
+    for d in stabilising_designs():
+        b = B[:, list(CONTROL_NAMES).index(d.input)]
+        if d.method.startswith("lambda1"):
+            assert d.method == "lambda1 -> -0.1"
+            assert min(abs(np.linalg.eigvals(A + np.outer(b, d.gains)) + 0.1)) < 1e-9
+        for resp, x0 in ((d.roll, np.array([0, 0, 0, 0.5])), (d.mode1, 0.5 * eta1)):
+            assert resp.peak_control_rad == pytest.approx(_response_by_expm(A, b, d.gains, x0, 100.0, 0.05)[0],
+                                                          rel=1e-10)
+    for bad in (0.0, math.nan):
+        with pytest.raises(AnalysisInputError, match=rf"gamma0 = {bad!r} must be finite and nonzero"):
+            stabilising_designs(gamma0=bad)
+    assert len(stabilising_designs(gamma0=-1.0)) == len(stabilising_designs(gamma0=1.0)) == 6
+
+
+def test_the_report_of_a_custom_design():
+    """analyze --targets: the gains place the targets (the characteristic polynomial to
+    round-off), the peak controls are those of the documented disturbances, Eq. (24)'s b is
+    B1's delta_Phi_a column, and the Table 3 modal form diagonalises A1 in Table 3's order with
+    each real mode's eigenvector at dgamma = 1."""
+    targets = [-0.2, complex(-0.089, 0.057), complex(-0.089, -0.057), -0.51]
+    r = analysis_report(",".join(str(z).strip("()") for z in targets), "delta_alpha_1a")
+    A, B = lateral_system()
+    c = r["custom_design"]
+    b = B[:, 1]
+    k = np.array(c["gains"])
+    assert c["char_poly_error"] < 1e-13
+    assert_allclose(np.poly(A + np.outer(b, k)), np.real(np.poly(targets)), atol=1e-13)
+    eta1 = _mode1_shape(A)
+    for key, x0 in (("roll", np.array([0, 0, 0, 0.5])), ("mode1", 0.5 * eta1)):
+        want = math.degrees(_response_by_expm(A, b, k, x0, 100.0, 0.05)[0])
+        assert c["peak_control_deg"][key] == pytest.approx(want, rel=1e-10), key
+    lat = r["lateral"]
+    assert lat["eq24_b"] == B[:, 0].tolist() == [row[0] for row in lat["B1"]]
+    M = np.array(lat["modal_table3_convention"]["M1"])
+    D = np.linalg.solve(M, A @ M)
+    w = sorted(np.linalg.eigvals(A), key=lambda z: (-z.real, -z.imag))  # lambda1, pair, lambda4
+    assert D[0, 0] == pytest.approx(w[0].real, abs=1e-12) and D[3, 3] == pytest.approx(w[3].real, abs=1e-12)
+    assert np.abs(D[0, 1:]).max() < 1e-12 and np.abs(D[3, :3]).max() < 1e-12
+    assert_allclose(np.linalg.eigvals(D[1:3, 1:3]), [w[1], w[2]], atol=1e-12)
+    assert M[3, 0] == pytest.approx(1.0, abs=1e-14) and M[3, 3] == pytest.approx(1.0, abs=1e-14)
+    assert_allclose(np.array(lat["modal_table3_convention"]["B_ln"]), np.linalg.solve(M, B), atol=1e-12)

@@ -17,8 +17,9 @@ from scipy.linalg import expm
 
 from dronefly.harness.paper.analysis import (AnalysisInputError, UncontrollableError,
                                              coefficient_matching_gains, controllability,
-                                             kalman_rank, lateral_system, modal_decomposition,
-                                             validate_targets)
+                                             LONGITUDINAL_CONVENTION, eigenvector_table,
+                                             kalman_rank, lateral_system, longitudinal_system,
+                                             modal_decomposition, validate_targets)
 from dronefly.harness.paper.design import (analysis_report, lqr_gains, move_lambda1_gains,
                                            peak_control, stabilising_designs)
 from dronefly.models.lateral_interface import CONTROL_NAMES
@@ -280,3 +281,44 @@ def test_the_report_of_a_custom_design():
     assert_allclose(np.linalg.eigvals(D[1:3, 1:3]), [w[1], w[2]], atol=1e-12)
     assert M[3, 0] == pytest.approx(1.0, abs=1e-14) and M[3, 3] == pytest.approx(1.0, abs=1e-14)
     assert_allclose(np.array(lat["modal_table3_convention"]["B_ln"]), np.linalg.solve(M, B), atol=1e-12)
+
+
+# --- the modal form and Table 3 (harness.paper.modal) ----------------------------------------
+def test_the_modal_forms_list_their_eigenvalues_in_their_order():
+    """ModalForm.eigenvalues: eig(A) in the convention's order, a pair as sigma + i omega then
+    its conjugate: the lateral form in ordered_eigen's order (lambda_1, the pair, lambda_4),
+    the longitudinal one as Eq. (32)'s columns (the pair, the fast, then the slow subsidence)."""
+    A, B = lateral_system()
+    w = sorted(np.linalg.eigvals(A), key=lambda z: (-z.real, -z.imag))
+    got = modal_decomposition(A, B).eigenvalues
+    assert_allclose(got, [w[0], w[1], w[2], w[3]], atol=1e-12)
+    assert got[1].imag > 0 and got[2] == np.conj(got[1])
+    Al, Bl = longitudinal_system()
+    ml = modal_decomposition(Al, Bl, LONGITUDINAL_CONVENTION)
+    wl = np.linalg.eigvals(Al)
+    pair = sorted(wl[np.abs(wl.imag) > 0], key=lambda z: -z.imag)
+    real = sorted(wl[wl.imag == 0].real)  # fast (more negative), then slow
+    assert_allclose(ml.eigenvalues, [*pair, *real], atol=1e-12)
+    # each column of M is its eigenvalue's: A M = M A_nn with A_nn block diagonal in that order
+    assert_allclose(ml.A_nn[2:, 2:], np.diag(real), atol=1e-12)
+
+
+def test_table3_phases_are_wrapped_to_the_half_open_interval():
+    """A pair eigenvector whose first component lies at -179.5 degrees from dgamma (the
+    reference of Table 3) is printed at -179.5, not +180.5: phases in (-180, 180]. A is built
+    from its eigenvectors: real Jordan form J, A = V J V^-1 (V of size 1: exact to 1e-14)."""
+    phi = math.radians(-179.5)
+    sigma, omega = -0.1, 0.5
+    a = np.array([math.cos(phi), 0.3, 0.2, 1.0])  # real and imaginary parts of the pair's
+    bvec = np.array([math.sin(phi), -0.4, 0.1, 0.0])  # eigenvector, dgamma = 1 + 0i
+    V = np.column_stack([[0.2, 0.1, 0.3, 1.0], a, bvec, [0.5, -0.2, 0.1, 1.0]])
+    J = np.array([[0.1, 0, 0, 0], [0, sigma, omega, 0], [0, -omega, sigma, 0], [0, 0, 0, -1.0]])
+    A = V @ J @ np.linalg.inv(V)
+    w, mag, ph = eigenvector_table(A)
+    assert_allclose(w, [0.1, complex(sigma, omega), -1.0], atol=1e-12)
+    # the pair's eigenvector for sigma + i omega is a + i b (J's block: A a = sigma a - omega b,
+    # A b = omega a + sigma b), with dgamma = a[3] + i b[3] = 1
+    want = np.degrees(np.angle(a + 1j * bvec))
+    assert ph[0, 1] == pytest.approx(want[0], abs=1e-9) and ph[0, 1] < -179.0
+    assert_allclose(ph[:, 1], want, atol=1e-9)
+    assert_allclose(mag[:, 1], np.abs(a + 1j * bvec), rtol=1e-12)

@@ -9,6 +9,7 @@ and the eigenvectors of A.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -20,8 +21,11 @@ from dronefly.harness.paper.analysis import (AnalysisInputError, UncontrollableE
                                              LONGITUDINAL_CONVENTION, eigenvector_table,
                                              kalman_rank, lateral_system, longitudinal_system,
                                              modal_decomposition, validate_targets)
+from dronefly.harness.cosim.params import ParameterError
 from dronefly.harness.paper.design import (analysis_report, lqr_gains, move_lambda1_gains,
                                            peak_control, stabilising_designs)
+from dronefly.harness.paper.gains import as_gain_matrix, gain_matrix, parse_gains
+from dronefly.harness.paper.printed import EQ27_GAINS
 from dronefly.models.lateral_interface import CONTROL_NAMES
 
 #: A block-diagonal system whose reachable modes are read off its B: the modes -1 and -2
@@ -322,3 +326,65 @@ def test_table3_phases_are_wrapped_to_the_half_open_interval():
     assert ph[0, 1] == pytest.approx(want[0], abs=1e-9) and ph[0, 1] < -179.0
     assert_allclose(ph[:, 1], want, atol=1e-9)
     assert_allclose(mag[:, 1], np.abs(a + 1j * bvec), rtol=1e-12)
+
+
+# --- gain matrices from the command line (harness.paper.gains) ------------------------------
+def test_the_named_gain_sets():
+    """paper: Eq. (27) on delta_Phi_a (as printed, the other rows 0); open: 0; stabilising:
+    delta_Phi_a's gains that move lambda_1 to -0.1 and keep the other roots of A1."""
+    paper = parse_gains(" Paper ")
+    assert paper.shape == (3, 4) and paper[0].tolist() == [float(k) for k in EQ27_GAINS]
+    assert not paper[1:].any() and not parse_gains("open").any() and gain_matrix("open").shape == (3, 4)
+    K = parse_gains("STABILISING")
+    assert K.shape == (3, 4) and not K[1:].any()
+    A, B = lateral_system()
+    got = np.sort_complex(np.linalg.eigvals(A + B @ K))
+    w = sorted(np.linalg.eigvals(A), key=lambda z: -z.real)
+    assert_allclose(got, np.sort_complex(np.array([-0.1, *w[1:]])), atol=1e-9)
+    with pytest.raises(ParameterError, match="unknown gain set 'closed'; choose from paper, "
+                                             "stabilising, open"):
+        gain_matrix("closed")
+
+
+def test_gains_inline_and_from_files(tmp_path):
+    """One row is delta_Phi_a's (Eq. 22), three rows are the full matrix; a CSV with or
+    without a header line, a JSON list of rows or {"K": rows}."""
+    full = np.arange(1.0, 13.0).reshape(3, 4)
+    assert parse_gains("1,2,3,4").tolist() == [[1, 2, 3, 4], [0] * 4, [0] * 4]
+    assert np.array_equal(parse_gains("1,2,3,4; 5,6,7,8 ;9,10,11,12"), full)
+    assert np.array_equal(as_gain_matrix([1, 2, 3, 4]), parse_gains("1,2,3,4"))
+    assert np.array_equal(as_gain_matrix(full.tolist()), full)
+    (tmp_path / "h.csv").write_text("k1,k2,k3,k4\n1,2,3,4\n5,6,7,8\n9,10,11,12\n")
+    (tmp_path / "n.CSV").write_text("1,2,3,4\n\n5,6,7,8\n9,10,11,12\n")
+    (tmp_path / "l.json").write_text("[[1,2,3,4],[5,6,7,8],[9,10,11,12]]")
+    (tmp_path / "d.json").write_text('{"K": [[1,2,3,4]]}')
+    for name in ("h.csv", "n.CSV", "l.json"):
+        assert np.array_equal(parse_gains(str(tmp_path / name)), full), name
+    assert parse_gains(str(tmp_path / "d.json")).tolist() == [[1, 2, 3, 4], [0] * 4, [0] * 4]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("1,2;3,4", "gains '1,2;3,4': 2 rows, expected 3 (delta_Phi_a, delta_alpha_1a, delta_alpha_2a) or 1"),
+    ("1,2,3,4;5,6,7;8,9,10,11", "gains '1,2,3,4;5,6,7;8,9,10,11': row 2 has 3 values, expected 4 "
+                                "(on delta_v, delta_p, delta_r, delta_gamma as x+)"),
+    ("1,2,3", "row 1 has 3 values, expected 4"),
+    ("1,nan,3,4", "K[1,2] = nan is not finite"),
+    ("1,2,3,4;0,0,0,0;0,0,0,inf", "K[3,4] = inf is not finite"),
+    ("1,x,3,4", "gains '1,x,3,4': every entry must be a number"),
+])
+def test_bad_gains_are_named(text, message):
+    with pytest.raises(ParameterError, match=re.escape(message)):
+        parse_gains(text)
+
+
+def test_bad_gain_files_are_named(tmp_path):
+    (tmp_path / "bad.json").write_text("[[1,2,3,4]")
+    (tmp_path / "dict.json").write_text('{"gains": [[1,2,3,4]]}')
+    (tmp_path / "short.csv").write_text("1,2,3\n")
+    for name, message in (("missing.csv", "No such file or directory"),
+                          ("bad.json", "is not JSON"),
+                          ("dict.json", r"expected a list of rows or \{\"K\": \.\.\.\}"),
+                          ("short.csv", "row 1 has 3 values")):
+        path = str(tmp_path / name)
+        with pytest.raises(ParameterError, match=rf"{re.escape(repr(path))}.*{message}"):
+            parse_gains(path)

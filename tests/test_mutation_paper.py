@@ -26,6 +26,8 @@ from dronefly.harness.paper.design import (analysis_report, lqr_gains, move_lamb
                                            peak_control, stabilising_designs)
 from dronefly.harness.paper.gains import as_gain_matrix, gain_matrix, parse_gains
 from dronefly.harness.paper.printed import EQ27_GAINS
+from dronefly.harness.paper.report import render
+from dronefly.harness.paper.reproduction import analyze
 from dronefly.models.lateral_interface import CONTROL_NAMES
 
 #: A block-diagonal system whose reachable modes are read off its B: the modes -1 and -2
@@ -393,3 +395,51 @@ def test_bad_gain_files_are_named(tmp_path):
             parse_gains(path)
         want = message.format(repr(path))
         assert str(e.value) == want or want.endswith(": ") and str(e.value).startswith(want)
+
+
+# --- what `dronefly analyze` prints (harness.paper.report) -----------------------------------
+def test_the_text_report_says_what_the_rows_say():
+    """The counts in the findings are the rows' own (counted here), each row has its line with
+    its printed and computed value and its verdict, and the designs' lines give the peak
+    controls of the report."""
+    a = analyze()
+    text = render(a, "text")
+    lines = text.splitlines()
+    rows = a.rows
+    bad = [r for r in rows if not r.match]
+    reasons = {}
+    for r in bad:
+        reasons[r.reason] = reasons.get(r.reason, 0) + 1
+    assert (f"{len(rows)} rows, {len(rows) - len(bad)} match, {len(bad)} do not ("
+            + ", ".join(f"{n} {k}" for k, n in reasons.items()) + ").") in lines
+    per_source = {}
+    for r in rows:
+        m, n = per_source.get(r.source, (0, 0))
+        per_source[r.source] = (m + r.match, n + (not r.match))
+    assert ("Per source (match / rounding or other mismatch): "
+            + "; ".join(f"{s} {m}/{n}" for s, (m, n) in per_source.items()) + ".") in lines
+    for r in rows:
+        line = next(ln for ln in lines if ln.startswith(f"{r.source:10} {r.quantity:46} "))
+        printed, computed, *verdict = line[58:].split()
+        assert printed == r.printed and float(computed) == pytest.approx(r.computed, rel=1e-5,
+                                                                         abs=1e-12)
+        assert " ".join(verdict) == ("yes" if r.match else f"NO ({r.reason})")
+    for d in a.report["designs"]:
+        resp = d["response"]
+        want = (f"peak {resp['roll']['peak_control_deg']:.2f} / "
+                f"{resp['mode1']['peak_control_deg']:.2f} deg")
+        assert any(d["method"] in ln and d["input"] in ln and ln.endswith(want) for ln in lines)
+    assert lines[0] == "Reproduction of Zhang & Sun (lateral stabilization), printed vs computed"
+
+
+def test_a_custom_design_comes_first_in_every_rendering():
+    a = analyze("-0.1,-0.1,-0.1,-0.1")  # repeated: the note on place_poles is shown
+    k = a.report["custom_design"]["gains"]
+    text = render(a, "text").splitlines()
+    assert text[0] == ("Design for the given targets with delta_Phi_a: k = ("
+                       + ", ".join(f"{v:.6f}" for v in k) + ")")
+    assert text[1].startswith("  repeated targets: placed by coefficient matching")
+    md = render(a, "markdown").splitlines()
+    assert md.index("## Design for the given targets") < md.index("## Findings")
+    with pytest.raises(ValueError, match="format = 'html'; choose text, markdown or json"):
+        render(a, "html")

@@ -30,6 +30,8 @@ from dronefly.harness.paper.report import render
 from dronefly.harness.paper.reproduction import analyze
 from dronefly.models.lateral_interface import CONTROL_NAMES
 
+pytestmark = pytest.mark.numeric  # SVDs, eigenvectors, expm and Riccati go through the BLAS kernel
+
 #: A block-diagonal system whose reachable modes are read off its B: the modes -1 and -2
 #: (states 1 and 2) and the pair -0.1 +- 0.5i (states 3 and 4). u1 = (1, 0, 1, 0) reaches -1
 #: and the pair, not -2; u2 = (0, 1, 0, 0) reaches -2 only.

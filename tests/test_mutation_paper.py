@@ -445,3 +445,37 @@ def test_a_custom_design_comes_first_in_every_rendering():
     assert md.index("## Design for the given targets") < md.index("## Findings")
     with pytest.raises(ValueError, match="format = 'html'; choose text, markdown or json"):
         render(a, "html")
+
+
+def test_the_text_report_wraps_each_new_note_under_its_row():
+    """A row's note follows its line, indented and wrapped at 100 columns, once: a row whose
+    note is its predecessor's shows none."""
+    a = analyze()
+    lines = render(a, "text").splitlines()
+    last = ""
+    seen = 0
+    for r in a.rows:
+        k = next(i for i, ln in enumerate(lines) if ln.startswith(f"{r.source:10} {r.quantity:46} "))
+        below = []
+        for ln in lines[k + 1:]:
+            if not ln.startswith("    "):
+                break
+            below.append(ln)
+        if r.note and r.note != last:
+            assert " ".join(ln.strip() for ln in below) == " ".join(r.note.split()), r.quantity
+            assert all(len(ln) <= 100 for ln in below)
+            seen += 1
+        else:
+            assert below == [], r.quantity
+        last = r.note
+    assert seen >= 10
+
+
+def test_the_markdown_puts_a_custom_design_between_its_preamble_and_the_findings():
+    plain = render(analyze(), "markdown").splitlines()
+    custom = render(analyze("-0.2,-0.3,-0.4,-0.5"), "markdown").splitlines()
+    head = plain.index("## Findings")
+    assert custom[:head] == plain[:head]  # the title and the paragraph on how it was made
+    assert custom[head] == "## Design for the given targets"
+    assert custom[head + 2].startswith("Design for the given targets with delta_Phi_a: k = (")
+    assert custom[custom.index("## Findings") + 1:][:3] == plain[head + 1:][:3]

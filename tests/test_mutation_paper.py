@@ -479,3 +479,36 @@ def test_the_markdown_puts_a_custom_design_between_its_preamble_and_the_findings
     assert custom[head] == "## Design for the given targets"
     assert custom[head + 2].startswith("Design for the given targets with delta_Phi_a: k = (")
     assert custom[custom.index("## Findings") + 1:][:3] == plain[head + 1:][:3]
+
+
+def _greedy_at(lines: list[str], width: int) -> bool:
+    """Whether ``lines`` are a paragraph filled to ``width`` columns: none longer, and none
+    that could have taken the next line's first word."""
+    return all(len(ln) <= width for ln in lines) and all(
+        len(a) + 1 + len(b.split()[0]) > width for a, b in zip(lines, lines[1:]))
+
+
+def test_the_reports_print_gains_to_six_decimals_and_fill_notes_to_100_columns():
+    """The gain variants differ in their 4th to 6th decimals (Eq. 27 as printed -0.3192, from
+    the paper's inputs -0.319193): both renderings print every gain to 6 decimals. Notes,
+    and the note of a custom design, are filled to 100 columns."""
+    a = analyze("-0.1,-0.1,-0.1,-0.1")
+    text, md = render(a, "text").splitlines(), render(a, "markdown").splitlines()
+    for name, values in a.gains.items():
+        want = "(" + ", ".join(f"{v:.6f}" for v in values) + ")"
+        assert f"  {name}: {want}" in text and f"- {name}: `{want}`" in md, name
+    end = next(i for i, ln in enumerate(text) if i and not ln.startswith("  "))
+    note = text[1:end]  # the custom design's note, under its first line
+    assert len(note) >= 3 and _greedy_at(note, 100)
+    assert " ".join(ln.strip() for ln in note) == " ".join(a.report["custom_design"]["note"].split())
+    last = ""
+    for r in a.rows:
+        if r.note and r.note != last:
+            k = text.index(next(ln for ln in text if ln.startswith(f"{r.source:10} {r.quantity:46} ")))
+            below = []
+            for ln in text[k + 1:]:
+                if not ln.startswith("    "):
+                    break
+                below.append(ln)
+            assert _greedy_at(below, 100), r.quantity
+        last = r.note

@@ -102,6 +102,17 @@ TARGETS: dict[str, list[str]] = {
         "tests/test_flapping.py::"
         "test_instantaneous_forces_are_the_sampled_forces_of_the_quasi_steady_model",
         "tests/test_mutation_flapping.py"],
+    # the paper's numbers: the analysis of the printed matrices and the designs beyond them
+    # (oracles on systems built for the purpose), the modal form, the reproduction's rows
+    # against the printed values, and their reports (unit tests, 2 s in all)
+    **{f"harness/paper/{m}.py": ["tests/test_mutation_paper.py", "tests/test_analysis.py",
+                                 "tests/test_reproduction_rows.py"]
+       for m in ("analysis", "design", "modal")},
+    **{f"harness/paper/{m}.py": ["tests/test_analysis.py", "tests/test_reproduction_rows.py",
+                                 "tests/test_mutation_paper.py"]
+       for m in ("reproduction", "rows", "report")},
+    "harness/paper/gains.py": ["tests/test_mutation_paper.py", "tests/test_analysis.py",
+                               "tests/test_cli_features.py"],
     # the checks that read an archive or call a binary, on tiny archives and stub contexts
     "harness/compliance/static.py": [_CHECKS],
     "harness/compliance/names.py": [_CHECKS, "tests/test_check_names.py"],

@@ -400,6 +400,18 @@ def test_bad_gain_files_are_named(tmp_path):
 
 
 # --- what `dronefly analyze` prints (harness.paper.report) -----------------------------------
+def _row_line(lines: list[str], row) -> int:
+    """The index of ``row``'s line in the text report."""
+    return next(i for i, ln in enumerate(lines) if ln.startswith(f"{row.source:10} {row.quantity:46} "))
+
+
+def _greedy_at(lines: list[str], width: int) -> bool:
+    """Whether ``lines`` are a paragraph filled to ``width`` columns: none longer, and none
+    that could have taken the next line's first word."""
+    return all(len(ln) <= width for ln in lines) and all(
+        len(a) + 1 + len(b.split()[0]) > width for a, b in zip(lines, lines[1:]))
+
+
 def test_the_text_report_says_what_the_rows_say():
     """The counts in the findings are the rows' own (counted here), each row has its line with
     its printed and computed value and its verdict, and the designs' lines give the peak
@@ -421,7 +433,7 @@ def test_the_text_report_says_what_the_rows_say():
     assert ("Per source (match / rounding or other mismatch): "
             + "; ".join(f"{s} {m}/{n}" for s, (m, n) in per_source.items()) + ".") in lines
     for r in rows:
-        line = next(ln for ln in lines if ln.startswith(f"{r.source:10} {r.quantity:46} "))
+        line = lines[_row_line(lines, r)]
         printed, computed, *verdict = line[58:].split()
         assert printed == r.printed and float(computed) == pytest.approx(r.computed, rel=1e-5,
                                                                          abs=1e-12)
@@ -448,22 +460,21 @@ def test_a_custom_design_comes_first_in_every_rendering():
 
 
 def test_the_text_report_wraps_each_new_note_under_its_row():
-    """A row's note follows its line, indented and wrapped at 100 columns, once: a row whose
+    """A row's note follows its line, indented and filled to 100 columns, once: a row whose
     note is its predecessor's shows none."""
     a = analyze()
     lines = render(a, "text").splitlines()
     last = ""
     seen = 0
     for r in a.rows:
-        k = next(i for i, ln in enumerate(lines) if ln.startswith(f"{r.source:10} {r.quantity:46} "))
         below = []
-        for ln in lines[k + 1:]:
+        for ln in lines[_row_line(lines, r) + 1:]:
             if not ln.startswith("    "):
                 break
             below.append(ln)
         if r.note and r.note != last:
             assert " ".join(ln.strip() for ln in below) == " ".join(r.note.split()), r.quantity
-            assert all(len(ln) <= 100 for ln in below)
+            assert _greedy_at(below, 100), r.quantity
             seen += 1
         else:
             assert below == [], r.quantity
@@ -481,17 +492,10 @@ def test_the_markdown_puts_a_custom_design_between_its_preamble_and_the_findings
     assert custom[custom.index("## Findings") + 1:][:3] == plain[head + 1:][:3]
 
 
-def _greedy_at(lines: list[str], width: int) -> bool:
-    """Whether ``lines`` are a paragraph filled to ``width`` columns: none longer, and none
-    that could have taken the next line's first word."""
-    return all(len(ln) <= width for ln in lines) and all(
-        len(a) + 1 + len(b.split()[0]) > width for a, b in zip(lines, lines[1:]))
-
-
-def test_the_reports_print_gains_to_six_decimals_and_fill_notes_to_100_columns():
+def test_the_reports_print_gains_to_six_decimals_and_fill_the_design_note():
     """The gain variants differ in their 4th to 6th decimals (Eq. 27 as printed -0.3192, from
-    the paper's inputs -0.319193): both renderings print every gain to 6 decimals. Notes,
-    and the note of a custom design, are filled to 100 columns."""
+    the paper's inputs -0.319193): both renderings print every gain to 6 decimals. The note of
+    a custom design is filled to 100 columns (the rows' notes: the wrapping test above)."""
     a = analyze("-0.1,-0.1,-0.1,-0.1")
     text, md = render(a, "text").splitlines(), render(a, "markdown").splitlines()
     for name, values in a.gains.items():
@@ -501,14 +505,3 @@ def test_the_reports_print_gains_to_six_decimals_and_fill_notes_to_100_columns()
     note = text[1:end]  # the custom design's note, under its first line
     assert len(note) >= 3 and _greedy_at(note, 100)
     assert " ".join(ln.strip() for ln in note) == " ".join(a.report["custom_design"]["note"].split())
-    last = ""
-    for r in a.rows:
-        if r.note and r.note != last:
-            k = text.index(next(ln for ln in text if ln.startswith(f"{r.source:10} {r.quantity:46} ")))
-            below = []
-            for ln in text[k + 1:]:
-                if not ln.startswith("    "):
-                    break
-                below.append(ln)
-            assert _greedy_at(below, 100), r.quantity
-        last = r.note
